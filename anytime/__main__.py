@@ -1,0 +1,7 @@
+"""`python -m anytime` is the `anytime` command."""
+
+import sys
+
+from anytime.cli import main
+
+sys.exit(main())

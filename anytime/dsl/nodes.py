@@ -1,0 +1,85 @@
+"""The syntax tree of a schema file, with source positions.
+
+Positions never take part in equality: two forms that differ only in layout are the same form.
+These nodes are what the parser builds; `normalize` turns them into `Program`s.
+New forms of the language (conditionals, choices among alternatives) are new node classes here.
+"""
+
+from __future__ import annotations
+
+from attrs import field, frozen
+
+
+@frozen
+class Span:
+    """A place in the source: 1-based line and column where it starts and one past its end."""
+
+    line: int
+    column: int
+    end_line: int
+    end_column: int
+
+
+@frozen
+class Symbol:
+    name: str
+    span: Span = field(eq=False, repr=False)
+
+
+@frozen
+class Number:
+    value: int | float
+    span: Span = field(eq=False, repr=False)
+
+
+@frozen
+class String:
+    value: str
+    span: Span = field(eq=False, repr=False)
+
+
+@frozen
+class KeywordArg:
+    name: str
+    value: Expr
+    span: Span = field(eq=False, repr=False)
+
+
+@frozen
+class Call:
+    function: str
+    args: tuple[Expr, ...]
+    keywords: tuple[KeywordArg, ...]
+    span: Span = field(eq=False, repr=False)
+    function_span: Span = field(eq=False, repr=False)
+
+
+Expr = Symbol | Number | String | Call
+
+
+@frozen
+class Setf:
+    target: str
+    value: Expr
+    span: Span = field(eq=False, repr=False)
+    target_span: Span = field(eq=False, repr=False)
+
+
+Form = Setf | Expr
+
+
+@frozen
+class SchemaDef:
+    name: str
+    params: tuple[Symbol, ...]
+    doc: str | None
+    body: tuple[Form, ...]
+    span: Span = field(eq=False, repr=False)
+    name_span: Span = field(eq=False, repr=False)
+
+
+@frozen
+class SourceFile:
+    filename: str
+    schemas: tuple[SchemaDef, ...]
+    text: str = field(eq=False, repr=False)

@@ -1,0 +1,369 @@
+"""Schema text -> syntax tree (`SourceFile`), with every syntax error pointing at its place.
+
+Parsing runs in two passes. A linear scan checks that parentheses balance and do not nest too
+deeply: it gives a precise "never closed" position that an LALR parser reaching the end of the
+file cannot, and it keeps the recursive tree transformation far from Python's recursion limit.
+Then the LALR parser built from `grammar.lark` reads the forms; its errors are translated into
+plain words with `match_examples`.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from functools import cache
+from typing import Any
+
+from lark import Lark, Token, Transformer, v_args
+from lark.exceptions import (
+    UnexpectedCharacters,
+    UnexpectedEOF,
+    UnexpectedInput,
+    UnexpectedToken,
+    VisitError,
+)
+from lark.tree import Meta
+
+from anytime.dsl.nodes import (
+    Call,
+    Expr,
+    Form,
+    KeywordArg,
+    Number,
+    SchemaDef,
+    Setf,
+    SourceFile,
+    Span,
+    String,
+    Symbol,
+)
+from anytime.errors import Diagnostic, SchemaSyntaxError
+
+#: Deeper nesting than this is refused with a clear error (real schemas nest a few levels).
+MAX_NESTING = 100
+
+# Each message is matched against the parser state at the error by lark's `match_examples`.
+SYNTAX_EXAMPLES: dict[str, list[str]] = {
+    "missing schema name after 'defschema'": [
+        "(defschema (x) x)",
+        "(defschema)",
+        "(defschema 1 (x) x)",
+        '(defschema "f" (x) x)',
+        "(defschema :f (x) x)",
+    ],
+    "missing parameter list: expected '(' and the parameter names after the schema name": [
+        "(defschema f x)",
+        "(defschema f)",
+        "(defschema f 1 x)",
+        '(defschema f "doc" (x) x)',
+        "(defschema f :k)",
+    ],
+    "a parameter must be a name": [
+        "(defschema f (1) x)",
+        '(defschema f ("a") x)',
+        "(defschema f ((x)) x)",
+        "(defschema f (:k) x)",
+        "(defschema f (x 2) x)",
+    ],
+    "a file holds only (defschema NAME (PARAMS...) BODY...) forms": [
+        "x",
+        "1",
+        '"s"',
+        ":k",
+        "(f x)",
+        "(setf a b)",
+        "()",
+        "(defschema f (x) x) y",
+        "(defschema f (x) x) (g)",
+        "(defschema f (x) x) 2",
+    ],
+    "setf needs a variable name: (setf VAR EXPR)": [
+        "(defschema f (x) (setf))",
+        "(defschema f (x) (setf 1 x))",
+        "(defschema f (x) (setf (g) x))",
+        '(defschema f (x) (setf "a" x))',
+        "(defschema f (x) (setf :k x))",
+    ],
+    "setf needs an expression after the variable name: (setf VAR EXPR)": [
+        "(defschema f (x) (setf a))",
+        "(defschema f (x) (setf a :k 1))",
+    ],
+    "setf takes one variable and one expression: (setf VAR EXPR)": [
+        "(defschema f (x) (setf a b c))",
+        "(defschema f (x) (setf a b (c)))",
+        "(defschema f (x) (setf a b :k))",
+    ],
+    "a call must start with a function name": [
+        "(defschema f (x) ((g x)))",
+        "(defschema f (x) (1 x))",
+        "(defschema f (x) ())",
+        '(defschema f (x) ("g" x))',
+        "(defschema f (x) (:k x))",
+        "(defschema f (x) (g (1)))",
+        "(defschema f (x) (g ()))",
+        "(defschema f (x) (g ((h))))",
+        "(defschema f (x) (setf a ()))",
+        "(defschema f (x) (setf a (1)))",
+    ],
+    "a keyword argument needs a value after it": [
+        "(defschema f (x) (g :k))",
+        "(defschema f (x) (g :k :j 1))",
+        "(defschema f (x) (g x :k))",
+    ],
+    "keywords are only allowed as arguments in a call, before their value": [
+        "(defschema f (x) :k)",
+        "(defschema f (x) (setf a b) :k)",
+    ],
+    "'defschema' can only appear at the top level of a file": [
+        "(defschema f (x) (defschema g (y) y))",
+        "(defschema f (x) (g (defschema)))",
+        "(defschema f (x) (setf a (defschema)))",
+        "(defschema f (defschema) x)",
+    ],
+    "'setf' can only appear directly in a schema body, not inside an expression": [
+        "(defschema f (x) (g (setf a x)))",
+        "(defschema f (x) (setf a (setf b x)))",
+        "(defschema f (setf) x)",
+    ],
+}
+
+
+@cache
+def _lark() -> Lark:
+    return Lark.open(
+        "grammar.lark",
+        rel_to=__file__,
+        parser="lalr",
+        lexer="basic",  # reserved words are reserved everywhere, not only where expected
+        propagate_positions=True,
+    )
+
+
+def parse_syntax(text: str, filename: str = "<string>") -> SourceFile:
+    """Parse schema source text into a syntax tree.
+
+    Raises:
+        SchemaSyntaxError: the text does not follow the grammar; the error names the place.
+    """
+    _check_parentheses(text, filename)
+    try:
+        tree = _lark().parse(text)
+    except UnexpectedInput as error:
+        raise _translate(error, text, filename) from None
+    try:
+        schemas: tuple[SchemaDef, ...] = _ToNodes(text, filename).transform(tree)
+    except VisitError as error:
+        if isinstance(error.orig_exc, SchemaSyntaxError):
+            raise error.orig_exc from None
+        raise
+    return SourceFile(filename=filename, schemas=schemas, text=text)
+
+
+def decode_source(data: bytes, filename: str) -> str:
+    """Decode a schema file's bytes (UTF-8, with or without a byte-order mark)."""
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as error:
+        good = data[: error.start].decode("utf-8-sig", errors="replace")
+        line = good.count("\n") + 1
+        column = len(good) - (good.rfind("\n") + 1) + 1
+        message = f"the file is not UTF-8 text (byte 0x{data[error.start]:02x})"
+        raise SchemaSyntaxError([Diagnostic(filename, line, column, message)]) from None
+
+
+# --- pass 1: parentheses -------------------------------------------------------------------
+
+# Strings may be unterminated (the optional closing quote) and comments run to the line's end.
+_PAREN_SCAN = re.compile(r'"(?:[^"\\]|\\.)*("?)|;[^\n]*|[()]', re.DOTALL)
+
+
+def _check_parentheses(text: str, filename: str) -> None:
+    opened: list[int] = []
+    for match in _PAREN_SCAN.finditer(text):
+        piece = match.group()
+        if piece == "(":
+            opened.append(match.start())
+            if len(opened) > MAX_NESTING:
+                raise _error_at(
+                    text,
+                    filename,
+                    match.start(),
+                    f"nested too deeply: more than {MAX_NESTING} levels of parentheses",
+                )
+        elif piece == ")":
+            if not opened:
+                raise _error_at(text, filename, match.start(), "unmatched ')': no '(' is open here")
+            opened.pop()
+        elif piece.startswith('"') and not match.group(1):
+            raise _error_at(text, filename, match.start(), "unterminated string: no closing '\"'")
+    if opened:
+        # The innermost unclosed '(' is where a ')' is most likely missing.
+        raise _error_at(
+            text, filename, opened[-1], "unbalanced parentheses: this '(' is never closed"
+        )
+
+
+# --- pass 2: the grammar --------------------------------------------------------------------
+
+
+def _translate(error: UnexpectedInput, text: str, filename: str) -> SchemaSyntaxError:
+    """Turn one of lark's exceptions into the project's error, in plain words."""
+    if isinstance(error, UnexpectedCharacters):
+        pos = error.pos_in_stream or 0
+        char = text[pos] if pos < len(text) else ""
+        if char.isdigit() or char in "+-.":
+            token = re.match(r'[^\s();"]+', text[pos:])
+            message = f"invalid number '{token.group() if token else char}'"
+        else:
+            message = f"unexpected character {char!r}"
+        return _error_at(text, filename, pos, message)
+
+    message = error.match_examples(
+        _lark().parse, SYNTAX_EXAMPLES, token_type_match_fallback=True, use_accepts=True
+    ) or _generic_message(error)
+    if isinstance(error, UnexpectedToken) and error.token.type != "$END":
+        return _error_at(text, filename, error.token.start_pos or 0, message)
+    return _error_at(text, filename, len(text), message)
+
+
+_TOKEN_WORDS = {
+    "LPAR": "'('",
+    "RPAR": "')'",
+    "SYMBOL": "a name",
+    "KEYWORD": "a keyword",
+    "NUMBER": "a number",
+    "STRING": "a string",
+    "_DEFSCHEMA": "'defschema'",
+    "_SETF": "'setf'",
+    "$END": "the end of the file",
+}
+
+
+def _generic_message(error: UnexpectedInput) -> str:
+    found = "the end of the file"
+    if isinstance(error, UnexpectedToken) and error.token.type != "$END":
+        found = repr(str(error.token))
+    expected: set[str] = set()
+    if isinstance(error, UnexpectedToken | UnexpectedEOF):
+        expected = set(error.expected)
+    words = sorted(_TOKEN_WORDS.get(name, name) for name in expected)
+    if not words:
+        return f"unexpected {found}"
+    return f"unexpected {found}: expected {' or '.join(words)}"
+
+
+def _error_at(text: str, filename: str, offset: int, message: str) -> SchemaSyntaxError:
+    line = text.count("\n", 0, offset) + 1
+    line_start = text.rfind("\n", 0, offset) + 1
+    line_end = text.find("\n", offset)
+    source_line = text[line_start : line_end if line_end >= 0 else len(text)]
+    return SchemaSyntaxError(
+        [Diagnostic(filename, line, offset - line_start + 1, message, source_line)]
+    )
+
+
+def _span(meta: Meta | Token) -> Span:
+    return Span(meta.line or 0, meta.column or 0, meta.end_line or 0, meta.end_column or 0)
+
+
+def source_line(text: str, line: int) -> str:
+    """The text of a 1-based line number (empty past the end)."""
+    lines = text.splitlines()
+    return lines[line - 1] if 0 < line <= len(lines) else ""
+
+
+@v_args(meta=True)
+class _ToNodes(Transformer[Token, tuple[SchemaDef, ...]]):
+    """One method per grammar rule, each building the frozen node of the same name."""
+
+    def __init__(self, text: str, filename: str) -> None:
+        super().__init__()
+        self._text = text
+        self._filename = filename
+
+    def _fail(self, span: Span, message: str) -> SchemaSyntaxError:
+        line = source_line(self._text, span.line)
+        width = span.end_column - span.column if span.end_line == span.line else 1
+        return SchemaSyntaxError(
+            [Diagnostic(self._filename, span.line, span.column, message, line, width)]
+        )
+
+    def start(self, meta: Meta, schemas: list[SchemaDef]) -> tuple[SchemaDef, ...]:
+        if not schemas:
+            raise SchemaSyntaxError(
+                [
+                    Diagnostic(
+                        self._filename,
+                        1,
+                        1,
+                        "the file holds no schema: expected (defschema NAME (PARAMS...) BODY...)",
+                        source_line(self._text, 1),
+                    )
+                ]
+            )
+        return tuple(schemas)
+
+    def schema(self, meta: Meta, children: list[Any]) -> SchemaDef:
+        name, params, *body = children
+        doc = None
+        # As in Lisp, a leading string is the docstring only when something follows it.
+        if len(body) > 1 and isinstance(body[0], String):
+            doc = body.pop(0).value
+        return SchemaDef(
+            name=name.lower(),
+            params=params,
+            doc=doc,
+            body=tuple(body),
+            span=_span(meta),
+            name_span=_span(name),
+        )
+
+    def params(self, meta: Meta, names: list[Token]) -> tuple[Symbol, ...]:
+        return tuple(Symbol(name.lower(), _span(name)) for name in names)
+
+    def setf(self, meta: Meta, children: list[Any]) -> Setf:
+        target, value = children
+        return Setf(target.lower(), value, _span(meta), _span(target))
+
+    def call(self, meta: Meta, children: list[Any]) -> Call:
+        function, *rest = children
+        args: list[Expr] = []
+        keywords: list[KeywordArg] = []
+        for item in rest:
+            if isinstance(item, KeywordArg):
+                if any(k.name == item.name for k in keywords):
+                    raise self._fail(item.span, f"keyword :{item.name} is given twice")
+                keywords.append(item)
+            elif keywords:
+                raise self._fail(
+                    _expr_span(item), "a positional argument cannot follow keyword arguments"
+                )
+            else:
+                args.append(item)
+        return Call(function.lower(), tuple(args), tuple(keywords), _span(meta), _span(function))
+
+    def keyword_arg(self, meta: Meta, children: list[Any]) -> KeywordArg:
+        keyword, value = children
+        return KeywordArg(keyword[1:].lower(), value, _span(keyword))
+
+    def symbol(self, meta: Meta, children: list[Token]) -> Symbol:
+        return Symbol(children[0].lower(), _span(meta))
+
+    def number(self, meta: Meta, children: list[Token]) -> Number:
+        text = str(children[0])
+        value: int | float
+        if re.fullmatch(r"[+-]?\d+", text):
+            value = int(text)
+        else:
+            value = float(text)
+            if not math.isfinite(value):
+                raise self._fail(_span(meta), f"number '{text}' is too large")
+        return Number(value, _span(meta))
+
+    def string(self, meta: Meta, children: list[Token]) -> String:
+        # Lisp escapes: a backslash makes the next character literal.
+        return String(re.sub(r"\\(.)", r"\1", children[0][1:-1], flags=re.DOTALL), _span(meta))
+
+
+def _expr_span(expr: Form) -> Span:
+    return expr.function_span if isinstance(expr, Call) else expr.span

@@ -1,0 +1,73 @@
+"""One exception tree for the whole framework.
+
+Every error the framework raises on bad input derives from `AnytimeError` and from the builtin it
+resembles, so callers can catch either. Errors about a place in a source file carry
+`Diagnostic`s that print as `FILE:LINE:COL: error: MESSAGE`, the source line and a caret.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from attrs import frozen
+
+
+class AnytimeError(Exception):
+    """Root of every error anytime-compose raises on bad input."""
+
+
+@frozen
+class Diagnostic:
+    """One message about one place in a source file (line and column are 1-based)."""
+
+    filename: str
+    line: int
+    column: int
+    message: str
+    source_line: str = ""
+    width: int = 1  # how many characters the caret underlines
+
+    def format(self) -> str:
+        head = f"{self.filename}:{self.line}:{self.column}: error: {self.message}"
+        if not self.source_line.strip():
+            return head
+        line = self.source_line.expandtabs(1).rstrip()
+        width = max(1, min(self.width, len(line) - self.column + 1))
+        caret = " " * (self.column - 1) + "^" + "~" * (width - 1)
+        return f"{head}\n  {line}\n  {caret}"
+
+
+class SchemaError(AnytimeError):
+    """A schema file is wrong; `diagnostics` lists every error found, in source order."""
+
+    filename: str | None  # as on SyntaxError, which a subclass also derives from
+
+    def __init__(self, diagnostics: Sequence[Diagnostic]) -> None:
+        if not diagnostics:
+            raise ValueError("SchemaError needs at least one diagnostic")
+        self.diagnostics = tuple(diagnostics)
+        first = self.diagnostics[0]
+        self.filename = first.filename
+        self.line = first.line
+        self.column = first.column
+        self.message = first.message
+        super().__init__(first.message)
+
+    def __str__(self) -> str:
+        return "\n".join(d.format() for d in self.diagnostics)
+
+
+class SchemaSyntaxError(SchemaError, SyntaxError):
+    """The text of a schema file does not follow the grammar."""
+
+    def __init__(self, diagnostics: Sequence[Diagnostic]) -> None:
+        super().__init__(diagnostics)
+        # The attributes Python's own tooling reads from a SyntaxError.
+        first = self.diagnostics[0]
+        self.msg = first.message
+        self.lineno = first.line
+        self.offset = first.column
+        self.text = first.source_line
+
+    def __str__(self) -> str:
+        return SchemaError.__str__(self)
