@@ -171,6 +171,7 @@ class _ProgramBuilder:
             form.target for form in schema.body if isinstance(form, Setf)
         }
         self.counter = 0
+        self.undefined = False  # dead-code errors would only repeat an undefined-variable one
 
     def build(self) -> Program:
         schema, error = self.schema, self.checker.error
@@ -198,7 +199,8 @@ class _ProgramBuilder:
                     "this value is never used: assign it with (setf VAR ...) or remove it",
                 )
         output_name = output.name if isinstance(output, Var) else ""
-        self.check_all_used(output_name)
+        if not self.undefined:
+            self.check_all_used(output_name)
         return Program(
             name=schema.name,
             inputs=tuple(dict.fromkeys(p.name for p in schema.params)),
@@ -247,6 +249,7 @@ class _ProgramBuilder:
         if not hint.startswith(";"):
             hint = ""  # listing every variable in scope would be noise
         self.checker.error(symbol.span, f"undefined variable '{symbol.name}'{hint}")
+        self.undefined = True
         self.values[symbol.name] = Var(symbol.name)  # report each undefined name once
         return Var(symbol.name)
 

@@ -173,16 +173,19 @@ def decode_source(data: bytes, filename: str) -> str:
 
 # --- pass 1: parentheses -------------------------------------------------------------------
 
-# Strings may be unterminated (the optional closing quote) and comments run to the line's end.
-_PAREN_SCAN = re.compile(r'"(?:[^"\\]|\\.)*("?)|;[^\n]*|[()]', re.DOTALL)
+# Strings may be unterminated (the optional closing quote) and comments run to the line's end;
+# the last alternative matches a line break and the indentation of the next line's first token.
+_PAREN_SCAN = re.compile(r'"(?:[^"\\]|\\.)*("?)|;[^\n]*|[()]|\n[ \t]*(?=[^ \t\r\n;])', re.DOTALL)
 
 
 def _check_parentheses(text: str, filename: str) -> None:
-    opened: list[int] = []
+    opened: list[tuple[int, int]] = []  # (offset, column) of each open '('
+    line_start = 0
+    suspect: int | None = None  # the first '(' that a later line is not indented inside
     for match in _PAREN_SCAN.finditer(text):
         piece = match.group()
         if piece == "(":
-            opened.append(match.start())
+            opened.append((match.start(), match.start() - line_start))
             if len(opened) > MAX_NESTING:
                 raise _error_at(
                     text,
@@ -194,12 +197,21 @@ def _check_parentheses(text: str, filename: str) -> None:
             if not opened:
                 raise _error_at(text, filename, match.start(), "unmatched ')': no '(' is open here")
             opened.pop()
+        elif piece.startswith("\n"):
+            line_start = match.start() + 1
+            indent = match.end() - line_start
+            if suspect is None:
+                outdented = [offset for offset, column in opened if column >= indent]
+                suspect = outdented[0] if outdented else None
         elif piece.startswith('"') and not match.group(1):
             raise _error_at(text, filename, match.start(), "unterminated string: no closing '\"'")
+    if opened and suspect is not None:
+        message = "unbalanced parentheses: ')' missing for this '(' (a later line is outdented)"
+        raise _error_at(text, filename, suspect, message)
     if opened:
         # The innermost unclosed '(' is where a ')' is most likely missing.
         raise _error_at(
-            text, filename, opened[-1], "unbalanced parentheses: this '(' is never closed"
+            text, filename, opened[-1][0], "unbalanced parentheses: this '(' is never closed"
         )
 
 

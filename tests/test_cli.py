@@ -1,0 +1,160 @@
+"""The `anytime` command as a user meets it: output, exit codes, no tracebacks."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from anytime import __version__, parse_schemas
+from anytime.cli import main
+
+
+def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    try:
+        code = main(list(argv))
+    except SystemExit as exit:  # argparse exits for --help, --version and usage errors
+        code = int(exit.code or 0)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_version(capsys: pytest.CaptureFixture[str]) -> None:
+    assert run(capsys, "--version") == (0, f"anytime {__version__}\n", "")
+
+
+def test_help_lists_the_commands(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "--help")
+    assert code == 0
+    assert "parse" in out
+    code, out, _ = run(capsys, "parse", "--help")
+    assert code == 0
+    assert "--json" in out and "--dot" in out and "--schema NAME" in out
+
+
+def test_no_command_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = run(capsys)
+    assert code == 2
+    assert err.startswith("usage: anytime")
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [["parse"], ["parse", "a.any", "--json", "--dot"], ["parse", "a.any", "--bogus"], ["nope"]],
+    ids=["missing-file", "json-and-dot", "unknown-option", "unknown-command"],
+)
+def test_usage_errors_exit_2(capsys: pytest.CaptureFixture[str], argv: list[str]) -> None:
+    code, _, err = run(capsys, *argv)
+    assert code == 2
+    assert "usage:" in err
+
+
+def test_parse_prints_straight_line_text_that_parses_back(
+    capsys: pytest.CaptureFixture[str], navigation_any: Path
+) -> None:
+    code, out, err = run(capsys, "parse", str(navigation_any))
+    assert (code, err) == (0, "")
+    assert out.startswith("; navigate: chain, 2 steps\n(defschema navigate (start goal sensor)\n")
+    assert "; navigate-two-planners: dag, 4 steps\n" in out
+    again = parse_schemas(out)
+    assert again.names == (
+        "navigate",
+        "navigate-nested",
+        "navigate-two-planners",
+        "sense-plan-act",
+    )
+
+
+def test_parse_json_field_by_field(
+    capsys: pytest.CaptureFixture[str], navigation_any: Path
+) -> None:
+    code, out, _ = run(capsys, "parse", str(navigation_any), "--json")
+    assert code == 0
+    data = json.loads(out)
+    assert list(data) == ["schemas"]
+    schemas = {s["name"]: s for s in data["schemas"]}
+    assert list(schemas) == [
+        "navigate",
+        "navigate-nested",
+        "navigate-two-planners",
+        "sense-plan-act",
+    ]
+    nested = schemas["navigate-nested"]
+    assert nested["inputs"] == ["start", "goal", "sensor"]
+    assert nested["doc"] is None
+    assert nested["steps"] == [
+        {
+            "target": "t1",
+            "function": "get-domain-description",
+            "kind": "call",
+            "args": ["sensor"],
+            "keywords": {},
+        },
+        {
+            "target": "t2",
+            "function": "find-path",
+            "kind": "call",
+            "args": ["start", "goal", "t1"],
+            "keywords": {},
+        },
+    ]
+    assert nested["output"] == "t2"
+    assert nested["shape"] == "chain"
+    assert [s["shape"] for s in schemas.values()] == ["chain", "chain", "dag", "chain"]
+
+
+def test_parse_one_schema_as_dot(capsys: pytest.CaptureFixture[str], navigation_any: Path) -> None:
+    code, out, _ = run(capsys, "parse", str(navigation_any), "--schema", "Navigate", "--dot")
+    assert code == 0
+    assert out.count("subgraph cluster_") == 1
+    assert 'label="navigate (chain)";' in out
+
+
+def test_unknown_schema_is_an_input_error(
+    capsys: pytest.CaptureFixture[str], navigation_any: Path
+) -> None:
+    code, out, err = run(capsys, "parse", str(navigation_any), "--schema", "fly")
+    assert (code, out) == (1, "")
+    assert err == (
+        f"{navigation_any}: error: no schema named 'fly' (the file defines: navigate, "
+        "navigate-nested, navigate-two-planners, sense-plan-act)\n"
+    )
+
+
+def test_missing_file_is_an_input_error(capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = run(capsys, "parse", "no/such/file.any")
+    assert code == 1
+    assert err == "anytime: error: cannot read 'no/such/file.any': No such file or directory\n"
+
+
+def test_schema_errors_print_every_diagnostic(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    path = tmp_path / "bad.any"
+    path.write_text("(defschema p (x)\n  (setf a (f y))\n  (g a b))\n")
+    code, out, err = run(capsys, "parse", str(path))
+    assert (code, out) == (1, "")
+    assert err == (
+        f"{path}:2:14: error: undefined variable 'y'\n"
+        "    (setf a (f y))\n"
+        "               ^\n"
+        f"{path}:3:8: error: undefined variable 'b'\n"
+        "    (g a b))\n"
+        "         ^\n"
+    )
+
+
+def test_bad_input_never_shows_a_traceback(tmp_path: Path) -> None:
+    path = tmp_path / "bad.any"
+    path.write_text("(defschema (x) x)\n")
+    done = subprocess.run(
+        [sys.executable, "-m", "anytime", "parse", str(path)],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert done.returncode == 1
+    assert done.stdout == ""
+    assert "Traceback" not in done.stderr
+    assert done.stderr.startswith(f"{path}:1:12: error: missing schema name after 'defschema'\n")
