@@ -71,3 +71,7 @@ class SchemaSyntaxError(SchemaError, SyntaxError):
 
     def __str__(self) -> str:
         return SchemaError.__str__(self)
+
+
+class ProfileError(AnytimeError, ValueError):
+    """A performance profile (in memory or in a file) is malformed; the message names the field."""

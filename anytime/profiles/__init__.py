@@ -1,0 +1,21 @@
+"""Performance profiles: the data model, analytic families, file format and profile builder."""
+
+from anytime.profiles.families import Constant, Exponential, Step, VisionHyperbola, tabulate
+from anytime.profiles.profile import (
+    ConditionalPerformanceProfile,
+    PerformanceProfile,
+    default_bins,
+    point_mass,
+)
+
+__all__ = [
+    "ConditionalPerformanceProfile",
+    "Constant",
+    "Exponential",
+    "PerformanceProfile",
+    "Step",
+    "VisionHyperbola",
+    "default_bins",
+    "point_mass",
+    "tabulate",
+]

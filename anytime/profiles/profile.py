@@ -1,0 +1,324 @@
+"""Conditional performance profiles: `CPP : Q_in x T -> Pr(Q_out)` as numpy tables.
+
+A profile is an array `P[q_1, ..., q_m, t, k]`: for each grid value of each quality-carrying
+input and each time allocation, a distribution over K output-quality bins. Between grid points
+it is interpolated multilinearly (the papers use linear interpolation); outside the grid it is
+clamped to the nearest end, so asking for more time than the table covers gives the quality of
+its longest run, and asking below the lowest input quality gives that of the lowest.
+
+A bin stands for one quality value, its representative (by default its midpoint) when a
+distribution is propagated into the next module. Expected quality uses the per-cell `mean` table
+when one is known (a measured profile's sample mean, or the exact curve of a deterministic
+profile), so bin width does not blur it; otherwise the representatives.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any, Literal, NoReturn
+
+import numpy as np
+from attrs import cmp_using, field, frozen
+from numpy.typing import ArrayLike, NDArray
+
+from anytime.errors import ProfileError
+
+Array = NDArray[np.float64]
+Kind = Literal["interruptible", "contract"]
+TimeUnit = Literal["ticks", "seconds"]
+
+#: Rows of a distribution may miss 1 by this much (the file format's tolerance).
+SUM_TOLERANCE = 1e-6
+
+
+def _frozen_array(value: ArrayLike, dtype: type = np.float64) -> NDArray[Any]:
+    array: NDArray[Any] = np.array(value, dtype=dtype)
+    array.setflags(write=False)
+    return array
+
+
+def _frozen_grids(value: Sequence[ArrayLike]) -> tuple[Array, ...]:
+    return tuple(_frozen_array(grid) for grid in value)
+
+
+def _names(names: Sequence[str]) -> tuple[str, ...]:
+    return tuple(str(name) for name in names)
+
+
+def _optional_array(value: ArrayLike | None) -> Array | None:
+    return None if value is None else _frozen_array(value)
+
+
+def _array_field(**kwargs: Any) -> Any:
+    return field(converter=_frozen_array, eq=cmp_using(eq=np.array_equal), hash=False, **kwargs)
+
+
+def _grids_eq(a: tuple[Array, ...], b: tuple[Array, ...]) -> bool:
+    return len(a) == len(b) and all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+
+
+def _optional_eq(a: Array | None, b: Array | None) -> bool:
+    return (a is None and b is None) or (a is not None and b is not None and np.array_equal(a, b))
+
+
+def default_bins(k: int = 10) -> Array:
+    """K equal-width quality bins on [0, 1] (K+1 edges)."""
+    return np.linspace(0.0, 1.0, k + 1)
+
+
+@frozen
+class ConditionalPerformanceProfile:
+    """Output-quality distributions over (input qualities..., time), with interpolation.
+
+    Attributes:
+        input_grids: one increasing grid of qualities in [0, 1] per quality-carrying input.
+        time: increasing, non-negative time allocations (in `time_unit`).
+        bins: K+1 increasing edges in [0, 1]; bin k is [bins[k], bins[k+1]).
+        probability: shape (*grid sizes, len(time), K); the last axis sums to 1.
+        mean: optional exact expected quality per cell, shape probability.shape[:-1].
+        samples: optional number of trials behind each cell (a measured profile).
+        std: optional standard deviation of the measured quality per cell.
+    """
+
+    input_grids: tuple[Array, ...] = field(
+        converter=_frozen_grids, eq=cmp_using(eq=_grids_eq), hash=False
+    )
+    time: Array = _array_field()
+    bins: Array = _array_field()
+    probability: Array = _array_field()
+    inputs: tuple[str, ...] = field(default=(), converter=_names)
+    mean: Array | None = field(
+        default=None, converter=_optional_array, eq=cmp_using(eq=_optional_eq), hash=False
+    )
+    samples: Array | None = field(
+        default=None, converter=_optional_array, eq=cmp_using(eq=_optional_eq), hash=False
+    )
+    std: Array | None = field(
+        default=None, converter=_optional_array, eq=cmp_using(eq=_optional_eq), hash=False
+    )
+    module: str = ""
+    kind: Kind = "interruptible"
+    time_unit: TimeUnit = "ticks"
+
+    def __attrs_post_init__(self) -> None:
+        _validate(self)
+
+    # --- shape -----------------------------------------------------------------------------
+
+    @property
+    def n_inputs(self) -> int:
+        return len(self.input_grids)
+
+    @property
+    def n_bins(self) -> int:
+        return len(self.bins) - 1
+
+    @property
+    def values(self) -> Array:
+        """The quality each bin stands for: its midpoint."""
+        return (self.bins[:-1] + self.bins[1:]) / 2
+
+    @property
+    def cell_shape(self) -> tuple[int, ...]:
+        return self.probability.shape[:-1]
+
+    # --- interpolation ---------------------------------------------------------------------
+
+    def _corners(self, q: Array, t: Array) -> list[tuple[tuple[Array, ...], Array]]:
+        """Indices and weights of the 2^(m+1) grid corners around each point, for a batch.
+
+        `q` has shape (N, m), `t` shape (N,). Points outside the grid are clamped to its ends.
+        """
+        axes = [*self.input_grids, self.time]
+        coords = [*(q[:, i] for i in range(self.n_inputs)), t]
+        lower, upper, weight = [], [], []
+        for grid, x in zip(axes, coords, strict=True):
+            x = np.clip(x, grid[0], grid[-1])
+            if len(grid) == 1:
+                i = np.zeros(x.shape, dtype=np.intp)
+                lower.append(i)
+                upper.append(i)
+                weight.append(np.zeros(x.shape))
+                continue
+            i = np.clip(np.searchsorted(grid, x, side="right") - 1, 0, len(grid) - 2)
+            lower.append(i)
+            upper.append(i + 1)
+            weight.append((x - grid[i]) / (grid[i + 1] - grid[i]))
+        corners = []
+        for mask in range(1 << len(axes)):
+            index, w = [], np.ones(t.shape)
+            for axis in range(len(axes)):
+                if mask >> axis & 1:
+                    index.append(upper[axis])
+                    w = w * weight[axis]
+                else:
+                    index.append(lower[axis])
+                    w = w * (1 - weight[axis])
+            corners.append((tuple(index), w))
+        return corners
+
+    def _interpolate(self, table: Array, q: ArrayLike, t: ArrayLike) -> Array:
+        """Interpolate `table` (cell shape, optionally with trailing axes) at points (q, t)."""
+        t_arr = np.asarray(t, dtype=np.float64)
+        q_arr = np.asarray(q, dtype=np.float64).reshape((*t_arr.shape, self.n_inputs))
+        batch = t_arr.shape
+        t_flat = t_arr.reshape(-1)
+        q_flat = q_arr.reshape((t_flat.size, self.n_inputs))
+        trailing = table.shape[len(self.cell_shape) :]
+        out = np.zeros((t_flat.size, *trailing))
+        for index, w in self._corners(q_flat, t_flat):
+            out += w.reshape((-1, *([1] * len(trailing)))) * table[index]
+        return out.reshape((*batch, *trailing))
+
+    def distribution(self, q: ArrayLike, t: ArrayLike) -> Array:
+        """Output-quality distribution at input qualities `q` (..., m) and times `t` (...)."""
+        return self._interpolate(self.probability, q, t)
+
+    def expected(self, q: ArrayLike, t: ArrayLike) -> Array:
+        """Expected output quality at input qualities `q` (..., m) and times `t` (...)."""
+        table = self.mean if self.mean is not None else self.probability @ self.values
+        return self._interpolate(table, q, t)
+
+    def standard_error(self, q: ArrayLike, t: ArrayLike) -> Array:
+        """Standard error of the measured expected quality (0 for analytic profiles)."""
+        if self.samples is None or self.std is None:
+            return np.zeros(np.shape(t))
+        se = self.std / np.sqrt(np.maximum(self.samples, 1))
+        return self._interpolate(se, q, t)
+
+    def transition(self, t: float, input_values: Sequence[ArrayLike] | None = None) -> Array:
+        """Transition tensor at time t: P[out bin | input bins], shape (K_1, ..., K_m, K).
+
+        `input_values` are the qualities the input bins stand for (default: this profile's own
+        bin midpoints for every input).
+        """
+        values = self._input_values(input_values)
+        mesh = np.meshgrid(*values, indexing="ij")
+        q = np.stack(mesh, axis=-1) if values else np.zeros((0,))
+        t_arr = np.full(mesh[0].shape if values else (), float(t))
+        return self.distribution(q, t_arr)
+
+    def propagate(
+        self,
+        input_distributions: Sequence[ArrayLike],
+        t: ArrayLike,
+        input_values: Sequence[ArrayLike] | None = None,
+    ) -> Array:
+        """Output distribution when the inputs' qualities are themselves distributions.
+
+        Inputs are taken as independent. Each `input_distributions[i]` has shape (..., K_i)
+        (a batch of distributions over that input's bins) and `t` broadcasts against the batch.
+        Returns shape (..., K).
+        """
+        values = self._input_values(input_values)
+        dists = [np.asarray(d, dtype=np.float64) for d in input_distributions]
+        if len(dists) != self.n_inputs:
+            raise ProfileError(
+                f"{self.module or 'profile'}: expected {self.n_inputs} input distributions,"
+                f" got {len(dists)}"
+            )
+        batch = np.broadcast_shapes(np.shape(t), *(d.shape[:-1] for d in dists))
+        t_arr = np.broadcast_to(np.asarray(t, dtype=np.float64), batch)
+        if not dists:
+            return self.distribution(np.zeros((*batch, 0)), t_arr)
+        grid = np.stack(np.meshgrid(*values, indexing="ij"), axis=-1)  # (K_1..K_m, m)
+        combos = grid.shape[:-1]
+        q = np.broadcast_to(grid, (*batch, *combos, self.n_inputs))
+        t_full = np.broadcast_to(t_arr.reshape((*batch, *([1] * len(combos)))), (*batch, *combos))
+        out = self.distribution(q, t_full)  # (*batch, K_1..K_m, K)
+        for d in dists:  # contract one input axis at a time with its distribution
+            d = np.broadcast_to(d, (*batch, d.shape[-1]))
+            out = np.einsum("...i,...ir->...r", d, out.reshape((*batch, d.shape[-1], -1)))
+        return out.reshape((*batch, self.n_bins))
+
+    def _input_values(self, input_values: Sequence[ArrayLike] | None) -> list[Array]:
+        if input_values is None:
+            return [self.values] * self.n_inputs
+        return [np.asarray(v, dtype=np.float64) for v in input_values]
+
+
+@frozen
+class PerformanceProfile(ConditionalPerformanceProfile):
+    """A profile with no quality-carrying input: time -> distribution of output quality."""
+
+    input_grids: tuple[Array, ...] = field(
+        default=(), converter=_frozen_grids, eq=cmp_using(eq=_grids_eq), hash=False
+    )
+
+    def at(self, t: ArrayLike) -> Array:
+        """Output distribution at time(s) t."""
+        return self.distribution(np.zeros((*np.shape(t), 0)), t)
+
+    def expected_at(self, t: ArrayLike) -> Array:
+        """Expected output quality at time(s) t."""
+        return self.expected(np.zeros((*np.shape(t), 0)), t)
+
+
+def point_mass(quality: ArrayLike, bins: ArrayLike) -> Array:
+    """Distributions putting all mass in the bin that holds each quality (1.0 in the last bin)."""
+    q = np.asarray(quality, dtype=np.float64)
+    edges = np.asarray(bins, dtype=np.float64)
+    k = np.clip(np.searchsorted(edges, q, side="right") - 1, 0, len(edges) - 2)
+    return np.eye(len(edges) - 1)[k]
+
+
+def _validate(p: ConditionalPerformanceProfile) -> None:
+    """The invariants every profile keeps; messages name the field (files add their name)."""
+    name = p.module or "profile"
+
+    def fail(field_name: str, problem: str) -> NoReturn:
+        raise ProfileError(f"{name}: {field_name}: {problem}")
+
+    for i, grid in enumerate(p.input_grids):
+        _check_grid(grid, f"input_quality[{i}]", fail, unit_interval=True)
+    _check_grid(p.time, "time", fail, unit_interval=False)
+    _check_grid(p.bins, "quality_bins", fail, unit_interval=True, minimum=2)
+    if len(p.inputs) not in (0, p.n_inputs):
+        fail("inputs", f"expected {p.n_inputs} names (one per input grid), got {len(p.inputs)}")
+    expected = (*(len(g) for g in p.input_grids), len(p.time), p.n_bins)
+    if p.probability.shape != expected:
+        fail("probability", f"expected shape {list(expected)}, got {list(p.probability.shape)}")
+    if not np.all(np.isfinite(p.probability)) or np.any(p.probability < 0):
+        fail("probability", "expected finite numbers >= 0")
+    sums = p.probability.sum(axis=-1)
+    worst = np.unravel_index(np.argmax(np.abs(sums - 1)), sums.shape)
+    if abs(sums[worst] - 1) > SUM_TOLERANCE:
+        fail(
+            "probability",
+            f"each row must sum to 1 (within {SUM_TOLERANCE:g}); "
+            f"row {list(map(int, worst))} sums to {sums[worst]:.6g}",
+        )
+    for field_name, table in (("mean", p.mean), ("samples", p.samples), ("std", p.std)):
+        if table is None:
+            continue
+        if table.shape != expected[:-1]:
+            fail(field_name, f"expected shape {list(expected[:-1])}, got {list(table.shape)}")
+        if not np.all(np.isfinite(table)) or np.any(table < 0):
+            fail(field_name, "expected finite numbers >= 0")
+    if p.mean is not None and np.any(p.mean > 1):
+        fail("mean", "expected qualities in [0, 1]")
+    if p.kind not in ("interruptible", "contract"):
+        fail("kind", f"expected 'interruptible' or 'contract', got {p.kind!r}")
+    if p.time_unit not in ("ticks", "seconds"):
+        fail("time_unit", f"expected 'ticks' or 'seconds', got {p.time_unit!r}")
+
+
+def _check_grid(
+    grid: Array,
+    name: str,
+    fail: Callable[[str, str], NoReturn],
+    *,
+    unit_interval: bool,
+    minimum: int = 1,
+) -> None:
+    if grid.ndim != 1 or len(grid) < minimum:
+        fail(name, f"expected a list of at least {minimum} number(s), got shape {list(grid.shape)}")
+    if not np.all(np.isfinite(grid)):
+        fail(name, "expected finite numbers, got NaN or infinity")
+    if np.any(grid < 0):
+        fail(name, f"expected numbers >= 0, got {grid[grid < 0][0]:g}")
+    if unit_interval and np.any(grid > 1):
+        fail(name, f"expected qualities in [0, 1], got {grid[grid > 1][0]:g}")
+    if np.any(np.diff(grid) <= 0):
+        i = int(np.argmax(np.diff(grid) <= 0))
+        fail(name, f"expected increasing values, got {grid[i]:g} then {grid[i + 1]:g}")
