@@ -1,0 +1,318 @@
+"""The module protocol: how an anytime module is written and registered.
+
+Every value that flows between modules is a `Result(value, quality)`. A module receives a
+`Context` as its first argument and reports its work with `ctx.tick(n)`:
+
+- an **interruptible** module is a generator that yields successively better `Result`s (the
+  papers' REGISTER-RESULT); whatever it yielded last is the answer when time runs out;
+- a **contract** module reads its allocation from `ctx.allocation` and returns one `Result`;
+- an **elementary** function takes no context and no time; its output quality is a declared
+  combination of its inputs' qualities (by default the minimum).
+
+The decorators check the function against what they declare and register it in a `Registry`
+(by default the process-wide `REGISTRY`, one of the anytime library's sources).
+"""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+import math
+import os
+import threading
+from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
+from typing import Any, Literal
+
+from attrs import field, frozen
+
+from anytime.clocks import Clock, WorkClock
+from anytime.errors import AnytimeError
+from anytime.profiles.profile import ConditionalPerformanceProfile
+
+ModuleKind = Literal["interruptible", "contract", "elementary"]
+ProfileSource = ConditionalPerformanceProfile | str | os.PathLike[str] | None
+
+
+class ModuleError(AnytimeError, TypeError):
+    """A module's definition does not match what it declares; the message names the module."""
+
+
+class RegistrationError(AnytimeError, ValueError):
+    """Two different modules claim one name; the message names both origins."""
+
+
+def _quality(value: float) -> float:
+    q = float(value)
+    if not 0.0 <= q <= 1.0 or math.isnan(q):
+        raise ValueError(f"a Result's quality must be in [0, 1], got {value!r}")
+    return q
+
+
+@frozen
+class Result:
+    """A value and its quality in [0, 1]."""
+
+    value: Any
+    quality: float = field(converter=_quality)
+
+
+class Context:
+    """What a running module sees of its time.
+
+    Args:
+        allocation: the time the module is given (in the clock's unit); infinite by default.
+        clock: where time comes from (a fresh `WorkClock` by default).
+        stop: set from outside to interrupt the module (it then reads `expired` as True).
+    """
+
+    def __init__(
+        self,
+        allocation: float = math.inf,
+        clock: Clock | None = None,
+        stop: threading.Event | None = None,
+    ) -> None:
+        self.allocation = float(allocation)
+        self.clock: Clock = clock if clock is not None else WorkClock()
+        self.stop = stop if stop is not None else threading.Event()
+        self.start = self.clock.now()
+        self.ticks = 0.0
+
+    def tick(self, n: float = 1) -> None:
+        """Report `n` units of work."""
+        self.ticks += n
+        self.clock.advance(n)
+
+    @property
+    def elapsed(self) -> float:
+        return self.clock.now() - self.start
+
+    @property
+    def remaining(self) -> float:
+        return max(0.0, self.allocation - self.elapsed)
+
+    @property
+    def expired(self) -> bool:
+        """True once the allocation is spent or the module was asked to stop."""
+        return self.stop.is_set() or self.elapsed >= self.allocation
+
+
+def _min_quality(qualities: Sequence[float]) -> float:
+    return min(qualities, default=1.0)
+
+
+@frozen(eq=False)
+class AnytimeModule:
+    """A registered module: its function, what it declares, and where it came from.
+
+    Attributes:
+        name: the function name schemas call it by (lower case).
+        kind: "interruptible", "contract" or "elementary".
+        function: the Python function.
+        parameters: the function's positional parameters after the context.
+        inputs: the quality-carrying inputs among them (the profile's input axes, in order).
+        profile: the conditional performance profile, a path to its file, or None.
+        combine: for an elementary function, how input qualities make the output's.
+        origin: where it was defined, for messages ("python module x.y", "plugin nav", ...).
+    """
+
+    name: str
+    kind: ModuleKind
+    function: Callable[..., Any]
+    parameters: tuple[str, ...]
+    inputs: tuple[str, ...]
+    profile_source: ProfileSource = None
+    combine: Callable[[Sequence[float]], float] = _min_quality
+    origin: str = ""
+
+    @property
+    def arity(self) -> int:
+        return len(self.parameters)
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        return self.function(*args, **kwargs)
+
+    def __repr__(self) -> str:
+        return f"<{self.kind} module {self.name!r} from {self.origin}>"
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        # Pickled by reference, as functions are, so that process pools and Dask workers can
+        # receive it: the decorated name in its Python module is this object.
+        return (_import_object, (self.function.__module__, self.function.__qualname__))
+
+
+def _import_object(module: str, qualname: str) -> Any:
+    target: Any = importlib.import_module(module)
+    for part in qualname.split("."):
+        target = getattr(target, part)
+    return target
+
+
+class Registry:
+    """Modules by name. Registering the same function again replaces it (a reloaded module);
+    a different function under a taken name is a `RegistrationError` naming both origins."""
+
+    def __init__(self) -> None:
+        self._modules: dict[str, AnytimeModule] = {}
+
+    def add(self, module: AnytimeModule) -> AnytimeModule:
+        old = self._modules.get(module.name)
+        if old is not None and _qualified(old.function) != _qualified(module.function):
+            raise RegistrationError(
+                f"module '{module.name}' is defined twice: in {old.origin} and in {module.origin}"
+            )
+        self._modules[module.name] = module
+        return module
+
+    def remove(self, name: str) -> None:
+        self._modules.pop(name.lower(), None)
+
+    def get(self, name: str) -> AnytimeModule | None:
+        return self._modules.get(name.lower())
+
+    def __contains__(self, name: object) -> bool:
+        return isinstance(name, str) and name.lower() in self._modules
+
+    def __iter__(self) -> Iterator[AnytimeModule]:
+        return iter(list(self._modules.values()))
+
+    def __len__(self) -> int:
+        return len(self._modules)
+
+
+#: The process-wide registry the decorators fill unless given another.
+REGISTRY = Registry()
+
+
+def _qualified(function: Callable[..., Any]) -> str:
+    return f"{function.__module__}.{function.__qualname__}"
+
+
+def _declare(
+    function: Callable[..., Any],
+    *,
+    name: str | None,
+    kind: ModuleKind,
+    inputs: Sequence[str] | None,
+    profile: ProfileSource,
+    combine: Callable[[Sequence[float]], float] = _min_quality,
+    registry: Registry | None,
+) -> AnytimeModule:
+    module_name = (name or function.__name__.replace("_", "-")).lower()
+    where = f"module '{module_name}' ({_qualified(function)})"
+    signature = inspect.signature(function)
+    positional = [
+        p.name
+        for p in signature.parameters.values()
+        if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)
+    ]
+    if kind == "interruptible" and not inspect.isgeneratorfunction(function):
+        raise ModuleError(f"{where}: an interruptible module must be a generator (use yield)")
+    if kind != "interruptible" and inspect.isgeneratorfunction(function):
+        raise ModuleError(f"{where}: a {kind} module must return its Result, not yield")
+    if kind != "elementary":
+        if not positional or positional[0] != "ctx":
+            raise ModuleError(f"{where}: the first parameter must be the context, 'ctx'")
+        positional = positional[1:]
+    declared = list(positional if inputs is None else inputs)
+    for input_name in declared:
+        if input_name not in positional:
+            raise ModuleError(
+                f"{where}: declared input '{input_name}' is not a parameter of the function "
+                f"(parameters: {', '.join(positional) or 'none'})"
+            )
+    if len(set(declared)) != len(declared):
+        raise ModuleError(f"{where}: an input is declared twice: {', '.join(declared)}")
+    if profile is not None and not isinstance(profile, ConditionalPerformanceProfile):
+        profile = Path(profile)
+        if not profile.is_absolute():  # relative to the file that defines the module
+            source = inspect.getsourcefile(function)
+            if source is not None:
+                profile = Path(source).parent / profile
+    module = AnytimeModule(
+        name=module_name,
+        kind=kind,
+        function=function,
+        parameters=tuple(positional),
+        inputs=tuple(declared),
+        profile_source=profile,
+        combine=combine,
+        origin=f"python module {function.__module__}",
+    )
+    return (registry if registry is not None else REGISTRY).add(module)
+
+
+def interruptible(
+    name: str | None = None,
+    *,
+    inputs: Sequence[str] | None = None,
+    profile: ProfileSource = None,
+    registry: Registry | None = None,
+) -> Callable[[Callable[..., Iterator[Result]]], AnytimeModule]:
+    """Register a generator `f(ctx, *args)` that yields successively better `Result`s.
+
+    Args:
+        name: the name schemas call it by (default: the function's, with '-' for '_').
+        inputs: the quality-carrying parameters, in profile-axis order (default: all).
+        profile: its conditional performance profile, or the path of its profile file
+            (relative to the defining file).
+        registry: where to register it (default: the process-wide `REGISTRY`).
+    """
+
+    def decorate(function: Callable[..., Iterator[Result]]) -> AnytimeModule:
+        return _declare(
+            function,
+            name=name,
+            kind="interruptible",
+            inputs=inputs,
+            profile=profile,
+            registry=registry,
+        )
+
+    return decorate
+
+
+def contract(
+    name: str | None = None,
+    *,
+    inputs: Sequence[str] | None = None,
+    profile: ProfileSource = None,
+    registry: Registry | None = None,
+) -> Callable[[Callable[..., Result]], AnytimeModule]:
+    """Register a function `f(ctx, *args) -> Result` that uses `ctx.allocation` up front.
+
+    Arguments as for `interruptible`.
+    """
+
+    def decorate(function: Callable[..., Result]) -> AnytimeModule:
+        return _declare(
+            function, name=name, kind="contract", inputs=inputs, profile=profile, registry=registry
+        )
+
+    return decorate
+
+
+def elementary(
+    name: str | None = None,
+    *,
+    inputs: Sequence[str] | None = None,
+    combine: Callable[[Sequence[float]], float] = _min_quality,
+    registry: Registry | None = None,
+) -> Callable[[Callable[..., Any]], AnytimeModule]:
+    """Register a plain function `f(*args) -> value` that takes no time.
+
+    Its output quality is `combine` of the qualities of its `inputs` (default: the minimum).
+    """
+
+    def decorate(function: Callable[..., Any]) -> AnytimeModule:
+        return _declare(
+            function,
+            name=name,
+            kind="elementary",
+            inputs=inputs,
+            profile=None,
+            combine=combine,
+            registry=registry,
+        )
+
+    return decorate
