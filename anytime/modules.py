@@ -299,9 +299,10 @@ def elementary(
     combine: Callable[[Sequence[float]], float] = _min_quality,
     registry: Registry | None = None,
 ) -> Callable[[Callable[..., Any]], AnytimeModule]:
-    """Register a plain function `f(*args) -> value` that takes no time.
+    """Register a plain function `f(*args)` that takes no time and no context.
 
-    Its output quality is `combine` of the qualities of its `inputs` (default: the minimum).
+    Quality-carrying inputs arrive as `Result`s, as they do for anytime modules. It returns a
+    plain value, whose quality is `combine` of its inputs' qualities (default: the minimum).
     """
 
     def decorate(function: Callable[..., Any]) -> AnytimeModule:
