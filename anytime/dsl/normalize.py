@@ -53,7 +53,7 @@ def suggest(name: str, known: Iterable[str]) -> str:
 class _Checker:
     def __init__(self, source: SourceFile) -> None:
         self.source = source
-        self.lines = source.text.splitlines()
+        self.lines = source.text.split("\n")  # lines as the parser counts them
         self.diagnostics: list[Diagnostic] = []
 
     def error(self, span: Span | None, message: str) -> None:

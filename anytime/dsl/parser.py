@@ -280,7 +280,7 @@ def _span(meta: Meta | Token) -> Span:
 
 def source_line(text: str, line: int) -> str:
     """The text of a 1-based line number (empty past the end)."""
-    lines = text.splitlines()
+    lines = text.split("\n")  # lines as the parser counts them, not str.splitlines
     return lines[line - 1] if 0 < line <= len(lines) else ""
 
 
