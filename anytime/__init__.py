@@ -16,23 +16,63 @@ from anytime.dsl import (
 from anytime.errors import (
     AnytimeError,
     Diagnostic,
+    ProfileError,
     SchemaError,
     SchemaSyntaxError,
+)
+from anytime.library import (
+    AnytimeLibrary,
+    LibraryEntry,
+    LibraryError,
+    PluginSource,
+    ProfileDirectory,
+    RegistrySource,
+    UnknownModuleError,
+)
+from anytime.modules import (
+    REGISTRY,
+    AnytimeModule,
+    Context,
+    ModuleError,
+    RegistrationError,
+    Registry,
+    Result,
+    contract,
+    elementary,
+    interruptible,
 )
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "REGISTRY",
     "AnytimeError",
+    "AnytimeLibrary",
+    "AnytimeModule",
+    "Context",
     "DataflowGraph",
     "Diagnostic",
+    "LibraryEntry",
+    "LibraryError",
+    "ModuleError",
+    "PluginSource",
+    "ProfileDirectory",
+    "ProfileError",
     "Program",
+    "RegistrationError",
+    "Registry",
+    "RegistrySource",
+    "Result",
     "SchemaError",
     "SchemaFile",
     "SchemaSyntaxError",
     "Step",
+    "UnknownModuleError",
     "__version__",
+    "contract",
+    "elementary",
     "format_program",
+    "interruptible",
     "load_schemas",
     "parse_schemas",
 ]

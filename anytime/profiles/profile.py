@@ -274,29 +274,26 @@ def _validate(p: ConditionalPerformanceProfile) -> None:
     _check_grid(p.time, "time", fail, unit_interval=False)
     _check_grid(p.bins, "quality_bins", fail, unit_interval=True, minimum=2)
     if len(p.inputs) not in (0, p.n_inputs):
-        fail("inputs", f"expected {p.n_inputs} names (one per input grid), got {len(p.inputs)}")
+        fail("inputs", f"expected one name per input grid ({p.n_inputs}), got {len(p.inputs)}")
     expected = (*(len(g) for g in p.input_grids), len(p.time), p.n_bins)
     if p.probability.shape != expected:
         fail("probability", f"expected shape {list(expected)}, got {list(p.probability.shape)}")
-    if not np.all(np.isfinite(p.probability)) or np.any(p.probability < 0):
-        fail("probability", "expected finite numbers >= 0")
+    _check_non_negative(p.probability, "probability", fail)
     sums = p.probability.sum(axis=-1)
     worst = np.unravel_index(np.argmax(np.abs(sums - 1)), sums.shape)
     if abs(sums[worst] - 1) > SUM_TOLERANCE:
         fail(
-            "probability",
-            f"each row must sum to 1 (within {SUM_TOLERANCE:g}); "
-            f"row {list(map(int, worst))} sums to {sums[worst]:.6g}",
+            "probability" + "".join(f"[{i}]" for i in worst),
+            f"expected a row summing to 1 (within {SUM_TOLERANCE:g}), got {sums[worst]:.10g}",
         )
     for field_name, table in (("mean", p.mean), ("samples", p.samples), ("std", p.std)):
         if table is None:
             continue
         if table.shape != expected[:-1]:
             fail(field_name, f"expected shape {list(expected[:-1])}, got {list(table.shape)}")
-        if not np.all(np.isfinite(table)) or np.any(table < 0):
-            fail(field_name, "expected finite numbers >= 0")
+        _check_non_negative(table, field_name, fail)
     if p.mean is not None and np.any(p.mean > 1):
-        fail("mean", "expected qualities in [0, 1]")
+        fail("mean", f"expected qualities in [0, 1], got {p.mean[p.mean > 1].flat[0]:g}")
     if p.kind not in ("interruptible", "contract"):
         fail("kind", f"expected 'interruptible' or 'contract', got {p.kind!r}")
     if p.time_unit not in ("ticks", "seconds"):
@@ -322,3 +319,9 @@ def _check_grid(
     if np.any(np.diff(grid) <= 0):
         i = int(np.argmax(np.diff(grid) <= 0))
         fail(name, f"expected increasing values, got {grid[i]:g} then {grid[i + 1]:g}")
+
+
+def _check_non_negative(table: Array, name: str, fail: Callable[[str, str], NoReturn]) -> None:
+    bad = ~np.isfinite(table) | (table < 0)
+    if np.any(bad):
+        fail(name, f"expected finite numbers >= 0, got {table[bad].flat[0]:g}")

@@ -1,0 +1,401 @@
+"""The anytime library: function names -> modules and their conditional performance profiles.
+
+A library is fed by *sources*, each a small object with a `name` (for messages) and a `load()`
+giving `LibraryEntry`s and any problems found:
+
+- `RegistrySource`: modules registered in-process by the decorators of `anytime.modules`;
+- `ProfileDirectory`: a directory of profile files (`*.yaml`), each a profile-only entry named by
+  its `module` field (a module described by its profile alone: enough to compile a schema);
+- `PluginSource`: installed plugins, found through the entry-point group `anytime.plugins`.
+
+A name defined by two sources is a `LibraryError` naming both origins, except when both reach
+the same module object (a plugin's import registers its modules in the process-wide registry too):
+the entry then keeps the more specific origin, the plugin's. A plugin that fails to load is
+recorded in `problems` with its name and error, and the other plugins still load. Profile files
+named by modules are read when a profile is first needed, then cached.
+"""
+
+from __future__ import annotations
+
+import inspect
+import os
+import types
+from collections.abc import Iterable, Iterator
+from importlib import metadata
+from pathlib import Path
+from typing import Any, Protocol
+
+from attrs import field, frozen
+
+from anytime.dsl.normalize import suggest
+from anytime.errors import AnytimeError, ProfileError
+from anytime.modules import REGISTRY, AnytimeModule, Registry
+from anytime.profiles.io import load_profile
+from anytime.profiles.profile import ConditionalPerformanceProfile
+
+#: The entry-point group installed plugins register under.
+PLUGIN_GROUP = "anytime.plugins"
+
+
+class LibraryError(AnytimeError, ValueError):
+    """The library's sources disagree (a name defined twice) or one cannot be read."""
+
+
+class UnknownModuleError(LibraryError, KeyError):
+    """No module of the library has the name asked for; the message suggests the closest."""
+
+    def __str__(self) -> str:  # KeyError would quote the message
+        return str(self.args[0])
+
+
+@frozen(eq=False)
+class LibraryEntry:
+    """One function of the library: a module with code, or a profile alone.
+
+    Attributes:
+        name: the function name schemas call it by (lower case).
+        kind: "interruptible", "contract" or "elementary".
+        inputs: the quality-carrying inputs (the profile's input axes, in order).
+        parameters: the positional parameters a call passes (none known for a profile-only
+            entry).
+        arity: the number of positional arguments a call must pass, or None when it may vary
+            (a parameter with a default, `*args`) or is unknown (a profile-only entry).
+        origin: where it was defined, for messages: "plugin 'navigation' (domains.navigation)",
+            "python module tests.x", "profile file profiles/a.yaml".
+        module: the module, or None for a profile-only entry.
+        profile_source: the profile, the path of its file, or None.
+        profile_file: the file the profile comes from, if it is not built in memory.
+    """
+
+    name: str
+    kind: str
+    inputs: tuple[str, ...]
+    parameters: tuple[str, ...]
+    arity: int | None
+    origin: str
+    module: AnytimeModule | None = None
+    profile_source: ConditionalPerformanceProfile | Path | None = None
+    profile_file: Path | None = None
+    _cache: dict[str, ConditionalPerformanceProfile] = field(factory=dict, init=False, repr=False)
+
+    @classmethod
+    def of_module(cls, module: AnytimeModule, origin: str | None = None) -> LibraryEntry:
+        """The entry of a module with code (`origin` defaults to the module's own)."""
+        source = module.profile_source
+        file = None
+        if source is not None and not isinstance(source, ConditionalPerformanceProfile):
+            source = file = Path(source)
+        return cls(
+            name=module.name.lower(),
+            kind=module.kind,
+            inputs=module.inputs,
+            parameters=module.parameters,
+            arity=_arity(module),
+            origin=origin if origin is not None else module.origin,
+            module=module,
+            profile_source=source,
+            profile_file=file,
+        )
+
+    @classmethod
+    def of_profile(cls, profile: ConditionalPerformanceProfile, path: Path) -> LibraryEntry:
+        """A profile-only entry, from the profile file at `path`."""
+        return cls(
+            name=profile.module.lower(),
+            kind=profile.kind,
+            inputs=profile.inputs,
+            parameters=(),
+            arity=None,
+            origin=f"profile file {path}",
+            profile_source=profile,
+            profile_file=path,
+        )
+
+    @property
+    def profile(self) -> ConditionalPerformanceProfile | None:
+        """The conditional performance profile, read from its file on first use.
+
+        Raises:
+            ProfileError: the file is missing or malformed, or does not describe this module
+                (another module's name, another kind, other inputs); the message names the file.
+        """
+        if self.profile_source is None:
+            return None
+        cached = self._cache.get("profile")
+        if cached is None:
+            cached = self._load()
+            self._cache["profile"] = cached
+        return cached
+
+    def _load(self) -> ConditionalPerformanceProfile:
+        source = self.profile_source
+        if isinstance(source, ConditionalPerformanceProfile):
+            if self.module is not None:
+                _check_axes(source, self, f"module '{self.name}' ({self.origin}): profile")
+            return source
+        assert source is not None  # `profile` returns None first
+        if not source.exists():
+            raise ProfileError(
+                f"{source}: no such profile file (the profile of module '{self.name}',"
+                f" from {self.origin})"
+            )
+        profile = load_profile(source)
+        if profile.module and profile.module.lower() != self.name:
+            raise ProfileError(
+                f"{source}: module: expected '{self.name}' (the module it is the profile of),"
+                f" got '{profile.module}'"
+            )
+        if self.kind != "elementary" and profile.kind != self.kind:
+            raise ProfileError(
+                f"{source}: kind: expected '{self.kind}' (module '{self.name}' is {self.kind}),"
+                f" got '{profile.kind}'"
+            )
+        _check_axes(profile, self, str(source))
+        return profile
+
+
+def _check_axes(profile: ConditionalPerformanceProfile, entry: LibraryEntry, where: str) -> None:
+    """A module's profile has one input axis per declared input, named alike when named."""
+    if profile.n_inputs != len(entry.inputs) or (
+        profile.inputs and tuple(profile.inputs) != entry.inputs
+    ):
+        n = profile.n_inputs
+        given = f"{n} unnamed input {'axis' if n == 1 else 'axes'}" if n else "no input axis"
+        if profile.inputs:
+            given = f"[{', '.join(profile.inputs)}]"
+        raise ProfileError(
+            f"{where}: inputs: expected [{', '.join(entry.inputs)}] (the inputs of module"
+            f" '{entry.name}'), got {given}"
+        )
+
+
+def _arity(module: AnytimeModule) -> int | None:
+    """How many positional arguments a call passes, when that is fixed."""
+    try:
+        signature = inspect.signature(module.function)
+    except (TypeError, ValueError):
+        return None
+    for parameter in signature.parameters.values():
+        if parameter.kind is parameter.VAR_POSITIONAL:
+            return None
+        if parameter.name in module.parameters and parameter.default is not parameter.empty:
+            return None
+    return module.arity
+
+
+@frozen
+class Loaded:
+    """What one source gave: its entries, and the problems it reported instead of raising."""
+
+    entries: tuple[LibraryEntry, ...] = ()
+    problems: tuple[str, ...] = ()
+
+
+class Source(Protocol):
+    """Where a library finds entries."""
+
+    @property
+    def name(self) -> str:
+        """What the source is called in messages."""
+        ...
+
+    #: True when an entry's origin yields to another source's that reaches the same module
+    #: (the in-process registry holds the modules that plugins registered on import).
+    generic: bool
+
+    def load(self) -> Loaded:
+        """Read the source now."""
+        ...
+
+
+class RegistrySource:
+    """Modules registered in-process by decorator (by default the process-wide `REGISTRY`)."""
+
+    generic = True
+
+    def __init__(self, registry: Registry | None = None, name: str = "in-process registry"):
+        self.registry = registry if registry is not None else REGISTRY
+        self.name = name
+
+    def load(self) -> Loaded:
+        return Loaded(tuple(LibraryEntry.of_module(m) for m in self.registry))
+
+
+class ProfileDirectory:
+    """The profile files `*.yaml` in a directory, each a profile-only entry.
+
+    Files are read when the source loads, since a file's `module` field names its entry; a
+    malformed file raises its `ProfileError` then.
+    """
+
+    generic = False
+
+    def __init__(self, path: str | os.PathLike[str]) -> None:
+        self.path = Path(path)
+        self.name = f"profile directory {self.path}"
+
+    def load(self) -> Loaded:
+        if not self.path.is_dir():
+            raise LibraryError(f"profile directory '{self.path}' does not exist")
+        files = sorted(self.path.glob("*.yaml"))
+        return Loaded(tuple(LibraryEntry.of_profile(load_profile(f), f) for f in files))
+
+
+class PluginSource:
+    """Installed plugins: the entry points of group `anytime.plugins`.
+
+    An entry point's object is a Python module, whose top-level `AnytimeModule`s (and the
+    modules its import added to `registry`) are the plugin's; a callable returning an iterable
+    of `AnytimeModule`s; or one `AnytimeModule`. A plugin that fails to import, raises, or gives
+    anything else is reported as a problem naming it, and the others still load.
+
+    Args:
+        entry_points: the entry points to load (default: those installed, found when loading).
+        registry: the registry a plugin's import may fill (default: the process-wide one).
+    """
+
+    generic = False
+    name = "installed plugins"
+
+    def __init__(
+        self,
+        entry_points: Iterable[metadata.EntryPoint] | None = None,
+        registry: Registry | None = None,
+    ) -> None:
+        self.entry_points = None if entry_points is None else tuple(entry_points)
+        self.registry = registry if registry is not None else REGISTRY
+
+    def load(self) -> Loaded:
+        found = self.entry_points
+        if found is None:
+            found = discover_plugins()
+        entries: list[LibraryEntry] = []
+        problems: list[str] = []
+        for entry_point in found:
+            label = f"plugin '{entry_point.name}' ({entry_point.value})"
+            try:
+                modules = self._modules(entry_point)
+            except Exception as error:  # a plugin's failure must not break the others
+                problems.append(f"{label}: {type(error).__name__}: {_one_line(error)}")
+                continue
+            entries.extend(LibraryEntry.of_module(m, origin=label) for m in modules)
+        return Loaded(tuple(entries), tuple(problems))
+
+    def _modules(self, entry_point: metadata.EntryPoint) -> list[AnytimeModule]:
+        before = set(map(id, self.registry))
+        loaded: Any = entry_point.load()
+        found: Iterable[Any]
+        if isinstance(loaded, AnytimeModule):
+            found = [loaded]
+        elif isinstance(loaded, types.ModuleType):
+            attributes = [v for v in vars(loaded).values() if isinstance(v, AnytimeModule)]
+            found = [*attributes, *(m for m in self.registry if id(m) not in before)]
+        elif callable(loaded):
+            found = loaded()
+        else:
+            raise TypeError(
+                f"expected a Python module, a callable or an anytime module,"
+                f" got {type(loaded).__name__}"
+            )
+        modules: dict[int, AnytimeModule] = {}
+        for item in found:
+            if not isinstance(item, AnytimeModule):
+                raise TypeError(f"expected anytime modules, got {item!r} ({type(item).__name__})")
+            modules.setdefault(id(item), item)
+        return list(modules.values())
+
+
+def discover_plugins(group: str = PLUGIN_GROUP) -> tuple[metadata.EntryPoint, ...]:
+    """The installed entry points of `group`, sorted by name."""
+    return tuple(sorted(metadata.entry_points(group=group), key=lambda ep: ep.name))
+
+
+def _one_line(error: BaseException) -> str:
+    text = str(error).strip()
+    return " ".join(text.split()) if text else "(no message)"
+
+
+class AnytimeLibrary:
+    """Function name -> `LibraryEntry`, merged from sources when the library is made.
+
+    Names are case-insensitive, as in the DSL. The sources are read once, in order; an entry
+    point's plugin is imported then.
+
+    Raises:
+        LibraryError: a name is defined by two different modules or profiles.
+    """
+
+    def __init__(self, sources: Iterable[Source] = ()) -> None:
+        self.sources = tuple(sources)
+        self._entries: dict[str, LibraryEntry] = {}
+        self._generic: set[str] = set()  # names whose entry came from a generic source
+        problems: list[str] = []
+        for source in self.sources:
+            loaded = source.load()
+            problems.extend(loaded.problems)
+            for entry in loaded.entries:
+                self._add(entry, generic=source.generic)
+        self.problems = tuple(problems)
+
+    @classmethod
+    def default(
+        cls,
+        profile_dirs: Iterable[str | os.PathLike[str]] = (),
+        registry: Registry | None = None,
+        plugins: bool = True,
+    ) -> AnytimeLibrary:
+        """Installed plugins (unless `plugins` is False), then the in-process registry, then
+        the profile directories."""
+        registry = registry if registry is not None else REGISTRY
+        sources: list[Source] = [PluginSource(registry=registry)] if plugins else []
+        sources.append(RegistrySource(registry))
+        sources.extend(ProfileDirectory(path) for path in profile_dirs)
+        return cls(sources)
+
+    def _add(self, entry: LibraryEntry, *, generic: bool) -> None:
+        old = self._entries.get(entry.name)
+        if old is not None and (old.module is None or old.module is not entry.module):
+            raise LibraryError(
+                f"module '{entry.name}' is defined twice: in {old.origin} and in {entry.origin}"
+            )
+        if old is not None and (generic or entry.name not in self._generic):
+            return  # the same module again: keep the first specific origin
+        self._entries[entry.name] = entry
+        if generic:
+            self._generic.add(entry.name)
+        else:
+            self._generic.discard(entry.name)
+
+    def get(self, name: str) -> LibraryEntry | None:
+        return self._entries.get(name.lower())
+
+    def __getitem__(self, name: str) -> LibraryEntry:
+        entry = self.get(name)
+        if entry is None:
+            hint = suggest(name.lower(), self._entries)
+            raise UnknownModuleError(f"no module named '{name}'{hint}")
+        return entry
+
+    def __contains__(self, name: object) -> bool:
+        return isinstance(name, str) and name.lower() in self._entries
+
+    def __iter__(self) -> Iterator[LibraryEntry]:
+        """The entries, by name."""
+        return iter([self._entries[name] for name in self.names()])
+
+    def __len__(self) -> int:
+        return len(self._entries)
+
+    def names(self) -> tuple[str, ...]:
+        return tuple(sorted(self._entries))
+
+    def known_functions(self) -> dict[str, int | None]:
+        """Name -> arity (None: not checked), as `anytime.dsl.parse_schemas` takes it."""
+        return {entry.name: entry.arity for entry in self}
+
+    def profile(self, name: str) -> ConditionalPerformanceProfile | None:
+        """The profile of `name` (read on first use); None for a module without one."""
+        return self[name].profile
+
+    def __repr__(self) -> str:
+        return f"<AnytimeLibrary of {len(self)} modules from {len(self.sources)} sources>"

@@ -1,0 +1,663 @@
+"""The profile builder: measure a module's conditional performance profile empirically.
+
+A domain says how to make problems for a module with a `ProblemSet`: `instance(rng, q)` builds
+one problem whose quality-carrying inputs have the qualities `q`, and `score(instance, value)`
+is the domain's quality function for an output. The builder runs the module on `trials`
+instances at every point of the input-quality grid and time grid, scores each output, and
+returns the measured profile: the histogram of scored qualities per cell, with its sample mean,
+standard deviation and sample count.
+
+How time is measured (DESIGN.md section 4): by default with a `WorkClock`, so a profile counts
+the ticks a module reports and does not depend on how busy the machine is.
+
+- An **interruptible** module runs once per instance, up to the largest time on the grid. At
+  grid time t it is credited with the last `Result` it yielded at or before t (a result yielded
+  once the clock has passed t does not count for t); before its first result its quality is 0.
+- A **contract** module runs once per instance and grid time, with `ctx.allocation = t`.
+- A module that raises, or yields something that is not a `Result`, is a failed run: it keeps
+  the last result it registered before failing (interruptible) or scores 0 (contract). Failures
+  are counted and the first one's traceback is kept; they never stop the build. A contract run
+  that uses more than its allocation keeps its result and is counted as an overrun.
+
+Reproducibility: trial i at input-quality cell c draws from `SeedSequence(seed, spawn_key=(c,
+i))`, the stream `SeedSequence(seed).spawn(...)` would hand it, whichever worker runs it and in
+whatever order chunks come back. The same instance (same seed) is used at every time of the
+grid, so a cell's curve over time compares like with like. With the work clock the profile is
+therefore identical for any number of workers, any chunk size and any executor.
+"""
+
+from __future__ import annotations
+
+import difflib
+import importlib
+import inspect
+import math
+import secrets
+import time as _time
+import traceback
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
+from contextlib import contextmanager
+from typing import Any, Literal, Protocol
+
+import numpy as np
+from attrs import cmp_using, field, frozen
+from numpy.typing import ArrayLike
+
+from anytime.clocks import Clock, WallClock, WorkClock
+from anytime.errors import AnytimeError, ProfileError
+from anytime.modules import AnytimeModule, Context, Result
+from anytime.profiles.profile import Array, ConditionalPerformanceProfile, default_bins
+from anytime.profiles.progress import ProgressBar
+
+ClockName = Literal["work", "wall"]
+
+_CLOCKS: dict[str, tuple[Callable[[], Clock], Literal["ticks", "seconds"]]] = {
+    "work": (WorkClock, "ticks"),
+    "wall": (WallClock, "seconds"),
+}
+
+
+class BuildError(AnytimeError, ValueError):
+    """A profile cannot be built as asked: bad grids, a problem set that breaks its contract."""
+
+
+class MissingExtraError(AnytimeError, ImportError):
+    """An optional dependency is needed and not installed; the message names the extra."""
+
+
+@frozen
+class Instance:
+    """One problem: the module's arguments after the context, and what the scorer needs.
+
+    A quality-carrying argument may be a `Result` (whose quality must be the one asked for) or a
+    plain value, which the builder wraps as `Result(value, asked quality)`.
+
+    Attributes:
+        args: the positional arguments after `ctx`, in the module's parameter order.
+        reference: anything `ProblemSet.score` compares an output against (an optimal answer).
+    """
+
+    args: tuple[Any, ...] = field(converter=tuple)
+    reference: Any = None
+
+
+class ProblemSet(Protocol):
+    """What a domain supplies to measure a module. It must pickle (a top-level class instance)
+    to reach worker processes, and should be small: instances are made on the workers."""
+
+    def instance(self, rng: np.random.Generator, input_qualities: tuple[float, ...]) -> Instance:
+        """A random problem whose quality-carrying inputs have `input_qualities` (axis order)."""
+        ...
+
+    def score(self, instance: Instance, value: Any) -> float:
+        """The true quality in [0, 1] of the output `value` on `instance`."""
+        ...
+
+
+def _array(value: ArrayLike) -> Array:
+    array = np.array(value, dtype=np.float64)
+    array.setflags(write=False)
+    return array
+
+
+def _arrays(value: Sequence[ArrayLike]) -> tuple[Array, ...]:
+    return tuple(_array(grid) for grid in value)
+
+
+def _grids_equal(a: tuple[Array, ...], b: tuple[Array, ...]) -> bool:
+    return len(a) == len(b) and all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+
+
+@frozen
+class Grid:
+    """The grids a profile is measured on.
+
+    Attributes:
+        time: increasing time allocations (ticks for the work clock, seconds for the wall clock).
+        input_grids: one increasing grid of qualities per quality-carrying input.
+        bins: K+1 edges of the quality histogram (default: 10 equal bins).
+    """
+
+    time: Array = field(converter=_array, eq=cmp_using(eq=np.array_equal), hash=False)
+    input_grids: tuple[Array, ...] = field(
+        default=(), converter=_arrays, eq=cmp_using(eq=_grids_equal), hash=False
+    )
+    bins: Array = field(
+        factory=default_bins, converter=_array, eq=cmp_using(eq=np.array_equal), hash=False
+    )
+
+    @property
+    def cell_shape(self) -> tuple[int, ...]:
+        """The input-quality cells (no time axis)."""
+        return tuple(len(grid) for grid in self.input_grids)
+
+
+@frozen
+class Measurement:
+    """How `anytime profile` measures one module: its problem set and grid."""
+
+    problems: ProblemSet
+    grid: Grid
+
+
+_MEASUREMENTS: dict[str, Measurement] = {}
+
+
+def register_problems(
+    module: str | AnytimeModule,
+    problems: ProblemSet,
+    *,
+    time: ArrayLike,
+    input_grids: Sequence[ArrayLike] = (),
+    bins: ArrayLike | None = None,
+) -> Measurement:
+    """Declare how `anytime profile MODULE` measures `module` (a domain calls this beside its
+    module's decorator). Registering a name again replaces the earlier declaration."""
+    name = (module.name if isinstance(module, AnytimeModule) else module).lower()
+    grid = Grid(time, input_grids, default_bins() if bins is None else bins)
+    measurement = Measurement(problems, grid)
+    _MEASUREMENTS[name] = measurement
+    return measurement
+
+
+def registered_problems(name: str) -> Measurement:
+    """The measurement registered for module `name`; an error lists the known ones."""
+    found = _MEASUREMENTS.get(name.lower())
+    if found is not None:
+        return found
+    known = sorted(_MEASUREMENTS)
+    close = difflib.get_close_matches(name.lower(), known, n=1)
+    hint = f"; did you mean '{close[0]}'?" if close else ""
+    listed = ", ".join(known) if known else "none"
+    raise BuildError(
+        f"no problem set is registered for module '{name}' (registered: {listed}){hint}"
+    )
+
+
+@frozen
+class ProfileBuild:
+    """A measured profile and how the measurement went.
+
+    Attributes:
+        profile: the measured conditional performance profile.
+        trials: instances per cell (the profile's `samples`).
+        runs: module runs in all (one per trial for interruptible, one per trial and time for
+            contract modules).
+        failures: runs that raised or yielded something other than a `Result`.
+        overruns: contract runs that used more than their allocation (their results count).
+        first_failure: the first failed run (in trial order) and its traceback, or None.
+        seed: the seed the trials' random streams derive from (pass it again to reproduce).
+        seconds: wall time of the whole build.
+    """
+
+    profile: ConditionalPerformanceProfile
+    trials: int
+    runs: int
+    failures: int
+    overruns: int
+    first_failure: str | None
+    seed: int
+    seconds: float
+
+    @property
+    def rate(self) -> float:
+        """Trials per second."""
+        total = self.trials * math.prod(self.profile.cell_shape[:-1])
+        return total / self.seconds if self.seconds > 0 else math.inf
+
+    def summary(self) -> str:
+        """A few lines for a terminal: what was measured, and failures if any."""
+        cells = "x".join(str(n) for n in self.profile.cell_shape)
+        lines = [
+            f"{self.profile.module}: {self.trials} trials per cell over {cells} cells,"
+            f" {self.runs} runs in {self.seconds:.1f} s ({self.rate:.1f} trials/s), seed"
+            f" {self.seed}"
+        ]
+        if self.failures:
+            head = (self.first_failure or "").splitlines()[0]
+            lines.append(f"{self.failures} of {self.runs} runs failed; first: {head}")
+        if self.overruns:
+            lines.append(f"{self.overruns} contract runs used more than their allocation")
+        return "\n".join(lines)
+
+
+@frozen
+class ProfileRequest:
+    """The options of `anytime profile MODULE` (see `profile_module`).
+
+    Attributes:
+        trials: instances per cell of the grid.
+        seed: the root seed (None: fresh entropy, reported in the build).
+        workers: local worker processes (1: run in this process).
+        scheduler: address of a Dask distributed scheduler to run the trials on instead.
+        clock: "work" (ticks the module reports; reproducible) or "wall" (seconds).
+        quiet: no progress bar even on a terminal.
+        chunk_size: trials per task (default: enough tasks to keep every worker busy).
+    """
+
+    trials: int = 100
+    seed: int | None = 0
+    workers: int = 1
+    scheduler: str | None = None
+    clock: ClockName = "work"
+    quiet: bool = False
+    chunk_size: int | None = None
+
+
+def profile_module(
+    module: AnytimeModule,
+    request: ProfileRequest | None = None,
+    *,
+    measurement: Measurement | None = None,
+) -> ProfileBuild:
+    """Measure `module` with its registered problem set (or `measurement`) as `request` says."""
+    request = request if request is not None else ProfileRequest()
+    plan = measurement if measurement is not None else registered_problems(module.name)
+    with _request_executor(request) as executor:
+        return build_profile(
+            module,
+            plan.problems,
+            time=plan.grid.time,
+            input_grids=plan.grid.input_grids,
+            bins=plan.grid.bins,
+            trials=request.trials,
+            seed=request.seed,
+            executor=executor,
+            workers=request.workers,
+            clock=request.clock,
+            progress=False if request.quiet else None,
+            chunk_size=request.chunk_size,
+        )
+
+
+@contextmanager
+def _request_executor(request: ProfileRequest) -> Iterator[Executor | None]:
+    if request.scheduler is None:
+        yield None
+    else:
+        with dask_executor(request.scheduler) as executor:
+            yield executor
+
+
+@contextmanager
+def dask_executor(address: Any) -> Iterator[Executor]:
+    """The `concurrent.futures` executor of a Dask distributed cluster, closed on exit.
+
+    `address` is a scheduler address ("tcp://host:8786") or a cluster object. Its workers must
+    be able to import the module and the problem set's class (both travel by reference).
+    """
+    try:
+        distributed: Any = importlib.import_module("distributed")
+    except ImportError as exc:
+        raise MissingExtraError(
+            f"running trials on a Dask scheduler needs Dask distributed ({exc}); install the"
+            " extra: pip install 'anytime-compose[dask]'"
+        ) from exc
+    try:
+        client = distributed.Client(address)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise BuildError(f"cannot connect to the Dask scheduler at {address}: {exc}") from exc
+    try:
+        # pure=False: every chunk is its own task, whatever Dask makes of its arguments' hash.
+        yield client.get_executor(pure=False)
+    finally:
+        client.close()
+
+
+def build_profile(
+    module: AnytimeModule,
+    problems: ProblemSet,
+    *,
+    time: ArrayLike,
+    input_grids: Sequence[ArrayLike] = (),
+    bins: ArrayLike | None = None,
+    trials: int = 100,
+    seed: int | None = 0,
+    executor: Executor | None = None,
+    workers: int = 1,
+    clock: ClockName = "work",
+    progress: bool | None = None,
+    chunk_size: int | None = None,
+) -> ProfileBuild:
+    """Measure `module`'s conditional performance profile on `problems`.
+
+    Args:
+        module: an interruptible or contract module.
+        problems: makes instances and scores outputs (see `ProblemSet`).
+        time: the time grid (ticks for the work clock, seconds for the wall clock).
+        input_grids: one grid of qualities per quality-carrying input, in `module.inputs` order.
+        bins: K+1 quality-bin edges of the histogram (default: 10 equal bins).
+        trials: instances per input-quality cell.
+        seed: the root seed; None draws fresh entropy (reported as `ProfileBuild.seed`).
+        executor: where to run the trials (any `concurrent.futures.Executor`; left running).
+        workers: without an executor, a process pool of this many workers (1: in this process).
+        clock: "work" (default, reproducible) or "wall".
+        progress: draw a progress bar on standard error (None: only on a terminal).
+        chunk_size: trials per task; it changes the overhead, never the result.
+    """
+    started = _time.perf_counter()
+    grid = _check(module, time, input_grids, bins, trials, seed, workers, clock, chunk_size)
+    entropy = int(seed) if seed is not None else secrets.randbits(128)  # as SeedSequence() does
+    total = trials * math.prod(grid.cell_shape)
+    if chunk_size is None:
+        chunk_size = max(1, min(256, math.ceil(total / max(64, 8 * workers))))
+    chunks = [
+        _Chunk(
+            module, problems, grid, clock, entropy, trials, start, min(start + chunk_size, total)
+        )
+        for start in range(0, total, chunk_size)
+    ]
+    quality = np.zeros((total, len(grid.time)))
+    failures = overruns = 0
+    first: tuple[int, str] | None = None
+    with ProgressBar(total, label=module.name, enabled=progress) as bar:
+        for done in _run(chunks, executor, workers):
+            quality[done.start : done.start + len(done.quality)] = done.quality
+            failures += done.failures
+            overruns += done.overruns
+            if done.first_failure is not None and (first is None or done.first_failure < first):
+                first = done.first_failure
+            bar.update(len(done.quality))
+    return ProfileBuild(
+        profile=_tabulate(module, grid, quality.reshape((*grid.cell_shape, trials, -1)), clock),
+        trials=trials,
+        runs=total * (len(grid.time) if module.kind == "contract" else 1),
+        failures=failures,
+        overruns=overruns,
+        first_failure=None if first is None else first[1],
+        seed=entropy,
+        seconds=_time.perf_counter() - started,
+    )
+
+
+def _check(
+    module: AnytimeModule,
+    time: ArrayLike,
+    input_grids: Sequence[ArrayLike],
+    bins: ArrayLike | None,
+    trials: int,
+    seed: int | None,
+    workers: int,
+    clock: str,
+    chunk_size: int | None,
+) -> Grid:
+    """The build's grid, once every argument is known to be usable."""
+    where = f"profile of module '{module.name}'"
+    if module.kind not in ("interruptible", "contract"):
+        raise BuildError(
+            f"{where}: only interruptible and contract modules have a profile to measure"
+            f" (this one is {module.kind})"
+        )
+    if len(input_grids) != len(module.inputs):
+        names = ", ".join(module.inputs) or "none"
+        raise BuildError(
+            f"{where}: expected {len(module.inputs)} input-quality grid(s) (one per"
+            f" quality-carrying input: {names}), got {len(input_grids)}"
+        )
+    for name, value, least in (
+        ("trials", trials, 1),
+        ("workers", workers, 1),
+        ("chunk_size", 1 if chunk_size is None else chunk_size, 1),
+        ("seed", 0 if seed is None else seed, 0),
+    ):
+        if not isinstance(value, int | np.integer) or isinstance(value, bool) or value < least:
+            raise BuildError(f"{where}: {name}: expected an integer >= {least}, got {value!r}")
+    if clock not in _CLOCKS:
+        raise BuildError(f"{where}: clock: expected 'work' or 'wall', got {clock!r}")
+    grid = Grid(time, input_grids, default_bins() if bins is None else bins)
+    sizes = (*(g.size for g in grid.input_grids), grid.time.size, max(1, grid.bins.size - 1))
+    try:  # a profile's own validation names the offending grid
+        ConditionalPerformanceProfile(
+            input_grids=grid.input_grids,
+            time=grid.time,
+            bins=grid.bins,
+            probability=np.full(sizes, 1 / sizes[-1]),
+            module=where,
+        )
+    except ProfileError as exc:
+        raise BuildError(str(exc)) from exc
+    return grid
+
+
+def _tabulate(
+    module: AnytimeModule, grid: Grid, quality: Array, clock: str
+) -> ConditionalPerformanceProfile:
+    """The profile of a (*cells, trials, times) table of scored qualities."""
+    axis = quality.ndim - 2
+    n_bins = len(grid.bins) - 1
+    # The bin holding each quality, as `point_mass` finds it (1.0 falls in the last bin).
+    index = np.clip(np.searchsorted(grid.bins, quality, side="right") - 1, 0, n_bins - 1)
+    probability = np.stack([(index == k).mean(axis=axis) for k in range(n_bins)], axis=-1)
+    trials = quality.shape[axis]
+    std = quality.std(axis=axis, ddof=1) if trials > 1 else np.zeros(probability.shape[:-1])
+    kind: Literal["interruptible", "contract"] = (
+        "contract" if module.kind == "contract" else "interruptible"
+    )
+    return ConditionalPerformanceProfile(
+        input_grids=grid.input_grids,
+        time=grid.time,
+        bins=grid.bins,
+        probability=probability,
+        inputs=module.inputs,
+        mean=np.clip(quality.mean(axis=axis), 0.0, 1.0),
+        samples=np.full(probability.shape[:-1], float(trials)),
+        std=std,
+        module=module.name,
+        kind=kind,
+        time_unit=_CLOCKS[clock][1],
+    )
+
+
+# --- running chunks of trials (in the workers) ------------------------------------------------
+
+
+@frozen(eq=False)
+class _Chunk:
+    """Trials `start` to `stop` of one build, by flat index `cell * trials + instance`."""
+
+    module: AnytimeModule
+    problems: ProblemSet
+    grid: Grid
+    clock: str
+    entropy: int
+    trials: int
+    start: int
+    stop: int
+
+
+@frozen(eq=False)
+class _Done:
+    start: int
+    quality: Array  # (stop - start, len(time)): the score at each grid time
+    failures: int
+    overruns: int
+    first_failure: tuple[int, str] | None  # (flat trial index, description)
+
+
+def _run(chunks: list[_Chunk], executor: Executor | None, workers: int) -> Iterator[_Done]:
+    """Finished chunks as they come back, in any order."""
+    if executor is None and workers == 1:
+        yield from map(_measure_chunk, chunks)
+        return
+    pool: Executor = executor if executor is not None else ProcessPoolExecutor(workers)
+    futures: list[Future[_Done]] = []
+    try:
+        futures = [pool.submit(_measure_chunk, chunk) for chunk in chunks]
+        for future in as_completed(futures):
+            yield future.result()
+    finally:
+        for future in futures:  # after an error: drop what has not started
+            future.cancel()
+        if executor is None:
+            pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _measure_chunk(chunk: _Chunk) -> _Done:
+    """Run one chunk of trials."""
+    grid = chunk.grid
+    quality = np.zeros((chunk.stop - chunk.start, len(grid.time)))
+    failures = overruns = 0
+    first: tuple[int, str] | None = None
+    measure = _interruptible if chunk.module.kind == "interruptible" else _contract
+    for row, flat in enumerate(range(chunk.start, chunk.stop)):
+        cell, instance = divmod(flat, chunk.trials)
+        position = np.unravel_index(cell, grid.cell_shape) if grid.cell_shape else ()
+        qualities = tuple(float(g[i]) for g, i in zip(grid.input_grids, position, strict=True))
+        trial = _Trial(
+            chunk.module,
+            chunk.problems,
+            qualities,
+            np.random.SeedSequence(chunk.entropy, spawn_key=(cell, instance)),
+            _CLOCKS[chunk.clock][0],
+            f"trial {instance} at input qualities {list(qualities)}",
+        )
+        failed, overran = measure(trial, grid.time, quality[row])
+        overruns += overran
+        failures += len(failed)
+        if failed and first is None:
+            headline, details = failed[0]
+            first = (flat, f"{headline} ({trial.where})\n{details}".rstrip())
+    return _Done(chunk.start, quality, failures, overruns, first)
+
+
+@frozen(eq=False)
+class _Trial:
+    """One instance at one input-quality cell; `problem()` makes it afresh from its seed."""
+
+    module: AnytimeModule
+    problems: ProblemSet
+    qualities: tuple[float, ...]
+    seeds: np.random.SeedSequence
+    clock: Callable[[], Clock]
+    where: str
+
+    def problem(self) -> tuple[Instance, tuple[Any, ...]]:
+        rng = np.random.default_rng(self.seeds)
+        try:
+            instance = self.problems.instance(rng, self.qualities)
+        except Exception as exc:
+            raise BuildError(
+                f"{_name(self.problems)}.instance failed ({self.where}): {_headline(exc)}"
+            ) from exc
+        return instance, _arguments(self.module, self.problems, instance, self.qualities)
+
+    def score(self, instance: Instance, value: Any) -> float:
+        where = f"{_name(self.problems)}.score ({self.where})"
+        try:
+            quality = self.problems.score(instance, value)
+        except Exception as exc:
+            raise BuildError(f"{where} failed: {_headline(exc)}") from exc
+        try:
+            q = float(quality)
+        except (TypeError, ValueError):
+            q = math.nan
+        if not 0.0 <= q <= 1.0:  # also refuses NaN
+            raise BuildError(f"{where}: expected a quality in [0, 1], got {quality!r}")
+        return q
+
+
+def _name(problems: ProblemSet) -> str:
+    return type(problems).__qualname__
+
+
+def _headline(exc: BaseException) -> str:
+    return "".join(traceback.format_exception_only(exc)).strip().splitlines()[-1]
+
+
+def _failure(exc: BaseException) -> tuple[str, str]:
+    return _headline(exc), "".join(traceback.format_exception(exc))
+
+
+def _arguments(
+    module: AnytimeModule, problems: ProblemSet, instance: Instance, qualities: tuple[float, ...]
+) -> tuple[Any, ...]:
+    """The instance's arguments, quality-carrying ones as `Result`s of the asked quality."""
+    where = f"{_name(problems)}.instance"
+    if not isinstance(instance, Instance):
+        raise BuildError(f"{where}: expected an Instance, got {type(instance).__name__}")
+    args = list(instance.args)
+    try:
+        inspect.signature(module.function).bind(None, *args)
+    except TypeError as exc:
+        params = ", ".join(module.parameters) or "none"
+        raise BuildError(
+            f"{where}: {len(args)} argument(s) do not fit module '{module.name}'"
+            f" (parameters after ctx: {params}): {exc}"
+        ) from exc
+    for name, asked in zip(module.inputs, qualities, strict=True):
+        position = module.parameters.index(name)
+        if position >= len(args):
+            raise BuildError(f"{where}: no argument for the quality-carrying input '{name}'")
+        arg = args[position]
+        if not isinstance(arg, Result):
+            args[position] = Result(arg, asked)
+        elif abs(arg.quality - asked) > 1e-9:
+            raise BuildError(
+                f"{where}: input '{name}' was asked at quality {asked:g}, got a Result of"
+                f" quality {arg.quality:g}"
+            )
+    return tuple(args)
+
+
+Failures = list[tuple[str, str]]  # (headline, traceback) of each failed run
+
+
+def _interruptible(trial: _Trial, time: Array, out: Array) -> tuple[Failures, int]:
+    """One run up to the last grid time; `out[j]` becomes the score of the answer at `time[j]`."""
+    instance, args = trial.problem()
+    ctx = Context(allocation=float(time[-1]), clock=trial.clock())
+    answers: list[tuple[int, Any]] = []  # (first grid index it answers for, value)
+    failed: Failures = []
+    generator = trial.module(ctx, *args)
+    try:
+        while True:
+            try:
+                item = next(generator)
+            except StopIteration:
+                break
+            except Exception as exc:  # the module failed: its last result stands
+                failed.append(_failure(exc))
+                break
+            at = ctx.elapsed
+            if at > time[-1]:
+                break
+            if not isinstance(item, Result):
+                failed.append((f"yielded a {type(item).__name__}, not a Result", ""))
+                break
+            first = int(np.searchsorted(time, at, side="left"))  # the grid times >= at
+            if answers and answers[-1][0] == first:
+                answers[-1] = (first, item.value)  # superseded before the next grid time
+            else:
+                answers.append((first, item.value))
+    finally:
+        try:
+            generator.close()
+        except Exception as exc:
+            failed.append(_failure(exc))
+    # Scored after the run, so that the scorer's time is never charged to the module.
+    ends = [first for first, _ in answers[1:]] + [len(time)]
+    for (first, value), end in zip(answers, ends, strict=True):
+        out[first:end] = trial.score(instance, value)
+    return failed, 0
+
+
+def _contract(trial: _Trial, time: Array, out: Array) -> tuple[Failures, int]:
+    """One run per grid time on the same instance, with that time as its allocation."""
+    failed: Failures = []
+    overruns = 0
+    for j, allocation in enumerate(time):
+        instance, args = trial.problem()  # made afresh: a module may change its arguments
+        ctx = Context(allocation=float(allocation), clock=trial.clock())
+        try:
+            result = trial.module(ctx, *args)
+        except Exception as exc:
+            failed.append(_failure(exc))
+            continue
+        used = ctx.elapsed
+        if not isinstance(result, Result):
+            failed.append((f"returned a {type(result).__name__}, not a Result", ""))
+            continue
+        overruns += used > allocation
+        out[j] = trial.score(instance, result.value)
+    return failed, overruns

@@ -1,0 +1,483 @@
+"""The profile file format, `anytime-profile/1`: reading (validated) and writing (exact).
+
+A profile file is one YAML mapping (DESIGN.md section 5)::
+
+    format: anytime-profile/1          # required, the version of this format
+    module: find-path                  # default: the file name without its extension
+    kind: interruptible                # or contract; default interruptible
+    time_unit: ticks                   # or seconds; default ticks
+    inputs: [domain]                   # quality-carrying inputs in axis order; may be empty
+    input_quality: [[0.8, 0.9, 1.0]]   # one increasing grid of qualities per input
+    time: [0, 100, 200, 400]           # required: increasing allocations >= 0
+    quality_bins: [0.0, 0.25, 0.5, 0.75, 1.0]   # required: K+1 increasing edges in [0, 1]
+    probability:                       # shape (input grids..., time, K); rows sum to 1
+      - [[1, 0, 0, 0], [0.5, 0.5, 0, 0], [0, 0.5, 0.5, 0], [0, 0, 0.5, 0.5]]
+      - ...
+    mean: [[...], ...]                 # optional: expected quality per cell
+    std: [[...], ...]                  # optional: standard deviation per cell (measured)
+    samples: [[...], ...]              # optional: trials per cell (measured)
+
+A deterministic profile gives `expected:` (shape without the last axis) instead of
+`probability:` and `mean:`: each cell is a point mass in the bin holding that quality, and the
+quality itself is kept as the profile's `mean`, so expected quality is exact, not a bin midpoint
+(it must lie between the first and last bin edges).
+Exactly one of `probability` and `expected` must be given; `std` and `samples` go with either.
+`inputs` may be left out when the input axes have no names; when given it names every axis.
+
+Files are read with `yaml.safe_load` only: a tag that would construct a Python object is
+refused, never run. Every problem is a `ProfileError` saying
+`FILE: field: what is wrong (expected ..., got ...)`; YAML syntax errors add the line and
+column (`FILE:LINE:COL: ...`). YAML 1.1 reads `1e-3` and `1.0e3` as strings: give such numbers
+a dot and a signed exponent, `1.0e-3` and `1.0e+3`.
+
+Writing uses repr precision for floats (integral values as integers), so save -> load gives
+back an equal profile. A profile whose probabilities are exactly the point masses of its `mean`
+is written as `expected:`, so a hand-written `expected:` file keeps its form. A profile without
+a module name takes the file's name when loaded back; a `PerformanceProfile` comes back as a
+`ConditionalPerformanceProfile` with equal fields.
+"""
+
+from __future__ import annotations
+
+import difflib
+import os
+import re
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any, NoReturn, cast
+
+import numpy as np
+import yaml
+from numpy.typing import NDArray
+
+from anytime.errors import ProfileError
+from anytime.profiles.profile import (
+    Array,
+    ConditionalPerformanceProfile,
+    Kind,
+    TimeUnit,
+    point_mass,
+)
+
+FORMAT = "anytime-profile/1"
+
+#: Every field a file may have, in the order they are written.
+FIELDS = (
+    "format",
+    "module",
+    "kind",
+    "time_unit",
+    "inputs",
+    "input_quality",
+    "time",
+    "quality_bins",
+    "probability",
+    "expected",
+    "mean",
+    "std",
+    "samples",
+)
+
+KINDS = ("interruptible", "contract")
+TIME_UNITS = ("ticks", "seconds")
+
+#: A file describing more cells than this is refused before its tables are read: YAML aliases
+#: can make a small file stand for an enormous table.
+MAX_CELLS = 10_000_000
+
+#: Numbers YAML 1.1 reads as strings: an exponent without a dot, or without a sign.
+_EXPONENT = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+$")
+_TAG = re.compile(r"could not determine a constructor for the tag '([^']*)'")
+
+
+# --- reading ---------------------------------------------------------------------------------
+
+
+def load_profile(path: str | os.PathLike[str]) -> ConditionalPerformanceProfile:
+    """Read and validate a profile file; every problem is a `ProfileError` naming the file."""
+    filename = os.fspath(path)
+    try:
+        text = Path(path).read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as exc:
+        bad = exc.object[exc.start : exc.start + 1].hex()
+        raise ProfileError(
+            f"{filename}: cannot read the file: expected UTF-8 text, got byte 0x{bad}"
+            f" at offset {exc.start}"
+        ) from None
+    except OSError as exc:
+        raise ProfileError(f"{filename}: cannot read the file: {exc.strerror or exc}") from None
+    return profile_from_dict(_parse_yaml(text, filename), filename)
+
+
+def _parse_yaml(text: str, filename: str) -> object:
+    try:
+        return yaml.safe_load(text)
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        where = f"{filename}:{mark.line + 1}:{mark.column + 1}" if mark else filename
+        tag = _TAG.match(exc.problem or "")
+        if isinstance(exc, yaml.constructor.ConstructorError) and tag:
+            name = tag.group(1).replace("tag:yaml.org,2002:", "!!")
+            field = _field_at(text, mark.index) if mark else "top level"
+            what = "a tag that would construct a Python object" if "python/" in name else "a tag"
+            raise ProfileError(
+                f"{where}: {field}: refused YAML tag {name!r} (expected plain data: numbers,"
+                f" strings, lists and mappings, got {what})"
+            ) from None
+        problem = ", ".join(part for part in (exc.context, exc.problem) if part)
+        raise ProfileError(f"{where}: not YAML: {problem}") from None
+    except yaml.reader.ReaderError as exc:  # a character YAML does not allow
+        line = text.count("\n", 0, exc.position) + 1
+        column = exc.position - text.rfind("\n", 0, exc.position)
+        raise ProfileError(
+            f"{filename}:{line}:{column}: not YAML: unacceptable character"
+            f" #x{exc.character:04x}: {exc.reason}"
+        ) from None
+    except yaml.YAMLError as exc:  # not raised by the loaders today; kept as a safety net
+        raise ProfileError(f"{filename}: not YAML: {exc}") from None
+
+
+def _field_at(text: str, index: int) -> str:
+    """The top-level field whose value holds character `index` (composing builds no objects)."""
+    root = yaml.compose(text, Loader=yaml.SafeLoader)
+    if isinstance(root, yaml.MappingNode):
+        for key, value in root.value:
+            if value.start_mark.index <= index <= value.end_mark.index:
+                return str(key.value)
+    return "top level"
+
+
+def profile_from_dict(
+    data: object, filename: str | os.PathLike[str]
+) -> ConditionalPerformanceProfile:
+    """Validate the parsed contents of a profile file and build the profile.
+
+    `filename` prefixes every message, and its stem is the module name when none is given.
+    """
+    return _Reader(os.fspath(filename)).read(data)
+
+
+class _Reader:
+    """Reads one file's mapping, field by field, failing at the first problem."""
+
+    def __init__(self, filename: str) -> None:
+        self.filename = filename
+
+    def fail(self, field: str, problem: str) -> NoReturn:
+        raise ProfileError(f"{self.filename}: {field}: {problem}")
+
+    def read(self, data: object) -> ConditionalPerformanceProfile:
+        return self.profile(self.fields(data))
+
+    def fields(self, data: object) -> Mapping[Any, Any]:
+        """The top-level mapping, once the version, the field names and the choices are right."""
+        if not isinstance(data, Mapping):
+            self.fail("top level", f"expected a mapping of fields, got {_describe(data)}")
+        if "format" not in data:
+            self.fail("format", f"missing field (expected {FORMAT!r}, got nothing)")
+        if data["format"] != FORMAT:
+            self.fail(
+                "format",
+                f"unknown format version (expected {FORMAT!r}, got {_describe(data['format'])})",
+            )
+        for key in data:
+            if key not in FIELDS:
+                close = difflib.get_close_matches(str(key), FIELDS, n=1)
+                hint = f", did you mean {close[0]!r}?" if close else ""
+                self.fail(
+                    str(key),
+                    f"unknown field{hint} (expected one of {', '.join(FIELDS)};"
+                    f" got {_describe(key)})",
+                )
+        for key, what in (("time", "a list of times"), ("quality_bins", "a list of bin edges")):
+            if key not in data:
+                self.fail(key, f"missing field (expected {what}, got nothing)")
+        if "probability" in data and "expected" in data:
+            self.fail("probability", "expected exactly one of probability and expected, got both")
+        if "probability" not in data and "expected" not in data:
+            self.fail(
+                "probability", "missing field (expected probability or expected, got neither)"
+            )
+        if "expected" in data and "mean" in data:
+            self.fail(
+                "mean",
+                "not allowed next to expected, which is the mean"
+                " (expected mean only with probability, got both)",
+            )
+        return data
+
+    def profile(self, data: Mapping[Any, Any]) -> ConditionalPerformanceProfile:
+        module = self.name("module", data.get("module", Path(self.filename).stem))
+        kind = cast(Kind, self.choice("kind", data.get("kind", "interruptible"), KINDS))
+        time_unit = cast(
+            TimeUnit, self.choice("time_unit", data.get("time_unit", "ticks"), TIME_UNITS)
+        )
+        grids = self.input_grids(data.get("input_quality", []))
+        inputs = self.inputs(data["inputs"], len(grids)) if "inputs" in data else ()
+        time = self.grid("time", data["time"], minimum=1, quality=False)
+        bins = self.grid("quality_bins", data["quality_bins"], minimum=2, quality=True)
+
+        names = inputs or tuple(f"input_quality[{i}]" for i in range(len(grids)))
+        cells = (*(len(g) for g in grids), len(time))
+        axes = (*(f"one per {name} quality" for name in names), "one per time")
+        if np.prod(cells, dtype=np.float64) * (len(bins) - 1) > MAX_CELLS:
+            self.fail(
+                "probability" if "probability" in data else "expected",
+                f"expected at most {MAX_CELLS} cells, got shape {[*cells, len(bins) - 1]}",
+            )
+
+        def optional(key: str, *, quality: bool = False) -> Array | None:
+            return self.table(key, data[key], cells, axes, quality=quality) if key in data else None
+
+        mean: Array | None
+        if "expected" in data:
+            mean = self.table("expected", data["expected"], cells, axes, quality=True)
+            self.within_bins(mean, bins)
+            probability = point_mass(mean, bins)
+        else:
+            shape, bin_axis = (*cells, len(bins) - 1), "one per quality bin"
+            probability = self.table("probability", data["probability"], shape, (*axes, bin_axis))
+            mean = optional("mean", quality=True)
+        std, samples = optional("std"), optional("samples")
+        try:
+            return ConditionalPerformanceProfile(
+                input_grids=grids,
+                time=time,
+                bins=bins,
+                probability=probability,
+                inputs=inputs,
+                mean=mean,
+                std=std,
+                samples=samples,
+                module=module,
+                kind=kind,
+                time_unit=time_unit,
+            )
+        except ProfileError as exc:  # the class's own invariants: re-prefix with the file
+            message = str(exc).removeprefix(f"{module or 'profile'}: ")
+            raise ProfileError(f"{self.filename}: {message}") from None
+
+    # --- scalars -------------------------------------------------------------------------
+
+    def name(self, field: str, value: object) -> str:
+        if not isinstance(value, str) or not value:
+            self.fail(field, f"expected a name (a non-empty string), got {_describe(value)}")
+        return value
+
+    def choice(self, field: str, value: object, options: Sequence[str]) -> str:
+        if not isinstance(value, str) or value not in options:
+            expected = " or ".join(repr(option) for option in options)
+            self.fail(field, f"expected {expected}, got {_describe(value)}")
+        return value
+
+    def inputs(self, value: object, n_grids: int) -> tuple[str, ...]:
+        if not isinstance(value, list):
+            self.fail("inputs", f"expected a list of names, got {_describe(value)}")
+        names = tuple(self.name(f"inputs[{i}]", item) for i, item in enumerate(value))
+        for i, name in enumerate(names):
+            if name in names[:i]:
+                self.fail(f"inputs[{i}]", f"expected distinct names, got {name!r} twice")
+        if len(names) != n_grids:
+            self.fail(
+                "inputs",
+                f"expected {_count(n_grids, 'name')} (one per input_quality grid),"
+                f" got {len(names)}",
+            )
+        return names
+
+    # --- arrays --------------------------------------------------------------------------
+
+    def number(self, field: str, value: object) -> float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            hint = ""
+            if isinstance(value, str) and _EXPONENT.match(value):
+                hint = (
+                    " (YAML reads it as a string: write a dot and a signed exponent, as in 1.0e+3)"
+                )
+            self.fail(field, f"expected a number, got {_describe(value)}{hint}")
+        try:
+            return float(value)
+        except OverflowError:
+            self.fail(field, f"expected a finite number, got {value}")
+
+    def input_grids(self, value: object) -> list[Array]:
+        if not isinstance(value, list):
+            self.fail(
+                "input_quality", f"expected a list of grids (one per input), got {_describe(value)}"
+            )
+        return [
+            self.grid(f"input_quality[{i}]", grid, minimum=1, quality=True)
+            for i, grid in enumerate(value)
+        ]
+
+    def grid(self, field: str, value: object, *, minimum: int, quality: bool) -> Array:
+        """A 1-D list of numbers; the class checks that it increases."""
+        if not isinstance(value, list) or len(value) < minimum:
+            self.fail(
+                field,
+                f"expected a list of at least {_count(minimum, 'number')}, got {_describe(value)}",
+            )
+        grid = np.array([self.number(f"{field}[{i}]", x) for i, x in enumerate(value)])
+        self.non_negative(field, grid)
+        if quality:
+            self.in_unit_interval(field, grid)
+        return grid
+
+    def table(
+        self,
+        field: str,
+        value: object,
+        shape: tuple[int, ...],
+        axes: Sequence[str],
+        *,
+        quality: bool = False,
+    ) -> Array:
+        """A nested list of exactly `shape`; the first deviation is named by its index."""
+        flat: list[float] = []
+
+        def walk(node: object, depth: int, where: str) -> None:
+            if depth == len(shape):
+                flat.append(self.number(where, node))
+                return
+            n = shape[depth]
+            what = f"a list of {_count(n, 'number') if depth == len(shape) - 1 else n}"
+            if not isinstance(node, list) or len(node) != n:
+                self.fail(where, f"expected {what} ({axes[depth]}), got {_describe(node)}")
+            for i, item in enumerate(node):
+                walk(item, depth + 1, f"{where}[{i}]")
+
+        walk(value, 0, field)
+        table = np.array(flat, dtype=np.float64).reshape(shape)
+        self.non_negative(field, table)
+        if quality:
+            self.in_unit_interval(field, table)
+        return table
+
+    # --- values (vectorised; the first offending cell is named) --------------------------
+
+    def check(self, field: str, array: Array, bad: NDArray[np.bool_], expected: str) -> None:
+        if np.any(bad):
+            index = tuple(int(i) for i in np.argwhere(bad)[0])
+            where = field + "".join(f"[{i}]" for i in index)
+            self.fail(where, f"expected {expected}, got {_format(float(array[index]))}")
+
+    def non_negative(self, field: str, array: Array) -> None:
+        self.check(field, array, ~np.isfinite(array), "a finite number")
+        self.check(field, array, array < 0, "a number >= 0")
+
+    def in_unit_interval(self, field: str, array: Array) -> None:
+        self.check(field, array, (array < 0) | (array > 1), "a quality in [0, 1]")
+
+    def within_bins(self, mean: Array, bins: Array) -> None:
+        low, high = _format(float(bins[0])), _format(float(bins[-1]))
+        outside = (mean < bins[0]) | (mean > bins[-1])
+        self.check("expected", mean, outside, f"a quality within the bins [{low}, {high}]")
+
+
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
+
+
+def _format(x: float) -> str:
+    """A number as YAML would show it: `.nan`, `-.inf`, integers without `.0`."""
+    if np.isnan(x):
+        return ".nan"
+    if np.isinf(x):
+        return ".inf" if x > 0 else "-.inf"
+    if x.is_integer() and abs(x) < 2**53:
+        return str(int(x))
+    return repr(x)
+
+
+def _describe(value: object) -> str:
+    """What a parsed YAML value is, for a message."""
+    if value is None:
+        return "nothing (null)"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return _format(value)
+    if isinstance(value, int | str):
+        return repr(value)
+    if isinstance(value, list):
+        return f"a list of {len(value)}" if value else "an empty list"
+    if isinstance(value, Mapping):
+        return "a mapping"
+    return f"{value} (a {type(value).__name__})"
+
+
+# --- writing ---------------------------------------------------------------------------------
+
+
+def profile_to_dict(profile: ConditionalPerformanceProfile) -> dict[str, Any]:
+    """The file's mapping for `profile`: plain lists, floats exact, integral values as ints."""
+    data: dict[str, Any] = {"format": FORMAT}
+    if profile.module:
+        data["module"] = profile.module
+    data["kind"] = profile.kind
+    data["time_unit"] = profile.time_unit
+    if len(profile.inputs) == profile.n_inputs:  # unnamed input axes are left unnamed
+        data["inputs"] = list(profile.inputs)
+    data["input_quality"] = [_plain(grid) for grid in profile.input_grids]
+    data["time"] = _plain(profile.time)
+    data["quality_bins"] = _plain(profile.bins)
+    if _is_point_mass(profile):
+        data["expected"] = _plain(cast(Array, profile.mean))
+    else:
+        data["probability"] = _plain(profile.probability)
+        if profile.mean is not None:
+            data["mean"] = _plain(profile.mean)
+    if profile.std is not None:
+        data["std"] = _plain(profile.std)
+    if profile.samples is not None:
+        data["samples"] = _plain(profile.samples)
+    return data
+
+
+def save_profile(profile: ConditionalPerformanceProfile, path: str | os.PathLike[str]) -> None:
+    """Write `profile` to `path` in the `anytime-profile/1` format (OSError if it cannot)."""
+    text = yaml.dump(
+        profile_to_dict(profile),
+        Dumper=_Dumper,
+        sort_keys=False,
+        default_flow_style=False,
+        allow_unicode=True,
+        width=1_000_000,  # one row of a table per line, however many bins
+    )
+    Path(path).write_text(text, encoding="utf-8")
+
+
+def _is_point_mass(profile: ConditionalPerformanceProfile) -> bool:
+    """Whether the file can say `expected: mean` and be read back as this very profile."""
+    mean = profile.mean
+    return (
+        mean is not None
+        and bool(np.all((mean >= profile.bins[0]) & (mean <= profile.bins[-1])))
+        and np.array_equal(profile.probability, point_mass(mean, profile.bins))
+    )
+
+
+def _plain(array: Array) -> Any:
+    """Nested lists of Python numbers; floats keep full precision, integral ones print as ints."""
+
+    def plain(x: Any) -> Any:
+        if isinstance(x, list):
+            return [plain(item) for item in x]
+        return int(x) if x.is_integer() and abs(x) < 2**53 else x
+
+    return plain(array.tolist())
+
+
+class _Dumper(yaml.SafeDumper):
+    """The safe dumper, indenting lists under their key and writing the innermost ones inline."""
+
+    def increase_indent(self, flow: bool = False, indentless: bool = False) -> None:
+        super().increase_indent(flow, False)
+
+
+def _represent_list(dumper: yaml.SafeDumper, data: list[Any]) -> yaml.SequenceNode:
+    inline = not any(isinstance(item, list) for item in data)
+    return dumper.represent_sequence("tag:yaml.org,2002:seq", data, flow_style=inline)
+
+
+_Dumper.add_representer(list, _represent_list)
