@@ -30,107 +30,53 @@ from __future__ import annotations
 
 import difflib
 import importlib
-import inspect
 import math
 import secrets
 import time as _time
-import traceback
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
-from typing import Any, Literal, Protocol
+from typing import Any, Literal
 
 import numpy as np
-from attrs import cmp_using, field, frozen
+from attrs import frozen
 from numpy.typing import ArrayLike
 
-from anytime.clocks import Clock, WallClock, WorkClock
 from anytime.errors import AnytimeError, ProfileError
-from anytime.modules import AnytimeModule, Context, Result
+from anytime.modules import AnytimeModule
 from anytime.profiles.profile import Array, ConditionalPerformanceProfile, default_bins
 from anytime.profiles.progress import ProgressBar
+from anytime.profiles.trials import (
+    CLOCKS,
+    BuildError,
+    Chunk,
+    ClockName,
+    Done,
+    Grid,
+    Instance,
+    ProblemSet,
+    measure_chunk,
+)
 
-ClockName = Literal["work", "wall"]
-
-_CLOCKS: dict[str, tuple[Callable[[], Clock], Literal["ticks", "seconds"]]] = {
-    "work": (WorkClock, "ticks"),
-    "wall": (WallClock, "seconds"),
-}
-
-
-class BuildError(AnytimeError, ValueError):
-    """A profile cannot be built as asked: bad grids, a problem set that breaks its contract."""
+__all__ = [
+    "BuildError",
+    "Grid",
+    "Instance",
+    "Measurement",
+    "MissingExtraError",
+    "ProblemSet",
+    "ProfileBuild",
+    "ProfileRequest",
+    "build_profile",
+    "dask_executor",
+    "profile_module",
+    "register_problems",
+    "registered_problems",
+]
 
 
 class MissingExtraError(AnytimeError, ImportError):
     """An optional dependency is needed and not installed; the message names the extra."""
-
-
-@frozen
-class Instance:
-    """One problem: the module's arguments after the context, and what the scorer needs.
-
-    A quality-carrying argument may be a `Result` (whose quality must be the one asked for) or a
-    plain value, which the builder wraps as `Result(value, asked quality)`.
-
-    Attributes:
-        args: the positional arguments after `ctx`, in the module's parameter order.
-        reference: anything `ProblemSet.score` compares an output against (an optimal answer).
-    """
-
-    args: tuple[Any, ...] = field(converter=tuple)
-    reference: Any = None
-
-
-class ProblemSet(Protocol):
-    """What a domain supplies to measure a module. It must pickle (a top-level class instance)
-    to reach worker processes, and should be small: instances are made on the workers."""
-
-    def instance(self, rng: np.random.Generator, input_qualities: tuple[float, ...]) -> Instance:
-        """A random problem whose quality-carrying inputs have `input_qualities` (axis order)."""
-        ...
-
-    def score(self, instance: Instance, value: Any) -> float:
-        """The true quality in [0, 1] of the output `value` on `instance`."""
-        ...
-
-
-def _array(value: ArrayLike) -> Array:
-    array = np.array(value, dtype=np.float64)
-    array.setflags(write=False)
-    return array
-
-
-def _arrays(value: Sequence[ArrayLike]) -> tuple[Array, ...]:
-    return tuple(_array(grid) for grid in value)
-
-
-def _grids_equal(a: tuple[Array, ...], b: tuple[Array, ...]) -> bool:
-    return len(a) == len(b) and all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
-
-
-@frozen
-class Grid:
-    """The grids a profile is measured on.
-
-    Attributes:
-        time: increasing time allocations (ticks for the work clock, seconds for the wall clock).
-        input_grids: one increasing grid of qualities per quality-carrying input.
-        bins: K+1 edges of the quality histogram (default: 10 equal bins).
-    """
-
-    time: Array = field(converter=_array, eq=cmp_using(eq=np.array_equal), hash=False)
-    input_grids: tuple[Array, ...] = field(
-        default=(), converter=_arrays, eq=cmp_using(eq=_grids_equal), hash=False
-    )
-    bins: Array = field(
-        factory=default_bins, converter=_array, eq=cmp_using(eq=np.array_equal), hash=False
-    )
-
-    @property
-    def cell_shape(self) -> tuple[int, ...]:
-        """The input-quality cells (no time axis)."""
-        return tuple(len(grid) for grid in self.input_grids)
 
 
 @frozen
@@ -343,9 +289,7 @@ def build_profile(
     if chunk_size is None:
         chunk_size = max(1, min(256, math.ceil(total / max(64, 8 * workers))))
     chunks = [
-        _Chunk(
-            module, problems, grid, clock, entropy, trials, start, min(start + chunk_size, total)
-        )
+        Chunk(module, problems, grid, clock, entropy, trials, start, min(start + chunk_size, total))
         for start in range(0, total, chunk_size)
     ]
     quality = np.zeros((total, len(grid.time)))
@@ -403,7 +347,7 @@ def _check(
     ):
         if not isinstance(value, int | np.integer) or isinstance(value, bool) or value < least:
             raise BuildError(f"{where}: {name}: expected an integer >= {least}, got {value!r}")
-    if clock not in _CLOCKS:
+    if clock not in CLOCKS:
         raise BuildError(f"{where}: clock: expected 'work' or 'wall', got {clock!r}")
     grid = Grid(time, input_grids, default_bins() if bins is None else bins)
     sizes = (*(g.size for g in grid.input_grids), grid.time.size, max(1, grid.bins.size - 1))
@@ -445,45 +389,19 @@ def _tabulate(
         std=std,
         module=module.name,
         kind=kind,
-        time_unit=_CLOCKS[clock][1],
+        time_unit=CLOCKS[clock][1],
     )
 
 
-# --- running chunks of trials (in the workers) ------------------------------------------------
-
-
-@frozen(eq=False)
-class _Chunk:
-    """Trials `start` to `stop` of one build, by flat index `cell * trials + instance`."""
-
-    module: AnytimeModule
-    problems: ProblemSet
-    grid: Grid
-    clock: str
-    entropy: int
-    trials: int
-    start: int
-    stop: int
-
-
-@frozen(eq=False)
-class _Done:
-    start: int
-    quality: Array  # (stop - start, len(time)): the score at each grid time
-    failures: int
-    overruns: int
-    first_failure: tuple[int, str] | None  # (flat trial index, description)
-
-
-def _run(chunks: list[_Chunk], executor: Executor | None, workers: int) -> Iterator[_Done]:
+def _run(chunks: list[Chunk], executor: Executor | None, workers: int) -> Iterator[Done]:
     """Finished chunks as they come back, in any order."""
     if executor is None and workers == 1:
-        yield from map(_measure_chunk, chunks)
+        yield from map(measure_chunk, chunks)
         return
     pool: Executor = executor if executor is not None else ProcessPoolExecutor(workers)
-    futures: list[Future[_Done]] = []
+    futures: list[Future[Done]] = []
     try:
-        futures = [pool.submit(_measure_chunk, chunk) for chunk in chunks]
+        futures = [pool.submit(measure_chunk, chunk) for chunk in chunks]
         for future in as_completed(futures):
             yield future.result()
     finally:
@@ -491,173 +409,3 @@ def _run(chunks: list[_Chunk], executor: Executor | None, workers: int) -> Itera
             future.cancel()
         if executor is None:
             pool.shutdown(wait=True, cancel_futures=True)
-
-
-def _measure_chunk(chunk: _Chunk) -> _Done:
-    """Run one chunk of trials."""
-    grid = chunk.grid
-    quality = np.zeros((chunk.stop - chunk.start, len(grid.time)))
-    failures = overruns = 0
-    first: tuple[int, str] | None = None
-    measure = _interruptible if chunk.module.kind == "interruptible" else _contract
-    for row, flat in enumerate(range(chunk.start, chunk.stop)):
-        cell, instance = divmod(flat, chunk.trials)
-        position = np.unravel_index(cell, grid.cell_shape) if grid.cell_shape else ()
-        qualities = tuple(float(g[i]) for g, i in zip(grid.input_grids, position, strict=True))
-        trial = _Trial(
-            chunk.module,
-            chunk.problems,
-            qualities,
-            np.random.SeedSequence(chunk.entropy, spawn_key=(cell, instance)),
-            _CLOCKS[chunk.clock][0],
-            f"trial {instance} at input qualities {list(qualities)}",
-        )
-        failed, overran = measure(trial, grid.time, quality[row])
-        overruns += overran
-        failures += len(failed)
-        if failed and first is None:
-            headline, details = failed[0]
-            first = (flat, f"{headline} ({trial.where})\n{details}".rstrip())
-    return _Done(chunk.start, quality, failures, overruns, first)
-
-
-@frozen(eq=False)
-class _Trial:
-    """One instance at one input-quality cell; `problem()` makes it afresh from its seed."""
-
-    module: AnytimeModule
-    problems: ProblemSet
-    qualities: tuple[float, ...]
-    seeds: np.random.SeedSequence
-    clock: Callable[[], Clock]
-    where: str
-
-    def problem(self) -> tuple[Instance, tuple[Any, ...]]:
-        rng = np.random.default_rng(self.seeds)
-        try:
-            instance = self.problems.instance(rng, self.qualities)
-        except Exception as exc:
-            raise BuildError(
-                f"{_name(self.problems)}.instance failed ({self.where}): {_headline(exc)}"
-            ) from exc
-        return instance, _arguments(self.module, self.problems, instance, self.qualities)
-
-    def score(self, instance: Instance, value: Any) -> float:
-        where = f"{_name(self.problems)}.score ({self.where})"
-        try:
-            quality = self.problems.score(instance, value)
-        except Exception as exc:
-            raise BuildError(f"{where} failed: {_headline(exc)}") from exc
-        try:
-            q = float(quality)
-        except (TypeError, ValueError):
-            q = math.nan
-        if not 0.0 <= q <= 1.0:  # also refuses NaN
-            raise BuildError(f"{where}: expected a quality in [0, 1], got {quality!r}")
-        return q
-
-
-def _name(problems: ProblemSet) -> str:
-    return type(problems).__qualname__
-
-
-def _headline(exc: BaseException) -> str:
-    return "".join(traceback.format_exception_only(exc)).strip().splitlines()[-1]
-
-
-def _failure(exc: BaseException) -> tuple[str, str]:
-    return _headline(exc), "".join(traceback.format_exception(exc))
-
-
-def _arguments(
-    module: AnytimeModule, problems: ProblemSet, instance: Instance, qualities: tuple[float, ...]
-) -> tuple[Any, ...]:
-    """The instance's arguments, quality-carrying ones as `Result`s of the asked quality."""
-    where = f"{_name(problems)}.instance"
-    if not isinstance(instance, Instance):
-        raise BuildError(f"{where}: expected an Instance, got {type(instance).__name__}")
-    args = list(instance.args)
-    try:
-        inspect.signature(module.function).bind(None, *args)
-    except TypeError as exc:
-        params = ", ".join(module.parameters) or "none"
-        raise BuildError(
-            f"{where}: {len(args)} argument(s) do not fit module '{module.name}'"
-            f" (parameters after ctx: {params}): {exc}"
-        ) from exc
-    for name, asked in zip(module.inputs, qualities, strict=True):
-        position = module.parameters.index(name)
-        if position >= len(args):
-            raise BuildError(f"{where}: no argument for the quality-carrying input '{name}'")
-        arg = args[position]
-        if not isinstance(arg, Result):
-            args[position] = Result(arg, asked)
-        elif abs(arg.quality - asked) > 1e-9:
-            raise BuildError(
-                f"{where}: input '{name}' was asked at quality {asked:g}, got a Result of"
-                f" quality {arg.quality:g}"
-            )
-    return tuple(args)
-
-
-Failures = list[tuple[str, str]]  # (headline, traceback) of each failed run
-
-
-def _interruptible(trial: _Trial, time: Array, out: Array) -> tuple[Failures, int]:
-    """One run up to the last grid time; `out[j]` becomes the score of the answer at `time[j]`."""
-    instance, args = trial.problem()
-    ctx = Context(allocation=float(time[-1]), clock=trial.clock())
-    answers: list[tuple[int, Any]] = []  # (first grid index it answers for, value)
-    failed: Failures = []
-    generator = trial.module(ctx, *args)
-    try:
-        while True:
-            try:
-                item = next(generator)
-            except StopIteration:
-                break
-            except Exception as exc:  # the module failed: its last result stands
-                failed.append(_failure(exc))
-                break
-            at = ctx.elapsed
-            if at > time[-1]:
-                break
-            if not isinstance(item, Result):
-                failed.append((f"yielded a {type(item).__name__}, not a Result", ""))
-                break
-            first = int(np.searchsorted(time, at, side="left"))  # the grid times >= at
-            if answers and answers[-1][0] == first:
-                answers[-1] = (first, item.value)  # superseded before the next grid time
-            else:
-                answers.append((first, item.value))
-    finally:
-        try:
-            generator.close()
-        except Exception as exc:
-            failed.append(_failure(exc))
-    # Scored after the run, so that the scorer's time is never charged to the module.
-    ends = [first for first, _ in answers[1:]] + [len(time)]
-    for (first, value), end in zip(answers, ends, strict=True):
-        out[first:end] = trial.score(instance, value)
-    return failed, 0
-
-
-def _contract(trial: _Trial, time: Array, out: Array) -> tuple[Failures, int]:
-    """One run per grid time on the same instance, with that time as its allocation."""
-    failed: Failures = []
-    overruns = 0
-    for j, allocation in enumerate(time):
-        instance, args = trial.problem()  # made afresh: a module may change its arguments
-        ctx = Context(allocation=float(allocation), clock=trial.clock())
-        try:
-            result = trial.module(ctx, *args)
-        except Exception as exc:
-            failed.append(_failure(exc))
-            continue
-        used = ctx.elapsed
-        if not isinstance(result, Result):
-            failed.append((f"returned a {type(result).__name__}, not a Result", ""))
-            continue
-        overruns += used > allocation
-        out[j] = trial.score(instance, result.value)
-    return failed, overruns
