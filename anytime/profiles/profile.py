@@ -63,7 +63,7 @@ def _optional_eq(a: Array | None, b: Array | None) -> bool:
 
 def default_bins(k: int = 10) -> Array:
     """K equal-width quality bins on [0, 1] (K+1 edges)."""
-    return np.linspace(0.0, 1.0, k + 1)
+    return np.round(np.linspace(0.0, 1.0, k + 1), 12)  # 0.3, not 0.30000000000000004
 
 
 @frozen

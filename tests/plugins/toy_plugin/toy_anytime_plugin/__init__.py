@@ -2,13 +2,17 @@
 
 Importing it registers `toy-count` in the process-wide registry, as any module defined with the
 decorators does; the library attributes it to the plugin whose entry point names this package.
+It also registers the module's problem set, so that `anytime profile toy-count` can measure it.
 """
 
 from collections.abc import Iterator
 from typing import Any
 
+import numpy as np
+
 from anytime import Context, Result, interruptible
 from anytime.profiles import Exponential, tabulate
+from anytime.profiles.builder import Instance, register_problems
 
 #: Expected quality `q * (1 - exp(-t / 50))` for input quality q after t ticks.
 PROFILE = tabulate(
@@ -22,10 +26,29 @@ PROFILE = tabulate(
 
 
 @interruptible("toy-count", inputs=["data"], profile=PROFILE)
-def toy_count(ctx: Context, data: Any, limit: int) -> Iterator[Result]:
-    """Count up to `limit`, one tick a step; the quality is the fraction counted."""
+def toy_count(ctx: Context, data: Result, limit: int) -> Iterator[Result]:
+    """Count up to `limit`, one tick a step; the quality is the fraction counted, scaled by the
+    quality of the data it counts on."""
     for done in range(1, limit + 1):
         ctx.tick()
-        yield Result(done, done / limit)
+        yield Result(done, data.quality * done / limit)
         if ctx.expired:
             return
+
+
+class CountingProblems:
+    """Problems for `toy-count`: a random limit; the true quality is the fraction counted times
+    the input quality."""
+
+    def instance(self, rng: np.random.Generator, input_qualities: tuple[float, ...]) -> Instance:
+        limit = int(rng.integers(50, 150))
+        return Instance(args=(None, limit), reference=(limit, input_qualities[0]))
+
+    def score(self, instance: Instance, value: Any) -> float:
+        limit, quality = instance.reference
+        return float(quality * value / limit)
+
+
+register_problems(
+    toy_count, CountingProblems(), time=[0, 25, 50, 100, 150, 200], input_grids=[[0.5, 1.0]]
+)

@@ -1,0 +1,112 @@
+"""`anytime profile MODULE`: measure a module and write its profile file."""
+
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+import anytime.library
+from anytime.cli import main
+from anytime.modules import Context, Registry, Result, interruptible
+from anytime.profiles import Exponential, tabulate
+from anytime.profiles.builder import Instance, register_problems
+from anytime.profiles.io import load_profile, save_profile
+
+MODULES = Registry()
+
+
+@interruptible("halving", inputs=["guess"], registry=MODULES)
+def halving(ctx: Context, guess: Result, target: float) -> Iterator[Result]:
+    """Halve the error of a guess each step; the quality is one minus the error."""
+    error = 1.0
+    while not ctx.expired:
+        ctx.tick(10)
+        error /= 2
+        yield Result(target + error, guess.quality * (1 - error))
+
+
+class HalvingProblems:
+    def instance(self, rng: np.random.Generator, input_qualities: tuple[float, ...]) -> Instance:
+        return Instance(args=(None, float(rng.random())), reference=input_qualities[0])
+
+    def score(self, instance: Instance, value: Any) -> float:
+        return float(instance.reference) * (1 - abs(value - instance.args[1]))
+
+
+register_problems(halving, HalvingProblems(), time=[0, 10, 20, 40], input_grids=[[0.5, 1.0]])
+
+
+@pytest.fixture(autouse=True)
+def only_these_modules(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(anytime.library, "REGISTRY", MODULES)
+
+
+def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    try:
+        code = main(list(argv))
+    except SystemExit as exit:
+        code = int(exit.code or 0)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_profile_writes_the_measured_profile(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    path = tmp_path / "halving.yaml"
+    code, out, err = run(
+        capsys, "profile", "Halving", "--trials", "5", "--no-plugins", "--quiet", "-o", str(path)
+    )
+    assert (code, err) == (0, "")
+    assert out.startswith("halving: 5 trials per cell over 2x4 cells, 10 runs in ")
+    assert out.endswith(f"wrote {path}\n")
+    profile = load_profile(path)
+    assert profile.module == "halving" and profile.inputs == ("guess",)
+    assert profile.samples is not None and profile.samples.tolist() == [[5.0] * 4] * 2
+    assert profile.mean is not None
+    np.testing.assert_allclose(profile.mean, [[0, 0.25, 0.375, 0.46875], [0, 0.5, 0.75, 0.9375]])
+
+
+def test_same_seed_same_file_whatever_the_workers(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    one, two = tmp_path / "one.yaml", tmp_path / "two.yaml"
+    base = ["profile", "halving", "--trials", "8", "--seed", "3", "--no-plugins", "--quiet"]
+    assert run(capsys, *base, "-o", str(one))[0] == 0
+    assert run(capsys, *base, "--workers", "2", "-o", str(two), "--json")[0] == 0
+    assert one.read_bytes() == two.read_bytes()
+
+
+def test_unknown_module(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = run(capsys, "profile", "halfing", "--no-plugins")
+    assert (code, out) == (1, "")
+    assert err == "anytime: error: no module named 'halfing'; did you mean 'halving'?\n"
+
+
+def test_a_profile_only_module_has_nothing_to_run(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    save_profile(tabulate(Exponential(0.1), [0, 10], module="sensor"), tmp_path / "sensor.yaml")
+    code, _, err = run(capsys, "profile", "sensor", "--no-plugins", "--profiles", str(tmp_path))
+    assert code == 1
+    assert err == (
+        "anytime: error: module 'sensor' has no code to run: it is only a profile "
+        f"(profile file {tmp_path / 'sensor.yaml'})\n"
+    )
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--trials", "0"], "argument --trials: expected a number >= 1, got 0"),
+        (["--workers", "two"], "argument --workers: expected a whole number, got 'two'"),
+        (["--workers", "2", "--scheduler", "tcp://x:1"], "not allowed with argument"),
+    ],
+    ids=["zero-trials", "workers-not-a-number", "workers-and-scheduler"],
+)
+def test_usage_errors(capsys: pytest.CaptureFixture[str], argv: list[str], message: str) -> None:
+    code, _, err = run(capsys, "profile", "halving", *argv)
+    assert code == 2
+    assert message in err
