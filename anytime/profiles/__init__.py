@@ -5,6 +5,7 @@ from anytime.profiles.profile import (
     ConditionalPerformanceProfile,
     PerformanceProfile,
     default_bins,
+    new_profile,
     point_mass,
 )
 
@@ -16,6 +17,7 @@ __all__ = [
     "Step",
     "VisionHyperbola",
     "default_bins",
+    "new_profile",
     "point_mass",
     "tabulate",
 ]

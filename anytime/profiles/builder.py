@@ -44,7 +44,12 @@ from numpy.typing import ArrayLike
 
 from anytime.errors import AnytimeError, ProfileError
 from anytime.modules import AnytimeModule
-from anytime.profiles.profile import Array, ConditionalPerformanceProfile, default_bins
+from anytime.profiles.profile import (
+    Array,
+    ConditionalPerformanceProfile,
+    default_bins,
+    new_profile,
+)
 from anytime.profiles.progress import ProgressBar
 from anytime.profiles.trials import (
     CLOCKS,
@@ -352,7 +357,7 @@ def _check(
     grid = Grid(time, input_grids, default_bins() if bins is None else bins)
     sizes = (*(g.size for g in grid.input_grids), grid.time.size, max(1, grid.bins.size - 1))
     try:  # a profile's own validation names the offending grid
-        ConditionalPerformanceProfile(
+        new_profile(
             input_grids=grid.input_grids,
             time=grid.time,
             bins=grid.bins,
@@ -378,7 +383,7 @@ def _tabulate(
     kind: Literal["interruptible", "contract"] = (
         "contract" if module.kind == "contract" else "interruptible"
     )
-    return ConditionalPerformanceProfile(
+    return new_profile(
         input_grids=grid.input_grids,
         time=grid.time,
         bins=grid.bins,

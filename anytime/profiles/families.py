@@ -21,6 +21,7 @@ from anytime.profiles.profile import (
     Kind,
     TimeUnit,
     default_bins,
+    new_profile,
     point_mass,
 )
 
@@ -127,7 +128,7 @@ def tabulate(
     kind: Kind = "interruptible",
     time_unit: TimeUnit = "ticks",
 ) -> ConditionalPerformanceProfile:
-    """A deterministic profile of `curve` on a grid.
+    """A deterministic profile of `curve` on a grid (a `PerformanceProfile` without inputs).
 
     `curve(t, q_1, ..., q_m)` gets broadcast arrays (one axis per input, then time) and returns
     qualities in [0, 1]; with no input grids it is called as `curve(t)`. For example, a planner
@@ -141,7 +142,7 @@ def tabulate(
     quality = np.broadcast_to(quality, mesh[-1].shape)
     if not np.all(np.isfinite(quality)) or quality.min() < 0 or quality.max() > 1:
         raise ProfileError(f"{module or 'curve'}: the curve gives qualities outside [0, 1]")
-    return ConditionalPerformanceProfile(
+    return new_profile(
         input_grids=grids,
         time=t_grid,
         bins=edges,

@@ -56,6 +56,7 @@ from anytime.profiles.profile import (
     ConditionalPerformanceProfile,
     Kind,
     TimeUnit,
+    new_profile,
     point_mass,
 )
 
@@ -240,7 +241,7 @@ class _Reader:
             mean = optional("mean", quality=True)
         std, samples = optional("std"), optional("samples")
         try:
-            return ConditionalPerformanceProfile(
+            return new_profile(
                 input_grids=grids,
                 time=time,
                 bins=bins,

@@ -254,6 +254,13 @@ class PerformanceProfile(ConditionalPerformanceProfile):
         return self.expected(np.zeros((*np.shape(t), 0)), t)
 
 
+def new_profile(**fields: Any) -> ConditionalPerformanceProfile:
+    """A profile of the fitting class: a `PerformanceProfile` when it has no input axes."""
+    if len(fields.get("input_grids", ())) == 0:
+        return PerformanceProfile(**fields)
+    return ConditionalPerformanceProfile(**fields)
+
+
 def point_mass(quality: ArrayLike, bins: ArrayLike) -> Array:
     """Distributions putting all mass in the bin that holds each quality (1.0 in the last bin)."""
     q = np.asarray(quality, dtype=np.float64)

@@ -112,8 +112,7 @@ ROUND_TRIPS = {
     "point-mass-with-samples-and-std": lambda: attrs.evolve(
         tabulate(Exponential(0.1), [0, 5, 10], module="e"), samples=[3, 3, 4], std=[0, 0.01, 0]
     ),
-    "mean-that-is-not-the-point-mass": lambda: ConditionalPerformanceProfile(
-        input_grids=[],
+    "mean-that-is-not-the-point-mass": lambda: PerformanceProfile(
         time=[0, 1],
         bins=[0, 0.5, 1],
         probability=[[0.5, 0.5], [0, 1]],
@@ -215,9 +214,8 @@ def test_a_performance_profile_comes_back_with_equal_fields(tmp_path: Path) -> N
     profile = PerformanceProfile(time=[0, 1], bins=[0, 0.5, 1], probability=[[1, 0], [0, 1]])
     save_profile(profile, tmp_path / "perf.yaml")
     loaded = load_profile(tmp_path / "perf.yaml")
-    assert type(loaded) is ConditionalPerformanceProfile
-    fields = attrs.asdict(profile, recurse=False) | {"module": "perf"}  # the file's name
-    assert loaded == ConditionalPerformanceProfile(**fields)
+    assert type(loaded) is PerformanceProfile  # a file without inputs is a PerformanceProfile
+    assert loaded == attrs.evolve(profile, module="perf")  # named after the file
 
 
 def test_dict_form_round_trips_without_a_file() -> None:
