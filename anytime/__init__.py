@@ -4,6 +4,7 @@ Write a program schema in the DSL, describe its modules by conditional performan
 compile it into a contract algorithm with optimal time allocation, and run it under a monitor.
 """
 
+from anytime.clocks import WallClock, WorkClock
 from anytime.dsl import (
     DataflowGraph,
     Program,
@@ -41,24 +42,28 @@ from anytime.modules import (
     elementary,
     interruptible,
 )
+from anytime.profiles import ConditionalPerformanceProfile, PerformanceProfile
+from anytime.profiles.io import load_profile, save_profile
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "REGISTRY",
     "AnytimeError",
     "AnytimeLibrary",
     "AnytimeModule",
+    "ConditionalPerformanceProfile",
     "Context",
     "DataflowGraph",
     "Diagnostic",
     "LibraryEntry",
     "LibraryError",
     "ModuleError",
+    "PerformanceProfile",
     "PluginSource",
     "ProfileDirectory",
     "ProfileError",
     "Program",
+    "REGISTRY",
     "RegistrationError",
     "Registry",
     "RegistrySource",
@@ -68,11 +73,15 @@ __all__ = [
     "SchemaSyntaxError",
     "Step",
     "UnknownModuleError",
+    "WallClock",
+    "WorkClock",
     "__version__",
     "contract",
     "elementary",
     "format_program",
     "interruptible",
+    "load_profile",
     "load_schemas",
     "parse_schemas",
+    "save_profile",
 ]

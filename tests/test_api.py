@@ -7,7 +7,9 @@ import pytest
 import anytime
 
 
-@pytest.mark.parametrize("module", ["anytime", "anytime.dsl"])
+@pytest.mark.parametrize(
+    "module", ["anytime", "anytime.dsl", "anytime.profiles", "anytime.profiles.builder"]
+)
 def test_every_name_in_all_resolves(module: str) -> None:
     mod = importlib.import_module(module)
     missing = [name for name in mod.__all__ if not hasattr(mod, name)]
