@@ -6,35 +6,26 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import Cli
 
 from anytime import __version__, parse_schemas
-from anytime.cli import main
 
 
-def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
-    try:
-        code = main(list(argv))
-    except SystemExit as exit:  # argparse exits for --help, --version and usage errors
-        code = int(exit.code or 0)
-    out, err = capsys.readouterr()
-    return code, out, err
+def test_version(cli: Cli) -> None:
+    assert cli("--version") == (0, f"anytime {__version__}\n", "")
 
 
-def test_version(capsys: pytest.CaptureFixture[str]) -> None:
-    assert run(capsys, "--version") == (0, f"anytime {__version__}\n", "")
-
-
-def test_help_lists_the_commands(capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, _ = run(capsys, "--help")
+def test_help_lists_the_commands(cli: Cli) -> None:
+    code, out, _ = cli("--help")
     assert code == 0
     assert "parse" in out
-    code, out, _ = run(capsys, "parse", "--help")
+    code, out, _ = cli("parse", "--help")
     assert code == 0
     assert "--json" in out and "--dot" in out and "--schema NAME" in out
 
 
-def test_no_command_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
-    code, _, err = run(capsys)
+def test_no_command_is_a_usage_error(cli: Cli) -> None:
+    code, _, err = cli()
     assert code == 2
     assert err.startswith("usage: anytime")
 
@@ -44,16 +35,14 @@ def test_no_command_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None
     [["parse"], ["parse", "a.any", "--json", "--dot"], ["parse", "a.any", "--bogus"], ["nope"]],
     ids=["missing-file", "json-and-dot", "unknown-option", "unknown-command"],
 )
-def test_usage_errors_exit_2(capsys: pytest.CaptureFixture[str], argv: list[str]) -> None:
-    code, _, err = run(capsys, *argv)
+def test_usage_errors_exit_2(cli: Cli, argv: list[str]) -> None:
+    code, _, err = cli(*argv)
     assert code == 2
     assert "usage:" in err
 
 
-def test_parse_prints_straight_line_text_that_parses_back(
-    capsys: pytest.CaptureFixture[str], navigation_any: Path
-) -> None:
-    code, out, err = run(capsys, "parse", str(navigation_any))
+def test_parse_prints_straight_line_text_that_parses_back(cli: Cli, navigation_any: Path) -> None:
+    code, out, err = cli("parse", str(navigation_any))
     assert (code, err) == (0, "")
     assert out.startswith("; navigate: chain, 2 steps\n(defschema navigate (start goal sensor)\n")
     assert "; navigate-two-planners: dag, 4 steps\n" in out
@@ -66,10 +55,8 @@ def test_parse_prints_straight_line_text_that_parses_back(
     )
 
 
-def test_parse_json_field_by_field(
-    capsys: pytest.CaptureFixture[str], navigation_any: Path
-) -> None:
-    code, out, _ = run(capsys, "parse", str(navigation_any), "--json")
+def test_parse_json_field_by_field(cli: Cli, navigation_any: Path) -> None:
+    code, out, _ = cli("parse", str(navigation_any), "--json")
     assert code == 0
     data = json.loads(out)
     assert list(data) == ["schemas"]
@@ -104,17 +91,15 @@ def test_parse_json_field_by_field(
     assert [s["shape"] for s in schemas.values()] == ["chain", "chain", "dag", "chain"]
 
 
-def test_parse_one_schema_as_dot(capsys: pytest.CaptureFixture[str], navigation_any: Path) -> None:
-    code, out, _ = run(capsys, "parse", str(navigation_any), "--schema", "Navigate", "--dot")
+def test_parse_one_schema_as_dot(cli: Cli, navigation_any: Path) -> None:
+    code, out, _ = cli("parse", str(navigation_any), "--schema", "Navigate", "--dot")
     assert code == 0
     assert out.count("subgraph cluster_") == 1
     assert 'label="navigate (chain)";' in out
 
 
-def test_unknown_schema_is_an_input_error(
-    capsys: pytest.CaptureFixture[str], navigation_any: Path
-) -> None:
-    code, out, err = run(capsys, "parse", str(navigation_any), "--schema", "fly")
+def test_unknown_schema_is_an_input_error(cli: Cli, navigation_any: Path) -> None:
+    code, out, err = cli("parse", str(navigation_any), "--schema", "fly")
     assert (code, out) == (1, "")
     assert err == (
         f"{navigation_any}: error: no schema named 'fly' (the file defines: navigate, "
@@ -122,18 +107,16 @@ def test_unknown_schema_is_an_input_error(
     )
 
 
-def test_missing_file_is_an_input_error(capsys: pytest.CaptureFixture[str]) -> None:
-    code, _, err = run(capsys, "parse", "no/such/file.any")
+def test_missing_file_is_an_input_error(cli: Cli) -> None:
+    code, _, err = cli("parse", "no/such/file.any")
     assert code == 1
     assert err == "anytime: error: cannot read 'no/such/file.any': No such file or directory\n"
 
 
-def test_schema_errors_print_every_diagnostic(
-    capsys: pytest.CaptureFixture[str], tmp_path: Path
-) -> None:
+def test_schema_errors_print_every_diagnostic(cli: Cli, tmp_path: Path) -> None:
     path = tmp_path / "bad.any"
     path.write_text("(defschema p (x)\n  (setf a (f y))\n  (g a b))\n")
-    code, out, err = run(capsys, "parse", str(path))
+    code, out, err = cli("parse", str(path))
     assert (code, out) == (1, "")
     assert err == (
         f"{path}:2:14: error: undefined variable 'y'\n"

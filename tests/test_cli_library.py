@@ -8,9 +8,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from conftest import Cli
 
 from anytime import REGISTRY, Registry, Result, interruptible
-from anytime.cli import main
 from anytime.library import PLUGIN_GROUP
 from anytime.profiles import Exponential, tabulate
 from anytime.profiles.io import save_profile
@@ -36,15 +36,6 @@ MERGE = tabulate(
 )
 
 
-def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
-    try:
-        code = main(list(argv))
-    except SystemExit as exit:  # argparse exits for --help and usage errors
-        code = int(exit.code or 0)
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
 @pytest.fixture
 def registry(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> Registry:
     """The command's in-process registry: a fresh one, with one module; no installed plugins.
@@ -67,10 +58,8 @@ def registry(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> Registry:
     return fresh
 
 
-def test_library_list_prints_a_table(
-    capsys: pytest.CaptureFixture[str], registry: Registry
-) -> None:
-    code, out, err = run(capsys, "library", "list", "--profiles", "profiles")
+def test_library_list_prints_a_table(cli: Cli, registry: Registry) -> None:
+    code, out, err = cli("library", "list", "--profiles", "profiles")
     assert (code, err) == (0, "")
     assert out.splitlines() == [
         "NAME                    KIND           INPUTS       PROFILE"
@@ -86,8 +75,8 @@ def test_library_list_prints_a_table(
     ]
 
 
-def test_library_list_json(capsys: pytest.CaptureFixture[str], registry: Registry) -> None:
-    code, out, err = run(capsys, "library", "list", "--json", "--profiles", "profiles")
+def test_library_list_json(cli: Cli, registry: Registry) -> None:
+    code, out, err = cli("library", "list", "--json", "--profiles", "profiles")
     assert (code, err) == (0, "")
     rows = json.loads(out)
     assert [row["name"] for row in rows] == [
@@ -116,20 +105,18 @@ def test_library_list_json(capsys: pytest.CaptureFixture[str], registry: Registr
     assert (rows[3]["arity"], rows[3]["origin"], rows[3]["profile"]["file"]) == (3, HERE, None)
 
 
-def test_library_list_without_modules(
-    capsys: pytest.CaptureFixture[str], registry: Registry
-) -> None:
+def test_library_list_without_modules(cli: Cli, registry: Registry) -> None:
     registry.remove("plan-route")
-    assert run(capsys, "library", "list") == (
+    assert cli("library", "list") == (
         0,
         "no modules found (looked in: installed plugins, in-process registry)\n",
         "",
     )
-    assert run(capsys, "library", "list", "--json", "--no-plugins") == (0, "[]\n", "")
+    assert cli("library", "list", "--json", "--no-plugins") == (0, "[]\n", "")
 
 
-def test_library_show_one_input(capsys: pytest.CaptureFixture[str], registry: Registry) -> None:
-    code, out, err = run(capsys, "library", "show", "Plan-Route")
+def test_library_show_one_input(cli: Cli, registry: Registry) -> None:
+    code, out, err = cli("library", "show", "Plan-Route")
     assert (code, err) == (0, "")
     assert out.splitlines() == [
         "name:        plan-route",
@@ -150,10 +137,8 @@ def test_library_show_one_input(capsys: pytest.CaptureFixture[str], registry: Re
     ]
 
 
-def test_library_show_profile_file_with_two_inputs(
-    capsys: pytest.CaptureFixture[str], registry: Registry
-) -> None:
-    code, out, err = run(capsys, "library", "show", "merge", "--profiles", "profiles")
+def test_library_show_profile_file_with_two_inputs(cli: Cli, registry: Registry) -> None:
+    code, out, err = cli("library", "show", "merge", "--profiles", "profiles")
     assert (code, err) == (0, "")
     assert out.splitlines() == [
         "name:        merge",
@@ -176,14 +161,12 @@ def test_library_show_profile_file_with_two_inputs(
     ]
 
 
-def test_library_show_many_times_and_no_input(
-    capsys: pytest.CaptureFixture[str], registry: Registry
-) -> None:
+def test_library_show_many_times_and_no_input(cli: Cli, registry: Registry) -> None:
     save_profile(
         tabulate(Exponential(0.1), time=range(0, 100, 10), module="vision"),
         "profiles/vision.yaml",
     )
-    code, out, _ = run(capsys, "library", "show", "vision", "--profiles", "profiles")
+    code, out, _ = cli("library", "show", "vision", "--profiles", "profiles")
     assert code == 0
     assert out.splitlines()[-3:] == [
         "expected quality by time (ticks):",
@@ -192,8 +175,8 @@ def test_library_show_many_times_and_no_input(
     ]
 
 
-def test_library_show_json(capsys: pytest.CaptureFixture[str], registry: Registry) -> None:
-    code, out, _ = run(capsys, "library", "show", "find-path", "--json", "--profiles", "profiles")
+def test_library_show_json(cli: Cli, registry: Registry) -> None:
+    code, out, _ = cli("library", "show", "find-path", "--json", "--profiles", "profiles")
     assert code == 0
     data = json.loads(out)
     assert data["parameters"] == []
@@ -203,26 +186,22 @@ def test_library_show_json(capsys: pytest.CaptureFixture[str], registry: Registr
     assert data["profile"]["expected"] == [[0.0, 0.125, 0.25, 0.5], [0.0, 0.25, 0.5, 1.0]]
 
 
-def test_library_show_an_unknown_name(
-    capsys: pytest.CaptureFixture[str], registry: Registry
-) -> None:
-    assert run(capsys, "library", "show", "find-pth", "--profiles", "profiles") == (
+def test_library_show_an_unknown_name(cli: Cli, registry: Registry) -> None:
+    assert cli("library", "show", "find-pth", "--profiles", "profiles") == (
         1,
         "",
         "anytime: error: no module named 'find-pth'; did you mean 'find-path'?\n",
     )
 
 
-def test_library_errors_are_one_line_with_exit_1(
-    capsys: pytest.CaptureFixture[str], registry: Registry
-) -> None:
-    assert run(capsys, "library", "list", "--profiles", "nope") == (
+def test_library_errors_are_one_line_with_exit_1(cli: Cli, registry: Registry) -> None:
+    assert cli("library", "list", "--profiles", "nope") == (
         1,
         "",
         "anytime: error: profile directory 'nope' does not exist\n",
     )
     save_profile(tabulate(Exponential(0.1), time=[0, 1], module="plan-route"), "profiles/p.yaml")
-    assert run(capsys, "library", "list", "--profiles", "profiles") == (
+    assert cli("library", "list", "--profiles", "profiles") == (
         1,
         "",
         f"anytime: error: module 'plan-route' is defined twice: in {HERE} and in "
@@ -230,7 +209,7 @@ def test_library_errors_are_one_line_with_exit_1(
     )
     Path("profiles/p.yaml").unlink()
     Path("profiles/bad.yaml").write_text("format: anytime-profile/1\n")
-    assert run(capsys, "library", "show", "x", "--profiles", "profiles") == (
+    assert cli("library", "show", "x", "--profiles", "profiles") == (
         1,
         "",
         "profiles/bad.yaml: time: missing field (expected a list of times, got nothing)\n",
@@ -238,13 +217,13 @@ def test_library_errors_are_one_line_with_exit_1(
 
 
 def test_library_list_reports_an_unreadable_profile_and_lists_the_rest(
-    capsys: pytest.CaptureFixture[str], registry: Registry
+    cli: Cli, registry: Registry
 ) -> None:
     @interruptible("sense", inputs=[], profile=Path("missing.yaml").resolve(), registry=registry)
     def sense(ctx: Any) -> Iterator[Result]:
         yield Result(None, 1.0)
 
-    code, out, err = run(capsys, "library", "list")
+    code, out, err = cli("library", "list")
     assert code == 1
     assert out.splitlines() == [
         "NAME        KIND           INPUTS  PROFILE                                     ORIGIN",
@@ -255,18 +234,18 @@ def test_library_list_reports_an_unreadable_profile_and_lists_the_rest(
     assert err == (
         f"{missing}: no such profile file (the profile of module 'sense', from {HERE})\n"
     )
-    code, out, err = run(capsys, "library", "list", "--json")
+    code, out, err = cli("library", "list", "--json")
     assert code == 1
     row = json.loads(out)[1]
     assert (row["name"], row["profile"]) == ("sense", None)
     assert row["profile_error"] == err.rstrip("\n")
 
 
-def test_library_needs_a_subcommand(capsys: pytest.CaptureFixture[str]) -> None:
-    code, _, err = run(capsys, "library")
+def test_library_needs_a_subcommand(cli: Cli) -> None:
+    code, _, err = cli("library")
     assert code == 2
     assert err.endswith("error: the following arguments are required: COMMAND\n")
-    code, out, _ = run(capsys, "library", "show", "--help")
+    code, out, _ = cli("library", "show", "--help")
     assert code == 0
     assert "--profiles DIR" in out and "--no-plugins" in out
 
@@ -283,10 +262,10 @@ SCHEMA = """\
 
 
 def test_parse_with_profiles_reports_an_unknown_function_at_its_call(
-    capsys: pytest.CaptureFixture[str], registry: Registry
+    cli: Cli, registry: Registry
 ) -> None:
     Path("nav.any").write_text(SCHEMA)
-    assert run(capsys, "parse", "nav.any", "--profiles", "profiles") == (
+    assert cli("parse", "nav.any", "--profiles", "profiles") == (
         1,
         "",
         "nav.any:3:17: error: unknown function 'get-domain-descripton';"
@@ -295,17 +274,15 @@ def test_parse_with_profiles_reports_an_unknown_function_at_its_call(
         "                  ^~~~~~~~~~~~~~~~~~~~~\n",
     )
     Path("nav.any").write_text(SCHEMA.replace("descripton", "description"))
-    code, out, err = run(capsys, "parse", "nav.any", "--profiles", "profiles")
+    code, out, err = cli("parse", "nav.any", "--profiles", "profiles")
     assert (code, err) == (0, "")
     assert out.startswith("; navigate: chain, 2 steps\n")
 
 
-def test_parse_without_a_library_does_not_check_functions(
-    capsys: pytest.CaptureFixture[str], registry: Registry
-) -> None:
+def test_parse_without_a_library_does_not_check_functions(cli: Cli, registry: Registry) -> None:
     Path("nav.any").write_text(SCHEMA)
-    assert run(capsys, "parse", "nav.any")[0] == 0
-    code, _, err = run(capsys, "parse", "nav.any", "--library")
+    assert cli("parse", "nav.any")[0] == 0
+    code, _, err = cli("parse", "nav.any", "--library")
     assert code == 1
     assert err.splitlines()[0] == (
         "nav.any:3:17: error: unknown function 'get-domain-descripton'"
@@ -335,10 +312,10 @@ def toy_plugins(
 
 
 def test_parse_with_the_library_sees_plugins_and_warns_about_broken_ones(
-    capsys: pytest.CaptureFixture[str], toy_plugins: list[Any]
+    cli: Cli, toy_plugins: list[Any]
 ) -> None:
     Path("toy.any").write_text("(defschema p (d)\n  (toy-cont d 10))\n")
-    code, out, err = run(capsys, "parse", "toy.any", "--library")
+    code, out, err = cli("parse", "toy.any", "--library")
     assert (code, out) == (1, "")
     assert err == (
         "anytime: warning: plugin 'broken' (toy_anytime_plugin.broken): ModuleNotFoundError:"
@@ -348,20 +325,18 @@ def test_parse_with_the_library_sees_plugins_and_warns_about_broken_ones(
         "     ^~~~~~~~\n"
     )
     Path("toy.any").write_text("(defschema p (d)\n  (toy-count d))\n")
-    code, _, err = run(capsys, "parse", "toy.any", "--library", "--no-plugins")
+    code, _, err = cli("parse", "toy.any", "--library", "--no-plugins")
     assert err.splitlines()[0] == (
         "toy.any:2:4: error: unknown function 'toy-count' (known: p, plan-route)"
     )
-    code, _, err = run(capsys, "parse", "toy.any", "--library")
+    code, _, err = cli("parse", "toy.any", "--library")
     assert (
         err.splitlines()[1] == "toy.any:2:4: error: function 'toy-count' takes 2 arguments, got 1"
     )
 
 
-def test_library_list_shows_plugin_modules(
-    capsys: pytest.CaptureFixture[str], toy_plugins: list[Any]
-) -> None:
-    code, out, err = run(capsys, "library", "list")
+def test_library_list_shows_plugin_modules(cli: Cli, toy_plugins: list[Any]) -> None:
+    code, out, err = cli("library", "list")
     assert code == 0
     assert err.startswith("anytime: warning: plugin 'broken' (toy_anytime_plugin.broken): ")
     assert out.splitlines()[1:] == [

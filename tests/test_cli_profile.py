@@ -6,9 +6,9 @@ from typing import Any
 
 import numpy as np
 import pytest
+from conftest import Cli
 
 import anytime.library
-from anytime.cli import main
 from anytime.modules import Context, Registry, Result, interruptible
 from anytime.profiles import Exponential, tabulate
 from anytime.profiles.builder import Instance, register_problems
@@ -43,21 +43,10 @@ def only_these_modules(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(anytime.library, "REGISTRY", MODULES)
 
 
-def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
-    try:
-        code = main(list(argv))
-    except SystemExit as exit:
-        code = int(exit.code or 0)
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def test_profile_writes_the_measured_profile(
-    capsys: pytest.CaptureFixture[str], tmp_path: Path
-) -> None:
+def test_profile_writes_the_measured_profile(cli: Cli, tmp_path: Path) -> None:
     path = tmp_path / "halving.yaml"
-    code, out, err = run(
-        capsys, "profile", "Halving", "--trials", "5", "--no-plugins", "--quiet", "-o", str(path)
+    code, out, err = cli(
+        "profile", "Halving", "--trials", "5", "--no-plugins", "--quiet", "-o", str(path)
     )
     assert (code, err) == (0, "")
     assert out.startswith("halving: 5 trials per cell over 2x4 cells, 10 runs in ")
@@ -69,27 +58,23 @@ def test_profile_writes_the_measured_profile(
     np.testing.assert_allclose(profile.mean, [[0, 0.25, 0.375, 0.46875], [0, 0.5, 0.75, 0.9375]])
 
 
-def test_same_seed_same_file_whatever_the_workers(
-    capsys: pytest.CaptureFixture[str], tmp_path: Path
-) -> None:
+def test_same_seed_same_file_whatever_the_workers(cli: Cli, tmp_path: Path) -> None:
     one, two = tmp_path / "one.yaml", tmp_path / "two.yaml"
     base = ["profile", "halving", "--trials", "8", "--seed", "3", "--no-plugins", "--quiet"]
-    assert run(capsys, *base, "-o", str(one))[0] == 0
-    assert run(capsys, *base, "--workers", "2", "-o", str(two), "--json")[0] == 0
+    assert cli(*base, "-o", str(one))[0] == 0
+    assert cli(*base, "--workers", "2", "-o", str(two), "--json")[0] == 0
     assert one.read_bytes() == two.read_bytes()
 
 
-def test_unknown_module(capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, err = run(capsys, "profile", "halfing", "--no-plugins")
+def test_unknown_module(cli: Cli) -> None:
+    code, out, err = cli("profile", "halfing", "--no-plugins")
     assert (code, out) == (1, "")
     assert err == "anytime: error: no module named 'halfing'; did you mean 'halving'?\n"
 
 
-def test_a_profile_only_module_has_nothing_to_run(
-    capsys: pytest.CaptureFixture[str], tmp_path: Path
-) -> None:
+def test_a_profile_only_module_has_nothing_to_run(cli: Cli, tmp_path: Path) -> None:
     save_profile(tabulate(Exponential(0.1), [0, 10], module="sensor"), tmp_path / "sensor.yaml")
-    code, _, err = run(capsys, "profile", "sensor", "--no-plugins", "--profiles", str(tmp_path))
+    code, _, err = cli("profile", "sensor", "--no-plugins", "--profiles", str(tmp_path))
     assert code == 1
     assert err == (
         "anytime: error: module 'sensor' has no code to run: it is only a profile "
@@ -106,7 +91,7 @@ def test_a_profile_only_module_has_nothing_to_run(
     ],
     ids=["zero-trials", "workers-not-a-number", "workers-and-scheduler"],
 )
-def test_usage_errors(capsys: pytest.CaptureFixture[str], argv: list[str], message: str) -> None:
-    code, _, err = run(capsys, "profile", "halving", *argv)
+def test_usage_errors(cli: Cli, argv: list[str], message: str) -> None:
+    code, _, err = cli("profile", "halving", *argv)
     assert code == 2
     assert message in err
