@@ -33,8 +33,8 @@ a dot and a signed exponent, `1.0e-3` and `1.0e+3`.
 Writing uses repr precision for floats (integral values as integers), so save -> load gives
 back an equal profile. A profile whose probabilities are exactly the point masses of its `mean`
 is written as `expected:`, so a hand-written `expected:` file keeps its form. A profile without
-a module name takes the file's name when loaded back; a `PerformanceProfile` comes back as a
-`ConditionalPerformanceProfile` with equal fields.
+a module name takes the file's name when loaded back; a profile without input axes comes back
+as a `PerformanceProfile`.
 """
 
 from __future__ import annotations
@@ -62,7 +62,8 @@ from anytime.profiles.profile import (
 
 FORMAT = "anytime-profile/1"
 
-#: Every field a file may have, in the order they are written.
+#: Every field a file may have, in the order they are written. A compiled program's file adds
+#: `modules` and `allocation` (its time-allocation table); reading it as a profile skips them.
 FIELDS = (
     "format",
     "module",
@@ -77,6 +78,8 @@ FIELDS = (
     "mean",
     "std",
     "samples",
+    "modules",
+    "allocation",
 )
 
 KINDS = ("interruptible", "contract")

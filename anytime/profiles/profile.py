@@ -157,8 +157,9 @@ class ConditionalPerformanceProfile:
             corners.append((tuple(index), w))
         return corners
 
-    def _interpolate(self, table: Array, q: ArrayLike, t: ArrayLike) -> Array:
-        """Interpolate `table` (cell shape, optionally with trailing axes) at points (q, t)."""
+    def interpolate(self, table: Array, q: ArrayLike, t: ArrayLike) -> Array:
+        """Interpolate any `table` of this profile's cell shape (optionally with trailing axes,
+        such as a compiled program's allocation table) at points (q, t), as the profile is."""
         t_arr = np.asarray(t, dtype=np.float64)
         q_arr = np.asarray(q, dtype=np.float64).reshape((*t_arr.shape, self.n_inputs))
         batch = t_arr.shape
@@ -172,19 +173,19 @@ class ConditionalPerformanceProfile:
 
     def distribution(self, q: ArrayLike, t: ArrayLike) -> Array:
         """Output-quality distribution at input qualities `q` (..., m) and times `t` (...)."""
-        return self._interpolate(self.probability, q, t)
+        return self.interpolate(self.probability, q, t)
 
     def expected(self, q: ArrayLike, t: ArrayLike) -> Array:
         """Expected output quality at input qualities `q` (..., m) and times `t` (...)."""
         table = self.mean if self.mean is not None else self.probability @ self.values
-        return self._interpolate(table, q, t)
+        return self.interpolate(table, q, t)
 
     def standard_error(self, q: ArrayLike, t: ArrayLike) -> Array:
         """Standard error of the measured expected quality (0 for analytic profiles)."""
         if self.samples is None or self.std is None:
             return np.zeros(np.shape(t))
         se = self.std / np.sqrt(np.maximum(self.samples, 1))
-        return self._interpolate(se, q, t)
+        return self.interpolate(se, q, t)
 
     def transition(self, t: float, input_values: Sequence[ArrayLike] | None = None) -> Array:
         """Transition tensor at time t: P[out bin | input bins], shape (K_1, ..., K_m, K).

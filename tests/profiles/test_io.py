@@ -257,7 +257,7 @@ WITH_INPUT = (
 )
 KNOWN = (
     "format, module, kind, time_unit, inputs, input_quality, time, quality_bins, probability,"
-    " expected, mean, std, samples"
+    " expected, mean, std, samples, modules, allocation"
 )
 
 

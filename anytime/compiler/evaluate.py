@@ -1,0 +1,138 @@
+"""Evaluating allocations: the output-quality distribution of a program for batches of them.
+
+Distributions flow through the dataflow graph in topological order, each as a batch of discrete
+distributions: `values (B, K)` with `probs (B, K)`. The inputs of a call are taken as
+independent (their joint distribution is the product), which is exact for trees and an
+approximation for DAGs, where a shared result makes later inputs correlated.
+
+- A module whose profile is deterministic (a point mass at the cell mean everywhere) maps each
+  combination of input qualities to the exact quality its curve gives there: no binning.
+- A module with a stochastic profile gives a distribution over its quality bins, each standing
+  for its midpoint (the profile's interpolated distribution mixed over the input combinations).
+- An elementary function combines the input qualities (min by default).
+
+When a support grows past `MAX_SUPPORT` values it is folded onto a fixed grid by splitting each
+value's mass between its two neighbouring grid points, which keeps the mean exact.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from attrs import frozen
+from numpy.typing import ArrayLike
+
+from anytime.compiler.model import CompileModel, CompileNode, Slot
+from anytime.profiles.profile import Array
+
+MAX_SUPPORT = 64
+FOLD_GRID = np.linspace(0.0, 1.0, 41)
+
+
+@frozen
+class Dist:
+    """A batch of discrete quality distributions."""
+
+    values: Array  # (B, K)
+    probs: Array  # (B, K)
+
+    def expected(self) -> Array:
+        return np.einsum("bk,bk->b", self.values, self.probs)
+
+    @classmethod
+    def point(cls, quality: ArrayLike) -> Dist:
+        q = np.asarray(quality, dtype=np.float64).reshape(-1, 1)
+        return cls(q, np.ones_like(q))
+
+
+def fold(dist: Dist, grid: Array = FOLD_GRID) -> Dist:
+    """The distribution on `grid`, each value's mass split between its neighbours (mean kept)."""
+    v = np.clip(dist.values, grid[0], grid[-1])
+    i = np.clip(np.searchsorted(grid, v, side="right") - 1, 0, len(grid) - 2)
+    upper = (v - grid[i]) / (grid[i + 1] - grid[i])
+    out = np.zeros((len(v), len(grid)))
+    rows = np.broadcast_to(np.arange(len(v))[:, None], v.shape)
+    np.add.at(out, (rows, i), dist.probs * (1 - upper))
+    np.add.at(out, (rows, i + 1), dist.probs * upper)
+    return Dist(np.broadcast_to(grid, out.shape).copy(), out)
+
+
+class Evaluator:
+    """Evaluates batches of allocations of one compiled model."""
+
+    def __init__(self, model: CompileModel) -> None:
+        self.model = model
+
+    @property
+    def n_modules(self) -> int:
+        return len(self.model.anytime_nodes)
+
+    def evaluate(self, quality: ArrayLike, allocation: ArrayLike) -> Dist:
+        """Output distributions for a batch.
+
+        Args:
+            quality: program input qualities, shape (B, m) or (m,) (broadcast).
+            allocation: time per anytime module, shape (B, n) in allocation-vector order.
+        """
+        alloc = np.atleast_2d(np.asarray(allocation, dtype=np.float64))
+        batch = len(alloc)
+        q = np.asarray(quality, dtype=np.float64).reshape(-1, len(self.model.quality_inputs))
+        q = np.broadcast_to(q, (batch, q.shape[1]))
+        outputs: dict[int, Dist] = {}
+        for node in self.model.nodes:
+            inputs = [self._source(slot, outputs, q, batch) for slot in node.slots]
+            outputs[node.index] = self._node(node, inputs, alloc, batch)
+        return self._source(self.model.output, outputs, q, batch)
+
+    def expected(self, quality: ArrayLike, allocation: ArrayLike) -> Array:
+        """Expected output quality for a batch (shape (B,))."""
+        return self.evaluate(quality, allocation).expected()
+
+    @staticmethod
+    def _source(slot: Slot, outputs: dict[int, Dist], q: Array, batch: int) -> Dist:
+        if slot.kind == "node":
+            return outputs[slot.index]
+        if slot.kind == "input":
+            return Dist.point(q[:, slot.index])
+        return Dist.point(np.full(batch, slot.value))
+
+    @staticmethod
+    def _node(node: CompileNode, inputs: list[Dist], alloc: Array, batch: int) -> Dist:
+        q, p = _combinations(inputs, batch)  # (B, C1..Cm, m), (B, C1..Cm)
+        if node.kind == "elementary":
+            assert node.combine is not None
+            values = node.combine(np.moveaxis(q, -1, 0)) if inputs else np.ones(p.shape)
+            out = Dist(values.reshape(batch, -1), p.reshape(batch, -1))
+        else:
+            profile = node.profile
+            assert profile is not None and node.time_index is not None
+            t = np.broadcast_to(alloc[:, node.time_index].reshape((batch,) + (1,) * (p.ndim - 1)),
+                                p.shape)
+            if node.deterministic:
+                values = profile.expected(q, t)
+                out = Dist(values.reshape(batch, -1), p.reshape(batch, -1))
+            else:
+                d = profile.distribution(q, t).reshape(batch, -1, profile.n_bins)
+                probs = np.einsum("bc,bck->bk", p.reshape(batch, -1), d)
+                out = Dist(np.broadcast_to(profile.values, probs.shape).copy(), probs)
+        return fold(out) if out.values.shape[1] > MAX_SUPPORT else out
+
+
+def _combinations(inputs: list[Dist], batch: int) -> tuple[Array, Array]:
+    """Every combination of the inputs' support values, with its (independent) probability."""
+    m = len(inputs)
+    if m == 0:
+        return np.zeros((batch, 0)), np.ones(batch)
+    values, probs = [], []
+    for axis, dist in enumerate(inputs):
+        shape = [batch] + [1] * m
+        shape[axis + 1] = dist.values.shape[1]
+        values.append(dist.values.reshape(shape))
+        probs.append(dist.probs.reshape(shape))
+    grids: list[Any] = np.broadcast_arrays(*values)
+    q = np.stack(grids, axis=-1)
+    p = probs[0]
+    for extra in probs[1:]:
+        p = p * extra
+    return q, np.broadcast_to(p, q.shape[:-1])
