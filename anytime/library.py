@@ -366,6 +366,10 @@ class AnytimeLibrary:
         else:
             self._generic.discard(entry.name)
 
+    def add(self, entry: LibraryEntry) -> None:
+        """Add one entry (a compiled schema, say); a name already taken is a `LibraryError`."""
+        self._add(entry, generic=False)
+
     def get(self, name: str) -> LibraryEntry | None:
         return self._entries.get(name.lower())
 

@@ -17,8 +17,6 @@ value's mass between its two neighbouring grid points, which keeps the mean exac
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 from attrs import frozen
 from numpy.typing import ArrayLike
@@ -38,7 +36,8 @@ class Dist:
     probs: Array  # (B, K)
 
     def expected(self) -> Array:
-        return np.einsum("bk,bk->b", self.values, self.probs)
+        expected: Array = np.einsum("bk,bk->b", self.values, self.probs)
+        return expected
 
     @classmethod
     def point(cls, quality: ArrayLike) -> Dist:
@@ -77,8 +76,9 @@ class Evaluator:
         """
         alloc = np.atleast_2d(np.asarray(allocation, dtype=np.float64))
         batch = len(alloc)
-        q = np.asarray(quality, dtype=np.float64).reshape(-1, len(self.model.quality_inputs))
-        q = np.broadcast_to(q, (batch, q.shape[1]))
+        m = len(self.model.quality_inputs)
+        q = np.asarray(quality, dtype=np.float64)
+        q = np.broadcast_to(q.reshape(-1, m) if q.size else np.zeros((1, m)), (batch, m))
         outputs: dict[int, Dist] = {}
         for node in self.model.nodes:
             inputs = [self._source(slot, outputs, q, batch) for slot in node.slots]
@@ -107,8 +107,9 @@ class Evaluator:
         else:
             profile = node.profile
             assert profile is not None and node.time_index is not None
-            t = np.broadcast_to(alloc[:, node.time_index].reshape((batch,) + (1,) * (p.ndim - 1)),
-                                p.shape)
+            t = np.broadcast_to(
+                alloc[:, node.time_index].reshape((batch,) + (1,) * (p.ndim - 1)), p.shape
+            )
             if node.deterministic:
                 values = profile.expected(q, t)
                 out = Dist(values.reshape(batch, -1), p.reshape(batch, -1))
@@ -130,8 +131,7 @@ def _combinations(inputs: list[Dist], batch: int) -> tuple[Array, Array]:
         shape[axis + 1] = dist.values.shape[1]
         values.append(dist.values.reshape(shape))
         probs.append(dist.probs.reshape(shape))
-    grids: list[Any] = np.broadcast_arrays(*values)
-    q = np.stack(grids, axis=-1)
+    q = np.stack(np.broadcast_arrays(*values), axis=-1)
     p = probs[0]
     for extra in probs[1:]:
         p = p * extra

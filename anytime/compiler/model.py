@@ -171,7 +171,17 @@ def build_model(
             assert entry.module is not None
             combine, monotone = _vector_combine(entry.module.combine)
             nodes.append(
-                CompileNode(index, entry.name, "elementary", slots, None, True, combine, monotone)
+                CompileNode(
+                    index,
+                    entry.name,
+                    "elementary",
+                    slots,
+                    None,
+                    True,
+                    combine,
+                    monotone,
+                    entry=entry,
+                )
             )
             continue
         try:
@@ -233,10 +243,7 @@ def build_model(
 
 def node_variables(graph: DataflowGraph, args: Sequence[Source]) -> list[str | None]:
     """The variable name each argument was written as (None for literals)."""
-    return [
-        None if isinstance(a, LiteralArg) else graph.variable(a)  # type: ignore[arg-type]
-        for a in args
-    ]
+    return [None if isinstance(a, LiteralArg) else graph.variable(a) for a in args]
 
 
 def _quality_sources(
@@ -256,7 +263,7 @@ def _quality_sources(
     # computed by other calls, in order.
     if all(name in variables for name in entry.inputs):
         return [args[variables.index(name)] for name in entry.inputs]
-    computed = [a for a in args if isinstance(a, NodeRef)]
+    computed: list[Source] = [a for a in args if isinstance(a, NodeRef)]
     if len(computed) == len(entry.inputs):
         return computed
     return (
@@ -267,9 +274,7 @@ def _quality_sources(
 
 
 def _renumbered(node: CompileNode, renumber: Mapping[int, int]) -> CompileNode:
-    slots = tuple(
-        Slot("input", renumber[s.index]) if s.kind == "input" else s for s in node.slots
-    )
+    slots = tuple(Slot("input", renumber[s.index]) if s.kind == "input" else s for s in node.slots)
     return CompileNode(
         node.index,
         node.name,

@@ -438,10 +438,23 @@ def profile_to_dict(profile: ConditionalPerformanceProfile) -> dict[str, Any]:
     return data
 
 
-def save_profile(profile: ConditionalPerformanceProfile, path: str | os.PathLike[str]) -> None:
-    """Write `profile` to `path` in the `anytime-profile/1` format (OSError if it cannot)."""
+def save_profile(
+    profile: ConditionalPerformanceProfile,
+    path: str | os.PathLike[str],
+    extra: Mapping[str, Any] | None = None,
+) -> None:
+    """Write `profile` to `path` in the `anytime-profile/1` format (OSError if it cannot).
+
+    `extra` adds fields a reader of profiles skips (a compiled program's `modules` and
+    `allocation`); arrays in it are written like the profile's tables.
+    """
+    data = profile_to_dict(profile)
+    for key, value in (extra or {}).items():
+        if key not in ("modules", "allocation"):
+            raise ValueError(f"not a field a profile file may carry: {key!r}")
+        data[key] = _plain(np.asarray(value)) if key == "allocation" else list(value)
     text = yaml.dump(
-        profile_to_dict(profile),
+        data,
         Dumper=_Dumper,
         sort_keys=False,
         default_flow_style=False,

@@ -1,0 +1,34 @@
+"""The compiler: optimal time allocation among a program's anytime modules."""
+
+from anytime.compiler.allocators import (
+    ALLOCATORS,
+    DynamicProgramming,
+    Exhaustive,
+    HillClimbing,
+    dp_obstacle,
+)
+from anytime.compiler.compile import CompiledProgram, compile_file, compile_program
+from anytime.compiler.evaluate import Dist, Evaluator
+from anytime.compiler.execute import ExecutionError, execute
+from anytime.compiler.model import CompileError, CompileModel, build_model
+from anytime.compiler.report import compiled_to_dict, format_report
+
+__all__ = [
+    "ALLOCATORS",
+    "CompileError",
+    "CompileModel",
+    "CompiledProgram",
+    "Dist",
+    "DynamicProgramming",
+    "Evaluator",
+    "ExecutionError",
+    "Exhaustive",
+    "HillClimbing",
+    "build_model",
+    "compile_file",
+    "compile_program",
+    "compiled_to_dict",
+    "dp_obstacle",
+    "execute",
+    "format_report",
+]

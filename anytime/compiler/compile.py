@@ -1,0 +1,396 @@
+"""Compilation: a program schema plus the library's profiles -> a contract algorithm.
+
+`compile_program` fills the papers' table: for every program input quality and every total time
+T on the grid, the allocation of T among the anytime modules that maximises expected output
+quality, the output-quality distribution it gives and its expectation. The result, a
+`CompiledProgram`, is a contract algorithm with an ordinary conditional performance profile, so it
+registers in the library as a module and schemas compose hierarchically (`compile_file` compiles
+callees first). Every compilation also reports the baselines of the papers' Figures 8/10 (equal
+split, MIN and MAX for the first module) and, where it is computable, the gap to the exhaustive
+optimum.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+from attrs import frozen
+from numpy.typing import ArrayLike
+
+from anytime.clocks import Clock
+from anytime.compiler.allocators import (
+    ALLOCATORS,
+    EXHAUSTIVE_LIMIT,
+    Exhaustive,
+    dp_obstacle,
+    equal_split,
+)
+from anytime.compiler.evaluate import Dist, Evaluator
+from anytime.compiler.execute import execute
+from anytime.compiler.model import CompileError, CompileModel, build_model
+from anytime.dsl.program import Program, SchemaFile
+from anytime.library import AnytimeLibrary, LibraryEntry
+from anytime.modules import AnytimeModule, Context, Result
+from anytime.profiles.io import save_profile
+from anytime.profiles.profile import (
+    Array,
+    ConditionalPerformanceProfile,
+    default_bins,
+    new_profile,
+)
+
+#: The default grid of program input qualities: 0, 0.1, ..., 1.
+DEFAULT_INPUT_QUALITY = tuple(float(q) for q in np.round(np.linspace(0, 1, 11), 12))
+
+#: Allocators by name; "auto" is dp where local compilation is exact, else hill-climbing.
+ALLOCATOR_NAMES = ("auto", *ALLOCATORS)
+
+
+@frozen(eq=False)
+class CompiledProgram:
+    """A compiled schema: a contract algorithm and its profile.
+
+    Attributes:
+        name: the schema's name.
+        model: the program resolved against the library.
+        profile: the compiled conditional performance profile (kind contract): one input axis
+            per quality-carrying program input, on `input_quality`, and the time grid.
+        allocation: time per anytime module, shape (*input grids, time, n), in the time unit.
+        allocator: the allocator that filled the table.
+        note: how it was chosen, and what is approximate (said in every report).
+        baselines: expected quality of the equal, MIN and MAX allocations, each shaped like
+            `profile.mean`.
+        exhaustive_gap: the largest amount by which the exhaustive optimum beats the table
+            (None when the exhaustive search was not computable).
+    """
+
+    name: str
+    model: CompileModel
+    profile: ConditionalPerformanceProfile
+    allocation: Array
+    allocator: str
+    note: str
+    baselines: dict[str, Array]
+    exhaustive_gap: float | None
+    resolution: float
+
+    @property
+    def modules(self) -> tuple[str, ...]:
+        return self.model.module_names
+
+    @property
+    def expected(self) -> Array:
+        assert self.profile.mean is not None
+        return self.profile.mean
+
+    def run(
+        self,
+        inputs: Sequence[Any] | Mapping[str, Any],
+        total: float,
+        clock: Clock | None = None,
+    ) -> Result:
+        """Run the program as a contract algorithm with `total` time (see `execute`)."""
+        return execute(self, inputs, total, clock)
+
+    def as_module(self, origin: str | None = None) -> AnytimeModule:
+        """This program as a contract module of the library, with its compiled profile."""
+        program = self.model.program
+
+        def run_contract(ctx: Context, *args: Any) -> Result:
+            return execute(self, args, ctx.allocation, ctx.clock)
+
+        run_contract.__qualname__ = run_contract.__name__ = program.name.replace("-", "_")
+        return AnytimeModule(
+            name=program.name,
+            kind="contract",
+            function=run_contract,
+            parameters=program.inputs,
+            inputs=self.model.quality_inputs,
+            profile_source=self.profile,
+            origin=origin or f"compiled schema '{program.name}'",
+        )
+
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Write the compiled profile with its allocation table (OSError if it cannot)."""
+        save_profile(
+            self.profile, path, extra={"modules": self.modules, "allocation": self.allocation}
+        )
+
+    def allocation_at(self, quality: Sequence[float], total: float) -> Array:
+        """The allocation for program input qualities `quality` and total time `total`:
+        the table interpolated like the profile, rescaled to spend exactly `total`."""
+        q = np.asarray(quality, dtype=np.float64)
+        allocation = self.profile.interpolate(self.allocation, q, np.float64(total))
+        spent = allocation.sum()
+        return allocation * (total / spent) if spent > 0 else allocation
+
+
+def compile_program(
+    program: Program,
+    library: AnytimeLibrary,
+    time_grid: ArrayLike,
+    input_quality: ArrayLike = DEFAULT_INPUT_QUALITY,
+    *,
+    allocator: str = "auto",
+    resolution: float | None = None,
+    filename: str = "<schema>",
+    source_lines: Sequence[str] = (),
+) -> CompiledProgram:
+    """Compile one program (its callee schemas must already be in the library).
+
+    Args:
+        time_grid: the totals T to fill the table for (increasing, >= 0).
+        input_quality: the grid of qualities for every quality-carrying program input.
+        allocator: "auto", "dp", "hill-climbing" or "exhaustive".
+        resolution: the time unit allocations are multiples of (default: the grid's step);
+            every T must be a multiple of it.
+    """
+    model = build_model(program, library, filename, source_lines)
+    time = _check_time_grid(time_grid, filename)
+    dt = _resolution(time, resolution, filename)
+    units = np.rint(time / dt).astype(np.int64)
+    q_grid = _check_quality_grid(input_quality, filename)
+    m = len(model.quality_inputs)
+    cell_shape = (len(q_grid),) * m + (len(time),)
+    if m:
+        q_cells = np.stack(np.meshgrid(*([q_grid] * m), indexing="ij"), axis=-1).reshape(-1, m)
+    else:
+        q_cells = np.zeros((1, 0))
+    q_rows = np.repeat(q_cells, len(time), axis=0)
+    u_rows = np.tile(units, len(q_cells))
+
+    evaluator = Evaluator(model)
+    chosen, note = _choose(model, allocator)
+    notes = [note]
+    if model.graph.shape == "dag":
+        notes.append(
+            "the program is a DAG: a shared result makes later inputs correlated, and "
+            "evaluation treats them as independent (exact for trees, approximate here)"
+        )
+    allocation, _ = ALLOCATORS[chosen]().allocate(evaluator, q_rows, u_rows, dt)
+    output = evaluator.evaluate(q_rows, allocation * dt)
+    baselines = {
+        name: evaluator.expected(q_rows, split * dt).reshape(cell_shape)
+        for name, split in _baselines(model, u_rows, dt).items()
+    }
+    gap = None
+    n = len(model.anytime_nodes)
+    if chosen == "exhaustive":
+        gap = 0.0
+    elif n <= 4 and _exhaustive_rows(u_rows, n) <= EXHAUSTIVE_LIMIT:
+        _, optimum = Exhaustive().allocate(evaluator, q_rows, u_rows, dt)
+        gap = float(np.max(optimum - output.expected(), initial=0.0))
+    profile = _compiled_profile(model, output, q_grid, time, cell_shape)
+    return CompiledProgram(
+        name=program.name,
+        model=model,
+        profile=profile,
+        allocation=(allocation * dt).reshape(*cell_shape, n),
+        allocator=chosen,
+        note="; ".join(notes),
+        baselines=baselines,
+        exhaustive_gap=gap,
+        resolution=dt,
+    )
+
+
+def compile_file(
+    schemas: SchemaFile,
+    library: AnytimeLibrary,
+    time_grid: ArrayLike,
+    input_quality: ArrayLike = DEFAULT_INPUT_QUALITY,
+    *,
+    schema: str | None = None,
+    allocator: str = "auto",
+    resolution: float | None = None,
+    source_lines: Sequence[str] = (),
+) -> list[CompiledProgram]:
+    """Compile the schemas of a file bottom-up (callees first), registering each compiled schema
+    in `library` as a contract module, so that its callers use its compiled profile.
+
+    Only `schema` and the schemas it calls are compiled when it is given. A callee is compiled
+    on every multiple of the resolution up to the largest total, so its callers can give it any
+    share of their time on the lattice. Returns the compiled programs, callees first.
+    """
+    wanted = [schemas[schema]] if schema is not None else list(schemas.programs)
+    needed: set[str] = set()
+    stack = [p.name for p in wanted]
+    while stack:
+        name = stack.pop()
+        if name not in needed:
+            needed.add(name)
+            stack.extend(schemas[name].callees())
+    top = {p.name for p in wanted}
+    time = _check_time_grid(time_grid, schemas.filename)
+    dt = _resolution(time, resolution, schemas.filename)
+    lattice = np.arange(int(np.rint(time[-1] / dt)) + 1) * dt
+    compiled: list[CompiledProgram] = []
+    for program in schemas.dependency_order():
+        if program.name not in needed:
+            continue
+        result = compile_program(
+            program,
+            library,
+            time if program.name in top else lattice,
+            input_quality,
+            allocator=allocator,
+            resolution=dt,
+            filename=schemas.filename,
+            source_lines=source_lines,
+        )
+        origin = f"compiled schema '{program.name}' ({schemas.filename})"
+        library.add(LibraryEntry.of_module(result.as_module(origin)))
+        compiled.append(result)
+    return compiled
+
+
+def _choose(model: CompileModel, allocator: str) -> tuple[str, str]:
+    if allocator not in ALLOCATOR_NAMES:
+        raise CompileError(
+            f"unknown allocator '{allocator}' (expected one of {', '.join(ALLOCATOR_NAMES)})"
+        )
+    obstacle = dp_obstacle(model)
+    if allocator == "auto":
+        if obstacle is None:
+            return "dp", "dp: local compilation, exact for this tree of monotone modules"
+        return "hill-climbing", f"hill-climbing, because dp would not be exact: {obstacle}"
+    if allocator == "dp" and obstacle is not None:
+        return "hill-climbing", f"dp was asked for but {obstacle}: fell back to hill-climbing"
+    notes = {
+        "dp": "dp: local compilation, exact for this tree of monotone modules",
+        "hill-climbing": "hill-climbing as in the papers (may stop at a local maximum)",
+        "exhaustive": "exhaustive: every allocation on the time lattice",
+    }
+    return allocator, notes[allocator]
+
+
+def _exhaustive_rows(units: np.ndarray, n: int) -> int:
+    from math import comb
+
+    return sum(comb(int(u) + n - 1, n - 1) for u in units) if n else len(units)
+
+
+def _baselines(model: CompileModel, units: np.ndarray, dt: float) -> dict[str, np.ndarray]:
+    """Equal split; MIN and MAX: the first module gets its minimum / maximum useful time (the
+    first time its best-input expected quality is above 0 / reaches its maximum), capped by
+    T, and the rest is shared equally by the others (the papers' Figures 8 and 10)."""
+    nodes = model.anytime_nodes
+    n = len(nodes)
+    equal = equal_split(units, n) if n else np.zeros((len(units), 0), dtype=np.int64)
+    if n == 0:
+        return {"equal": equal, "min": equal, "max": equal}
+    profile = nodes[0].profile
+    assert profile is not None
+    best_input = np.ones((len(profile.time), profile.n_inputs))
+    curve = profile.expected(best_input, profile.time)
+    useful_min = profile.time[np.argmax(curve > 0)] if np.any(curve > 0) else profile.time[-1]
+    useful_max = profile.time[np.argmax(curve >= curve.max() - 1e-12)]
+    result = {"equal": equal}
+    for name, useful in (("min", useful_min), ("max", useful_max)):
+        first = np.minimum(np.ceil(useful / dt - 1e-9).astype(np.int64), units)
+        split = np.zeros((len(units), n), dtype=np.int64)
+        split[:, 0] = first if n > 1 else units
+        if n > 1:
+            split[:, 1:] = equal_split(units - split[:, 0], n - 1)
+        result[name] = split
+    return result
+
+
+def _compiled_profile(
+    model: CompileModel, output: Dist, q_grid: Array, time: Array, cell_shape: tuple[int, ...]
+) -> ConditionalPerformanceProfile:
+    """The output distributions binned (on the output module's bins, or ten equal bins), with
+    the exact expected quality kept as the profile's mean."""
+    bins = default_bins()
+    if model.output.kind == "node":
+        node = next(n for n in model.nodes if n.index == model.output.index)
+        if node.profile is not None:
+            bins = node.profile.bins
+    k = np.clip(np.searchsorted(bins, output.values, side="right") - 1, 0, len(bins) - 2)
+    probability = np.zeros((len(output.values), len(bins) - 1))
+    rows = np.broadcast_to(np.arange(len(k))[:, None], k.shape)
+    np.add.at(probability, (rows, k), output.probs)
+    probability /= probability.sum(axis=1, keepdims=True)
+    mean = np.clip(output.expected(), 0.0, 1.0)
+    return new_profile(
+        input_grids=[q_grid] * len(model.quality_inputs),
+        time=time,
+        bins=bins,
+        probability=probability.reshape(*cell_shape, len(bins) - 1),
+        mean=mean.reshape(cell_shape),
+        inputs=model.quality_inputs,
+        module=model.program.name,
+        kind="contract",
+        time_unit=model.time_unit,
+    )
+
+
+def _check_time_grid(grid: ArrayLike, filename: str) -> Array:
+    time = np.asarray(grid, dtype=np.float64)
+    if time.ndim != 1 or len(time) == 0:
+        raise CompileError("time grid: expected at least one total time, got none")
+    if not np.all(np.isfinite(time)) or np.any(time < 0):
+        raise CompileError(f"time grid: expected times >= 0, got {time[~(time >= 0)][0]:g}")
+    if np.any(np.diff(time) <= 0):
+        raise CompileError("time grid: expected increasing times")
+    return time
+
+
+def _resolution(time: Array, resolution: float | None, filename: str) -> float:
+    if resolution is None:
+        steps = np.diff(time)
+        resolution = float(steps.min()) if len(steps) else float(time[0]) or 1.0
+    if not resolution > 0:
+        raise CompileError(f"time resolution: expected a number > 0, got {resolution:g}")
+    off = np.abs(time / resolution - np.rint(time / resolution)) > 1e-9
+    if np.any(off):
+        raise CompileError(
+            f"time grid: every total must be a multiple of the resolution {resolution:g} "
+            f"(allocations are whole multiples of it), got {time[off][0]:g}"
+        )
+    return resolution
+
+
+def _check_quality_grid(grid: ArrayLike, filename: str) -> Array:
+    q = np.asarray(grid, dtype=np.float64)
+    if q.ndim != 1 or len(q) == 0:
+        raise CompileError("input quality: expected at least one quality, got none")
+    if not np.all((q >= 0) & (q <= 1)):
+        raise CompileError(
+            f"input quality: expected qualities in [0, 1], got {q[~((q >= 0) & (q <= 1))][0]:g}"
+        )
+    if np.any(np.diff(q) <= 0):
+        raise CompileError("input quality: expected increasing qualities")
+    return q
+
+
+def default_time_grid(
+    schemas: SchemaFile, library: AnytimeLibrary, schema: str | None = None
+) -> list[float]:
+    """0 to the sum of the longest profiled times of the modules the schemas call (beyond it no
+    module has anything more to give), in about 20 round steps."""
+    programs = [schemas[schema]] if schema is not None else list(schemas.programs)
+    seen: set[str] = set()
+    total = 0.0
+    while programs:
+        program = programs.pop()
+        for call in program.steps:
+            if call.kind == "schema":
+                if call.function not in seen:
+                    seen.add(call.function)
+                    programs.append(schemas[call.function])
+                continue
+            entry = library.get(call.function)
+            profile = entry.profile if entry is not None and entry.kind != "elementary" else None
+            if profile is not None:
+                total += float(profile.time[-1])
+    if total <= 0:
+        return [0.0]
+    raw = total / 20
+    magnitude = 10 ** np.floor(np.log10(raw))
+    step = float(min(m * magnitude for m in (1, 2, 5, 10) if m * magnitude >= raw))
+    count = int(np.ceil(total / step - 1e-9))
+    return [i * step for i in range(count + 1)]

@@ -1,0 +1,74 @@
+"""What a compilation reports: the JSON of `anytime compile --json` and a table for people."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from anytime.compiler.compile import CompiledProgram
+
+MAX_ROWS = 12  # rows of the human table; the time grid is thinned to fit
+
+
+def compiled_to_dict(compiled: CompiledProgram) -> dict[str, Any]:
+    """The report as JSON-ready data. Tables are shaped (input quality..., time[, module]): one
+    input-quality axis per quality-carrying program input (none when no input carries one)."""
+    profile = compiled.profile
+    return {
+        "schema": compiled.name,
+        "allocator": compiled.allocator,
+        "modules": list(compiled.modules),
+        "inputs": list(compiled.model.quality_inputs),
+        "time": profile.time.tolist(),
+        "time_unit": profile.time_unit,
+        "input_quality": profile.input_grids[0].tolist() if profile.input_grids else [],
+        "expected_quality": compiled.expected.tolist(),
+        "allocation": compiled.allocation.tolist(),
+        "baselines": {name: value.tolist() for name, value in compiled.baselines.items()},
+        "exhaustive_gap": compiled.exhaustive_gap,
+        "method_note": compiled.note,
+    }
+
+
+def format_report(compiled: CompiledProgram) -> str:
+    """The compiled profile against the baselines, at the best input quality, as a table."""
+    profile = compiled.profile
+    best = (-1,) * profile.n_inputs  # the highest grid quality of every input
+    expected = compiled.expected[best]
+    allocation = compiled.allocation[best]
+    baselines = {name: value[best] for name, value in compiled.baselines.items()}
+    rows_at = np.unique(np.linspace(0, len(profile.time) - 1, MAX_ROWS).round().astype(int))
+    header = [f"T ({profile.time_unit})", "compiled", *baselines, "allocation"]
+    header[-1] += " (" + ", ".join(compiled.modules) + ")" if compiled.modules else ""
+    table = [header]
+    for j in rows_at:
+        shares = ", ".join(f"{a:g}" for a in allocation[j])
+        table.append(
+            [
+                f"{profile.time[j]:g}",
+                f"{expected[j]:.3f}",
+                *(f"{value[j]:.3f}" for value in baselines.values()),
+                shares,
+            ]
+        )
+    widths = [max(len(row[i]) for row in table) for i in range(len(header))]
+    lines = [f"schema {compiled.name}: {compiled.allocator}"]
+    if compiled.model.quality_inputs:
+        lines[0] += (
+            f" (table at input quality {profile.input_grids[0][-1]:g} of "
+            f"{', '.join(compiled.model.quality_inputs)})"
+        )
+    for row in table:
+        cells = [
+            cell.rjust(w) if i < len(row) - 1 else cell
+            for i, (cell, w) in enumerate(zip(row, widths, strict=True))
+        ]
+        lines.append("  " + "  ".join(cells).rstrip())
+    gap = compiled.exhaustive_gap
+    lines.append(
+        "  gap to the exhaustive optimum: "
+        + ("not computed (too many modules or allocations)" if gap is None else f"{gap:.2e}")
+    )
+    lines.append(f"  note: {compiled.note}")
+    return "\n".join(lines) + "\n"
