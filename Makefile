@@ -10,6 +10,7 @@ INSTALLED := $(VENV)/.installed
 
 demo: $(INSTALLED)
 	$(BIN)/anytime parse schemas/navigation.any
+	$(BIN)/anytime compile schemas/navigation.any --schema navigate --library schemas/profiles
 
 test: lint typecheck pytest
 

@@ -5,6 +5,7 @@ compile it into a contract algorithm with optimal time allocation, and run it un
 """
 
 from anytime.clocks import WallClock, WorkClock
+from anytime.compiler import CompiledProgram, compile_file, compile_program
 from anytime.dsl import (
     DataflowGraph,
     Program,
@@ -51,6 +52,7 @@ __all__ = [
     "AnytimeError",
     "AnytimeLibrary",
     "AnytimeModule",
+    "CompiledProgram",
     "ConditionalPerformanceProfile",
     "Context",
     "DataflowGraph",
@@ -76,6 +78,8 @@ __all__ = [
     "WallClock",
     "WorkClock",
     "__version__",
+    "compile_file",
+    "compile_program",
     "contract",
     "elementary",
     "format_program",

@@ -8,7 +8,8 @@ import anytime
 
 
 @pytest.mark.parametrize(
-    "module", ["anytime", "anytime.dsl", "anytime.profiles", "anytime.profiles.builder"]
+    "module",
+    ["anytime", "anytime.compiler", "anytime.dsl", "anytime.profiles", "anytime.profiles.builder"],
 )
 def test_every_name_in_all_resolves(module: str) -> None:
     mod = importlib.import_module(module)
