@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from anytime import __version__
-from anytime.compiler import compile_file, compiled_to_dict, format_report
+from anytime.compiler import CompileError, compile_file, compiled_to_dict, format_report
 from anytime.compiler.compile import ALLOCATOR_NAMES, DEFAULT_INPUT_QUALITY, default_time_grid
 from anytime.dsl import format_programs, graph_to_dot, load_schemas, program_to_json
 from anytime.errors import AnytimeError, ProfileError
@@ -317,16 +317,21 @@ def run_compile(args: argparse.Namespace) -> int:
         time_grid = default_time_grid(schemas, library, args.schema)
     quality = _parse_numbers(args.input_quality, "--input-quality")
     lines = Path(args.file).read_text(encoding="utf-8-sig").split("\n")
-    compiled = compile_file(
-        schemas,
-        library,
-        time_grid,
-        quality,
-        schema=args.schema,
-        allocator=args.allocator,
-        resolution=args.resolution,
-        source_lines=lines,
-    )
+    try:
+        compiled = compile_file(
+            schemas,
+            library,
+            time_grid,
+            quality,
+            schema=args.schema,
+            allocator=args.allocator,
+            resolution=args.resolution,
+            source_lines=lines,
+        )
+    except CompileError as error:
+        message = str(error)
+        prefixed = message if ": error: " in message else f"{args.file}: error: {message}"
+        raise InputError(prefixed) from None
     wanted = [c for c in compiled if args.schema is None or c.name == args.schema.lower()]
     if args.time_unit is not None:
         for result in wanted:

@@ -366,8 +366,13 @@ class AnytimeLibrary:
         else:
             self._generic.discard(entry.name)
 
-    def add(self, entry: LibraryEntry) -> None:
-        """Add one entry (a compiled schema, say); a name already taken is a `LibraryError`."""
+    def add(self, entry: LibraryEntry, *, replace: bool = False) -> None:
+        """Add one entry (a compiled schema, say). A name already taken is a `LibraryError`,
+        unless `replace` is set and the entry taking it has the same origin (a recompile)."""
+        old = self._entries.get(entry.name)
+        if replace and old is not None and old.origin == entry.origin:
+            self._entries[entry.name] = entry
+            return
         self._add(entry, generic=False)
 
     def get(self, name: str) -> LibraryEntry | None:

@@ -114,13 +114,22 @@ class Exhaustive:
 
     name = "exhaustive"
 
+    @staticmethod
+    def rows(units: np.ndarray, n: int) -> int:
+        """How many allocations the search evaluates for these totals."""
+        return sum(comb(int(u) + n - 1, n - 1) for u in units) if n else len(units)
+
+    @staticmethod
+    def computable(units: np.ndarray, n: int) -> bool:
+        return Exhaustive.rows(units, n) <= EXHAUSTIVE_LIMIT
+
     def allocate(
         self, evaluator: Evaluator, quality: Array, units: np.ndarray, dt: float
     ) -> tuple[np.ndarray, Array]:
         n = evaluator.n_modules
         if n == 0:
             return nothing_to_allocate(evaluator, quality, units)
-        rows = sum(comb(int(u) + n - 1, n - 1) for u in units)
+        rows = self.rows(units, n)
         if rows > EXHAUSTIVE_LIMIT:
             raise CompileError(
                 f"exhaustive search would evaluate {rows:,} allocations (more than "
@@ -195,9 +204,13 @@ class DynamicProgramming:
         best: dict[int, Array] = {}  # node -> (Q, top+1) best quality per budget
         choice: dict[int, np.ndarray] = {}  # node -> (Q, top+1) index of the best split
         splits: dict[int, np.ndarray] = {}  # node -> (R, parts) candidate splits
+        root = model.output.index if model.output.kind == "node" else -1
+        totals = np.unique(units)
         for node in model.nodes:
+            # Inner subtrees may get any budget; the root only the totals asked for.
+            budgets = totals if node.index == root else None
             best[node.index], choice[node.index], splits[node.index] = self._node(
-                node, best, cells, top, dt
+                node, best, cells, top, dt, budgets
             )
         n = evaluator.n_modules
         if n == 0:
@@ -225,14 +238,23 @@ class DynamicProgramming:
 
     @staticmethod
     def _node(
-        node: CompileNode, best: dict[int, Array], cells: Array, top: int, dt: float
+        node: CompileNode,
+        best: dict[int, Array],
+        cells: Array,
+        top: int,
+        dt: float,
+        budgets: np.ndarray | None,
     ) -> tuple[Array, np.ndarray, np.ndarray]:
         children = [s.index for s in node.slots if s.kind == "node"]
         parts = (1 if node.kind == "anytime" else 0) + len(children)
-        # Every split of every budget up to `top`: the own time first, then each child's.
+        # Every split of every budget up to `top` (or of `budgets` only): the own time first,
+        # then each child's.
         with_slack = compositions(top, parts + 1)
         candidates = with_slack[:, :parts]
         spent = candidates.sum(axis=1)
+        if budgets is not None:
+            keep = np.isin(spent, budgets)
+            candidates, spent = candidates[keep], spent[keep]
         n_cells, n_rows = len(cells), len(candidates)
         qualities = []
         column = 1 if node.kind == "anytime" else 0
@@ -245,13 +267,28 @@ class DynamicProgramming:
             else:
                 qualities.append(np.full((n_cells, n_rows), slot.value))
         q = np.stack(qualities, axis=-1) if qualities else np.zeros((n_cells, n_rows, 0))
+        # A subtree cannot spend a budget it has no use for (no anytime module): -inf there.
+        infeasible = np.isneginf(q).any(axis=-1)
+        q = np.where(np.isneginf(q), 0.0, q)
         if node.kind == "anytime":
             assert node.profile is not None
             t = np.broadcast_to(candidates[:, 0] * dt, (n_cells, n_rows))
-            value = node.profile.expected(q, t)
+            step = max(1, CHUNK // max(n_cells, 1))  # bounds the interpolation's memory
+            value = (
+                np.concatenate(
+                    [
+                        node.profile.expected(q[:, i : i + step], t[:, i : i + step])
+                        for i in range(0, n_rows, step)
+                    ],
+                    axis=1,
+                )
+                if n_rows
+                else np.zeros((n_cells, 0))
+            )
         else:
             assert node.combine is not None
             value = node.combine(np.moveaxis(q, -1, 0)) if qualities else np.ones((n_cells, n_rows))
+        value = np.where(infeasible, -np.inf, value)
         # The best split for each budget: candidates that spend exactly that budget.
         table = np.full((n_cells, top + 1), -np.inf)
         index = np.zeros((n_cells, top + 1), dtype=np.int64)

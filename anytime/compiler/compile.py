@@ -23,7 +23,6 @@ from numpy.typing import ArrayLike
 from anytime.clocks import Clock
 from anytime.compiler.allocators import (
     ALLOCATORS,
-    EXHAUSTIVE_LIMIT,
     Exhaustive,
     dp_obstacle,
     equal_split,
@@ -165,7 +164,7 @@ def compile_program(
     evaluator = Evaluator(model)
     chosen, note = _choose(model, allocator)
     notes = [note]
-    if model.graph.shape == "dag":
+    if model.graph.shape == "dag" and not all(n.deterministic for n in model.nodes):
         notes.append(
             "the program is a DAG: a shared result makes later inputs correlated, and "
             "evaluation treats them as independent (exact for trees, approximate here)"
@@ -180,9 +179,9 @@ def compile_program(
     n = len(model.anytime_nodes)
     if chosen == "exhaustive":
         gap = 0.0
-    elif n <= 4 and _exhaustive_rows(u_rows, n) <= EXHAUSTIVE_LIMIT:
+    elif n <= 4 and Exhaustive.computable(u_rows, n):
         _, optimum = Exhaustive().allocate(evaluator, q_rows, u_rows, dt)
-        gap = float(np.max(optimum - output.expected(), initial=0.0))
+        gap = float(np.max(optimum - output.expected()))
     profile = _compiled_profile(model, output, q_grid, time, cell_shape)
     return CompiledProgram(
         name=program.name,
@@ -242,7 +241,7 @@ def compile_file(
             source_lines=source_lines,
         )
         origin = f"compiled schema '{program.name}' ({schemas.filename})"
-        library.add(LibraryEntry.of_module(result.as_module(origin)))
+        library.add(LibraryEntry.of_module(result.as_module(origin)), replace=True)
         compiled.append(result)
     return compiled
 
@@ -265,12 +264,6 @@ def _choose(model: CompileModel, allocator: str) -> tuple[str, str]:
         "exhaustive": "exhaustive: every allocation on the time lattice",
     }
     return allocator, notes[allocator]
-
-
-def _exhaustive_rows(units: np.ndarray, n: int) -> int:
-    from math import comb
-
-    return sum(comb(int(u) + n - 1, n - 1) for u in units) if n else len(units)
 
 
 def _baselines(model: CompileModel, units: np.ndarray, dt: float) -> dict[str, np.ndarray]:
@@ -331,11 +324,15 @@ def _compiled_profile(
 def _check_time_grid(grid: ArrayLike, filename: str) -> Array:
     time = np.asarray(grid, dtype=np.float64)
     if time.ndim != 1 or len(time) == 0:
-        raise CompileError("time grid: expected at least one total time, got none")
+        raise CompileError(
+            f"{filename}: error: time grid: expected at least one total time, got none"
+        )
     if not np.all(np.isfinite(time)) or np.any(time < 0):
-        raise CompileError(f"time grid: expected times >= 0, got {time[~(time >= 0)][0]:g}")
+        raise CompileError(
+            f"{filename}: error: time grid: expected times >= 0, got {time[~(time >= 0)][0]:g}"
+        )
     if np.any(np.diff(time) <= 0):
-        raise CompileError("time grid: expected increasing times")
+        raise CompileError(f"{filename}: error: time grid: expected increasing times")
     return time
 
 
@@ -344,11 +341,14 @@ def _resolution(time: Array, resolution: float | None, filename: str) -> float:
         steps = np.diff(time)
         resolution = float(steps.min()) if len(steps) else float(time[0]) or 1.0
     if not resolution > 0:
-        raise CompileError(f"time resolution: expected a number > 0, got {resolution:g}")
+        raise CompileError(
+            f"{filename}: error: time resolution: expected a number > 0, got {resolution:g}"
+        )
     off = np.abs(time / resolution - np.rint(time / resolution)) > 1e-9
     if np.any(off):
         raise CompileError(
-            f"time grid: every total must be a multiple of the resolution {resolution:g} "
+            f"{filename}: error: time grid: every total must be a multiple of the resolution "
+            f"{resolution:g} "
             f"(allocations are whole multiples of it), got {time[off][0]:g}"
         )
     return resolution
@@ -357,13 +357,16 @@ def _resolution(time: Array, resolution: float | None, filename: str) -> float:
 def _check_quality_grid(grid: ArrayLike, filename: str) -> Array:
     q = np.asarray(grid, dtype=np.float64)
     if q.ndim != 1 or len(q) == 0:
-        raise CompileError("input quality: expected at least one quality, got none")
-    if not np.all((q >= 0) & (q <= 1)):
         raise CompileError(
-            f"input quality: expected qualities in [0, 1], got {q[~((q >= 0) & (q <= 1))][0]:g}"
+            f"{filename}: error: input quality: expected at least one quality, got none"
+        )
+    if not np.all((q >= 0) & (q <= 1)):
+        bad = q[~((q >= 0) & (q <= 1))][0]
+        raise CompileError(
+            f"{filename}: error: input quality: expected qualities in [0, 1], got {bad:g}"
         )
     if np.any(np.diff(q) <= 0):
-        raise CompileError("input quality: expected increasing qualities")
+        raise CompileError(f"{filename}: error: input quality: expected increasing qualities")
     return q
 
 

@@ -87,8 +87,8 @@ def _bind(
     else:
         if len(inputs) != len(parameters):
             raise ExecutionError(
-                f"schema '{name}' takes {len(parameters)} inputs ({', '.join(parameters)}), "
-                f"got {len(inputs)}"
+                f"schema '{name}' takes {len(parameters)} input{'s' * (len(parameters) != 1)} "
+                f"({', '.join(parameters)}), got {len(inputs)}"
             )
         values = dict(zip(parameters, inputs, strict=True))
     missing = [p for p in parameters if p not in values]

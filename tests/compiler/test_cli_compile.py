@@ -1,0 +1,287 @@
+"""`anytime compile FILE`: the report as JSON and as a table, the compiled profile file, and the
+errors, with the modules given as profile files in a directory."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from conftest import ROOT, Cli
+
+import anytime.library
+from anytime.modules import Context, Registry, Result, interruptible
+from anytime.profiles import tabulate
+from anytime.profiles.io import load_profile, save_profile
+
+TIME = np.arange(0, 41, 5.0)
+SENSE_RATE, PLAN_RATE = 0.1, 0.05
+
+SCHEMAS = """\
+(defschema p (x)
+  (plan (sense x)))
+(defschema q (x)
+  (plan (sens x)))
+"""
+
+BAD_GRID = (
+    "anytime: error: --time-grid: expected START:STOP:STEP with 0 <= START <= STOP and "
+    "STEP > 0, got {!r}\n"
+)
+
+
+@pytest.fixture
+def registry(monkeypatch: pytest.MonkeyPatch) -> Registry:
+    """The command's in-process registry: a fresh, empty one."""
+    fresh = Registry()
+    monkeypatch.setattr(anytime.library, "REGISTRY", fresh)
+    return fresh
+
+
+@pytest.fixture
+def setup(tmp_path: Path, registry: Registry) -> tuple[Path, Path]:
+    """(schema file, profile directory): `sense` (conditioned on its input x) and `plan`
+    (conditioned on the map it is given), exponential in time and linear in input quality."""
+    library = tmp_path / "lib"
+    library.mkdir()
+    save_profile(
+        tabulate(
+            lambda t, q: q * -np.expm1(-SENSE_RATE * t),
+            TIME,
+            input_grids=[[0.0, 0.5, 1.0]],
+            inputs=["x"],
+            module="sense",
+        ),
+        library / "sense.yaml",
+    )
+    save_profile(
+        tabulate(
+            lambda t, q: q * -np.expm1(-PLAN_RATE * t),
+            TIME,
+            input_grids=[[0.0, 1.0]],
+            inputs=["map"],
+            module="plan",
+        ),
+        library / "plan.yaml",
+    )
+    schemas = tmp_path / "p.any"
+    schemas.write_text(SCHEMAS, encoding="utf-8")
+    return schemas, library
+
+
+def compile_p(cli: Cli, setup: tuple[Path, Path], *options: str) -> tuple[int, str, str]:
+    schemas, library = setup
+    return cli(
+        "compile",
+        str(schemas),
+        "--schema",
+        "p",
+        "--library",
+        str(library),
+        "--no-plugins",
+        *options,
+    )
+
+
+def optimum(q: float, total: float, dt: float) -> float:
+    """The best product q (1 - e^{-a t1}) (1 - e^{-b (T - t1)}) over the lattice."""
+    t1 = np.arange(0, total + dt / 2, dt)
+    return float(np.max(q * -np.expm1(-SENSE_RATE * t1) * -np.expm1(-PLAN_RATE * (total - t1))))
+
+
+def test_json_report_fields_and_shapes(cli: Cli, setup: tuple[Path, Path]) -> None:
+    code, out, err = compile_p(
+        cli, setup, "--time-grid", "0:40:10", "--input-quality", "0,0.5,1", "--json"
+    )
+    assert (code, err) == (0, "")
+    report = json.loads(out)
+    assert list(report) == [
+        "schema",
+        "allocator",
+        "modules",
+        "inputs",
+        "time",
+        "time_unit",
+        "input_quality",
+        "expected_quality",
+        "allocation",
+        "baselines",
+        "exhaustive_gap",
+        "method_note",
+    ]
+    assert report["schema"] == "p"
+    assert report["allocator"] == "dp"
+    assert report["modules"] == ["sense", "plan"]
+    assert report["inputs"] == ["x"]
+    assert report["time"] == [0, 10, 20, 30, 40]
+    assert report["time_unit"] == "ticks"
+    assert report["input_quality"] == [0, 0.5, 1]
+    expected = np.array(report["expected_quality"])
+    allocation = np.array(report["allocation"])
+    assert expected.shape == (3, 5)  # input quality x time
+    assert allocation.shape == (3, 5, 2)  # input quality x time x module
+    assert set(report["baselines"]) == {"equal", "min", "max"}
+    for baseline in report["baselines"].values():
+        assert np.array(baseline).shape == (3, 5)
+        assert (expected >= np.array(baseline) - 1e-12).all()
+    assert report["exhaustive_gap"] == 0
+    assert report["method_note"] == "dp: local compilation, exact for this tree of monotone modules"
+    for i, q in enumerate([0, 0.5, 1]):
+        for j, total in enumerate(range(0, 41, 10)):
+            assert expected[i, j] == pytest.approx(optimum(q, total, 10), abs=1e-12)
+    np.testing.assert_array_equal(allocation.sum(axis=-1), [[0, 10, 20, 30, 40]] * 3)
+
+
+def test_json_of_every_schema_of_a_file(cli: Cli, setup: tuple[Path, Path], tmp_path: Path) -> None:
+    _, library = setup
+    path = tmp_path / "two.any"
+    path.write_text("(defschema a (x) (sense x))\n(defschema b (x) (plan (a x)))\n")
+    code, out, err = cli(
+        "compile",
+        str(path),
+        "--library",
+        str(library),
+        "--no-plugins",
+        "--json",
+        "--time-grid",
+        "0:20:5",
+    )
+    assert (code, err) == (0, "")
+    reports = json.loads(out)["schemas"]
+    assert [(r["schema"], r["modules"]) for r in reports] == [
+        ("a", ["sense"]),
+        ("b", ["a", "plan"]),
+    ]
+
+
+def test_table_report(cli: Cli, setup: tuple[Path, Path]) -> None:
+    code, out, err = compile_p(cli, setup, "--time-grid", "0:40:10")
+    assert (code, err) == (0, "")
+    lines = out.splitlines()
+    assert lines[0] == "schema p: dp (table at input quality 1 of x)"
+    assert lines[1] == "  T (ticks)  compiled  equal    min    max  allocation (sense, plan)"
+    assert lines[2] == "          0     0.000  0.000  0.000  0.000  0, 0"
+    assert lines[4].split()[:2] == ["20", f"{optimum(1.0, 20, 10):.3f}"]
+    assert lines[-2:] == [
+        "  gap to the exhaustive optimum: 0.00e+00",
+        "  note: dp: local compilation, exact for this tree of monotone modules",
+    ]
+    assert len(lines) == 2 + 5 + 2
+
+
+def test_output_file_is_a_loadable_compiled_profile(
+    cli: Cli, setup: tuple[Path, Path], tmp_path: Path
+) -> None:
+    path = tmp_path / "OUT.yaml"
+    code, out, err = compile_p(cli, setup, "--time-grid", "0:40:10", "-o", str(path))
+    assert (code, err) == (0, "")
+    assert out.endswith(f"wrote {path}\n")
+    profile = load_profile(path)
+    assert (profile.module, profile.kind, profile.inputs) == ("p", "contract", ("x",))
+    np.testing.assert_array_equal(profile.time, [0, 10, 20, 30, 40])
+    assert profile.mean is not None
+    code, out, _ = compile_p(cli, setup, "--time-grid", "0:40:10", "--json")
+    np.testing.assert_array_equal(profile.mean, json.loads(out)["expected_quality"])
+
+
+def test_output_file_with_json_prints_only_json(
+    cli: Cli, setup: tuple[Path, Path], tmp_path: Path
+) -> None:
+    path = tmp_path / "OUT.yaml"
+    code, out, err = compile_p(cli, setup, "--time-grid", "0:40:10", "-o", str(path), "--json")
+    assert (code, err) == (0, "")
+    assert json.loads(out)["schema"] == "p"
+    assert path.exists()
+
+
+def test_time_grid_option(cli: Cli, setup: tuple[Path, Path]) -> None:
+    code, out, err = compile_p(cli, setup, "--time-grid", "0:40:10", "--json")
+    assert (code, err) == (0, "")
+    assert json.loads(out)["time"] == [0, 10, 20, 30, 40]
+    code, out, err = compile_p(cli, setup, "--time-grid", "10:30:10", "--json")
+    assert (code, err) == (0, "")
+    assert json.loads(out)["time"] == [10, 20, 30]
+
+
+@pytest.mark.parametrize(
+    "grid", ["10:0:5", "a:b:c", "0:10:0", "0:10:-5", "-5:10:5", "0:10", "0:10:5:1", ""]
+)
+def test_bad_time_grids_exit_1_with_one_line(cli: Cli, setup: tuple[Path, Path], grid: str) -> None:
+    code, out, err = compile_p(cli, setup, f"--time-grid={grid}")
+    assert (code, out) == (1, "")
+    assert err == BAD_GRID.format(grid)
+
+
+def test_unknown_function_names_its_place(cli: Cli, setup: tuple[Path, Path]) -> None:
+    schemas, library = setup
+    code, out, err = cli(
+        "compile", str(schemas), "--schema", "q", "--library", str(library), "--no-plugins"
+    )
+    assert (code, out) == (1, "")
+    assert err == (
+        f"{schemas}:4:10: error: unknown function 'sens'; did you mean 'sense'?\n"
+        "    (plan (sens x)))\n"
+        "           ^~~~\n"
+    )
+
+
+def test_module_without_a_profile(
+    cli: Cli, setup: tuple[Path, Path], registry: Registry, tmp_path: Path
+) -> None:
+    @interruptible("guess", inputs=[], registry=registry)
+    def guess(ctx: Context, x: Any) -> Iterator[Result]:
+        yield Result(None, 0.0)
+
+    _, library = setup
+    path = tmp_path / "guess.any"
+    path.write_text("(defschema g (x)\n  (plan (guess x)))\n")
+    code, out, err = cli("compile", str(path), "--library", str(library), "--no-plugins")
+    assert (code, out) == (1, "")
+    assert err.splitlines()[0] == (
+        f"{path}:2:10: error: module 'guess' has no performance profile (python module "
+        f"{__name__}): the compiler cannot allocate time to it"
+    )
+
+
+def test_time_unit_must_be_the_profiles_unit(cli: Cli, setup: tuple[Path, Path]) -> None:
+    schemas, _ = setup
+    code, out, err = compile_p(cli, setup, "--time-grid", "0:40:10", "--time-unit", "seconds")
+    assert (code, out) == (1, "")
+    assert err == (
+        f"{schemas}: error: schema 'p': the time grid is in seconds but its modules' profiles "
+        "are in ticks\n"
+    )
+    code, _, err = compile_p(cli, setup, "--time-grid", "0:40:10", "--time-unit", "ticks")
+    assert (code, err) == (0, "")
+
+
+def test_the_shipped_navigation_schema_compiles_exactly(
+    cli: Cli, navigation_any: Path, registry: Registry
+) -> None:
+    code, out, err = cli(
+        "compile",
+        str(navigation_any),
+        "--schema",
+        "navigate",
+        "--library",
+        str(ROOT / "schemas" / "profiles"),
+        "--no-plugins",
+        "--json",
+    )
+    assert (code, err) == (0, "")
+    report = json.loads(out)
+    assert report["schema"] == "navigate"
+    assert report["modules"] == ["get-domain-description", "find-path"]
+    assert report["allocator"] == "dp"
+    assert report["exhaustive_gap"] == 0
+    # The vision module's profile has no input axis, so no program input's quality conditions
+    # the output: the tables have no input-quality axis (see report.compiled_to_dict).
+    assert (report["inputs"], report["input_quality"]) == ([], [])
+    expected = np.array(report["expected_quality"])
+    assert expected.shape == (len(report["time"]),)
+    assert np.array(report["allocation"]).shape == (len(report["time"]), 2)
+    for baseline in report["baselines"].values():
+        assert (expected >= np.array(baseline) - 1e-12).all()
