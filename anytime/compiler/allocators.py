@@ -8,7 +8,10 @@ Each works on a batch of cells at once: rows of program input qualities `q (C, m
 - `HillClimbing`: the papers' algorithm as written (Zilberstein & Russell, "Time allocation
   algorithm"): start with equal shares; while some trade of s units from module i to module j
   raises E[Q_out], make the best one; then halve s, until s < epsilon (one unit). It is
-  O(n^2 log(T/epsilon)) evaluations per cell and may stop at a local maximum.
+  O(n^2 log(T/epsilon)) evaluations per cell and may stop at a local maximum. The papers leave
+  `initial-resolution(T)` open; we start with one equal share, T/n, so that the first trades
+  can hand a module's whole share to another (measured in benchmarks/bench_compiler.py: half the
+  mean gap to the optimum of starting with T/2n).
 - `Exhaustive`: every allocation of the lattice simplex; exact, and exponential in n.
 - `DynamicProgramming`: local compilation. For a tree whose modules are deterministic and
   input-monotone, the best output of a subtree given its time depends on nothing else, so each
@@ -88,7 +91,7 @@ class HillClimbing:
         trade = np.zeros((len(pairs), n), dtype=np.int64)
         trade[np.arange(len(pairs)), pairs[:, 0]] = -1
         trade[np.arange(len(pairs)), pairs[:, 1]] = 1
-        step = np.maximum(units // (2 * n), 1)  # initial-resolution(T)
+        step = np.maximum(units // n, 1)  # initial-resolution(T): one equal share
         active = units > 0
         while active.any():
             rows = np.flatnonzero(active)
