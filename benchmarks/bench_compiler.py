@@ -265,7 +265,7 @@ def bench_chain(points: int, step: float, resolutions: Sequence[float], repeats:
         "vs dp",
         "allocator ms",
         "vs dp",
-        "max |E - exhaustive|",
+        "max abs(E - exhaustive)",
     ]
     note = (
         f"(median of {repeats} round-robin runs; time grid {time_grid[0]:g}..{time_grid[-1]:g}"
@@ -484,7 +484,7 @@ def bench_optimality(programs: int, units: Sequence[int], q_grid: np.ndarray, se
         "worst rel",
         "hill optimal",
         "hill > exh.",
-        "worst |dp - exh.|",
+        "worst abs(dp - exh.)",
         "report check",
     ]
     note = (
