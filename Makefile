@@ -10,7 +10,8 @@ INSTALLED := $(VENV)/.installed
 
 demo: $(INSTALLED)
 	$(BIN)/anytime parse schemas/navigation.any
-	$(BIN)/anytime compile schemas/navigation.any --schema navigate --library schemas/profiles
+	$(BIN)/anytime compile schemas/navigation.any --schema navigate --library schemas/profiles \
+		--time-grid 0:600:50 --resolution 10
 
 test: lint typecheck pytest
 
