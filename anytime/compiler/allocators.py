@@ -26,6 +26,7 @@ from math import comb
 from typing import Protocol
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from anytime.compiler.evaluate import Evaluator
 from anytime.compiler.model import CompileError, CompileModel, CompileNode
@@ -34,6 +35,15 @@ from anytime.profiles.profile import Array
 IMPROVEMENT = 1e-12  # a trade must raise E[Q_out] by more than this to count
 EXHAUSTIVE_LIMIT = 4_000_000  # rows the exhaustive search may evaluate in one compile
 CHUNK = 200_000  # rows evaluated at once
+
+
+class Evaluates(Protocol):
+    """What hill-climbing and the exhaustive search need: batched expected quality."""
+
+    @property
+    def n_modules(self) -> int: ...
+
+    def expected(self, quality: ArrayLike, allocation: ArrayLike) -> Array: ...
 
 
 class Allocator(Protocol):
@@ -58,7 +68,7 @@ def compositions(total: int, parts: int) -> np.ndarray:
 
 
 def nothing_to_allocate(
-    evaluator: Evaluator, quality: Array, units: np.ndarray
+    evaluator: Evaluates, quality: Array, units: np.ndarray
 ) -> tuple[np.ndarray, Array]:
     """A program without anytime modules: no time to split, its quality whatever T is."""
     allocation = np.zeros((len(units), 0), dtype=np.int64)
@@ -78,7 +88,7 @@ class HillClimbing:
     name = "hill-climbing"
 
     def allocate(
-        self, evaluator: Evaluator, quality: Array, units: np.ndarray, dt: float
+        self, evaluator: Evaluates, quality: Array, units: np.ndarray, dt: float
     ) -> tuple[np.ndarray, Array]:
         n = evaluator.n_modules
         if n == 0:
@@ -127,7 +137,7 @@ class Exhaustive:
         return Exhaustive.rows(units, n) <= EXHAUSTIVE_LIMIT
 
     def allocate(
-        self, evaluator: Evaluator, quality: Array, units: np.ndarray, dt: float
+        self, evaluator: Evaluates, quality: Array, units: np.ndarray, dt: float
     ) -> tuple[np.ndarray, Array]:
         n = evaluator.n_modules
         if n == 0:

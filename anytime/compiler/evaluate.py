@@ -17,6 +17,8 @@ value's mass between its two neighbouring grid points, which keeps the mean exac
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 from attrs import frozen
 from numpy.typing import ArrayLike
@@ -67,12 +69,19 @@ class Evaluator:
     def n_modules(self) -> int:
         return len(self.model.anytime_nodes)
 
-    def evaluate(self, quality: ArrayLike, allocation: ArrayLike) -> Dist:
+    def evaluate(
+        self,
+        quality: ArrayLike,
+        allocation: ArrayLike,
+        observed: Mapping[int, float] | None = None,
+    ) -> Dist:
         """Output distributions for a batch.
 
         Args:
             quality: program input qualities, shape (B, m) or (m,) (broadcast).
             allocation: time per anytime module, shape (B, n) in allocation-vector order.
+            observed: node index -> the quality its result was seen to have (a node that has
+                already run); its output is that quality, whatever its allocation.
         """
         alloc = np.atleast_2d(np.asarray(allocation, dtype=np.float64))
         batch = len(alloc)
@@ -81,13 +90,21 @@ class Evaluator:
         q = np.broadcast_to(q.reshape(-1, m) if q.size else np.zeros((1, m)), (batch, m))
         outputs: dict[int, Dist] = {}
         for node in self.model.nodes:
+            if observed is not None and node.index in observed:
+                outputs[node.index] = Dist.point(np.full(batch, observed[node.index]))
+                continue
             inputs = [self._source(slot, outputs, q, batch) for slot in node.slots]
             outputs[node.index] = self._node(node, inputs, alloc, batch)
         return self._source(self.model.output, outputs, q, batch)
 
-    def expected(self, quality: ArrayLike, allocation: ArrayLike) -> Array:
+    def expected(
+        self,
+        quality: ArrayLike,
+        allocation: ArrayLike,
+        observed: Mapping[int, float] | None = None,
+    ) -> Array:
         """Expected output quality for a batch (shape (B,))."""
-        return self.evaluate(quality, allocation).expected()
+        return self.evaluate(quality, allocation, observed).expected()
 
     @staticmethod
     def _source(slot: Slot, outputs: dict[int, Dist], q: Array, batch: int) -> Dist:

@@ -38,7 +38,7 @@ def execute(
     their quality, plain values have quality 1)."""
     model = compiled.model
     program = model.program
-    values = _bind(program.name, program.inputs, inputs)
+    values = bind_inputs(program.name, program.inputs, inputs)
     qualities = [_quality(values[name]) for name in model.quality_inputs]
     allocation = compiled.allocation_at(qualities, total)
     clock = clock if clock is not None else WorkClock()
@@ -79,9 +79,10 @@ def execute(
     return value if isinstance(value, Result) else Result(value, 1.0)
 
 
-def _bind(
+def bind_inputs(
     name: str, parameters: Sequence[str], inputs: Sequence[Any] | Mapping[str, Any]
 ) -> dict[str, Any]:
+    """The program's inputs by name, from positional or named values."""
     if isinstance(inputs, Mapping):
         values = {str(k).lower(): v for k, v in inputs.items()}
     else:
