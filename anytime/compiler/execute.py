@@ -22,6 +22,7 @@ from anytime.modules import AnytimeModule, Context, Result
 
 if TYPE_CHECKING:
     from anytime.compiler.compile import CompiledProgram
+    from anytime.compiler.model import CompileNode
 
 
 class ExecutionError(AnytimeError, RuntimeError):
@@ -43,6 +44,38 @@ def execute(
     allocation = compiled.allocation_at(qualities, total)
     clock = clock if clock is not None else WorkClock()
     results: dict[int, Result] = {}
+    for node in model.nodes:
+        module, args, kwargs = call_arguments(compiled, node, values, results)
+        if node.kind == "elementary":
+            carrying = {module.parameters.index(name) for name in module.inputs}
+            results[node.index] = _elementary(module, args, kwargs, carrying)
+        else:
+            assert node.time_index is not None
+            ctx = Context(allocation=float(allocation[node.time_index]), clock=clock)
+            results[node.index] = _anytime(module, ctx, args, kwargs)
+    output = model.graph.output
+    if isinstance(output, NodeRef):
+        return results[output.index]
+    value = values[output.name]
+    return value if isinstance(value, Result) else Result(value, 1.0)
+
+
+def call_arguments(
+    compiled: CompiledProgram,
+    node: CompileNode,
+    values: Mapping[str, Any],
+    results: Mapping[int, Result],
+) -> tuple[AnytimeModule, list[Any], dict[str, Any]]:
+    """The module a node calls and its arguments: the results of earlier calls and the program's
+    inputs, as `Result`s where the module takes quality-carrying inputs, else plain values."""
+    model = compiled.model
+    module = node.entry.module if node.entry is not None else None
+    if module is None:
+        raise ExecutionError(
+            f"schema '{model.program.name}': '{node.name}' is known only by its profile "
+            "(no code to run)"
+        )
+    carrying = {module.parameters.index(name) for name in module.inputs}
 
     def argument(source: Source, carries_quality: bool) -> Any:
         if isinstance(source, Literal):
@@ -55,28 +88,10 @@ def execute(
             return value if isinstance(value, Result) else Result(value, 1.0)
         return value.value if isinstance(value, Result) else value
 
-    for node in model.nodes:
-        call = model.graph.nodes[node.index]
-        module = node.entry.module if node.entry is not None else None
-        if module is None:
-            raise ExecutionError(
-                f"schema '{program.name}': '{node.name}' is known only by its profile "
-                "(no code to run)"
-            )
-        carrying = {module.parameters.index(name) for name in module.inputs}
-        args = [argument(source, i in carrying) for i, source in enumerate(call.args)]
-        kwargs = {name: argument(source, False) for name, source in call.keywords}
-        if node.kind == "elementary":
-            results[node.index] = _elementary(module, args, kwargs, carrying)
-        else:
-            assert node.time_index is not None
-            ctx = Context(allocation=float(allocation[node.time_index]), clock=clock)
-            results[node.index] = _anytime(module, ctx, args, kwargs)
-    output = model.graph.output
-    if isinstance(output, NodeRef):
-        return results[output.index]
-    value = values[output.name]
-    return value if isinstance(value, Result) else Result(value, 1.0)
+    call = model.graph.nodes[node.index]
+    args = [argument(source, i in carrying) for i, source in enumerate(call.args)]
+    kwargs = {name: argument(source, False) for name, source in call.keywords}
+    return module, args, kwargs
 
 
 def bind_inputs(

@@ -23,9 +23,8 @@ from anytime.clocks import Clock, WorkClock
 from anytime.compiler.allocators import Exhaustive, HillClimbing
 from anytime.compiler.compile import CompiledProgram
 from anytime.compiler.evaluate import Evaluator
-from anytime.compiler.execute import ExecutionError, bind_inputs
-from anytime.dsl.graph import InputRef, NodeRef, Source
-from anytime.dsl.program import Literal
+from anytime.compiler.execute import bind_inputs, call_arguments
+from anytime.dsl.graph import NodeRef
 from anytime.modules import Result
 from anytime.profiles.profile import Array
 from anytime.runtime.executor import RunRecord, Status, run
@@ -102,28 +101,8 @@ def run_program(
     records: dict[int, RunRecord] = {}
     observed: dict[int, float] = {}
 
-    def argument(source: Source, carries_quality: bool) -> Any:
-        if isinstance(source, Literal):
-            value: Any = source.value
-        elif isinstance(source, InputRef):
-            value = values[source.name]
-        else:
-            value = results[source.index]
-        if carries_quality:
-            return value if isinstance(value, Result) else Result(value, 1.0)
-        return value.value if isinstance(value, Result) else value
-
     for node in model.nodes:
-        module = node.entry.module if node.entry is not None else None
-        if module is None:
-            raise ExecutionError(
-                f"schema '{model.program.name}': '{node.name}' is known only by its profile "
-                "(no code to run)"
-            )
-        call = model.graph.nodes[node.index]
-        carrying = {module.parameters.index(name) for name in module.inputs}
-        args = [argument(source, i in carrying) for i, source in enumerate(call.args)]
-        kwargs = {name: argument(source, False) for name, source in call.keywords}
+        module, args, kwargs = call_arguments(compiled, node, values, results)
         if node.kind == "anytime":
             assert node.time_index is not None
             if adaptive and observed:
