@@ -22,9 +22,17 @@ from anytime.compiler.compile import ALLOCATOR_NAMES, DEFAULT_INPUT_QUALITY, def
 from anytime.dsl import format_programs, graph_to_dot, load_schemas, program_to_json
 from anytime.errors import AnytimeError, ProfileError
 from anytime.library import AnytimeLibrary, LibraryEntry, LibraryError
-from anytime.profiles.builder import ProfileRequest, profile_module
-from anytime.profiles.io import save_profile
+from anytime.modules import AnytimeModule
+from anytime.profiles.builder import (
+    BuildError,
+    ProfileRequest,
+    profile_module,
+    registered_problems,
+)
+from anytime.profiles.io import load_profile, save_profile
 from anytime.profiles.profile import ConditionalPerformanceProfile
+from anytime.runtime.calibrate import CalibrationError, calibrate, convert_profile
+from anytime.testing import CatalogueError, check_module
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE = 0, 1, 2
 
@@ -202,6 +210,55 @@ def build_parser() -> argparse.ArgumentParser:
         "--no-plugins", action="store_true", help="do not load the installed plugins"
     )
     compile_.set_defaults(run=run_compile)
+
+    calibrate_ = commands.add_parser(
+        "calibrate",
+        help="measure a module's ticks per second; convert a profile between ticks and seconds",
+        description="Run a module on instances of its registered problem set for a wall-time "
+        "budget and report how many ticks it reports per second (the median over runs, with a "
+        "95% interval of the median and the range). With --profile, write that profile with "
+        "its time axis converted at the measured rate.",
+    )
+    calibrate_.add_argument("module", metavar="MODULE", help="the module's name")
+    calibrate_.add_argument(
+        "--seconds",
+        type=_positive_float,
+        default=1.0,
+        metavar="S",
+        help="wall-time budget of the measurement (1)",
+    )
+    calibrate_.add_argument("--seed", type=int, default=0, metavar="S", help="root seed (0)")
+    calibrate_.add_argument("--profile", metavar="FILE", help="a profile file to convert")
+    calibrate_.add_argument(
+        "--to",
+        choices=["seconds", "ticks"],
+        default="seconds",
+        help="the unit to convert the profile's time axis to (seconds)",
+    )
+    calibrate_.add_argument(
+        "-o", "--output", metavar="OUT", help="where to write the converted profile"
+    )
+    calibrate_.add_argument("--json", action="store_true", help="print JSON")
+    _library_options(calibrate_)
+    calibrate_.set_defaults(run=run_calibrate, usage_error=calibrate_.error)
+
+    check = commands.add_parser(
+        "check",
+        help="run the catalogue of checks every anytime module must pass",
+        description="Run a module through the catalogue on instances of its registered problem "
+        "set, under the work clock: it pickles by reference, every answer is a Result of "
+        "quality in [0, 1], no run raises, it honours its deadlines, interrupted it keeps its "
+        "best registered result, and its measured profile agrees with its declared one within "
+        "sampling error. Exit status 1 when a check fails.",
+    )
+    check.add_argument("module", metavar="MODULE", help="the module's name")
+    check.add_argument(
+        "--trials", type=_positive_int, default=20, metavar="N", help="instances per cell (20)"
+    )
+    check.add_argument("--seed", type=int, default=0, metavar="S", help="root seed (0)")
+    check.add_argument("--json", action="store_true", help="print the report as JSON")
+    _library_options(check)
+    check.set_defaults(run=run_check)
     return parser
 
 
@@ -212,6 +269,16 @@ def _positive_int(text: str) -> int:
         raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
     if value < 1:
         raise argparse.ArgumentTypeError(f"expected a number >= 1, got {value}")
+    return value
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (value > 0 and math.isfinite(value)):
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text}")
     return value
 
 
@@ -259,12 +326,7 @@ def run_parse(args: argparse.Namespace) -> int:
 
 
 def run_profile(args: argparse.Namespace) -> int:
-    entry = open_library(args)[args.module]
-    if entry.module is None:
-        raise InputError(
-            f"anytime: error: module '{entry.name}' has no code to run: it is only a profile "
-            f"({entry.origin})"
-        )
+    module = _runnable(args)
     request = ProfileRequest(
         trials=args.trials,
         seed=args.seed,
@@ -273,15 +335,15 @@ def run_profile(args: argparse.Namespace) -> int:
         clock=args.clock,
         quiet=args.quiet,
     )
-    build = profile_module(entry.module, request)
-    output = Path(args.output if args.output is not None else f"{entry.name}.yaml")
+    build = profile_module(module, request)
+    output = Path(args.output if args.output is not None else f"{module.name}.yaml")
     try:
         save_profile(build.profile, output)
     except OSError as error:
         raise InputError(f"anytime: error: cannot write '{output}': {error.strerror}") from None
     if args.json:
         summary = {
-            "module": entry.name,
+            "module": module.name,
             "file": str(output),
             "trials": build.trials,
             "runs": build.runs,
@@ -381,6 +443,79 @@ def _parse_time_grid(text: str) -> list[float]:
         )
     count = int(math.floor((stop - start) / step + 1e-9)) + 1
     return [start + i * step for i in range(count)]
+
+
+def _runnable(args: argparse.Namespace) -> AnytimeModule:
+    """The module `args.module` names, which must have code to run."""
+    entry = open_library(args)[args.module]
+    if entry.module is None:
+        raise InputError(
+            f"anytime: error: module '{entry.name}' has no code to run: it is only a profile "
+            f"({entry.origin})"
+        )
+    return entry.module
+
+
+def run_calibrate(args: argparse.Namespace) -> int:
+    if (args.profile is None) != (args.output is None):
+        args.usage_error("--profile FILE and -o OUT go together")
+    module = _runnable(args)
+    profile = None
+    if args.profile is not None:  # checked before the measurement spends its seconds
+        profile = load_profile(args.profile)
+        if profile.time_unit == args.to:
+            other = "ticks" if args.to == "seconds" else "seconds"
+            raise InputError(
+                f"anytime: error: {args.profile}: time_unit: the profile is already in {args.to}"
+                f" (give --to {other} to convert it to {other})"
+            )
+        if profile.module.lower() != module.name:
+            raise InputError(
+                f"anytime: error: {args.profile}: module: expected '{module.name}' (the module"
+                f" calibrated), got '{profile.module}'"
+            )
+    try:
+        plan = registered_problems(module.name)
+        calibration = calibrate(module, args.seconds, measurement=plan, seed=args.seed)
+    except (BuildError, CalibrationError) as error:
+        raise InputError(f"anytime: error: {error}") from None
+    if profile is not None:
+        converted = convert_profile(profile, calibration.ticks_per_second, to=args.to)
+        try:
+            save_profile(converted, args.output)
+        except OSError as error:
+            raise InputError(
+                f"anytime: error: cannot write '{args.output}': {error.strerror}"
+            ) from None
+    if args.json:
+        print(json.dumps(calibration.to_dict() | {"file": args.output}, indent=2))
+    else:
+        print(calibration.summary())
+        if profile is not None:
+            print(f"wrote {args.output} (time in {args.to})")
+    return EXIT_OK
+
+
+def run_check(args: argparse.Namespace) -> int:
+    module = _runnable(args)
+    try:
+        plan = registered_problems(module.name)
+        report = check_module(module, plan.problems, trials=args.trials, seed=args.seed)
+    except (BuildError, CatalogueError) as error:
+        raise InputError(f"anytime: error: {error}") from None
+    if args.json:
+        print(json.dumps(report.to_dict(), indent=2))
+    else:
+        print(report.format())
+    if report.passed:
+        return EXIT_OK
+    names = ", ".join(check.name for check in report.failed)
+    print(
+        f"anytime: error: module '{report.module}' fails {len(report.failed)} of"
+        f" {len(report.checks)} checks: {names}",
+        file=sys.stderr,
+    )
+    return EXIT_INPUT
 
 
 def run_library_list(args: argparse.Namespace) -> int:

@@ -134,7 +134,7 @@ def measure_chunk(chunk: Chunk) -> Done:
         cell, instance = divmod(flat, chunk.trials)
         position = np.unravel_index(cell, grid.cell_shape) if grid.cell_shape else ()
         qualities = tuple(float(g[i]) for g, i in zip(grid.input_grids, position, strict=True))
-        trial = _Trial(
+        trial = Trial(
             chunk.module,
             chunk.problems,
             qualities,
@@ -152,7 +152,7 @@ def measure_chunk(chunk: Chunk) -> Done:
 
 
 @frozen(eq=False)
-class _Trial:
+class Trial:
     """One instance at one input-quality cell; `problem()` makes it afresh from its seed."""
 
     module: AnytimeModule
@@ -233,7 +233,7 @@ def _arguments(
 Failures = list[tuple[str, str]]  # (headline, traceback) of each failed run
 
 
-def _interruptible(trial: _Trial, time: Array, out: Array) -> tuple[Failures, int]:
+def _interruptible(trial: Trial, time: Array, out: Array) -> tuple[Failures, int]:
     """One run up to the last grid time; `out[j]` becomes the score of the answer at `time[j]`."""
     instance, args = trial.problem()
     ctx = Context(allocation=float(time[-1]), clock=trial.clock())
@@ -272,7 +272,7 @@ def _interruptible(trial: _Trial, time: Array, out: Array) -> tuple[Failures, in
     return failed, 0
 
 
-def _contract(trial: _Trial, time: Array, out: Array) -> tuple[Failures, int]:
+def _contract(trial: Trial, time: Array, out: Array) -> tuple[Failures, int]:
     """One run per grid time on the same instance, with that time as its allocation."""
     failed: Failures = []
     overruns = 0
