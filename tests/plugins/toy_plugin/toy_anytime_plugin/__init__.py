@@ -11,12 +11,20 @@ from typing import Any
 import numpy as np
 
 from anytime import Context, Result, interruptible
-from anytime.profiles import Exponential, tabulate
+from anytime.profiles import tabulate
 from anytime.profiles.builder import Instance, register_problems
 
-#: Expected quality `q * (1 - exp(-t / 50))` for input quality q after t ticks.
+LIMITS = np.arange(50, 150)  # the problem set draws the count's limit uniformly from these
+
+
+def expected_quality(t: Any, q: Any) -> Any:
+    """E[q * min(1, t / limit)] over the limits: what counting up to the limit gives."""
+    fraction = np.minimum(1.0, np.asarray(t)[..., None] / LIMITS).mean(axis=-1)
+    return q * fraction
+
+
 PROFILE = tabulate(
-    lambda t, q: q * Exponential(rate=0.02)(t),
+    expected_quality,
     time=[0, 50, 100, 200],
     bins=[0.0, 0.25, 0.5, 0.75, 1.0],
     input_grids=[[0.5, 1.0]],
@@ -41,7 +49,7 @@ class CountingProblems:
     the input quality."""
 
     def instance(self, rng: np.random.Generator, input_qualities: tuple[float, ...]) -> Instance:
-        limit = int(rng.integers(50, 150))
+        limit = int(rng.choice(LIMITS))
         return Instance(args=(None, limit), reference=(limit, input_qualities[0]))
 
     def score(self, instance: Instance, value: Any) -> float:

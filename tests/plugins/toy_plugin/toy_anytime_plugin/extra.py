@@ -11,7 +11,8 @@ _REGISTRY = Registry()
     "toy-halve",
     inputs=[],
     registry=_REGISTRY,
-    profile=tabulate(Step([(10, 0.5), (20, 1.0)]), time=[0, 10, 20], kind="contract"),
+    # Below 20 ticks it answers roughly (0.5), from 20 exactly (1.0).
+    profile=tabulate(Step([(0, 0.5), (20, 1.0)]), time=[0, 10, 20], kind="contract"),
 )
 def toy_halve(ctx: Context, x: float) -> Result:
     """Half of `x`, exactly when given 20 ticks, roughly when given 10."""
