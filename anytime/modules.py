@@ -57,6 +57,9 @@ class Result:
     quality: float = field(converter=_quality)
 
 
+_SLACK = 1e-9  # relative rounding tolerated when comparing elapsed time with an allocation
+
+
 class Context:
     """What a running module sees of its time.
 
@@ -89,12 +92,17 @@ class Context:
 
     @property
     def remaining(self) -> float:
-        return max(0.0, self.allocation - self.elapsed)
+        """Time left; 0 once within rounding of the allocation (so that reporting the remainder
+        as work always ends it, even where the clock's value is too large to move by it)."""
+        left = self.allocation - self.elapsed
+        if math.isinf(self.allocation):
+            return left
+        return left if left > _SLACK * max(1.0, abs(self.allocation)) else 0.0
 
     @property
     def expired(self) -> bool:
         """True once the allocation is spent or the module was asked to stop."""
-        return self.stop.is_set() or self.elapsed >= self.allocation
+        return self.stop.is_set() or self.remaining == 0.0
 
 
 def _min_quality(qualities: Sequence[float]) -> float:

@@ -129,6 +129,8 @@ def _anytime(
     generator = module(ctx, *args, **kwargs)
     try:
         for item in generator:
+            if ctx.elapsed > ctx.allocation and ctx.remaining == 0.0:
+                break  # registered after the deadline: too late to count
             if not isinstance(item, Result):
                 raise ExecutionError(f"module '{module.name}' yielded {item!r}, not a Result")
             best = item

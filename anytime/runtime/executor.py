@@ -75,23 +75,35 @@ class RunRecord:
 
 
 class _Slot:
-    """The best result registered so far; written by the module's side, read by the caller's."""
+    """The best result registered so far; written by the module's side, read by the caller's.
 
-    def __init__(self) -> None:
-        self._lock = threading.Lock()
+    The lock is only taken when the module runs on another thread (hard interruption)."""
+
+    def __init__(self, threaded: bool) -> None:
+        self._lock = threading.Lock() if threaded else None
         self.best: Result | None = None
         self.count = 0
         self.closed = False  # once the caller has answered, late results are ignored
 
     def offer(self, result: Result) -> None:
+        if self._lock is None:
+            self._keep(result)
+            return
         with self._lock:
-            if self.closed:
-                return
-            self.count += 1
-            if self.best is None or result.quality >= self.best.quality:
-                self.best = result
+            self._keep(result)
+
+    def _keep(self, result: Result) -> None:
+        if self.closed:
+            return
+        self.count += 1
+        best = self.best
+        if best is None or result.quality >= best.quality:
+            self.best = result
 
     def close(self) -> tuple[Result | None, int]:
+        if self._lock is None:
+            self.closed = True
+            return self.best, self.count
         with self._lock:
             self.closed = True
             return self.best, self.count
@@ -128,12 +140,17 @@ def run(
             looks at the clock.
     """
     clock = clock if clock is not None else WorkClock()
-    stop = stop if stop is not None else threading.Event()
-    ctx = Context(allocation=allocation, clock=clock, stop=stop)
-    slot = _Slot()
+    caller_stop = stop if stop is not None else threading.Event()
     if not hard:
+        ctx = Context(allocation=allocation, clock=clock, stop=caller_stop)
+        slot = _Slot(threaded=False)
         outcome = _drive(module, ctx, args, kwargs or {}, slot)
         return _record(module, ctx, slot, outcome)
+    # At the deadline the module's `ctx.expired` turns true by itself (its clock has reached
+    # the allocation), so the caller's stop event is never set here: one run's deadline must
+    # not stop what the caller runs next.
+    ctx = Context(allocation=allocation, clock=clock, stop=caller_stop)
+    slot = _Slot(threaded=True)
     finished = threading.Event()
     box: list[_Outcome] = []
 
@@ -145,22 +162,25 @@ def run(
 
     worker = threading.Thread(target=work, name=f"anytime:{module.name}", daemon=True)
     worker.start()
-    _wait(finished, ctx, poll)
-    if not finished.is_set():  # the deadline came first: answer now, tell the module to stop
-        stop.set()
+    _wait(finished, ctx, caller_stop, poll)
+    if not finished.is_set():  # the deadline came first: answer now; the module sees expired
         status = Status.CONTRACT_EXPIRED if module.kind == "contract" else Status.INTERRUPTED
+        if caller_stop.is_set() and module.kind == "contract":
+            status = Status.INTERRUPTED
         return _record(module, ctx, slot, _Outcome(status))
     return _record(module, ctx, slot, box[0])
 
 
-def _wait(finished: threading.Event, ctx: Context, poll: float) -> None:
-    """Until the module finishes, its allocation is spent, or it is stopped from outside."""
+def _wait(
+    finished: threading.Event, ctx: Context, caller_stop: threading.Event, poll: float
+) -> None:
+    """Until the module finishes, its allocation is spent, or the caller stops it."""
     wall = ctx.clock.unit == "seconds"
     while not finished.is_set():
-        if ctx.stop.is_set() or ctx.elapsed >= ctx.allocation:
+        if caller_stop.is_set() or ctx.elapsed >= ctx.allocation:
             return
         remaining = ctx.allocation - ctx.elapsed
-        finished.wait(min(remaining, poll) if not wall else min(remaining, 0.05))
+        finished.wait(min(remaining, 0.01) if wall else min(remaining, poll))
 
 
 def _drive(
@@ -174,24 +194,30 @@ def _drive(
     if module.kind == "interruptible":
         return _interruptible(module, ctx, args, kwargs, slot)
     try:
-        value = module(ctx, *args, **kwargs) if module.kind == "contract" else module(*args)
+        if module.kind == "elementary":
+            value = module(*args, **kwargs)
+            if not isinstance(value, Result):  # its quality combines its inputs' (min default)
+                positions = sorted(module.parameters.index(name) for name in module.inputs)
+                qualities = [_quality_of(args[i]) for i in positions if i < len(args)]
+                value = Result(value, module.combine(qualities))
+            slot.offer(value)
+            return _Outcome(Status.COMPLETED)
+        value = module(ctx, *args, **kwargs)
     except Exception as exc:
         return _failure(exc)
-    if module.kind == "elementary":
-        if not isinstance(value, Result):  # its quality combines its inputs' (min by default)
-            positions = sorted(module.parameters.index(name) for name in module.inputs)
-            qualities = [_quality_of(args[i]) for i in positions if i < len(args)]
-            value = Result(value, module.combine(qualities))
-        slot.offer(value)
-        return _Outcome(Status.COMPLETED)
     if not isinstance(value, Result):
         return _Outcome(Status.FAILED, f"returned {_describe(value)}, not a Result")
     if ctx.stop.is_set() and ctx.elapsed < ctx.allocation:
         return _Outcome(Status.INTERRUPTED)  # answered after the caller gave up on it
     slot.offer(value)
-    if ctx.elapsed > ctx.allocation:
+    if _late(ctx.elapsed, ctx.allocation):
         return _Outcome(Status.CONTRACT_EXPIRED)
     return _Outcome(Status.COMPLETED)
+
+
+def _late(elapsed: float, allocation: float) -> bool:
+    """Past the allocation, beyond the rounding of computing elapsed time on a clock."""
+    return elapsed > allocation + 1e-9 * max(1.0, abs(allocation))
 
 
 def _interruptible(
@@ -205,22 +231,30 @@ def _interruptible(
         generator: Generator[Any, None, None] = module(ctx, *args, **kwargs)
     except Exception as exc:
         return _failure(exc)
+    # Read once: this loop runs once per registered result and should cost little.
+    clock, start, allocation, stop = ctx.clock, ctx.start, ctx.allocation, ctx.stop
+    offer = slot.offer
     try:
         while True:
             try:
                 item = next(generator)
             except StopIteration:
+                if stop.is_set():
+                    return _Outcome(Status.INTERRUPTED)  # it noticed the stop and returned
+                if _late(clock.now() - start, allocation):
+                    return _Outcome(Status.INTERRUPTED)  # it finished after its deadline
                 return _Outcome(Status.COMPLETED)
             except Exception as exc:
                 return _failure(exc)
-            if ctx.stop.is_set():
+            if stop.is_set():
                 return _Outcome(Status.INTERRUPTED)
-            if ctx.elapsed > ctx.allocation:  # registered too late to count
+            elapsed = clock.now() - start
+            if _late(elapsed, allocation):  # registered too late to count
                 return _Outcome(Status.INTERRUPTED)
-            if not isinstance(item, Result):
+            if type(item) is not Result and not isinstance(item, Result):
                 return _Outcome(Status.FAILED, f"yielded {_describe(item)}, not a Result")
-            slot.offer(item)
-            if ctx.expired:
+            offer(item)
+            if elapsed >= allocation:
                 return _Outcome(Status.INTERRUPTED)
     finally:
         # The outcome is decided; a module that fails while being closed changes nothing.
@@ -233,8 +267,20 @@ def _quality_of(arg: Any) -> float:
 
 
 def _failure(exc: BaseException) -> _Outcome:
-    headline = "".join(traceback.format_exception_only(exc)).strip().splitlines()[-1]
-    return _Outcome(Status.FAILED, headline, "".join(traceback.format_exception(exc)))
+    return _Outcome(Status.FAILED, _headline(exc), "".join(traceback.format_exception(exc)))
+
+
+def _headline(exc: BaseException) -> str:
+    """The exception's own line, as Python prints it (module-qualified name and the first line
+    of the message), without a SyntaxError's source lines or any notes."""
+    kind = type(exc)
+    name = kind.__qualname__
+    if kind.__module__ not in ("builtins", "__main__"):
+        name = f"{kind.__module__}.{name}"
+    for part in traceback.format_exception_only(exc):
+        if part.startswith(name):
+            return part.strip().splitlines()[0]
+    return name
 
 
 def _describe(value: Any) -> str:
