@@ -99,7 +99,7 @@ class CompiledProgram:
         program = self.model.program
 
         def run_contract(ctx: Context, *args: Any) -> Result:
-            return execute(self, args, ctx.allocation, ctx.clock)
+            return execute(self, args, ctx.allocation, ctx.clock, ctx.stop)
 
         run_contract.__qualname__ = run_contract.__name__ = program.name.replace("-", "_")
         return AnytimeModule(

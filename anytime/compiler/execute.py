@@ -11,6 +11,7 @@ module's exception propagate.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -34,9 +35,10 @@ def execute(
     inputs: Sequence[Any] | Mapping[str, Any],
     total: float,
     clock: Clock | None = None,
+    stop: threading.Event | None = None,
 ) -> Result:
     """Run `compiled` with `total` time; inputs are positional or by name (`Result`s carry
-    their quality, plain values have quality 1)."""
+    their quality, plain values have quality 1). Setting `stop` interrupts every module."""
     model = compiled.model
     program = model.program
     values = bind_inputs(program.name, program.inputs, inputs)
@@ -51,7 +53,7 @@ def execute(
             results[node.index] = _elementary(module, args, kwargs, carrying)
         else:
             assert node.time_index is not None
-            ctx = Context(allocation=float(allocation[node.time_index]), clock=clock)
+            ctx = Context(allocation=float(allocation[node.time_index]), clock=clock, stop=stop)
             results[node.index] = _anytime(module, ctx, args, kwargs)
     output = model.graph.output
     if isinstance(output, NodeRef):

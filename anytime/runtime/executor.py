@@ -80,6 +80,7 @@ class _Slot:
     The lock is only taken when the module runs on another thread (hard interruption)."""
 
     def __init__(self, threaded: bool) -> None:
+        self.threaded = threaded
         self._lock = threading.Lock() if threaded else None
         self.best: Result | None = None
         self.count = 0
@@ -231,9 +232,15 @@ def _interruptible(
         generator: Generator[Any, None, None] = module(ctx, *args, **kwargs)
     except Exception as exc:
         return _failure(exc)
-    # Read once: this loop runs once per registered result and should cost little.
-    clock, start, allocation, stop = ctx.clock, ctx.start, ctx.allocation, ctx.stop
-    offer = slot.offer
+    # Read once: this loop runs once per registered result and should cost little. In soft
+    # mode the best result is kept in locals and handed to the slot when the run ends; in hard
+    # mode every result is published at once, for the caller to take at the deadline.
+    clock, start, stop = ctx.clock, ctx.start, ctx.stop
+    allocation = ctx.allocation
+    limit = allocation + 1e-9 * max(1.0, abs(allocation))  # past it, a result is late
+    publish = slot.offer if slot.threaded else None
+    best: Result | None = None
+    count = 0
     try:
         while True:
             try:
@@ -241,7 +248,7 @@ def _interruptible(
             except StopIteration:
                 if stop.is_set():
                     return _Outcome(Status.INTERRUPTED)  # it noticed the stop and returned
-                if _late(clock.now() - start, allocation):
+                if clock.now() - start > limit:
                     return _Outcome(Status.INTERRUPTED)  # it finished after its deadline
                 return _Outcome(Status.COMPLETED)
             except Exception as exc:
@@ -249,14 +256,21 @@ def _interruptible(
             if stop.is_set():
                 return _Outcome(Status.INTERRUPTED)
             elapsed = clock.now() - start
-            if _late(elapsed, allocation):  # registered too late to count
+            if elapsed > limit:  # registered too late to count
                 return _Outcome(Status.INTERRUPTED)
             if type(item) is not Result and not isinstance(item, Result):
                 return _Outcome(Status.FAILED, f"yielded {_describe(item)}, not a Result")
-            offer(item)
+            if publish is not None:
+                publish(item)
+            else:
+                count += 1
+                if best is None or item.quality >= best.quality:
+                    best = item
             if elapsed >= allocation:
                 return _Outcome(Status.INTERRUPTED)
     finally:
+        if publish is None:
+            slot.best, slot.count = best, count
         # The outcome is decided; a module that fails while being closed changes nothing.
         with suppress(Exception):
             generator.close()
