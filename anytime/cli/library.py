@@ -1,0 +1,224 @@
+"""`anytime library list|show`: the anytime library's modules and their profiles."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any
+
+import numpy as np
+
+from anytime.cli.common import (
+    EXIT_INPUT,
+    EXIT_OK,
+    format_table,
+    library_options,
+    open_library,
+)
+from anytime.errors import ProfileError
+from anytime.library import LibraryEntry
+from anytime.profiles.profile import ConditionalPerformanceProfile
+
+
+def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    library = commands.add_parser(
+        "library",
+        help="list the anytime library's modules, or show one with its profile",
+        description="The anytime library: modules of installed plugins (entry-point group "
+        "'anytime.plugins'), modules registered in-process, and profile files.",
+    )
+    library_commands = library.add_subparsers(
+        dest="library_command", metavar="COMMAND", required=True
+    )
+    listing = library_commands.add_parser(
+        "list",
+        help="every module: name, kind, inputs, profile, origin",
+        description="List every module of the library: its name, kind, quality-carrying "
+        "inputs, a summary of its profile, and where it was defined.",
+    )
+    listing.add_argument("--json", action="store_true", help="print a JSON list")
+    library_options(listing)
+    listing.set_defaults(run=run_library_list)
+    show = library_commands.add_parser(
+        "show",
+        help="one module: its declaration, profile axes and expected quality",
+        description="Show one module: kind, origin, parameters and inputs, its profile's axes "
+        "and a table of expected output quality by input quality and time.",
+    )
+    show.add_argument("name", metavar="NAME", help="the module's name (case-insensitive)")
+    show.add_argument("--json", action="store_true", help="print JSON")
+    library_options(show)
+    show.set_defaults(run=run_library_show)
+
+
+def run_library_list(args: argparse.Namespace) -> int:
+    library = open_library(args)
+    errors: list[str] = []
+    rows: list[dict[str, Any]] = []
+    for entry in library:
+        try:
+            profile = entry.profile
+        except ProfileError as error:
+            errors.append(str(error))
+            rows.append(_entry_json(entry, None) | {"profile_error": errors[-1]})
+        else:
+            rows.append(_entry_json(entry, profile))
+    if args.json:
+        print(json.dumps(rows, indent=2))
+    elif not rows:
+        where = ", ".join(source.name for source in library.sources)
+        print(f"no modules found (looked in: {where})")
+    else:
+        table = [["NAME", "KIND", "INPUTS", "PROFILE", "ORIGIN"]]
+        for row in rows:
+            if row["profile_error"] is not None:
+                summary = "unreadable (error below)"
+            else:
+                summary = row["profile"]["summary"] if row["profile"] else "no profile"
+            inputs = ", ".join(row["inputs"]) or "-"
+            table.append([row["name"], row["kind"], inputs, summary, row["origin"]])
+        print(format_table(table), end="")
+    for message in errors:
+        print(message, file=sys.stderr)
+    return EXIT_INPUT if errors else EXIT_OK
+
+
+def run_library_show(args: argparse.Namespace) -> int:
+    entry = open_library(args)[args.name]
+    profile = entry.profile
+    if args.json:
+        data = _entry_json(entry, profile, full=True)
+        print(json.dumps(data, indent=2))
+        return EXIT_OK
+    kind = entry.kind if entry.module is not None else f"{entry.kind} (profile only)"
+    if entry.module is not None:
+        parameters = ", ".join(entry.parameters) or "none"
+    else:
+        parameters = "not known (profile only: calls are not checked for arity)"
+    fields = [
+        ["name:", entry.name],
+        ["kind:", kind],
+        ["origin:", entry.origin],
+        ["parameters:", parameters],
+        ["inputs:", ", ".join(entry.inputs) or "none"],
+    ]
+    if profile is None:
+        fields.append(["profile:", "none"])
+        print(format_table(fields), end="")
+        return EXIT_OK
+    file = entry.profile_file
+    fields.append(["profile:", str(file) if file is not None else "in memory"])
+    axes = [
+        [f"input quality ({name})", _numbers(grid)]
+        for name, grid in zip(_axis_names(profile), profile.input_grids, strict=True)
+    ]
+    axes.append([f"time ({profile.time_unit})", _numbers(profile.time)])
+    axes.append(["quality bins", f"{_numbers(profile.bins)} ({profile.n_bins} bins)"])
+    if profile.samples is not None:
+        low, high = int(profile.samples.min()), int(profile.samples.max())
+        axes.append(["samples per cell", f"{low}" if low == high else f"{low} to {high}"])
+    lines = [format_table(fields) + "axes:", *format_table(axes, indent=2).splitlines(), ""]
+    lines.extend(_expected_table(profile))
+    print("\n".join(lines))
+    return EXIT_OK
+
+
+def profile_summary(profile: ConditionalPerformanceProfile) -> str:
+    """One line: '3 input grid pts x 4 times x 4 bins, ticks'."""
+    parts = []
+    if profile.n_inputs:
+        sizes = "x".join(str(len(grid)) for grid in profile.input_grids)
+        parts.append(f"{sizes} input grid pts")
+    parts.append(f"{len(profile.time)} times")
+    parts.append(f"{profile.n_bins} bins")
+    measured = ", measured" if profile.samples is not None else ""
+    return f"{' x '.join(parts)}, {profile.time_unit}{measured}"
+
+
+def _entry_json(
+    entry: LibraryEntry, profile: ConditionalPerformanceProfile | None, full: bool = False
+) -> dict[str, Any]:
+    data: dict[str, Any] = {"name": entry.name, "kind": entry.kind, "inputs": list(entry.inputs)}
+    if full:
+        data["parameters"] = list(entry.parameters)
+    data["arity"] = entry.arity
+    data["origin"] = entry.origin
+    data["profile"] = None
+    data["profile_error"] = None
+    if profile is None:
+        return data
+    file = entry.profile_file
+    summary: dict[str, Any] = {
+        "summary": profile_summary(profile),
+        "file": None if file is None else str(file),
+        "input_grid_points": [len(grid) for grid in profile.input_grids],
+        "times": len(profile.time),
+        "bins": profile.n_bins,
+        "time_unit": profile.time_unit,
+        "measured": profile.samples is not None,
+    }
+    if full:
+        summary["input_grids"] = [grid.tolist() for grid in profile.input_grids]
+        summary["time"] = profile.time.tolist()
+        summary["quality_bins"] = profile.bins.tolist()
+        summary["expected"] = _expected_cells(profile).tolist()
+    data["profile"] = summary
+    return data
+
+
+def _expected_cells(profile: ConditionalPerformanceProfile) -> np.ndarray[Any, Any]:
+    """Expected quality at every grid cell, shape `profile.cell_shape`."""
+    mesh = np.meshgrid(*profile.input_grids, profile.time, indexing="ij")
+    q = np.stack(mesh[:-1], axis=-1) if profile.n_inputs else np.zeros((*mesh[-1].shape, 0))
+    return np.round(profile.expected(q, mesh[-1]), 12)
+
+
+def _axis_names(profile: ConditionalPerformanceProfile) -> list[str]:
+    if profile.inputs:
+        return list(profile.inputs)
+    return [f"#{i + 1}" for i in range(profile.n_inputs)]
+
+
+#: At most this many time columns in `library show`.
+SHOWN_TIMES = 6
+
+
+def _expected_table(profile: ConditionalPerformanceProfile) -> list[str]:
+    """Expected quality: rows are input-quality grid points, columns a handful of times."""
+    n_times = len(profile.time)
+    columns = np.unique(np.round(np.linspace(0, n_times - 1, min(n_times, SHOWN_TIMES))))
+    columns = columns.astype(int)
+    table = _expected_cells(profile)
+    names = _axis_names(profile)
+    unit = profile.time_unit
+    if profile.n_inputs == 0:
+        title = f"expected quality by time ({unit}):"
+        rows = [["time", *(f"{profile.time[c]:g}" for c in columns)]]
+        rows.append(["quality", *(f"{table[c]:.3f}" for c in columns)])
+        return [title, *format_table(rows, indent=2).splitlines()]
+    sizes = {len(grid) for grid in profile.input_grids}
+    if profile.n_inputs == 1 or len(sizes) == 1:
+        points = range(len(profile.input_grids[0]))
+        index = [tuple([i] * profile.n_inputs) for i in points]
+        labels = [", ".join(f"{g[i]:g}" for g in profile.input_grids) for i in points]
+        note = "" if profile.n_inputs == 1 else "; the diagonal: every input at its i-th grid pt"
+    else:
+        top = [len(grid) - 1 for grid in profile.input_grids[1:]]
+        index = [(i, *top) for i in range(len(profile.input_grids[0]))]
+        labels = [f"{profile.input_grids[0][i]:g}" for i in range(len(profile.input_grids[0]))]
+        rest = ", ".join(
+            f"{name}={grid[-1]:g}"
+            for name, grid in zip(names[1:], profile.input_grids[1:], strict=True)
+        )
+        note = f"; other inputs at their highest grid pt ({rest})"
+        names = names[:1]
+    title = f"expected quality (rows: {', '.join(names)} quality; columns: time in {unit}{note}):"
+    rows = [[f"{', '.join(names)} \\ time", *(f"{profile.time[c]:g}" for c in columns)]]
+    for label, cell in zip(labels, index, strict=True):
+        rows.append([label, *(f"{table[(*cell, c)]:.3f}" for c in columns)])
+    return [title, *format_table(rows, indent=2).splitlines()]
+
+
+def _numbers(values: np.ndarray[Any, Any]) -> str:
+    return ", ".join(f"{v:g}" for v in values)

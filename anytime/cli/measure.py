@@ -1,0 +1,222 @@
+"""`anytime profile`, `anytime calibrate` and `anytime check`: measuring modules."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from anytime.cli.common import (
+    EXIT_INPUT,
+    EXIT_OK,
+    InputError,
+    library_options,
+    open_library,
+    positive_float,
+    positive_int,
+)
+from anytime.modules import AnytimeModule
+from anytime.profiles.builder import (
+    BuildError,
+    ProfileRequest,
+    profile_module,
+    registered_problems,
+)
+from anytime.profiles.io import load_profile, save_profile
+from anytime.runtime.calibrate import CalibrationError, calibrate, convert_profile
+from anytime.testing import CatalogueError, check_module
+
+
+def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    profile = commands.add_parser(
+        "profile",
+        help="measure a module's conditional performance profile and write it to a file",
+        description="Run a module on generated problem instances over its registered grid of "
+        "input qualities and times, score every output, and write the measured profile "
+        "(histograms with sample counts, means and standard deviations). The same seed gives "
+        "the same file, whatever the number of workers.",
+    )
+    profile.add_argument("module", metavar="MODULE", help="the module's name")
+    profile.add_argument(
+        "--trials", type=positive_int, default=100, metavar="N", help="instances per cell (100)"
+    )
+    where = profile.add_mutually_exclusive_group()
+    where.add_argument(
+        "--workers", type=positive_int, default=1, metavar="N", help="local processes (1)"
+    )
+    where.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="run the trials on a Dask cluster (needs the 'dask' extra)",
+    )
+    profile.add_argument("--seed", type=int, default=0, metavar="S", help="root seed (0)")
+    profile.add_argument(
+        "--clock",
+        choices=["work", "wall"],
+        default="work",
+        help="time axis in reported ticks (work, reproducible) or in seconds (wall)",
+    )
+    profile.add_argument("--quiet", action="store_true", help="no progress bar")
+    profile.add_argument(
+        "-o", "--output", metavar="FILE", help="where to write the profile (MODULE.yaml)"
+    )
+    profile.add_argument("--json", action="store_true", help="print a JSON summary")
+    library_options(profile)
+    profile.set_defaults(run=run_profile)
+
+    calibrate_ = commands.add_parser(
+        "calibrate",
+        help="measure a module's ticks per second; convert a profile between ticks and seconds",
+        description="Run a module on instances of its registered problem set for a wall-time "
+        "budget and report how many ticks it reports per second (the median over runs, with a "
+        "95% interval of the median and the range). With --profile, write that profile with "
+        "its time axis converted at the measured rate.",
+    )
+    calibrate_.add_argument("module", metavar="MODULE", help="the module's name")
+    calibrate_.add_argument(
+        "--seconds",
+        type=positive_float,
+        default=1.0,
+        metavar="S",
+        help="wall-time budget of the measurement (1)",
+    )
+    calibrate_.add_argument("--seed", type=int, default=0, metavar="S", help="root seed (0)")
+    calibrate_.add_argument("--profile", metavar="FILE", help="a profile file to convert")
+    calibrate_.add_argument(
+        "--to",
+        choices=["seconds", "ticks"],
+        default="seconds",
+        help="the unit to convert the profile's time axis to (seconds)",
+    )
+    calibrate_.add_argument(
+        "-o", "--output", metavar="OUT", help="where to write the converted profile"
+    )
+    calibrate_.add_argument("--json", action="store_true", help="print JSON")
+    library_options(calibrate_)
+    calibrate_.set_defaults(run=run_calibrate, usage_error=calibrate_.error)
+
+    check = commands.add_parser(
+        "check",
+        help="run the catalogue of checks every anytime module must pass",
+        description="Run a module through the catalogue on instances of its registered problem "
+        "set, under the work clock: it pickles by reference, every answer is a Result of "
+        "quality in [0, 1], no run raises, it honours its deadlines, interrupted it keeps its "
+        "best registered result, and its measured profile agrees with its declared one within "
+        "sampling error. Exit status 1 when a check fails.",
+    )
+    check.add_argument("module", metavar="MODULE", help="the module's name")
+    check.add_argument(
+        "--trials", type=positive_int, default=20, metavar="N", help="instances per cell (20)"
+    )
+    check.add_argument("--seed", type=int, default=0, metavar="S", help="root seed (0)")
+    check.add_argument("--json", action="store_true", help="print the report as JSON")
+    library_options(check)
+    check.set_defaults(run=run_check)
+
+
+def run_profile(args: argparse.Namespace) -> int:
+    module = _runnable(args)
+    request = ProfileRequest(
+        trials=args.trials,
+        seed=args.seed,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        clock=args.clock,
+        quiet=args.quiet,
+    )
+    build = profile_module(module, request)
+    output = Path(args.output if args.output is not None else f"{module.name}.yaml")
+    try:
+        save_profile(build.profile, output)
+    except OSError as error:
+        raise InputError(f"anytime: error: cannot write '{output}': {error.strerror}") from None
+    if args.json:
+        summary = {
+            "module": module.name,
+            "file": str(output),
+            "trials": build.trials,
+            "runs": build.runs,
+            "failures": build.failures,
+            "overruns": build.overruns,
+            "seed": build.seed,
+            "seconds": round(build.seconds, 3),
+        }
+        print(json.dumps(summary, indent=2))
+    else:
+        print(build.summary())
+        print(f"wrote {output}")
+    return EXIT_OK
+
+
+def _runnable(args: argparse.Namespace) -> AnytimeModule:
+    """The module `args.module` names, which must have code to run."""
+    entry = open_library(args)[args.module]
+    if entry.module is None:
+        raise InputError(
+            f"anytime: error: module '{entry.name}' has no code to run: it is only a profile "
+            f"({entry.origin})"
+        )
+    return entry.module
+
+
+def run_calibrate(args: argparse.Namespace) -> int:
+    if (args.profile is None) != (args.output is None):
+        args.usage_error("--profile FILE and -o OUT go together")
+    module = _runnable(args)
+    profile = None
+    if args.profile is not None:  # checked before the measurement spends its seconds
+        profile = load_profile(args.profile)
+        if profile.time_unit == args.to:
+            other = "ticks" if args.to == "seconds" else "seconds"
+            raise InputError(
+                f"anytime: error: {args.profile}: time_unit: the profile is already in {args.to}"
+                f" (give --to {other} to convert it to {other})"
+            )
+        if profile.module.lower() != module.name:
+            raise InputError(
+                f"anytime: error: {args.profile}: module: expected '{module.name}' (the module"
+                f" calibrated), got '{profile.module}'"
+            )
+    try:
+        plan = registered_problems(module.name)
+        calibration = calibrate(module, args.seconds, measurement=plan, seed=args.seed)
+    except (BuildError, CalibrationError) as error:
+        raise InputError(f"anytime: error: {error}") from None
+    if profile is not None:
+        converted = convert_profile(profile, calibration.ticks_per_second, to=args.to)
+        try:
+            save_profile(converted, args.output)
+        except OSError as error:
+            raise InputError(
+                f"anytime: error: cannot write '{args.output}': {error.strerror}"
+            ) from None
+    if args.json:
+        print(json.dumps(calibration.to_dict() | {"file": args.output}, indent=2))
+    else:
+        print(calibration.summary())
+        if profile is not None:
+            print(f"wrote {args.output} (time in {args.to})")
+    return EXIT_OK
+
+
+def run_check(args: argparse.Namespace) -> int:
+    module = _runnable(args)
+    try:
+        plan = registered_problems(module.name)
+        report = check_module(module, plan.problems, trials=args.trials, seed=args.seed)
+    except (BuildError, CatalogueError) as error:
+        raise InputError(f"anytime: error: {error}") from None
+    if args.json:
+        print(json.dumps(report.to_dict(), indent=2))
+    else:
+        print(report.format())
+    if report.passed:
+        return EXIT_OK
+    names = ", ".join(check.name for check in report.failed)
+    print(
+        f"anytime: error: module '{report.module}' fails {len(report.failed)} of"
+        f" {len(report.checks)} checks: {names}",
+        file=sys.stderr,
+    )
+    return EXIT_INPUT

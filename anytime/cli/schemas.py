@@ -1,0 +1,203 @@
+"""`anytime parse` and `anytime compile`: schema files in, straight-line form or compiled
+profiles out."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+
+from anytime.cli.common import (
+    EXIT_OK,
+    InputError,
+    library_options,
+    open_library,
+)
+from anytime.compiler import CompileError, compile_file, compiled_to_dict, format_report
+from anytime.compiler.compile import ALLOCATOR_NAMES, DEFAULT_INPUT_QUALITY, default_time_grid
+from anytime.dsl import format_programs, graph_to_dot, load_schemas, program_to_json
+
+
+def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    parse = commands.add_parser(
+        "parse",
+        help="check a schema file and print its straight-line form or dataflow graph",
+        description="Check a schema file and print each schema in straight-line form "
+        "(DSL text that parses back to the same program), as JSON, or as a Graphviz graph.",
+    )
+    parse.add_argument("file", metavar="FILE", help="a schema file (.any)")
+    parse.add_argument("--schema", metavar="NAME", help="only this schema (default: all)")
+    output = parse.add_mutually_exclusive_group()
+    output.add_argument("--json", action="store_true", help="print JSON")
+    output.add_argument("--dot", action="store_true", help="print the dataflow graph as DOT")
+    parse.add_argument(
+        "--library",
+        action="store_true",
+        help="check every called function against the anytime library (installed plugins and "
+        "in-process modules; implied by --profiles)",
+    )
+    library_options(parse)
+    parse.set_defaults(run=run_parse)
+
+    compile_ = commands.add_parser(
+        "compile",
+        help="compile a schema: optimal time allocation and the compiled profile",
+        description="Compile a schema into a contract algorithm: for every input quality and "
+        "total time, the allocation of time among its anytime modules that maximises expected "
+        "output quality, with the papers' baselines (equal split, MIN, MAX) and the gap to the "
+        "exhaustive optimum. Schemas it calls are compiled first.",
+    )
+    compile_.add_argument("file", metavar="FILE", help="a schema file (.any)")
+    compile_.add_argument("--schema", metavar="NAME", help="only this schema (and its callees)")
+    compile_.add_argument(
+        "--allocator",
+        choices=ALLOCATOR_NAMES,
+        default="auto",
+        help="auto (default): dp where local compilation is exact, else hill-climbing",
+    )
+    compile_.add_argument(
+        "--time-grid",
+        metavar="START:STOP:STEP",
+        help="the totals to compile for (default: 0 to the sum of the modules' longest "
+        "profiled times, in about 20 steps)",
+    )
+    compile_.add_argument(
+        "--resolution",
+        type=float,
+        metavar="DT",
+        help="allocations are multiples of DT (default: the time grid's STEP)",
+    )
+    compile_.add_argument(
+        "--input-quality",
+        metavar="Q,Q,...",
+        default=",".join(f"{q:g}" for q in DEFAULT_INPUT_QUALITY),
+        help="the grid of program input qualities (default: 0,0.1,...,1)",
+    )
+    compile_.add_argument(
+        "--time-unit",
+        choices=["ticks", "seconds"],
+        help="the unit the time grid is in; it must be the profiles' unit",
+    )
+    compile_.add_argument("-o", "--output", metavar="OUT.yaml", help="write the compiled profile")
+    compile_.add_argument("--json", action="store_true", help="print the report as JSON")
+    compile_.add_argument(
+        "--library",
+        dest="profiles",
+        metavar="DIR",
+        action="append",
+        default=[],
+        help="a directory of profile files (*.yaml), each a module; repeatable",
+    )
+    compile_.add_argument(
+        "--no-plugins", action="store_true", help="do not load the installed plugins"
+    )
+    compile_.set_defaults(run=run_compile)
+
+
+def run_parse(args: argparse.Namespace) -> int:
+    known = None
+    if args.library or args.profiles:
+        known = open_library(args).known_functions()
+    schemas = load_schemas(args.file, known)
+    programs = schemas.programs
+    if args.schema is not None:
+        if args.schema not in schemas:
+            defined = ", ".join(schemas.names)
+            raise InputError(
+                f"{args.file}: error: no schema named '{args.schema}' (the file defines: {defined})"
+            )
+        programs = (schemas[args.schema],)
+    if args.json:
+        print(json.dumps({"schemas": [program_to_json(p) for p in programs]}, indent=2))
+    elif args.dot:
+        print(graph_to_dot(p.graph for p in programs), end="")
+    else:
+        print(format_programs(programs), end="")
+    return EXIT_OK
+
+
+def run_compile(args: argparse.Namespace) -> int:
+    library = open_library(args)
+    # Calls are checked against the library for the compiled schemas only (by the compiler).
+    schemas = load_schemas(args.file)
+    if args.schema is not None and args.schema not in schemas:
+        defined = ", ".join(schemas.names)
+        raise InputError(
+            f"{args.file}: error: no schema named '{args.schema}' (the file defines: {defined})"
+        )
+    if args.output is not None and args.schema is None and len(schemas) > 1:
+        raise InputError(
+            f"anytime: error: {args.file} defines {len(schemas)} schemas: say which one to "
+            "write with --schema NAME"
+        )
+    if args.time_grid is not None:
+        time_grid = _parse_time_grid(args.time_grid)
+    else:
+        time_grid = default_time_grid(schemas, library, args.schema)
+    quality = _parse_numbers(args.input_quality, "--input-quality")
+    lines = Path(args.file).read_text(encoding="utf-8-sig").split("\n")
+    try:
+        compiled = compile_file(
+            schemas,
+            library,
+            time_grid,
+            quality,
+            schema=args.schema,
+            allocator=args.allocator,
+            resolution=args.resolution,
+            source_lines=lines,
+        )
+    except CompileError as error:
+        message = str(error)
+        prefixed = message if ": error: " in message else f"{args.file}: error: {message}"
+        raise InputError(prefixed) from None
+    wanted = [c for c in compiled if args.schema is None or c.name == args.schema.lower()]
+    if args.time_unit is not None:
+        for result in wanted:
+            if result.profile.time_unit != args.time_unit:
+                raise InputError(
+                    f"{args.file}: error: schema '{result.name}': the time grid is in "
+                    f"{args.time_unit} but its modules' profiles are in "
+                    f"{result.profile.time_unit}"
+                )
+    if args.output is not None:
+        try:
+            wanted[0].save(args.output)
+        except OSError as error:
+            raise InputError(
+                f"anytime: error: cannot write '{args.output}': {error.strerror}"
+            ) from None
+    if args.json:
+        reports = [compiled_to_dict(c) for c in wanted]
+        print(json.dumps(reports[0] if len(reports) == 1 else {"schemas": reports}, indent=2))
+    else:
+        print("\n".join(format_report(c) for c in wanted), end="")
+        if args.output is not None:
+            print(f"wrote {args.output}")
+    return EXIT_OK
+
+
+def _parse_numbers(text: str, option: str) -> list[float]:
+    try:
+        return [float(part) for part in text.split(",") if part.strip()]
+    except ValueError:
+        raise InputError(
+            f"anytime: error: {option}: expected numbers separated by commas, got {text!r}"
+        ) from None
+
+
+def _parse_time_grid(text: str) -> list[float]:
+    """START:STOP:STEP, both ends included."""
+    parts = text.split(":")
+    try:
+        start, stop, step = (float(p) for p in parts)
+    except ValueError:
+        start = stop = step = math.nan
+    if not (0 <= start <= stop and step > 0) or len(parts) != 3:
+        raise InputError(
+            "anytime: error: --time-grid: expected START:STOP:STEP with 0 <= START <= STOP "
+            f"and STEP > 0, got {text!r}"
+        )
+    count = int(math.floor((stop - start) / step + 1e-9)) + 1
+    return [start + i * step for i in range(count)]
