@@ -125,7 +125,10 @@ def run_profile(args: argparse.Namespace) -> int:
         clock=args.clock,
         quiet=args.quiet,
     )
-    build = profile_module(module, request)
+    try:
+        build = profile_module(module, request)
+    except BuildError as error:
+        raise InputError(f"anytime: error: {error}") from None
     output = Path(args.output if args.output is not None else f"{module.name}.yaml")
     try:
         save_profile(build.profile, output)
