@@ -31,6 +31,7 @@ from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 import numpy as np
+from tables import table  # benchmarks/tables.py: a script's own folder is on sys.path
 
 from anytime.compiler import ALLOCATORS, CompiledProgram, Evaluator, build_model, compile_program
 from anytime.dsl import Program, parse_schemas
@@ -51,19 +52,6 @@ Q11 = np.round(np.linspace(0, 1, 11), 12)  # the default input-quality grid
 
 
 # --- helpers ------------------------------------------------------------------------------------
-
-
-def table(header: list[str], rows: list[list[str]]) -> str:
-    widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]
-    lines = ["| " + " | ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)) + " |"]
-    lines.append("|" + "|".join("-" * (w + 2) for w in widths) + "|")
-    for row in rows:
-        cells = [
-            c.ljust(w) if i == 0 else c.rjust(w)
-            for i, (c, w) in enumerate(zip(row, widths, strict=True))
-        ]
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines)
 
 
 def timed(run: Callable[..., Any], *args: Any, **kwargs: Any) -> tuple[float, Any]:

@@ -19,6 +19,7 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 import numpy as np
+from tables import table  # benchmarks/tables.py: a script's own folder is on sys.path
 
 from anytime.modules import Context, Registry, Result, interruptible
 from anytime.profiles import ConditionalPerformanceProfile, default_bins
@@ -55,19 +56,6 @@ def best_of(repeats: int, run: Callable[..., object], *args: Any) -> float:
         run(*args)
         best = min(best, time.perf_counter() - start)
     return best
-
-
-def table(header: list[str], rows: list[list[str]]) -> str:
-    widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]
-    lines = ["| " + " | ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)) + " |"]
-    lines.append("|" + "|".join("-" * (w + 2) for w in widths) + "|")
-    for row in rows:
-        cells = [
-            c.ljust(w) if i == 0 else c.rjust(w)
-            for i, (c, w) in enumerate(zip(row, widths, strict=True))
-        ]
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines)
 
 
 def bench_builder(trials: int, repeats: int) -> str:

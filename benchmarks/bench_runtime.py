@@ -32,6 +32,7 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 import numpy as np
+from tables import table  # benchmarks/tables.py: a script's own folder is on sys.path
 
 from anytime.clocks import Clock, WallClock, WorkClock
 from anytime.modules import AnytimeModule, Context, Registry, Result, interruptible
@@ -79,19 +80,6 @@ def tight(ctx: Context, n: int, work: int) -> Iterator[Result]:
             total += j
         ctx.tick(1)
         yield Result(i, i / n)
-
-
-def table(header: list[str], rows: list[list[str]]) -> str:
-    widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]
-    lines = ["| " + " | ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)) + " |"]
-    lines.append("|" + "|".join("-" * (w + 2) for w in widths) + "|")
-    for row in rows:
-        cells = [
-            c.ljust(w) if i == 0 else c.rjust(w)
-            for i, (c, w) in enumerate(zip(row, widths, strict=True))
-        ]
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines)
 
 
 def ms(seconds: float) -> str:

@@ -39,6 +39,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from tables import table  # benchmarks/tables.py: a script's own folder is on sys.path
 
 from anytime.clocks import Clock, WallClock, WorkClock
 from anytime.modules import AnytimeModule, Context, Registry, Result, contract
@@ -67,19 +68,6 @@ def toy(ctx: Context, problem: Any) -> Result:
         while not ctx.expired:
             pass
     return Result(ctx.allocation, 1.0 - math.exp(-ctx.allocation))
-
-
-def table(header: list[str], rows: list[list[str]]) -> str:
-    widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]
-    lines = ["| " + " | ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)) + " |"]
-    lines.append("|" + "|".join("-" * (w + 2) for w in widths) + "|")
-    for row in rows:
-        cells = [
-            c.ljust(w) if i == 0 else c.rjust(w)
-            for i, (c, w) in enumerate(zip(row, widths, strict=True))
-        ]
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines)
 
 
 class Run:
