@@ -1,0 +1,1 @@
+"""Domain plugins shipped with anytime-compose; each registers itself like a third-party plugin."""

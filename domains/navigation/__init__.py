@@ -1,0 +1,10 @@
+"""The robot-navigation domain of Zilberstein & Russell, the reference plugin.
+
+It registers through the `anytime.plugins` entry point (see pyproject.toml), exactly as a
+third-party plugin would; the framework (`anytime`) never imports it.
+
+Built so far: the world (`world`: random rectangle worlds with a connectivity guarantee, 4- and
+8-connected movement), the MovingAI benchmark loader (`movingai`), the abstraction pyramid
+(`abstraction`) and the general path finder (`search`: A*, the papers' baseline). The anytime
+modules (vision, the anytime abstract planner, execution) come next.
+"""
