@@ -1,0 +1,144 @@
+"""The quad-tree abstraction pyramid (Zilberstein & Russell, "Abstract description of the
+domain").
+
+Level n is a coarse grid in which the cell (x, y) stands for the 2^n x 2^n base cells
+x * 2^n <= x' < (x + 1) * 2^n, y * 2^n <= y' < (y + 1) * 2^n; its obstacleness is the fraction
+of them that is blocked. The papers' example: (3, 3) at level 1 is the base cells (6, 6), (6, 7),
+(7, 6), (7, 7), and has obstacleness 0.25 when one of them is blocked. Level 0 is the base grid
+(obstacleness 0 or 1), the top level log2(N) is one cell unless a lower top is chosen.
+
+Arrays are indexed [y, x] like the base grid; positions are (x, y) tuples.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+import attrs
+import numpy as np
+from attrs import field, frozen
+from numpy.typing import NDArray
+
+from .world import BoolGrid, Position, is_power_of_two
+
+FloatGrid = NDArray[np.float64]
+Anchor = Literal["corner", "centre"]
+
+
+def project(
+    position: Position, from_level: int, to_level: int, anchor: Anchor = "corner"
+) -> Position:
+    """The position at `to_level` that corresponds to `position` at `from_level`.
+
+    Up (to a coarser level) it is the cell containing the position: (x >> k, y >> k) for
+    k = to_level - from_level. Down it is one cell of the block the position stands for: its
+    upper-left cell (`anchor="corner"`, the papers' first listed base position, so that up then
+    down is the block's origin) or its central cell (`anchor="centre"`, offset (2^k - 1) // 2,
+    the upper-left of the central four when 2^k is even). Projecting down and back up is the
+    identity with either anchor.
+    """
+    x, y = position
+    if from_level < 0 or to_level < 0:
+        raise ValueError(f"levels must be >= 0, got {from_level} and {to_level}")
+    if to_level >= from_level:
+        k = to_level - from_level
+        return (x >> k, y >> k)
+    k = from_level - to_level
+    if anchor == "corner":
+        offset = 0
+    elif anchor == "centre":
+        offset = ((1 << k) - 1) // 2
+    else:
+        raise ValueError(f"anchor must be 'corner' or 'centre', got {anchor!r}")
+    return ((x << k) + offset, (y << k) + offset)
+
+
+def cell_bounds(position: Position, level: int) -> tuple[int, int, int, int]:
+    """The base cells a level cell stands for, half-open: (x0, y0, x1, y1), i.e.
+    `blocked[y0:y1, x0:x1]`."""
+    x, y = position
+    side = 1 << level
+    return (x * side, y * side, (x + 1) * side, (y + 1) * side)
+
+
+def _levels(value: Any) -> tuple[FloatGrid, ...]:
+    levels = tuple(np.array(level, dtype=np.float64, copy=True) for level in value)
+    for level in levels:
+        level.setflags(write=False)
+    return levels
+
+
+def _levels_equal(a: tuple[FloatGrid, ...], b: tuple[FloatGrid, ...]) -> bool:
+    return len(a) == len(b) and all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+
+
+@frozen
+class Pyramid:
+    """Obstacleness of every level, `levels[n][y, x]` in [0, 1], n = 0 .. top. Build it with
+    `Pyramid.build(blocked)`."""
+
+    levels: tuple[FloatGrid, ...] = field(
+        converter=_levels, eq=attrs.cmp_using(eq=_levels_equal), hash=False
+    )
+
+    @classmethod
+    def build(cls, blocked: BoolGrid, top: int | None = None) -> Pyramid:
+        """The pyramid of a square power-of-two grid, up to level `top` (default log2(N): one
+        cell). Each level's blocked counts are the 2 x 2 block sums (reshape-sum) of the level
+        below; the counts are integers, so every level is exact."""
+        grid = np.asarray(blocked, dtype=bool)
+        if grid.ndim != 2 or grid.shape[0] != grid.shape[1] or not is_power_of_two(grid.shape[0]):
+            raise ValueError(f"the grid must be square with a power-of-two side, got {grid.shape}")
+        highest = grid.shape[0].bit_length() - 1
+        if top is None:
+            top = highest
+        if not 0 <= top <= highest:
+            raise ValueError(f"top must be in [0, {highest}], got {top}")
+        counts = grid.astype(np.int64)
+        levels = [counts.astype(np.float64)]
+        for n in range(1, top + 1):
+            m = counts.shape[0] // 2
+            counts = counts.reshape(m, 2, m, 2).sum(axis=(1, 3))
+            levels.append(counts / float(4**n))
+        return cls(tuple(levels))
+
+    @property
+    def top(self) -> int:
+        return len(self.levels) - 1
+
+    @property
+    def size(self) -> int:
+        """N, the side of the base grid."""
+        return int(self.levels[0].shape[0])
+
+    def side(self, level: int) -> int:
+        """How many cells a row of `level` has: N / 2^level."""
+        self._check_level(level)
+        return int(self.levels[level].shape[0])
+
+    def obstacleness(self, position: Position, level: int) -> float:
+        x, y = self._check_position(position, level)
+        return float(self.levels[level][y, x])
+
+    def project(
+        self, position: Position, from_level: int, to_level: int, anchor: Anchor = "corner"
+    ) -> Position:
+        """`project` with both levels and the position checked against this pyramid."""
+        self._check_position(position, from_level)
+        self._check_level(to_level)
+        return project(position, from_level, to_level, anchor)
+
+    def cell_bounds(self, position: Position, level: int) -> tuple[int, int, int, int]:
+        return cell_bounds(self._check_position(position, level), level)
+
+    def _check_level(self, level: int) -> None:
+        if not 0 <= level <= self.top:
+            raise ValueError(f"level must be in [0, {self.top}], got {level}")
+
+    def _check_position(self, position: Position, level: int) -> Position:
+        self._check_level(level)
+        x, y = position
+        side = self.levels[level].shape[0]
+        if not (0 <= x < side and 0 <= y < side):
+            raise ValueError(f"{position} is outside level {level} ({side}x{side} cells)")
+        return (x, y)
