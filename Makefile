@@ -16,8 +16,8 @@ demo: $(INSTALLED)
 test: lint typecheck pytest
 
 lint: $(INSTALLED)
-	$(BIN)/ruff check anytime tests
-	$(BIN)/ruff format --check anytime tests
+	$(BIN)/ruff check anytime domains tests benchmarks
+	$(BIN)/ruff format --check anytime domains tests benchmarks
 
 typecheck: $(INSTALLED)
 	$(BIN)/mypy anytime

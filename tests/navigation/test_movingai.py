@@ -25,7 +25,6 @@ MAPS = [
 ]
 
 
-
 @pytest.mark.parametrize(
     ("name", "width", "height", "side", "problems"), MAPS, ids=lambda v: str(v)
 )
