@@ -1,0 +1,164 @@
+"""The anytime abstract planner (ATP): the first plan is at the top level, every refinement
+lowers exactly one segment one level, segment lengths stay about invariant, the final plan is
+a free base route from start to goal, quality estimates are in [0, 1], interruption works."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from anytime.modules import Context, Result
+from domains.navigation.abstraction import Pyramid, project
+from domains.navigation.planner import MultiPath, Segment, atp, quality_estimate, segmentize
+from domains.navigation.world import random_world
+
+MOVEMENTS = [pytest.param(4, id="4-connected"), pytest.param(8, id="8-connected")]
+
+
+def _run(size: int, seed: int, movement: int, top: int | None = None) -> list[Result]:
+    world = random_world(size, seed=seed, movement=movement)
+    pyramid = Pyramid.build(world.blocked)
+    return list(atp(Context(), world.start, world.goal, pyramid, movement=movement, top=top))
+
+
+def _changed(before: MultiPath, after: MultiPath) -> tuple[int, Segment, tuple[Segment, ...]]:
+    """The index of the route segment replaced, the old segment and what replaced it."""
+    old, new = before.segments, after.segments
+    i = next(i for i, (a, b) in enumerate(zip(old, new, strict=False)) if a != b)
+    tail = len(old) - i - 1
+    assert old[i + 1 :] == new[len(new) - tail :]
+    return i, old[i], new[i : len(new) - tail]
+
+
+def _neighbours(a: tuple[int, int], b: tuple[int, int], movement: int) -> bool:
+    dx, dy = abs(a[0] - b[0]), abs(a[1] - b[1])
+    return dx + dy == 1 if movement == 4 else max(dx, dy) == 1
+
+
+@pytest.mark.parametrize("movement", MOVEMENTS)
+@pytest.mark.parametrize("top", [None, 4, 3], ids=["top=pyramid", "top=4", "top=3"])
+def test_first_plan_is_one_segment_at_the_top_level(movement: int, top: int | None) -> None:
+    world = random_world(64, seed=1, movement=movement)
+    pyramid = Pyramid.build(world.blocked)
+    first = next(atp(Context(), world.start, world.goal, pyramid, movement=movement, top=top))
+    level = pyramid.top if top is None else top
+    plan = first.value
+    assert [s.level for s in plan.segments] == [level]
+    assert plan.segments[0].source == project(world.start, 0, level)
+    assert plan.segments[0].target == project(world.goal, 0, level)
+    assert plan.head == segmentize(world.start, level)
+    assert [s.level for s in plan.tail] == list(range(level - 1, -1, -1))
+    assert plan.tail[-1].cells == (world.goal,)
+
+
+@pytest.mark.parametrize("movement", MOVEMENTS)
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_every_refinement_lowers_one_segment_one_level(movement: int, seed: int) -> None:
+    results = _run(64, seed, movement)
+    assert len(results) > 1
+    for before, after in zip(results, results[1:], strict=False):
+        _, old, new = _changed(before.value, after.value)
+        assert old.level >= 1
+        assert 1 <= len(new) <= 2
+        assert all(s.level == old.level - 1 for s in new)
+        # The halves meet at one junction cell.
+        if len(new) == 2:
+            assert new[0].target == new[1].source
+
+
+@pytest.mark.parametrize("movement", MOVEMENTS)
+@pytest.mark.parametrize("seed", range(6))
+def test_segment_length_stays_within_one_move_on_an_open_map(movement: int, seed: int) -> None:
+    """Refining a segment of m moves gives halves of m - 1 .. m + 1 moves at the lower level
+    (on an open map, where no detour lengthens a half)."""
+    rng = np.random.default_rng(seed)
+    pyramid = Pyramid.build(np.zeros((64, 64), dtype=bool))
+    start, goal = (tuple(int(v) for v in rng.integers(0, 64, 2)) for _ in range(2))
+    for top in (2, 3, 4):
+        results = list(atp(Context(), start, goal, pyramid, movement=movement, top=top))
+        for before, after in zip(results, results[1:], strict=False):
+            _, old, new = _changed(before.value, after.value)
+            if old.moves == 0:
+                continue  # a one-cell segment is re-planned whole, not halved
+            assert [abs(s.moves - old.moves) <= 1 for s in new] == [True] * len(new), (
+                old.moves,
+                [s.moves for s in new],
+            )
+
+
+@pytest.mark.parametrize("movement", MOVEMENTS)
+@pytest.mark.parametrize("seed", range(5))
+@pytest.mark.parametrize("size", [32, 64])
+def test_final_plan_is_a_free_base_route(movement: int, seed: int, size: int) -> None:
+    world = random_world(size, seed=seed, density=0.25, movement=movement)
+    pyramid = Pyramid.build(world.blocked)
+    results = list(atp(Context(), world.start, world.goal, pyramid, movement=movement))
+    plan = results[-1].value
+    assert not plan.refinable
+    assert all(s.level == 0 for s in plan.parts)
+    assert plan.head == () and plan.tail == ()
+    for a, b in zip(plan.segments, plan.segments[1:], strict=False):
+        assert a.target == b.source
+    route = plan.base_route()
+    assert route is not None
+    assert route[0] == world.start and route[-1] == world.goal
+    assert all(_neighbours(a, b, movement) for a, b in zip(route, route[1:], strict=False))
+    assert not any(world.blocked[y, x] for x, y in route)
+    if movement == 8:  # no corner cutting
+        for (ax, ay), (bx, by) in zip(route, route[1:], strict=False):
+            assert not world.blocked[ay, bx] and not world.blocked[by, ax]
+
+
+@pytest.mark.parametrize("movement", MOVEMENTS)
+def test_quality_estimates_are_in_unit_interval_and_end_at_one(movement: int) -> None:
+    results = _run(64, 3, movement)
+    qualities = [r.quality for r in results]
+    assert all(0.0 <= q <= 1.0 for q in qualities)
+    assert qualities[0] < 0.5  # one abstract cell for the whole route
+    assert qualities[-1] == 1.0  # fully refined: a base route through free cells
+    assert qualities[-1] == max(qualities)
+
+
+def test_quality_estimate_discounts_level_and_obstacleness() -> None:
+    blocked = np.zeros((8, 8), dtype=bool)
+    blocked[0:2, 2:4] = True  # level-1 cell (1, 0) fully blocked, level-2 cell (0, 0) 1/4
+    pyramid = Pyramid.build(blocked)
+    clear = MultiPath((0, 0), (7, 7), (), (Segment(1, [(0, 2), (1, 2), (2, 2)]),), ())
+    # Mean obstacleness 0, level 1 of top 3: (1 - 1/4).
+    assert quality_estimate(clear, pyramid) == pytest.approx(0.75)
+    cluttered = MultiPath((0, 0), (7, 7), (), (Segment(2, [(0, 0), (1, 0)]),), ())
+    # Mean obstacleness (1/4 + 0) / 2, level 2: (1 - 1/8) * (1 - 2/4).
+    assert quality_estimate(cluttered, pyramid) == pytest.approx(0.875 * 0.5)
+    base = MultiPath((0, 0), (1, 0), (), (Segment(0, [(0, 0), (1, 0)]),), ())
+    assert quality_estimate(base, pyramid) == 1.0
+
+
+def test_segmentize_is_the_chain_of_cells_containing_the_position() -> None:
+    assert segmentize((13, 6), 3) == (
+        Segment(0, [(13, 6)]),
+        Segment(1, [(6, 3)]),
+        Segment(2, [(3, 1)]),
+    )
+
+
+@pytest.mark.parametrize("movement", MOVEMENTS)
+def test_interruption_keeps_a_result(movement: int) -> None:
+    world = random_world(128, seed=4, movement=movement)
+    pyramid = Pyramid.build(world.blocked)
+    ctx = Context(allocation=20)
+    results = list(atp(ctx, world.start, world.goal, pyramid, movement=movement))
+    assert len(results) >= 1
+    assert ctx.expired
+    assert results[-1].value.refinable  # stopped before the plan was fully refined
+    complete = list(atp(Context(), world.start, world.goal, pyramid, movement=movement))
+    assert len(results) < len(complete)
+
+
+def test_rejects_a_blocked_start_and_a_bad_top() -> None:
+    blocked = np.zeros((8, 8), dtype=bool)
+    blocked[0, 0] = True
+    pyramid = Pyramid.build(blocked)
+    with pytest.raises(ValueError, match=r"start \(0, 0\) is a blocked cell"):
+        next(atp(Context(), (0, 0), (7, 7), pyramid))
+    with pytest.raises(ValueError, match=r"top must be in \[0, 3\], got 5"):
+        next(atp(Context(), (1, 0), (7, 7), pyramid, top=5))
