@@ -5,6 +5,8 @@ third-party plugin would; the framework (`anytime`) never imports it.
 
 Built so far: the world (`world`: random rectangle worlds with a connectivity guarantee, 4- and
 8-connected movement), the MovingAI benchmark loader (`movingai`), the abstraction pyramid
-(`abstraction`) and the general path finder (`search`: A*, the papers' baseline). The anytime
-modules (vision, the anytime abstract planner, execution) come next.
+(`abstraction`), the general path finder (`search`: A*, the papers' baseline), anytime vision
+(`vision`) and the anytime abstract planner (`planner`: the papers' ATP). Still to come: plan
+execution, registering vision and the planner as anytime modules with measured profiles, and
+the figures.
 """
