@@ -23,6 +23,7 @@ from compiler_strategies import (
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import minimize_scalar
+from toy_modules import toy_registry
 
 import anytime.compiler.allocators as allocators
 from anytime.clocks import WorkClock
@@ -37,7 +38,7 @@ from anytime.compiler import (
 from anytime.dsl import parse_schemas
 from anytime.errors import SchemaError
 from anytime.library import AnytimeLibrary, LibraryEntry, RegistrySource
-from anytime.modules import Context, Registry, Result, contract, elementary, interruptible
+from anytime.modules import Context, Registry, Result, elementary, interruptible
 from anytime.profiles import ConditionalPerformanceProfile, tabulate
 from anytime.profiles.io import load_profile
 
@@ -208,61 +209,9 @@ def test_a_hierarchical_schema_compiles_like_its_flattened_program(
 # --- (c) running a compiled program ---------------------------------------------------------
 
 
-def sense_curve(t: Any, q: Any) -> Any:
-    return np.asarray(q) * -np.expm1(-0.1 * np.asarray(t))
-
-
-def guess_curve(t: Any, q: Any) -> Any:
-    return (0.5 + 0.5 * np.asarray(q)) * np.minimum(np.asarray(t) / 40.0, 1.0)
-
-
-def refine_curve(t: Any, q: Any) -> Any:
-    return np.asarray(q) * -np.expm1(-0.05 * np.asarray(t))
-
-
 def toy_library() -> AnytimeLibrary:
-    """Real modules whose output quality follows their tabulated profiles exactly (the curves
-    are linear in the input quality, so the profiles' interpolation is exact too)."""
-    registry = Registry()
-    qualities = [[0.0, 1.0]]
-
-    @interruptible(
-        "sense",
-        inputs=["x"],
-        profile=tabulate(sense_curve, TIME, input_grids=qualities, inputs=["x"]),
-        registry=registry,
-    )
-    def sense(ctx: Context, x: Result) -> Iterator[Result]:
-        while True:
-            yield Result(("sensed", ctx.elapsed), float(sense_curve(ctx.elapsed, x.quality)))
-            ctx.tick(1)
-
-    @contract(
-        "guess",
-        inputs=["x"],
-        profile=tabulate(guess_curve, TIME, input_grids=qualities, inputs=["x"], kind="contract"),
-        registry=registry,
-    )
-    def guess(ctx: Context, x: Result) -> Result:
-        ctx.tick(ctx.allocation)
-        return Result("guessed", float(guess_curve(ctx.allocation, x.quality)))
-
-    @elementary("both", registry=registry)
-    def both(a: Result, b: Result) -> Any:
-        return (a.value, b.value)
-
-    @interruptible(
-        "refine",
-        inputs=["m"],
-        profile=tabulate(refine_curve, TIME, input_grids=qualities, inputs=["m"]),
-        registry=registry,
-    )
-    def refine(ctx: Context, m: Result) -> Iterator[Result]:
-        while True:
-            yield Result(("plan", m.value), float(refine_curve(ctx.elapsed, m.quality)))
-            ctx.tick(1)
-
-    return AnytimeLibrary([RegistrySource(registry)])
+    """The shared toy modules (tests/toy_modules.py), whose quality follows their profiles."""
+    return AnytimeLibrary([RegistrySource(toy_registry())])
 
 
 TOY = "(defschema p (x) (refine (both (sense x) (guess x))))"

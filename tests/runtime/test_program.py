@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from toy_modules import toy_registry
 
 from anytime.clocks import WorkClock
 from anytime.compiler import CompiledProgram, ExecutionError, compile_program
@@ -66,59 +67,7 @@ def compiled(text: str, registry: Registry, **options: Any) -> CompiledProgram:
 
 # --- (a) the same answer as CompiledProgram.run -----------------------------------------------
 
-TOY = Registry()
-
-
-def sense_curve(t: Any, q: Any) -> Any:
-    return np.asarray(q) * -np.expm1(-0.1 * np.asarray(t))
-
-
-def guess_curve(t: Any, q: Any) -> Any:
-    return (0.5 + 0.5 * np.asarray(q)) * np.minimum(np.asarray(t) / 40.0, 1.0)
-
-
-def refine_curve(t: Any, q: Any) -> Any:
-    return np.asarray(q) * -np.expm1(-0.05 * np.asarray(t))
-
-
-@interruptible(
-    "sense",
-    inputs=["x"],
-    profile=tabulate(sense_curve, TIME, input_grids=LINEAR, inputs=["x"]),
-    registry=TOY,
-)
-def sense(ctx: Context, x: Result) -> Iterator[Result]:
-    while True:
-        yield Result(("sensed", ctx.elapsed), float(sense_curve(ctx.elapsed, x.quality)))
-        ctx.tick(1)
-
-
-@contract(
-    "guess",
-    inputs=["x"],
-    profile=tabulate(guess_curve, TIME, input_grids=LINEAR, inputs=["x"], kind="contract"),
-    registry=TOY,
-)
-def guess(ctx: Context, x: Result) -> Result:
-    ctx.tick(ctx.allocation)
-    return Result("guessed", float(guess_curve(ctx.allocation, x.quality)))
-
-
-@elementary("both", registry=TOY)
-def both(a: Result, b: Result) -> Any:
-    return (a.value, b.value)
-
-
-@interruptible(
-    "refine",
-    inputs=["m"],
-    profile=tabulate(refine_curve, TIME, input_grids=LINEAR, inputs=["m"]),
-    registry=TOY,
-)
-def refine(ctx: Context, m: Result) -> Iterator[Result]:
-    while True:
-        yield Result(("plan", m.value), float(refine_curve(ctx.elapsed, m.quality)))
-        ctx.tick(1)
+TOY = toy_registry()  # sense, guess, both, refine (tests/toy_modules.py)
 
 
 @elementary("tag", inputs=["a"], registry=TOY)
