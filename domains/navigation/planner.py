@@ -25,15 +25,18 @@ no child reachable at the finer level), where the junction moves to the nearest 
 
 from __future__ import annotations
 
+import heapq
+import itertools
 from collections.abc import Iterator
 
 import numpy as np
+import numpy.typing as npt
 from attrs import field, frozen
 
 from anytime.modules import Context, Result
 
 from .abstraction import Pyramid, project
-from .search import find_path
+from .search import SQRT2, find_path_to_box
 from .world import BoolGrid, Position, reachable
 
 __all__ = ["MultiPath", "Segment", "atp", "quality_estimate", "segmentize", "worst_segment"]
@@ -116,22 +119,36 @@ def segmentize(position: Position, top: int) -> tuple[Segment, ...]:
     return tuple(Segment(level, (project(position, 0, level),)) for level in range(top))
 
 
+def _score(level: int, obstacleness: float) -> float:
+    return (1 << level) * (1.0 + obstacleness)
+
+
 def worst_segment(plan: MultiPath, pyramid: Pyramid) -> int | None:
     """WORST-SEGMENT: the index of the route segment to refine, or None when none is refinable.
 
     Score of a segment at level k > 0 with mean obstacleness o over its cells:
     `2^k * (1 + o)`. The level dominates (a segment one level higher scores at least as much
     unless the lower one is fully blocked), and within a level the most blocked one wins. Ties go
-    to the earliest segment, so refinement proceeds from the start.
+    to the earliest segment. (`atp` keeps the scores in a heap instead of rescanning the plan;
+    its ties go to the segment created first.)
     """
     best, best_score = None, -1.0
     for i, segment in enumerate(plan.segments):
         if segment.level == 0:
             continue
-        score = (1 << segment.level) * (1.0 + _mean_obstacleness(segment, pyramid))
+        score = _score(segment.level, _mean_obstacleness(segment, pyramid))
         if score > best_score:
             best, best_score = i, score
     return best
+
+
+def _credit(segment: Segment, obstacleness: float, top: int) -> tuple[float, float]:
+    """A segment's (extent, credit) in the quality estimate."""
+    extent = max(segment.moves, 1) * float(1 << segment.level)
+    if segment.level == 0:
+        return extent, extent
+    coarseness = 1.0 - segment.level / (top + 1)
+    return extent, extent * (1.0 - obstacleness) * coarseness
 
 
 def quality_estimate(plan: MultiPath, pyramid: Pyramid) -> float:
@@ -142,19 +159,19 @@ def quality_estimate(plan: MultiPath, pyramid: Pyramid) -> float:
     mean obstacleness and T the pyramid's top: abstract parts are discounted by how coarse they
     are and by how much of them is blocked (what obstacle avoidance will have to make up for).
     The estimate is the e-weighted mean, so it is 1 exactly when the plan is fully refined (a
-    base route through free cells) and grows as segments are lowered.
+    base route through free cells) and grows as segments are lowered. (`atp` keeps the two sums
+    up to date instead of recomputing them.)
     """
-    top = pyramid.top
     total = credit = 0.0
     for segment in plan.segments:
-        extent = max(segment.moves, 1) * float(1 << segment.level)
+        extent, part = _credit(segment, _mean_obstacleness(segment, pyramid), pyramid.top)
         total += extent
-        if segment.level == 0:
-            credit += extent
-        else:
-            coarseness = 1.0 - segment.level / (top + 1)
-            credit += extent * (1.0 - _mean_obstacleness(segment, pyramid)) * coarseness
-    return min(1.0, max(0.0, credit / total)) if total else 1.0
+        credit += part
+    return _clip(credit / total) if total else 1.0
+
+
+def _clip(quality: float) -> float:
+    return min(1.0, max(0.0, quality))
 
 
 def atp(
@@ -166,56 +183,132 @@ def atp(
     movement: int = 4,
     weight: float = 1.0,
     top: int | None = None,
+    margin: int = 1,
+    segment_moves: int | None = 8,
 ) -> Iterator[Result]:
     """The anytime abstract planner: yields `Result(MultiPath, quality_estimate)` after the first
     plan and after every refinement; returns (SIGNAL(TERMINATION)) when nothing is refinable or
-    when `ctx` has expired after a yield. Work is the A* expansions `find_path` reports.
+    when `ctx` has expired after a yield. Work is the A* expansions PATH-FINDER reports.
 
     Args:
         ctx: the context; each A* expansion is one tick.
         start: the base-level start (x, y), a free cell.
-        goal: the base-level goal (x, y), a free cell reachable from the start.
+        goal: the base-level goal (x, y), a free cell.
         pyramid: the domain description (possibly of a noisy map).
         movement: 4 or 8, at every level.
-        weight: the obstacleness weight of PATH-FINDER (see `find_path`).
-        top: the level of the first plan; the pyramid's top by default (the papers' "highest
-            level of abstraction", usually one cell: the first plan is then that one cell and
-            its first refinement plans start to goal one level lower without splitting).
+        weight: the obstacleness weight of PATH-FINDER (see `search.find_path`).
+        top: the level of the first plan (the papers' "highest level of abstraction"). By
+            default the level whose grid is 16 x 16 cells (the pyramid's top on smaller maps):
+            the pyramid's own top is one cell, a first plan that says nothing, and measured on
+            the 512 x 512 benchmark maps, starting at 16 x 16 gives better final routes for less
+            work than 8 x 8 or 1 x 1 (benchmarks/bench_navigation.py).
+        segment_moves: the first plan is cut into segments of at most this many moves, of
+            equal length (None: one segment). Segment length is what refinement keeps
+            invariant, so it sets the grain of the anytime behaviour: how much one refinement
+            costs and improves.
+        margin: how far (in cells of the lower level) a refinement may stray outside the
+            blocks of the segment it refines before the corridor is widened.
 
-    REFINE (`_Planner.refine`) splits the chosen level-k segment of m moves at its middle (a
-    child of cell m // 2, or of cell (m + 1) // 2 when m is odd, chosen so both halves are about
-    m moves long) and re-plans each half with PATH-FINDER at level k - 1 between the projected
-    endpoints: the length of a segment stays about invariant (within one move on an open map)
-    and so does the cost of a refinement. Endpoints project down to the start's or goal's own
-    cell (from SEGMENTIZE), to the junction of a finer neighbour, or else to a child of the
-    block reachable from the start at level k - 1 (so every PATH-FINDER call has a solution
-    when the goal is reachable on the map given).
+    REFINE re-plans the chosen level-k segment one level lower with PATH-FINDER restricted to a
+    corridor: the 2x2 children of its cells, widened by `margin` (and, only when that has no
+    path, by 4, 16, ... cells up to the whole level). Its ends are the junctions with its
+    neighbours: a fixed cell when the neighbour is already finer (its end, projected), otherwise
+    any free child of the shared cell (the search chooses the best one, which the neighbour will
+    then have to meet). The path found is split at its middle into two halves of equal length
+    (a path of n moves into n // 2 and n - n // 2), each a segment one level lower: the length
+    in moves of a segment stays about invariant, and so does the cost of a refinement, which is
+    a local A* over a few dozen cells.
+
+    A goal the map given does not connect to the start (a noisy map can wall it off) is not an
+    error: the planner then treats blocked cells as passable at a cost (obstacleness 1, times
+    `weight`) and returns its best-effort plan; execution on the true map avoids the obstacles.
 
     Raises:
-        ValueError: a blocked start or goal, a top outside the pyramid, or (from PATH-FINDER) a
-            goal not reachable from the start on this map.
+        ValueError: a blocked start or goal, a top outside the pyramid, segment_moves < 1 or a
+            negative margin.
     """
-    top = pyramid.top if top is None else top
+    top = max(pyramid.top - 4, 0) if top is None else top
+    if segment_moves is not None and segment_moves < 1:
+        raise ValueError(f"segment_moves must be >= 1 or None, got {segment_moves}")
+    if margin < 0:
+        raise ValueError(f"margin must be >= 0, got {margin}")
     if not 0 <= top <= pyramid.top:
         raise ValueError(f"top must be in [0, {pyramid.top}], got {top}")
     for name, position in (("start", start), ("goal", goal)):
         if pyramid.obstacleness(position, 0) >= 1.0:
             raise ValueError(f"{name} {position} is a blocked cell")
-    planner = _Planner(pyramid, start, goal, movement, weight, ctx)
-    first = planner.plan(top, project(start, 0, top), project(goal, 0, top))
-    plan = MultiPath(start, goal, segmentize(start, top), (first,), segmentize(goal, top)[::-1])
-    yield Result(plan, quality_estimate(plan, pyramid))
+    planner = _Planner(pyramid, start, goal, movement, weight, margin, ctx)
+    side = pyramid.side(top)
+    path = planner.plan(
+        top, [project(start, 0, top)], _point(goal, top), (0, 0, side - 1, side - 1)
+    ).cells
+    segments = _pieces(top, path, segment_moves)
+    plan = MultiPath(
+        start, goal, segmentize(start, top), tuple(segments), segmentize(goal, top)[::-1]
+    )
+    # WORST-SEGMENT as a heap of (-score, creation order, segment), stale entries skipped; the
+    # quality estimate as running sums: no rescan of the plan per refinement.
+    order = itertools.count()
+    live: set[int] = set()
+    heap: list[tuple[float, int, Segment]] = []
+    sums = [0.0, 0.0]
+
+    def add(segment: Segment) -> None:
+        o = _mean_obstacleness(segment, pyramid)
+        extent, credit = _credit(segment, o, pyramid.top)
+        sums[0] += extent
+        sums[1] += credit
+        if segment.level > 0:
+            live.add(id(segment))
+            heapq.heappush(heap, (-_score(segment.level, o), next(order), segment))
+
+    for segment in segments:
+        add(segment)
+    yield Result(plan, _clip(sums[1] / sums[0]))
     while not ctx.expired:
-        index = worst_segment(plan, pyramid)
-        if index is None:
+        while heap and id(heap[0][2]) not in live:
+            heapq.heappop(heap)
+        if not heap:
             return
-        plan = planner.refine(plan, index)
-        yield Result(plan, quality_estimate(plan, pyramid))
+        old = heapq.heappop(heap)[2]
+        live.discard(id(old))
+        index = next(i for i in range(len(segments)) if segments[i] is old)
+        new = planner.refine(segments, index)
+        extent, credit = _credit(old, _mean_obstacleness(old, pyramid), pyramid.top)
+        sums[0] -= extent
+        sums[1] -= credit
+        for segment in new:
+            add(segment)
+        segments[index : index + 1] = new
+        head = plan.head[:-1] if index == 0 else plan.head
+        tail = plan.tail[1:] if index == len(segments) - len(new) else plan.tail
+        plan = MultiPath(start, goal, head, tuple(segments), tail)
+        yield Result(plan, 1.0 if not live else _clip(sums[1] / sums[0]))
+
+
+def _pieces(level: int, path: tuple[Position, ...], most: int | None) -> list[Segment]:
+    """`path` cut into the fewest segments of at most `most` moves, of about equal length."""
+    n = len(path) - 1
+    count = 1 if most is None or n <= most else -(-n // most)
+    bounds = [round(i * n / count) for i in range(count + 1)]
+    return [Segment(level, path[a : b + 1]) for a, b in zip(bounds, bounds[1:], strict=False)]
+
+
+def _point(position: Position, level: int = 0) -> tuple[int, int, int, int]:
+    x, y = position if level == 0 else project(position, 0, level)
+    return (x, y, x, y)
+
+
+def _children(cell: Position) -> tuple[int, int, int, int]:
+    """The box of a cell's four children one level lower."""
+    x, y = cell
+    return (2 * x, 2 * y, 2 * x + 1, 2 * y + 1)
 
 
 class _Planner:
-    """PATH-FINDER and REFINE over one pyramid, with the cells reachable from the start at each
-    level (computed lazily) so that every junction chosen is connected to the goal."""
+    """PATH-FINDER and REFINE over one pyramid, with the cells each level lets the planner use:
+    those connected to the start (computed lazily per level), or every cell when the goal is not
+    connected to the start on this map (the best-effort mode of `atp`)."""
 
     def __init__(
         self,
@@ -224,124 +317,161 @@ class _Planner:
         goal: Position,
         movement: int,
         weight: float,
+        margin: int,
         ctx: Context,
     ) -> None:
         self.pyramid, self.start, self.goal = pyramid, start, goal
-        self.movement, self.weight, self.ctx = movement, weight, ctx
-        self._reachable: dict[int, BoolGrid] = {}
+        self.movement, self.weight, self.margin, self.ctx = movement, weight, margin, ctx
+        self._passable: dict[int, BoolGrid] = {}
+        gx, gy = goal
+        self.connected = bool(self.passable(0)[gy, gx])
+        if not self.connected:
+            self._passable.clear()
 
-    def reachable(self, level: int) -> BoolGrid:
-        if level not in self._reachable:
-            blocked = self.pyramid.levels[level] >= 1.0
-            origin = project(self.start, 0, level)
-            self._reachable[level] = reachable(blocked, origin, self.movement)
-        return self._reachable[level]
+    def passable(self, level: int) -> BoolGrid:
+        if level not in self._passable:
+            grid = self.pyramid.levels[level]
+            if getattr(self, "connected", True):
+                origin = project(self.start, 0, level)
+                self._passable[level] = reachable(grid >= 1.0, origin, self.movement)
+            else:
+                self._passable[level] = np.ones(grid.shape, dtype=bool)
+        return self._passable[level]
 
-    def plan(self, level: int, source: Position, target: Position) -> Segment:
-        """PATH-FINDER at `level`."""
-        found = find_path(
-            self.pyramid.levels[level],
-            source,
-            target,
-            movement=self.movement,
-            weight=self.weight,
-            ctx=self.ctx,
-        )
-        if found is None:
-            raise ValueError(f"no path from {source} to {target} at level {level}")
-        return Segment(level, found.path)
+    def plan(
+        self,
+        level: int,
+        sources: list[Position],
+        box: tuple[int, int, int, int],
+        corridor: tuple[Position, ...] | tuple[int, int, int, int],
+        source_costs: list[float] | None = None,
+        box_costs: npt.NDArray[np.float64] | None = None,
+    ) -> Segment:
+        """PATH-FINDER at `level` from any of `sources` into `box`, first inside `corridor` (a
+        box, or the cells of the segment being refined, one level up) widened by the margin,
+        then by wider margins up to the whole level."""
+        grid, ok = self.pyramid.levels[level], self.passable(level)
+        side = grid.shape[0]
+        if not any(ok[y, x] for x, y in sources):
+            sources, source_costs = [self._nearest(level, box)], None
+        bx0, by0, bx1, by1 = box
+        if not ok[by0 : by1 + 1, bx0 : bx1 + 1].any():
+            box, box_costs = _point(self._nearest(level, box)), None
+        margin, whole = self.margin, (0, 0, side - 1, side - 1)
+        while True:
+            mask, (x0, y0) = self._corridor(level, corridor, sources, box, margin)
+            found = find_path_to_box(
+                grid[y0 : y0 + mask.shape[0], x0 : x0 + mask.shape[1]],
+                [(x - x0, y - y0) for x, y in sources],
+                (box[0] - x0, box[1] - y0, box[2] - x0, box[3] - y0),
+                movement=self.movement,
+                weight=self.weight,
+                impassable=~mask,
+                source_costs=source_costs,
+                box_costs=box_costs,
+            )
+            if found is not None:
+                self.ctx.tick(found.expansions)
+                return Segment(level, [(x + x0, y + y0) for x, y in found.path])
+            self.ctx.tick(mask.size)  # a failed search closes at most the whole window
+            if corridor == whole:
+                raise AssertionError(f"no path at level {level} between connected cells")
+            margin = max(4 * margin, 4)
+            if margin >= side:
+                corridor = whole
 
-    def refine(self, plan: MultiPath, index: int) -> MultiPath:
-        """REFINE the route segment `index`: halves re-planned one level lower."""
-        segments = plan.segments
+    def _corridor(
+        self,
+        level: int,
+        corridor: tuple[Position, ...] | tuple[int, int, int, int],
+        sources: list[Position],
+        box: tuple[int, int, int, int],
+        margin: int,
+    ) -> tuple[BoolGrid, Position]:
+        """The passable cells of the corridor and the window's upper-left corner."""
+        side = self.pyramid.levels[level].shape[0]
+        if isinstance(corridor[0], int):
+            boxes = [corridor]
+        else:
+            boxes = [_children(cell) for cell in corridor]  # type: ignore[arg-type]
+        boxes += [_point(s) for s in sources] + [box]
+        x0 = max(min(b[0] for b in boxes) - margin, 0)
+        y0 = max(min(b[1] for b in boxes) - margin, 0)
+        x1 = min(max(b[2] for b in boxes) + margin, side - 1)
+        y1 = min(max(b[3] for b in boxes) + margin, side - 1)
+        mask = np.zeros((y1 - y0 + 1, x1 - x0 + 1), dtype=bool)
+        for bx0, by0, bx1, by1 in boxes:
+            mask[
+                max(by0 - margin - y0, 0) : by1 + margin - y0 + 1,
+                max(bx0 - margin - x0, 0) : bx1 + margin - x0 + 1,
+            ] = True
+        mask &= self.passable(level)[y0 : y1 + 1, x0 : x1 + 1]
+        return mask, (x0, y0)
+
+    def _nearest(self, level: int, box: tuple[int, int, int, int]) -> Position:
+        """The usable cell nearest the centre of `box` (when none of the box is usable: rare, a
+        block whose free part is walled off at this level)."""
+        ys, xs = np.nonzero(self.passable(level))
+        cx, cy = (box[0] + box[2]) / 2.0, (box[1] + box[3]) / 2.0
+        i = int(np.argmin((xs - cx) ** 2 + (ys - cy) ** 2))
+        return (int(xs[i]), int(ys[i]))
+
+    def refine(self, segments: list[Segment], index: int) -> tuple[Segment, ...]:
+        """REFINE route segment `index`: its replacement, two halves one level lower (one
+        segment when the path found has fewer than two moves)."""
         segment = segments[index]
-        k, cells = segment.level, segment.cells
-        lower = k - 1
+        lower = segment.level - 1
+        source_costs = box_costs = None
         if index == 0:
-            first = project(self.start, 0, lower)
+            sources = [project(self.start, 0, lower)]
         elif segments[index - 1].level <= lower:
             prev = segments[index - 1]
-            first = project(prev.target, prev.level, lower)
+            sources = [project(prev.target, prev.level, lower)]
         else:
-            first = self._descend(cells[0], k, cells[0])
+            x, y, _, _ = _children(segment.source)
+            sources = [(x, y), (x + 1, y), (x, y + 1), (x + 1, y + 1)]
+            before = segments[index - 1].cells
+            costs = self._approach(
+                sources, segments[index - 1].level, before[max(len(before) - 2, 0)], lower
+            )
+            source_costs = list(costs)
         if index == len(segments) - 1:
-            last = project(self.goal, 0, lower)
+            box = _point(self.goal, lower)
         elif segments[index + 1].level <= lower:
             nxt = segments[index + 1]
-            last = project(nxt.source, nxt.level, lower)
+            box = _point(project(nxt.source, nxt.level, lower))
         else:
-            last = self._descend(cells[-1], k, cells[-1])
-        m = segment.moves
-        if m == 0:
-            new: tuple[Segment, ...] = (self.plan(lower, first, last),)
+            box = _children(segment.target)
+            x, y, _, _ = box
+            after = segments[index + 1].cells
+            costs = self._approach(
+                [(x, y), (x + 1, y), (x, y + 1), (x + 1, y + 1)],
+                segments[index + 1].level,
+                after[min(1, len(after) - 1)],
+                lower,
+            )
+            box_costs = costs.reshape(2, 2)
+        path = self.plan(lower, sources, box, segment.cells, source_costs, box_costs).cells
+        n = len(path) - 1
+        if n < 2:
+            return (Segment(lower, path),)
+        return (Segment(lower, path[: n // 2 + 1]), Segment(lower, path[n // 2 :]))
+
+    def _approach(
+        self, cells: list[Position], level: int, neighbour: Position, lower: int
+    ) -> npt.NDArray[np.float64]:
+        """How much farther each of `cells` (at `lower`) is from the centre of the neighbouring
+        segment's next cell (at `level`) than the nearest of them: the cost a flexible junction
+        adds to the neighbour, so that the junction is chosen for both sides."""
+        scale = float(1 << (level - lower))
+        cx, cy = (neighbour[0] + 0.5) * scale, (neighbour[1] + 0.5) * scale
+        xy = np.asarray(cells, dtype=np.float64) + 0.5
+        dx, dy = np.abs(xy[:, 0] - cx), np.abs(xy[:, 1] - cy)
+        if self.movement == 4:
+            d = dx + dy
         else:
-            middle = self._middle((cells[m // 2], cells[(m + 1) // 2]), k, first, last, m)
-            new = (self.plan(lower, first, middle), self.plan(lower, middle, last))
-        head = plan.head[:-1] if index == 0 else plan.head
-        tail = plan.tail[1:] if index == len(segments) - 1 else plan.tail
-        return MultiPath(
-            plan.start, plan.goal, head, segments[:index] + new + segments[index + 1 :], tail
-        )
-
-    def _middle(
-        self,
-        middle: tuple[Position, Position],
-        level: int,
-        first: Position,
-        last: Position,
-        moves: int,
-    ) -> Position:
-        """The junction between the two halves: a child of the middle cell (of either middle
-        cell when the segment has an odd number of moves), reachable from the start, whose
-        straight-line move counts (Manhattan or Chebyshev) from `first` and to `last` are nearest
-        `moves` each (the invariant), least obstacleness breaking ties."""
-        lower = level - 1
-        grid, ok = self.pyramid.levels[lower], self.reachable(lower)
-        candidates = []
-        for cell in dict.fromkeys(middle):
-            x0, y0 = project(cell, level, lower)
-            candidates += [(x, y) for y in (y0, y0 + 1) for x in (x0, x0 + 1) if ok[y, x]]
-        if not candidates:
-            return self._descend(middle[0], level, middle[1])
-
-        def distance(a: Position, b: Position) -> int:
-            dx, dy = abs(a[0] - b[0]), abs(a[1] - b[1])
-            return dx + dy if self.movement == 4 else max(dx, dy)
-
-        return min(
-            candidates,
-            key=lambda c: (
-                max(abs(distance(first, c) - moves), abs(distance(c, last) - moves)),
-                abs(distance(first, c) - moves) + abs(distance(c, last) - moves),
-                grid[c[1], c[0]],
-            ),
-        )
-
-    def _descend(self, cell: Position, level: int, toward: Position) -> Position:
-        """A junction one level below `cell`: the child (of the four) reachable from the start at
-        that level that is nearest the boundary with `toward` (a neighbour at `level`, or `cell`
-        itself: then its centre), least obstacleness breaking ties. Without such a child (rare:
-        the block's free part is walled off at the finer level), the nearest reachable cell."""
-        lower = level - 1
-        grid = self.pyramid.levels[lower]
-        ok = self.reachable(lower)
-        # The point to be near, in level-(lower) coordinates: the centre of a level cell c is
-        # 2c + 1 there, so the midpoint of the centres of `cell` and `toward` is their sum + 1.
-        aim = (cell[0] + toward[0] + 1.0, cell[1] + toward[1] + 1.0)
-        x0, y0 = project(cell, level, lower)
-        candidates = [(x, y) for y in (y0, y0 + 1) for x in (x0, x0 + 1) if ok[y, x]]
-        if not candidates:
-            ys, xs = np.nonzero(ok)
-            d = (xs + 0.5 - aim[0]) ** 2 + (ys + 0.5 - aim[1]) ** 2
-            i = int(np.argmin(d))
-            return (int(xs[i]), int(ys[i]))
-        return min(
-            candidates,
-            key=lambda c: (
-                (c[0] + 0.5 - aim[0]) ** 2 + (c[1] + 0.5 - aim[1]) ** 2,
-                grid[c[1], c[0]],
-            ),
-        )
+            d = np.maximum(dx, dy) + (SQRT2 - 1.0) * np.minimum(dx, dy)
+        return np.asarray(d - d.min())
 
 
 def _mean_obstacleness(segment: Segment, pyramid: Pyramid) -> float:

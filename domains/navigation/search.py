@@ -24,13 +24,14 @@ from __future__ import annotations
 
 import heapq
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 from attrs import frozen
 
-__all__ = ["PathResult", "find_path"]
+__all__ = ["PathResult", "find_path", "find_path_to_box"]
 
 Position = tuple[int, int]
 
@@ -87,6 +88,39 @@ def find_path(
         ValueError: a grid that is not 2-D, negative obstacleness, a start or goal outside the
             grid, an unknown movement or a negative weight.
     """
+    gx, gy = _pair(goal, "goal")
+    return find_path_to_box(
+        cost,
+        [start],
+        (gx, gy, gx, gy),
+        movement=movement,
+        weight=weight,
+        impassable=impassable,
+        ctx=ctx,
+    )
+
+
+def find_path_to_box(
+    cost: npt.ArrayLike,
+    sources: Sequence[Position],
+    box: tuple[int, int, int, int],
+    *,
+    movement: int = 4,
+    weight: float = 1.0,
+    impassable: npt.ArrayLike | None = None,
+    ctx: Any = None,
+    source_costs: Sequence[float] | None = None,
+    box_costs: npt.ArrayLike | None = None,
+) -> PathResult | None:
+    """A cheapest path from any of `sources` to any cell of the rectangle `box`
+    = (x0, y0, x1, y1), inclusive; `find_path` is the case of one source and a one-cell box.
+
+    `source_costs` (one per source) and `box_costs` (shape of the box, `[y, x]`) are extra
+    costs, >= 0, of starting at a source and of ending at a box cell: the path minimises their
+    sum with the path's own cost (`PathResult.cost` includes them). The heuristic is the
+    Manhattan or octile distance to the nearest cell of the box (still consistent). Impassable
+    sources are ignored and impassable box cells cannot be reached; otherwise as `find_path`.
+    """
     obstacleness = np.asarray(cost, dtype=np.float64)
     if obstacleness.ndim != 2:
         raise ValueError(f"cost must be a 2-D grid indexed [y, x], got shape {obstacleness.shape}")
@@ -106,9 +140,16 @@ def find_path(
             raise ValueError(
                 f"impassable has shape {blocked.shape}, cost has shape {obstacleness.shape}"
             )
-    sx, sy = _cell(start, width, height, "start")
-    gx, gy = _cell(goal, width, height, "goal")
-    if blocked[sy, sx] or blocked[gy, gx]:
+    starts = [_cell(source, width, height, "start") for source in sources]
+    initial = [0.0] * len(starts) if source_costs is None else [float(c) for c in source_costs]
+    if len(initial) != len(starts):
+        raise ValueError(f"{len(initial)} source costs for {len(starts)} sources")
+    bx0, by0 = _cell(box[:2], width, height, "goal")
+    bx1, by1 = _cell(box[2:], width, height, "goal")
+    if bx1 < bx0 or by1 < by0:
+        raise ValueError(f"the goal box {box} is empty")
+    usable = [(xy, c) for xy, c in zip(starts, initial, strict=True) if not blocked[xy[1], xy[0]]]
+    if not usable or blocked[by0 : by1 + 1, bx0 : bx1 + 1].all():
         return None
 
     # The step multiplier 1 + weight * obstacleness per cell, _BLOCKED where impassable.
@@ -133,10 +174,13 @@ def find_path(
     g = g_values.data.cast("B").cast("d")
     parent = parents.data.cast("B").cast("q")
     done = closed.data
+    # The cost of ending at each cell, -1 where the search may not end.
+    ending = np.full((height + 2, stride), -1.0)
+    ending[by0 + 1 : by1 + 2, bx0 + 1 : bx1 + 2] = 0.0 if box_costs is None else box_costs
+    target = ending.ravel().data.cast("B").cast("d")
+    # Padded coordinates of the box: the heuristic is the distance to its nearest cell.
+    tx0, ty0, tx1, ty1 = bx0 + 1, by0 + 1, bx1 + 1, by1 + 1
 
-    source = (sy + 1) * stride + sx + 1
-    target = (gy + 1) * stride + gx + 1
-    tx, ty = gx + 1, gy + 1
     straight = ((1, 1, 0), (-1, -1, 0), (stride, 0, 1), (-stride, 0, -1))
     diagonal = (
         ((stride + 1, 1, 1), 1, stride),
@@ -149,18 +193,34 @@ def find_path(
     tick = ctx.tick if ctx is not None else None
     push, pop = heapq.heappush, heapq.heappop
 
-    g[source] = 0.0
-    dx0, dy0 = abs(sx - gx), abs(sy - gy)
-    h0 = unit * (dx0 + dy0) if not octile else unit * max(dx0, dy0) + diagonal_unit * min(dx0, dy0)
-    heap: list[tuple[float, float, int, int]] = [(h0, -0.0, 0, source)]
+    heap: list[tuple[float, float, int, int]] = []
     counter = 0
+    for (sx, sy), g0 in usable:
+        source = (sy + 1) * stride + sx + 1
+        if g0 >= g[source]:
+            continue
+        g[source] = g0
+        parent[source] = -1
+        dx = tx0 - sx - 1 if sx + 1 < tx0 else sx + 1 - tx1 if sx + 1 > tx1 else 0
+        dy = ty0 - sy - 1 if sy + 1 < ty0 else sy + 1 - ty1 if sy + 1 > ty1 else 0
+        h0 = unit * (dx + dy) if not octile else unit * max(dx, dy) + diagonal_unit * min(dx, dy)
+        counter += 1
+        heap.append((g0 + h0, -g0, counter, source))
+    heapq.heapify(heap)
     expansions = 0
     while heap:
         node = pop(heap)[3]
+        if node < 0:  # ending at a box cell, the cheapest way to end
+            node = -1 - node
+            break
         if done[node]:
             continue  # a stale entry: the cell was closed with a smaller g
-        if node == target:
-            break
+        end = target[node]
+        if end == 0.0:
+            break  # ending here costs nothing more: nothing left on the heap is cheaper
+        if end > 0.0:  # ending here costs `end` more: a virtual entry competes with the rest
+            counter += 1
+            push(heap, (g[node] + end, -(g[node] + end), counter, -1 - node))
         done[node] = 1
         expansions += 1
         if tick is not None:
@@ -176,8 +236,9 @@ def find_path(
             if g_new < g[neighbour]:
                 g[neighbour] = g_new
                 parent[neighbour] = node
-                dx = abs(x + ddx - tx)
-                dy = abs(y + ddy - ty)
+                nx, ny = x + ddx, y + ddy
+                dx = tx0 - nx if nx < tx0 else nx - tx1 if nx > tx1 else 0
+                dy = ty0 - ny if ny < ty0 else ny - ty1 if ny > ty1 else 0
                 if octile:
                     h = (
                         unit * dx + diagonal_unit * dy
@@ -199,16 +260,17 @@ def find_path(
             if g_new < g[neighbour]:
                 g[neighbour] = g_new
                 parent[neighbour] = node
-                dx = abs(x + ddx - tx)
-                dy = abs(y + ddy - ty)
+                nx, ny = x + ddx, y + ddy
+                dx = tx0 - nx if nx < tx0 else nx - tx1 if nx > tx1 else 0
+                dy = ty0 - ny if ny < ty0 else ny - ty1 if ny > ty1 else 0
                 h = unit * dx + diagonal_unit * dy if dx > dy else unit * dy + diagonal_unit * dx
                 counter += 1
                 push(heap, (g_new + h, -g_new, counter, neighbour))
     else:
         return None
 
-    cells = [target]
-    while cells[-1] != source:
+    cells = [node]
+    while parent[cells[-1]] >= 0:
         cells.append(parent[cells[-1]])
     cells.reverse()
     path = tuple((c % stride - 1, c // stride - 1) for c in cells)
@@ -216,14 +278,21 @@ def find_path(
         1 for a, b in zip(cells, cells[1:], strict=False) if abs(b - a) not in (1, stride)
     )
     length = (len(cells) - 1 - diagonals) + SQRT2 * diagonals
-    return PathResult(path=path, length=length, cost=g[target], expansions=expansions)
+    return PathResult(
+        path=path, length=length, cost=g[node] + max(target[node], 0.0), expansions=expansions
+    )
 
 
-def _cell(position: Position, width: int, height: int, what: str) -> Position:
+def _pair(position: Position, what: str) -> Position:
     try:
         x, y = (int(v) for v in position)
     except (TypeError, ValueError):
         raise ValueError(f"{what} must be an (x, y) pair of integers, got {position!r}") from None
+    return x, y
+
+
+def _cell(position: Position, width: int, height: int, what: str) -> Position:
+    x, y = _pair(position, what)
     if not (0 <= x < width and 0 <= y < height):
         raise ValueError(f"{what} {(x, y)} is outside the {width}x{height} grid")
     return x, y
