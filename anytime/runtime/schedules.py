@@ -210,7 +210,9 @@ def worst_ratio(length: ArrayLike, finish: ArrayLike, up_to: float | None = None
     limit = lengths[..., -1] if up_to is None else np.asarray(up_to, dtype=np.float64)
     at_first = earliest[..., 0] / lengths[..., 0]
     jumps = earliest[..., 1:] / lengths[..., :-1]
-    inside = lengths[..., :-1] < np.asarray(limit)[..., None]
+    # A length equal to the limit up to rounding (t0 * r**k computed two ways) is not below it:
+    # the jump just above it lies beyond the limit.
+    inside = lengths[..., :-1] < np.asarray(limit)[..., None] * (1.0 - 1e-12)
     worst: Array = np.maximum(at_first, np.where(inside, jumps, 0.0).max(axis=-1, initial=0.0))
     return worst
 
