@@ -162,7 +162,10 @@ def compile_program(
     u_rows = np.tile(units, len(q_cells))
 
     evaluator = Evaluator(model)
-    chosen, note = _choose(model, allocator)
+    small = len(model.anytime_nodes) <= 4 and Exhaustive.computable(
+        u_rows, len(model.anytime_nodes)
+    )
+    chosen, note = _choose(model, allocator, small)
     notes = [note]
     if model.graph.shape == "dag" and not all(n.deterministic for n in model.nodes):
         notes.append(
@@ -246,7 +249,7 @@ def compile_file(
     return compiled
 
 
-def _choose(model: CompileModel, allocator: str) -> tuple[str, str]:
+def _choose(model: CompileModel, allocator: str, small: bool = False) -> tuple[str, str]:
     if allocator not in ALLOCATOR_NAMES:
         raise CompileError(
             f"unknown allocator '{allocator}' (expected one of {', '.join(ALLOCATOR_NAMES)})"
@@ -255,6 +258,8 @@ def _choose(model: CompileModel, allocator: str) -> tuple[str, str]:
     if allocator == "auto":
         if obstacle is None:
             return "dp", "dp: local compilation, exact for this tree of monotone modules"
+        if small:  # hill-climbing can stop at a local maximum; the exact search is affordable
+            return "exhaustive", f"exhaustive, because dp would not be exact: {obstacle}"
         return "hill-climbing", f"hill-climbing, because dp would not be exact: {obstacle}"
     if allocator == "dp" and obstacle is not None:
         return "hill-climbing", f"dp was asked for but {obstacle}: fell back to hill-climbing"

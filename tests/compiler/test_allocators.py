@@ -23,7 +23,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from anytime.compiler import CompiledProgram, compile_program, dp_obstacle
-from anytime.compiler.allocators import compositions, equal_split
+from anytime.compiler.allocators import Exhaustive, compositions, equal_split
 from anytime.dsl import parse_schemas
 from anytime.library import AnytimeLibrary
 from anytime.modules import Context, Registry, Result, elementary, interruptible
@@ -43,6 +43,14 @@ DAG_NOTE = (
     "the program is a DAG: a shared result makes later inputs correlated, and evaluation "
     "treats them as independent (exact for trees, approximate here)"
 )
+
+
+def auto_fallback(compiled: CompiledProgram) -> str:
+    """What "auto" uses when dp would not be exact: the exact search when it is affordable,
+    else hill-climbing."""
+    n = len(compiled.model.anytime_nodes)
+    units = np.rint(compiled.profile.time / compiled.resolution).astype(np.int64)
+    return "exhaustive" if n <= 4 and Exhaustive.computable(units, n) else "hill-climbing"
 
 
 def compile_with(
@@ -170,18 +178,26 @@ def test_compiled_quality_is_at_least_every_baseline(program: RandomProgram) -> 
 
 @SETTINGS
 @given(tree_programs(stochastic=True))
-def test_stochastic_profiles_fall_back_to_hill_climbing(program: RandomProgram) -> None:
+def test_stochastic_profiles_fall_back_to_exhaustive_or_hill_climbing(
+    program: RandomProgram,
+) -> None:
+    """Auto picks the exact search when it is affordable, else hill-climbing; dp asked for
+    falls back to hill-climbing; both say why."""
     first = next(s.name for s in program.modules if s.stochastic)
     reason = STOCHASTIC_REASON.format(first)
     library = program.library()
     auto = compile_with(program, "auto", library)
-    assert auto.allocator == "hill-climbing"
-    assert auto.note == f"hill-climbing, because dp would not be exact: {reason}"
+    if auto.allocator == "exhaustive":
+        assert auto.note == f"exhaustive, because dp would not be exact: {reason}"
+        assert auto.exhaustive_gap == 0.0
+    else:
+        assert auto.allocator == "hill-climbing"
+        assert auto.note == f"hill-climbing, because dp would not be exact: {reason}"
     asked = compile_with(program, "dp", library)
     assert asked.allocator == "hill-climbing"
     assert asked.note == f"dp was asked for but {reason}: fell back to hill-climbing"
-    np.testing.assert_array_equal(asked.expected, auto.expected)
     exhaustive = compile_with(program, "exhaustive", library)
+    assert (asked.expected <= exhaustive.expected + 1e-12).all()
     for compiled in (auto, exhaustive):
         check_table(compiled, program)
     assert (auto.expected <= exhaustive.expected + 1e-12).all()
@@ -200,8 +216,8 @@ def test_dags_fall_back_and_say_evaluation_is_approximate(program: RandomProgram
     stochastic = any(module.stochastic for module in program.modules)
     tail = f"; {DAG_NOTE}" if stochastic else ""
     auto = compile_with(program, "auto", library)
-    assert auto.allocator == "hill-climbing"
-    assert auto.note == f"hill-climbing, because dp would not be exact: {DAG_REASON}{tail}"
+    assert auto.allocator == auto_fallback(auto)
+    assert auto.note == f"{auto.allocator}, because dp would not be exact: {DAG_REASON}{tail}"
     asked = compile_with(program, "dp", library)
     assert asked.allocator == "hill-climbing"
     assert asked.note == f"dp was asked for but {DAG_REASON}: fell back to hill-climbing{tail}"
@@ -232,10 +248,10 @@ def test_an_elementary_function_of_unknown_monotonicity_keeps_dp_away() -> None:
 
     schemas = parse_schemas("(defschema p (x) (m2 (prod (m1 x) (m1 x))))", "prod.any")
     compiled = compile_program(schemas["p"], library_of((), extra), TIME, QUALITY, allocator="auto")
-    assert compiled.allocator == "hill-climbing"
+    assert compiled.allocator == auto_fallback(compiled)
     assert compiled.note == (
-        "hill-climbing, because dp would not be exact: the quality combination of 'prod' is "
-        "not known to be monotone (only min and max are)"
+        f"{compiled.allocator}, because dp would not be exact: the quality combination of "
+        "'prod' is not known to be monotone (only min and max are)"
     )
     exhaustive = compile_program(
         schemas["p"], library_of((), extra), TIME, QUALITY, allocator="exhaustive"
@@ -263,8 +279,8 @@ def test_a_module_that_is_not_input_monotone_keeps_dp_away() -> None:
         "module 'm2' is not input-monotone: a better quality of input 1 lowers its output somewhere"
     )
     auto = compile_program(schemas["p"], library_of((), extra), TIME, QUALITY)
-    assert auto.allocator == "hill-climbing"
-    assert auto.note == f"hill-climbing, because dp would not be exact: {reason}"
+    assert auto.allocator == auto_fallback(auto)
+    assert auto.note == f"{auto.allocator}, because dp would not be exact: {reason}"
     asked = compile_program(schemas["p"], library_of((), extra), TIME, QUALITY, allocator="dp")
     assert asked.note == f"dp was asked for but {reason}: fell back to hill-climbing"
     exhaustive = compile_program(
