@@ -16,41 +16,39 @@ robot's base cell, each waypoint in turn is
 3. reached in one step when a legal move (4- or 8-connected, no corner cutting) enters a free
    cell of the block, a straight move in preference to a diagonal: this is how a fully refined
    plan of free cells is followed, verbatim and with no search;
-4. otherwise reached by obstacle avoidance: A* with step costs the geometric length (1 straight,
-   sqrt 2 diagonal) on the true grid, from the robot's cell to the nearest free cell of the
-   block (a multi-target search: its heuristic is the Manhattan or octile distance to the
-   block's rectangle, consistent, so the first block cell popped is a nearest one), restricted
-   to a local window: the bounding box of the robot's cell and the block plus `margin` cells on
-   every side. When the window cuts every way in off, the margin doubles and the search is
-   repeated, up to the whole map, where it cannot fail (step 2 kept only reachable cells).
+4. otherwise reached by obstacle avoidance, a myopic real-time search: LRTA* (Korf 1990) with
+   a look-ahead of one move. The robot sees only its neighbouring cells; it moves to the
+   neighbour with the least move cost + h, where h is the Manhattan (4) or octile (8) distance
+   to the block, and first raises h of the cell it leaves to that least value (what it learned
+   about that cell). On open ground this walks a shortest path; at an obstacle the plan did not
+   know of it slides along it and, in a dead end, learns its way out, re-walking cells. LRTA*
+   reaches the block whenever it is reachable (Korf's completeness result on finite graphs).
 
 The robot never enters a blocked cell, every step is a legal move, and the route ends at the
 goal whenever the goal is reachable from the start (the goal is the last waypoint and every
 waypoint reachable is reached). An unreachable goal (or a blocked one) is not an error: the
 result has `reached=False` and the route followed until then.
 
-What it costs. The cells reachable from the start are labelled once per call (connected
-components, vectorised numpy/scipy over the whole map, O(N^2) and not counted as work). Steps 1
-to 3 cost O(1) per waypoint (and a numpy test on the block's cells). Only step 4 counts, in A*
-expansions (`Execution.expansions`, and one `ctx.tick` each). A search expands each free cell of
-its window at most once; its window is the bounding box of the robot and the block grown by the
-margin m, and each failure doubles m, so one waypoint costs at most 1 + ceil(log2(N / m))
-windows (m >= 1; an N x N map), hence at most (1 + ceil(log2(N / m))) * F expansions, F the
-free cells of the map, and the whole execution at most that times the number of waypoints. In
-practice the first window succeeds and a waypoint costs the A* expansions of one local detour
-(the cells of its window at most); a fully refined plan computed on the true map costs 0.
+Why myopic. The plan is what the robot knows of the world beyond its sensors; execution must
+not consult the true map at a distance, or a coarse plan would be as good as a refined one (a
+search on the true map between far-apart waypoints is A*). So the quality of a coarse plan is
+what it is in the papers: short where the plan's blocks are free, long where the robot has to
+feel its way around obstacles the plan glossed over.
 
-A waypoint far from the robot gives a large window: the one-cell top-level plan reduces to the
-waypoints start and goal, and its "obstacle avoidance" is then A* over the whole map, with the
-optimal length (quality 1) for the cost of A*. Refined plans make the robot pass through the
-blocks they name, so their quality can be below that of the first plan.
+What it costs. The cells reachable from the start are labelled once per call (connected
+components, vectorised, O(N^2), not counted: it only lets the robot skip waypoints it could
+never reach). Steps 1 to 3 cost O(1) per waypoint. Step 4 counts one unit of work per
+neighbour looked at (`Execution.expansions`, reported with `ctx.tick`): at most 8 per step
+walked. LRTA*'s steps are bounded by O(F^2) for F reachable cells (each step raises some h or
+moves closer); in practice a detour costs a few times its length. As a guard against that
+quadratic worst case, after `patience * F` steps toward one waypoint the robot is guided the
+rest of the way by A*. A fully refined plan computed on the true map costs 0.
 """
 
 from __future__ import annotations
 
-import heapq
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from attrs import frozen
@@ -60,7 +58,7 @@ from anytime.modules import Context
 
 from .abstraction import cell_bounds
 from .planner import MultiPath
-from .search import SQRT2, find_path
+from .search import SQRT2, find_path, find_path_to_box
 from .world import BoolGrid, Position
 
 __all__ = [
@@ -131,7 +129,7 @@ def execute(
     *,
     movement: int = 4,
     ctx: Context | None = None,
-    margin: int = 4,
+    patience: float = 4.0,
 ) -> Execution:
     """Follow `plan` on the true map `blocked` (see the module docstring).
 
@@ -141,19 +139,20 @@ def execute(
         blocked: the true map, `blocked[y, x]`.
         movement: 4 or 8 (octile, no corner cutting).
         ctx: a `Context`; each obstacle-avoidance expansion is reported with `ctx.tick(1)`.
-        margin: the cells added on every side of the first local window of obstacle avoidance.
+        patience: how long LRTA* may wander, in steps per cell of the robot's component,
+            before A* guides it (see `_real_time_into`).
 
     Raises:
         ValueError: an empty plan, a start or a waypoint outside the grid, a blocked start, an
-            unknown movement or a negative margin.
+            unknown movement or a patience <= 0.
     """
     grid = np.asarray(blocked, dtype=bool)
     if grid.ndim != 2:
         raise ValueError(f"the map must be a 2-D grid blocked[y, x], got shape {grid.shape}")
     if movement not in (4, 8):
         raise ValueError(f"movement must be 4 or 8, got {movement!r}")
-    if margin < 0:
-        raise ValueError(f"margin must be >= 0, got {margin}")
+    if not patience > 0:
+        raise ValueError(f"patience must be > 0, got {patience}")
     if isinstance(plan, MultiPath):
         start, goal = plan.start, plan.goal
         points = waypoints(plan)
@@ -187,22 +186,11 @@ def execute(
         if step is not None:
             route.append(step)
             continue
-        m = margin
-        while True:
-            window = (
-                max(0, min(x, x0) - m),
-                max(0, min(y, y0) - m),
-                min(width, max(x + 1, x1) + m),
-                min(height, max(y + 1, y1) + m),
-            )
-            path, work = _search_into(grid, ok, route[-1], (x0, y0, x1, y1), window, movement, tick)
-            expansions += work
-            if path is not None:
-                route.extend(path[1:])
-                break
-            if window == (0, 0, width, height):  # pragma: no cover - ok says it is reachable
-                raise AssertionError(f"no way into {(x0, y0, x1, y1)} from {route[-1]}")
-            m = max(1, 2 * m)
+        path, work = _real_time_into(grid, ok, route[-1], (x0, y0, x1, y1), movement, patience)
+        expansions += work
+        if tick is not None:
+            tick(work)
+        route.extend(path[1:])
     return Execution(
         route=tuple(route),
         length=route_length(route),
@@ -280,93 +268,56 @@ def _step_into(
     return None
 
 
-def _search_into(
-    grid: BoolGrid,
-    ok: BoolGrid,
-    position: Position,
-    box: Box,
-    window: Box,
-    movement: int,
-    tick: Callable[[float], None] | None,
-) -> tuple[list[Position] | None, int]:
-    """A* inside `window` from `position` to the nearest cell of `box` that `ok` marks: the
-    path (global cells, `position` first) or None, and the expansions.
+def _real_time_into(
+    grid: BoolGrid, ok: BoolGrid, position: Position, box: Box, movement: int, patience: float
+) -> tuple[list[Position], int]:
+    """Obstacle avoidance toward `box`: LRTA* with a look-ahead of one move (see the module
+    docstring). Returns the cells walked (`position` first) and the moves looked at.
 
-    Flat arrays over the window padded with one impassable cell on every side, as in
-    `search.find_path`; the heuristic is the Manhattan (4) or octile (8) distance to the box's
-    rectangle, which is consistent; ties in f go to the larger g.
-    """
-    wx0, wy0, wx1, wy1 = window
-    stride = wx1 - wx0 + 2
-    padded = np.zeros((wy1 - wy0 + 2, stride), dtype=np.uint8)
-    padded[1:-1, 1:-1] = ~grid[wy0:wy1, wx0:wx1]
-    targets = np.zeros_like(padded)
-    bx0, by0, bx1, by1 = box
-    targets[by0 - wy0 + 1 : by1 - wy0 + 1, bx0 - wx0 + 1 : bx1 - wx0 + 1] = ok[by0:by1, bx0:bx1]
-    free = padded.ravel().tobytes()
-    goal = targets.ravel().tobytes()
-    # The box's rectangle in padded window coordinates, inclusive.
-    rx0, ry0, rx1, ry1 = bx0 - wx0 + 1, by0 - wy0 + 1, bx1 - wx0, by1 - wy0
+    After `patience` times as many steps as the robot's component has cells (never reached in
+    the tests, but LRTA*'s worst case is quadratic), the robot is guided the rest of the way by
+    A* (`search.find_path_to_box`) on the true map, so that execution always ends."""
+    height, width = grid.shape
+    x0, y0, x1, y1 = box
     octile = movement == 8
-    diagonal_extra = SQRT2 - 1.0
+    moves = _STRAIGHT if not octile else _STRAIGHT + _DIAGONAL
+    learned: dict[Position, float] = {}
 
-    def heuristic(node: int) -> float:
-        ny, nx = divmod(node, stride)
-        dx = rx0 - nx if nx < rx0 else (nx - rx1 if nx > rx1 else 0)
-        dy = ry0 - ny if ny < ry0 else (ny - ry1 if ny > ry1 else 0)
+    def distance(x: int, y: int) -> float:
+        dx = x0 - x if x < x0 else (x - x1 + 1 if x >= x1 else 0)
+        dy = y0 - y if y < y0 else (y - y1 + 1 if y >= y1 else 0)
         if octile:
-            return max(dx, dy) + diagonal_extra * min(dx, dy)
+            return max(dx, dy) + (SQRT2 - 1.0) * min(dx, dy)
         return float(dx + dy)
 
-    straight = (1, -1, stride, -stride)
-    diagonal = (
-        (stride + 1, 1, stride),
-        (stride - 1, -1, stride),
-        (1 - stride, 1, -stride),
-        (-1 - stride, -1, -stride),
-    )
-    size = padded.size
-    g = [math.inf] * size
-    parent = [0] * size
-    closed = bytearray(size)
-    source = (position[1] - wy0 + 1) * stride + position[0] - wx0 + 1
-    g[source] = 0.0
-    heap: list[tuple[float, float, int, int]] = [(heuristic(source), -0.0, 0, source)]
-    counter = expansions = 0
-    push, pop = heapq.heappush, heapq.heappop
-    found = -1
-    while heap:
-        node = pop(heap)[3]
-        if closed[node]:
-            continue
-        if goal[node]:
-            found = node
-            break
-        closed[node] = 1
-        expansions += 1
-        if tick is not None:
-            tick(1)
-        g_node = g[node]
-        moves = [(n, 1.0) for n in (node + o for o in straight)]
-        if octile:
-            moves += [
-                (node + o, SQRT2)
-                for o, across, along in diagonal
-                if free[node + across] and free[node + along]
-            ]
-        for neighbour, step in moves:
-            if not free[neighbour] or closed[neighbour]:
+    path = [position]
+    limit = patience * float(np.count_nonzero(ok))
+    work = 0
+    x, y = position
+    while not (x0 <= x < x1 and y0 <= y < y1):
+        if len(path) > limit:
+            rest = find_path_to_box(
+                grid.astype(np.float64),
+                [(x, y)],
+                (x0, y0, x1 - 1, y1 - 1),
+                movement=movement,
+                weight=0.0,
+                impassable=~ok,
+            )
+            assert rest is not None  # the caller checked that the box has a reachable cell
+            return path + list(rest.path[1:]), work + rest.expansions
+        best, best_f = (x, y), math.inf
+        for dx, dy in moves:
+            nx, ny = x + dx, y + dy
+            if not (0 <= nx < width and 0 <= ny < height) or grid[ny, nx]:
                 continue
-            g_new = g_node + step
-            if g_new < g[neighbour]:
-                g[neighbour] = g_new
-                parent[neighbour] = node
-                counter += 1
-                push(heap, (g_new + heuristic(neighbour), -g_new, counter, neighbour))
-    if found < 0:
-        return None, expansions
-    cells = [found]
-    while cells[-1] != source:
-        cells.append(parent[cells[-1]])
-    cells.reverse()
-    return [(c % stride - 1 + wx0, c // stride - 1 + wy0) for c in cells], expansions
+            if dx and dy and (grid[y, nx] or grid[ny, x]):
+                continue  # no corner cutting
+            work += 1
+            f = (SQRT2 if dx and dy else 1.0) + learned.get((nx, ny), distance(nx, ny))
+            if f < best_f:
+                best, best_f = (nx, ny), f
+        learned[(x, y)] = max(learned.get((x, y), distance(x, y)), best_f)
+        x, y = best
+        path.append(best)
+    return path, work
