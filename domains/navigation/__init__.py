@@ -10,3 +10,7 @@ Built so far: the world (`world`: random rectangle worlds with a connectivity gu
 execution, registering vision and the planner as anytime modules with measured profiles, and
 the figures.
 """
+
+from .modules import find_path, get_domain_description
+
+__all__ = ["find_path", "get_domain_description"]

@@ -1,0 +1,197 @@
+"""The navigation domain's anytime modules, by the names `schemas/navigation.any` calls them:
+
+- `get-domain-description` (contract): anytime vision, `(get-domain-description sensor)` -> a
+  `DomainDescription`, the map the planner sees, with quality the fraction of cells identified
+  correctly (`vision`);
+- `find-path` (interruptible): the anytime abstract planner, `(find-path start goal domain)` ->
+  a `MultiPath`, with the ATP's own quality estimate (`planner`).
+
+Each comes with a problem set for the profile builder (`anytime profile get-domain-description`,
+`anytime profile find-path`), whose score is the papers' true quality: the fraction of cells a
+map gets right, and optimal length / executed length for a plan followed on the true map
+(`execution`). The measured profiles ship in `profiles/` next to this file.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+from attrs import field, frozen
+
+from anytime.modules import Context, Result, contract, interruptible
+from anytime.profiles.builder import register_problems
+from anytime.profiles.trials import Instance
+
+from .abstraction import Pyramid
+from .execution import execute, optimal_length, plan_quality
+from .planner import atp
+from .vision import error_draws, fraction_correct, sense, sensed_map
+from .world import BoolGrid, Position, random_world
+
+__all__ = [
+    "DomainDescription",
+    "PlannerProblems",
+    "Sensor",
+    "VisionProblems",
+    "find_path",
+    "get_domain_description",
+]
+
+#: The world the profiles are measured on (the papers' setting: 4-connected, random rectangles).
+PROFILE_SIZE = 128
+
+#: Vision's time scale, in ticks: comparable to what the ATP needs on a 128 x 128 map (about
+#: 1000-1500 A* expansions to run to completion), so that the compiler has a real trade-off;
+#: Q_A above the prior's fraction correct (about 0.8 at the default density): a first
+#: sensed map is worth more than none.
+T_A, Q_A, T_B = 100.0, 0.85, 1000.0
+
+
+def _grid(value: Any) -> BoolGrid:
+    grid = np.array(value, dtype=bool)
+    grid.setflags(write=False)
+    return grid
+
+
+@frozen
+class DomainDescription:
+    """The map the planner sees: `blocked[y, x]` as sensed, and the movement model."""
+
+    blocked: BoolGrid = field(converter=_grid, eq=False)
+    movement: int = 4
+
+
+@frozen
+class Sensor:
+    """What the robot's sensor looks at.
+
+    Attributes:
+        truth: the true map `blocked[y, x]` (the sensor's subject, hidden from the planner).
+        seed: fixes which cells vision gets wrong.
+        window: the half-open box (x0, y0, x1, y1) of cells the sensor sees; None: all of them.
+        known: what the robot believes about the cells outside the window (from earlier
+            frames); None: the prior, every cell free.
+        movement: 4 or 8, passed on to the planner with the map.
+        t_a, q_a, t_b: vision's profile (`VisionHyperbola`), in ticks.
+    """
+
+    truth: BoolGrid = field(converter=_grid, eq=False)
+    seed: int = 0
+    window: tuple[int, int, int, int] | None = None
+    known: BoolGrid | None = field(default=None, eq=False)
+    movement: int = 4
+    t_a: float = T_A
+    q_a: float = Q_A
+    t_b: float = T_B
+
+
+@contract("get-domain-description", inputs=[], profile="profiles/get-domain-description.yaml")
+def get_domain_description(ctx: Context, sensor: Sensor) -> Result:
+    """Anytime vision under a contract: the map bought with `ctx.allocation` ticks inside the
+    sensor's window, what the robot already knew outside it. Quality: the fraction of cells of
+    the whole map identified correctly."""
+    seen = sense(
+        ctx, sensor.truth, t_a=sensor.t_a, q_a=sensor.q_a, t_b=sensor.t_b, seed=sensor.seed
+    )
+    blocked = np.array(seen.value, dtype=bool)
+    if sensor.window is not None:
+        x0, y0, x1, y1 = sensor.window
+        outside = (
+            np.zeros_like(blocked) if sensor.known is None else np.array(sensor.known, dtype=bool)
+        )
+        outside[y0:y1, x0:x1] = blocked[y0:y1, x0:x1]
+        blocked = outside
+    quality = fraction_correct(blocked, sensor.truth)
+    return Result(DomainDescription(blocked, sensor.movement), quality)
+
+
+@interruptible("find-path", inputs=["domain"], profile="profiles/find-path.yaml")
+def find_path(ctx: Context, start: Position, goal: Position, domain: Result) -> Iterator[Result]:
+    """The anytime abstract planner on the map `domain` describes: a `MultiPath` after the first
+    plan and after every refinement, with the ATP's quality estimate. The robot knows the cells
+    it stands on and heads for, so those count as free whatever the map says."""
+    description: DomainDescription = domain.value
+    blocked = np.array(description.blocked, dtype=bool)
+    for x, y in (start, goal):
+        blocked[y, x] = False
+    yield from atp(ctx, start, goal, Pyramid.build(blocked), movement=description.movement)
+
+
+# --- problem sets for the profile builder --------------------------------------------------------
+
+
+@frozen
+class VisionProblems:
+    """Random worlds for `get-domain-description`; the score is the fraction of cells right."""
+
+    size: int = PROFILE_SIZE
+    movement: int = 4
+
+    def instance(self, rng: np.random.Generator, input_qualities: tuple[float, ...]) -> Instance:
+        world = random_world(self.size, seed=int(rng.integers(2**31)), movement=self.movement)
+        sensor = Sensor(world.blocked, seed=int(rng.integers(2**31)), movement=self.movement)
+        return Instance((sensor,), reference=world.blocked)
+
+    def score(self, instance: Instance, value: Any) -> float:
+        return fraction_correct(value.blocked, instance.reference)
+
+
+@frozen
+class PlannerProblems:
+    """Random worlds seen through a map of a given quality (each cell wrong with probability
+    1 - q), for `find-path`; the score is the papers' plan quality on the true map."""
+
+    size: int = PROFILE_SIZE
+    movement: int = 4
+
+    def instance(self, rng: np.random.Generator, input_qualities: tuple[float, ...]) -> Instance:
+        (quality,) = input_qualities
+        world = random_world(self.size, seed=int(rng.integers(2**31)), movement=self.movement)
+        seen = sensed_map(
+            world.blocked, error_draws(world.blocked.shape, int(rng.integers(2**31))), quality
+        )
+        domain = Result(DomainDescription(seen, self.movement), quality)
+        optimal = optimal_length(world.blocked, world.start, world.goal, movement=self.movement)
+        return Instance((world.start, world.goal, domain), reference=(world.blocked, optimal))
+
+    def score(self, instance: Instance, value: Any) -> float:
+        truth, optimal = instance.reference
+        executed = execute(value, truth, movement=self.movement)
+        return plan_quality(executed.length, optimal)
+
+
+#: Quality bins finer near 1, where good maps and plans are: the compiler computes expected
+#: qualities from bin midpoints, and 10 equal bins would cap every expectation at 0.95 (and
+#: count "no result" as 0.05).
+BINS = [
+    0.0,
+    0.02,
+    0.2,
+    0.4,
+    0.5,
+    0.6,
+    0.7,
+    0.75,
+    0.8,
+    0.85,
+    0.9,
+    0.925,
+    0.95,
+    0.97,
+    0.98,
+    0.99,
+    1.0,
+]
+
+register_problems(
+    get_domain_description, VisionProblems(), time=np.arange(0.0, 1201.0, 50.0), bins=BINS
+)
+register_problems(
+    find_path,
+    PlannerProblems(),
+    time=np.arange(0.0, 2001.0, 100.0),
+    input_grids=[[0.6, 0.7, 0.8, 0.9, 0.95, 1.0]],
+    bins=BINS,
+)
