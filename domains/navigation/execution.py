@@ -16,38 +16,36 @@ robot's base cell, each waypoint in turn is
 3. reached in one step when a legal move (4- or 8-connected, no corner cutting) enters a free
    cell of the block, a straight move in preference to a diagonal: this is how a fully refined
    plan of free cells is followed, verbatim and with no search;
-4. otherwise reached by obstacle avoidance, a myopic real-time search: LRTA* (Korf 1990) with
-   a look-ahead of one move. The robot sees only its neighbouring cells; it moves to the
-   neighbour with the least move cost + h, where h is the Manhattan (4) or octile (8) distance
-   to the block, and first raises h of the cell it leaves to that least value (what it learned
-   about that cell). On open ground this walks a shortest path; at an obstacle the plan did not
-   know of it slides along it and, in a dead end, learns its way out, re-walking cells. LRTA*
-   reaches the block whenever it is reachable (Korf's completeness result on finite graphs).
+4. otherwise reached by obstacle avoidance, planning with the free-space assumption (Stentz's
+   D*, Koenig & Likhachev's D* Lite setting): the robot sees the eight cells around it and
+   remembers every blocked cell it has seen (`memory`); it plans with A* on that memory (every
+   cell not seen blocked counts as free) into the block, walks the path, and plans again from
+   where it stands when a cell seen blocked is in the way. Each re-plan follows the discovery
+   of a blocked cell, so there are finitely many, and since the memory only holds truly blocked
+   cells a path exists in it whenever the block is reachable: the robot always arrives.
 
 The robot never enters a blocked cell, every step is a legal move, and the route ends at the
 goal whenever the goal is reachable from the start (the goal is the last waypoint and every
 waypoint reachable is reached). An unreachable goal (or a blocked one) is not an error: the
 result has `reached=False` and the route followed until then.
 
-Why myopic. The plan is what the robot knows of the world beyond its sensors; execution must
-not consult the true map at a distance, or a coarse plan would be as good as a refined one (a
-search on the true map between far-apart waypoints is A*). So the quality of a coarse plan is
-what it is in the papers: short where the plan's blocks are free, long where the robot has to
-feel its way around obstacles the plan glossed over.
+Why short-sighted. The plan is what the robot knows of the world beyond its sensors; execution
+must not consult the true map at a distance, or a coarse plan would be as good as a refined
+one (a search on the true map between far-apart waypoints is A*). So the quality of a coarse
+plan is what it is in the papers: short where the plan's blocks are free, long where the robot
+has to feel its way around obstacles the plan glossed over.
 
 What it costs. The cells reachable from the start are labelled once per call (connected
 components, vectorised, O(N^2), not counted: it only lets the robot skip waypoints it could
-never reach). Steps 1 to 3 cost O(1) per waypoint. Step 4 counts one unit of work per
-neighbour looked at (`Execution.expansions`, reported with `ctx.tick`): at most 8 per step
-walked. LRTA*'s steps are bounded by O(F^2) for F reachable cells (each step raises some h or
-moves closer); in practice a detour costs a few times its length. As a guard against that
-quadratic worst case, after `patience * F` steps toward one waypoint the robot is guided the
-rest of the way by A*. A fully refined plan computed on the true map costs 0.
+never reach). Steps 1 to 3 cost O(1) per waypoint. Step 4 counts A* expansions
+(`Execution.expansions`, reported with `ctx.tick`): one search per re-plan, each within the
+bounding box of the robot and the block plus a margin of 8 cells (widened fourfold while it
+finds nothing, up to the whole map), so a detour costs a few searches of its own size. A fully
+refined plan computed on the true map costs 0.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -129,7 +127,7 @@ def execute(
     *,
     movement: int = 4,
     ctx: Context | None = None,
-    patience: float = 4.0,
+    memory: BoolGrid | None = None,
 ) -> Execution:
     """Follow `plan` on the true map `blocked` (see the module docstring).
 
@@ -139,20 +137,19 @@ def execute(
         blocked: the true map, `blocked[y, x]`.
         movement: 4 or 8 (octile, no corner cutting).
         ctx: a `Context`; each obstacle-avoidance expansion is reported with `ctx.tick(1)`.
-        patience: how long LRTA* may wander, in steps per cell of the robot's component,
-            before A* guides it (see `_real_time_into`).
+        memory: the blocked cells the robot has seen so far, a writable boolean grid shaped like
+            `blocked`, updated in place (a robot that executes plan after plan keeps it);
+            default: nothing seen yet.
 
     Raises:
         ValueError: an empty plan, a start or a waypoint outside the grid, a blocked start, an
-            unknown movement or a patience <= 0.
+            unknown movement or a memory of the wrong shape.
     """
     grid = np.asarray(blocked, dtype=bool)
     if grid.ndim != 2:
         raise ValueError(f"the map must be a 2-D grid blocked[y, x], got shape {grid.shape}")
     if movement not in (4, 8):
         raise ValueError(f"movement must be 4 or 8, got {movement!r}")
-    if not patience > 0:
-        raise ValueError(f"patience must be > 0, got {patience}")
     if isinstance(plan, MultiPath):
         start, goal = plan.start, plan.goal
         points = waypoints(plan)
@@ -173,6 +170,10 @@ def execute(
     labels, _ = ndimage.label(~grid, structure=_FOUR)
     ok = np.asarray(labels == labels[sy, sx])
     tick = ctx.tick if ctx is not None else None
+    if memory is None:
+        memory = np.zeros_like(grid)
+    elif memory.shape != grid.shape:
+        raise ValueError(f"the memory has shape {memory.shape}, the map {grid.shape}")
 
     route: list[Position] = [start]
     expansions = 0
@@ -186,7 +187,7 @@ def execute(
         if step is not None:
             route.append(step)
             continue
-        path, work = _real_time_into(grid, ok, route[-1], (x0, y0, x1, y1), movement, patience)
+        path, work = _feel_into(grid, memory, route[-1], (x0, y0, x1, y1), movement)
         expansions += work
         if tick is not None:
             tick(work)
@@ -268,56 +269,52 @@ def _step_into(
     return None
 
 
-def _real_time_into(
-    grid: BoolGrid, ok: BoolGrid, position: Position, box: Box, movement: int, patience: float
+def _feel_into(
+    grid: BoolGrid, memory: BoolGrid, position: Position, box: Box, movement: int
 ) -> tuple[list[Position], int]:
-    """Obstacle avoidance toward `box`: LRTA* with a look-ahead of one move (see the module
-    docstring). Returns the cells walked (`position` first) and the moves looked at.
-
-    After `patience` times as many steps as the robot's component has cells (never reached in
-    the tests, but LRTA*'s worst case is quadratic), the robot is guided the rest of the way by
-    A* (`search.find_path_to_box`) on the true map, so that execution always ends."""
+    """Obstacle avoidance toward `box` with the free-space assumption (see the module
+    docstring): plan with A* on `memory` (the blocked cells the robot has seen; updated in
+    place), walk the path, re-plan when a cell seen blocked is in the way. Returns the cells
+    walked (`position` first) and the A* expansions."""
     height, width = grid.shape
     x0, y0, x1, y1 = box
-    octile = movement == 8
-    moves = _STRAIGHT if not octile else _STRAIGHT + _DIAGONAL
-    learned: dict[Position, float] = {}
-
-    def distance(x: int, y: int) -> float:
-        dx = x0 - x if x < x0 else (x - x1 + 1 if x >= x1 else 0)
-        dy = y0 - y if y < y0 else (y - y1 + 1 if y >= y1 else 0)
-        if octile:
-            return max(dx, dy) + (SQRT2 - 1.0) * min(dx, dy)
-        return float(dx + dy)
-
-    path = [position]
-    limit = patience * float(np.count_nonzero(ok))
+    walked = [position]
     work = 0
     x, y = position
+    _see(grid, memory, x, y)
     while not (x0 <= x < x1 and y0 <= y < y1):
-        if len(path) > limit:
-            rest = find_path_to_box(
-                grid.astype(np.float64),
-                [(x, y)],
-                (x0, y0, x1 - 1, y1 - 1),
+        path = None
+        margin = 8
+        while path is None:
+            wx0, wy0 = max(0, min(x, x0) - margin), max(0, min(y, y0) - margin)
+            wx1, wy1 = min(width, max(x + 1, x1) + margin), min(height, max(y + 1, y1) + margin)
+            seen = memory[wy0:wy1, wx0:wx1]
+            found = find_path_to_box(
+                seen,
+                [(x - wx0, y - wy0)],
+                (x0 - wx0, y0 - wy0, x1 - 1 - wx0, y1 - 1 - wy0),
                 movement=movement,
                 weight=0.0,
-                impassable=~ok,
+                impassable=seen,
             )
-            assert rest is not None  # the caller checked that the box has a reachable cell
-            return path + list(rest.path[1:]), work + rest.expansions
-        best, best_f = (x, y), math.inf
-        for dx, dy in moves:
-            nx, ny = x + dx, y + dy
-            if not (0 <= nx < width and 0 <= ny < height) or grid[ny, nx]:
-                continue
-            if dx and dy and (grid[y, nx] or grid[ny, x]):
-                continue  # no corner cutting
-            work += 1
-            f = (SQRT2 if dx and dy else 1.0) + learned.get((nx, ny), distance(nx, ny))
-            if f < best_f:
-                best, best_f = (nx, ny), f
-        learned[(x, y)] = max(learned.get((x, y), distance(x, y)), best_f)
-        x, y = best
-        path.append(best)
-    return path, work
+            if found is not None:
+                work += found.expansions
+                path = [(cx + wx0, cy + wy0) for cx, cy in found.path]
+            elif (wx0, wy0, wx1, wy1) == (0, 0, width, height):  # pragma: no cover
+                raise AssertionError(f"no way into {box} on the robot's map")  # ok said there is
+            else:
+                work += seen.size
+                margin *= 4
+        for nx, ny in path[1:]:
+            if memory[ny, nx] or (nx != x and ny != y and (memory[y, nx] or memory[ny, x])):
+                break  # seen blocked since the path was planned: plan again from here
+            x, y = nx, ny
+            walked.append((x, y))
+            _see(grid, memory, x, y)
+    return walked, work
+
+
+def _see(grid: BoolGrid, memory: BoolGrid, x: int, y: int) -> None:
+    """The robot sees the cells around it: their true state enters its memory."""
+    ys, xs = slice(max(0, y - 1), y + 2), slice(max(0, x - 1), x + 2)
+    memory[ys, xs] |= grid[ys, xs]
