@@ -265,8 +265,10 @@ def _interruptible(trial: Trial, time: Array, out: Array) -> tuple[Failures, int
             generator.close()
         except Exception as exc:
             failed.append(_failure(exc))
-    # Scored after the run, so that the scorer's time is never charged to the module.
-    ends = [first for first, _ in answers[1:]] + [len(time)]
+    # Scored after the run, so that the scorer's time is never charged to the module. No answer
+    # at all (the first came after the last grid time, as a slow wall clock can make it) leaves
+    # the row at quality 0.
+    ends = [first for first, _ in answers[1:]] + [len(time)] if answers else []
     for (first, value), end in zip(answers, ends, strict=True):
         out[first:end] = trial.score(instance, value)
     return failed, 0
