@@ -300,7 +300,11 @@ def toy_plugins(
         importlib.metadata.EntryPoint("broken", "toy_anytime_plugin.broken", PLUGIN_GROUP),
         importlib.metadata.EntryPoint("toy", "toy_anytime_plugin", PLUGIN_GROUP),
     ]
-    monkeypatch.setattr(importlib.metadata, "entry_points", lambda **selection: found)
+    monkeypatch.setattr(
+        importlib.metadata,
+        "entry_points",
+        lambda **selection: found if selection.get("group") == PLUGIN_GROUP else [],
+    )
     before = {module.name for module in REGISTRY}
     yield found
     for module in list(REGISTRY):  # the toy plugin registers in the process-wide registry

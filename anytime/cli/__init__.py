@@ -2,6 +2,13 @@
 
 Exit codes: 0 success, 1 bad input (a message naming the file and place, never a traceback),
 2 usage errors (argparse's own). Each group of subcommands lives in its own module.
+
+Plugins add subcommands of their own through the entry-point group `anytime.commands`: an entry
+point names a function `add_commands(commands)` that adds parsers to argparse's subparsers,
+each with `run=` set as a default, exactly as the framework's groups below do. Their errors are
+handled like the framework's: an `AnytimeError` (`anytime.cli.common.InputError` for what the
+command checks itself) is a one-line message and exit 1. A plugin whose commands fail to load
+is warned about on stderr and the other commands still work.
 """
 
 from __future__ import annotations
@@ -9,14 +16,18 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Callable, Sequence
+from importlib import metadata
 
 from anytime import __version__
-from anytime.cli import library, measure, schemas
+from anytime.cli import library, measure, plot, schemas
 from anytime.cli.common import EXIT_INPUT, EXIT_OK, EXIT_USAGE, InputError
 from anytime.errors import AnytimeError
 from anytime.library import LibraryError
 
-__all__ = ["InputError", "build_parser", "main"]
+__all__ = ["COMMAND_GROUP", "InputError", "build_parser", "main"]
+
+#: The entry-point group through which plugins add subcommands.
+COMMAND_GROUP = "anytime.commands"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -49,6 +60,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"anytime {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for group in (schemas, library, measure):
+    for group in (schemas, library, measure, plot):
         group.add_commands(commands)
+    for entry_point in metadata.entry_points(group=COMMAND_GROUP):
+        try:
+            entry_point.load()(commands)
+        except Exception as error:  # one plugin's failure must not break the command line
+            print(
+                f"anytime: warning: commands of plugin '{entry_point.name}' ({entry_point.value})"
+                f" not loaded: {type(error).__name__}: {error}",
+                file=sys.stderr,
+            )
     return parser

@@ -1,16 +1,16 @@
 """The robot-navigation domain of Zilberstein & Russell, the reference plugin.
 
 It registers through the `anytime.plugins` entry point (see pyproject.toml), exactly as a
-third-party plugin would; the framework (`anytime`) never imports it.
+third-party plugin would: the entry point names `domains.navigation.modules`, whose import
+registers the anytime modules; the framework (`anytime`) never imports the domain. The
+domain's subcommands (`anytime plan`, `anytime navigate`) come through the `anytime.commands`
+entry point (`domains.navigation.cli`), which does not register modules by being imported.
 
-Built so far: the world (`world`: random rectangle worlds with a connectivity guarantee, 4- and
-8-connected movement), the MovingAI benchmark loader (`movingai`), the abstraction pyramid
-(`abstraction`), the general path finder (`search`: A*, the papers' baseline), anytime vision
-(`vision`) and the anytime abstract planner (`planner`: the papers' ATP). Still to come: plan
-execution, registering vision and the planner as anytime modules with measured profiles, and
-the figures.
+What is where: the world (`world`: random rectangle worlds with a connectivity guarantee, 4-
+and 8-connected movement) and the MovingAI benchmark loader (`movingai`); the abstraction
+pyramid (`abstraction`); the general path finder (`search`: A*, the papers' baseline); the
+anytime abstract planner (`planner`: the papers' ATP); plan execution and plan quality
+(`execution`); anytime vision (`vision`); the anytime modules with their problem sets
+(`modules`) and measured profiles (`profiles/`); the frame-by-frame task under the monitor
+(`task`); figures (`figures`, `frame_figures`) and the subcommands (`cli`).
 """
-
-from .modules import find_path, get_domain_description
-
-__all__ = ["find_path", "get_domain_description"]

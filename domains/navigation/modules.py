@@ -18,7 +18,7 @@ from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
-from attrs import field, frozen
+from attrs import frozen
 
 from anytime.modules import Context, Result, contract, interruptible
 from anytime.profiles.builder import register_problems
@@ -27,13 +27,20 @@ from anytime.profiles.trials import Instance
 from .abstraction import Pyramid
 from .execution import execute, optimal_length, plan_quality
 from .planner import atp
-from .vision import error_draws, fraction_correct, prior_map, sense, sensed_map
-from .world import BoolGrid, Position, random_world
+from .vision import (
+    Q_A,
+    DomainDescription,
+    Sensor,
+    error_draws,
+    fraction_correct,
+    prior_map,
+    sense,
+    sensed_map,
+)
+from .world import Position, random_world
 
 __all__ = [
-    "DomainDescription",
     "PlannerProblems",
-    "Sensor",
     "VisionProblems",
     "find_path",
     "get_domain_description",
@@ -41,50 +48,6 @@ __all__ = [
 
 #: The world the profiles are measured on (the papers' setting: 4-connected, random rectangles).
 PROFILE_SIZE = 128
-
-#: Vision's time scale, in ticks: comparable to what the ATP needs on a 128 x 128 map (about
-#: 1000-1500 A* expansions to run to completion), so that the compiler has a real trade-off;
-#: Q_A above the prior's fraction correct (about 0.8 at the default density): a first
-#: sensed map is worth more than none.
-T_A, Q_A, T_B = 100.0, 0.85, 1000.0
-
-
-def _grid(value: Any) -> BoolGrid:
-    grid = np.array(value, dtype=bool)
-    grid.setflags(write=False)
-    return grid
-
-
-@frozen
-class DomainDescription:
-    """The map the planner sees: `blocked[y, x]` as sensed, and the movement model."""
-
-    blocked: BoolGrid = field(converter=_grid, eq=False)
-    movement: int = 4
-
-
-@frozen
-class Sensor:
-    """What the robot's sensor looks at.
-
-    Attributes:
-        truth: the true map `blocked[y, x]` (the sensor's subject, hidden from the planner).
-        seed: fixes which cells vision gets wrong.
-        window: the half-open box (x0, y0, x1, y1) of cells the sensor sees; None: all of them.
-        known: what the robot believes about the cells outside the window (from earlier
-            frames); None: the prior, every cell free.
-        movement: 4 or 8, passed on to the planner with the map.
-        t_a, q_a, t_b: vision's profile (`VisionHyperbola`), in ticks.
-    """
-
-    truth: BoolGrid = field(converter=_grid, eq=False)
-    seed: int = 0
-    window: tuple[int, int, int, int] | None = None
-    known: BoolGrid | None = field(default=None, eq=False)
-    movement: int = 4
-    t_a: float = T_A
-    q_a: float = Q_A
-    t_b: float = T_B
 
 
 @contract("get-domain-description", inputs=[], profile="profiles/get-domain-description.yaml")

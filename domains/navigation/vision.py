@@ -26,8 +26,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
+from attrs import field, frozen
 from numpy.typing import NDArray
 
 from anytime.modules import Context, Result
@@ -35,6 +37,51 @@ from anytime.profiles.families import VisionHyperbola
 from domains.navigation.world import BoolGrid, World
 
 FloatGrid = NDArray[np.float64]
+
+
+#: Vision's time scale, in ticks: comparable to what the ATP needs on a 128 x 128 map (about
+#: 1000-1500 A* expansions to run to completion), so that the compiler has a real trade-off;
+#: Q_A above the prior's fraction correct (about 0.8 at the default density): a first
+#: sensed map is worth more than none.
+T_A, Q_A, T_B = 100.0, 0.85, 1000.0
+
+
+def _grid(value: Any) -> BoolGrid:
+    grid = np.array(value, dtype=bool)
+    grid.setflags(write=False)
+    return grid
+
+
+@frozen
+class DomainDescription:
+    """The map the planner sees: `blocked[y, x]` as sensed, and the movement model."""
+
+    blocked: BoolGrid = field(converter=_grid, eq=False)
+    movement: int = 4
+
+
+@frozen
+class Sensor:
+    """What the robot's sensor looks at.
+
+    Attributes:
+        truth: the true map `blocked[y, x]` (the sensor's subject, hidden from the planner).
+        seed: fixes which cells vision gets wrong.
+        window: the half-open box (x0, y0, x1, y1) of cells the sensor sees; None: all of them.
+        known: what the robot believes about the cells outside the window (from earlier
+            frames); None: the prior, every cell free.
+        movement: 4 or 8, passed on to the planner with the map.
+        t_a, q_a, t_b: vision's profile (`VisionHyperbola`), in ticks.
+    """
+
+    truth: BoolGrid = field(converter=_grid, eq=False)
+    seed: int = 0
+    window: tuple[int, int, int, int] | None = None
+    known: BoolGrid | None = field(default=None, eq=False)
+    movement: int = 4
+    t_a: float = T_A
+    q_a: float = Q_A
+    t_b: float = T_B
 
 
 def _truth(world_or_blocked: World | BoolGrid) -> BoolGrid:

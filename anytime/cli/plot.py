@@ -1,0 +1,189 @@
+"""`anytime plot`: a profile, a compiled program or a schema as a figure (PNG by default).
+
+- A profile file (`anytime-profile/1`): its performance profile, or its conditional profile as
+  one curve per input quality (the papers' Figures 4, 5, 7, 9).
+- A compiled program written by `anytime compile -o` (a profile file that also carries
+  `modules` and `allocation`): its expected quality against total time over the allocation of
+  that time among its modules. The file has no baselines; plotting the schema has them.
+- A schema file (`.any`): the schema is compiled as `anytime compile` does, and drawn against
+  equal split, MIN and MAX (Figures 8, 10), over its allocation.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import NoReturn
+
+import numpy as np
+import yaml
+
+from anytime.cli.common import EXIT_OK, InputError, open_library
+from anytime.cli.schemas import _parse_time_grid
+from anytime.compiler import CompileError, compile_file
+from anytime.compiler.compile import ALLOCATOR_NAMES, default_time_grid
+from anytime.dsl import load_schemas
+from anytime.plot import (
+    MissingMatplotlibError,
+    PlotError,
+    plot_allocation,
+    plot_compiled,
+    plot_profile,
+    require_matplotlib,
+)
+from anytime.profiles.io import load_profile
+from anytime.profiles.profile import Array, ConditionalPerformanceProfile
+
+#: Suffix of schema files; anything else is read as a profile file.
+SCHEMA_SUFFIX = ".any"
+
+
+def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    plot = commands.add_parser(
+        "plot",
+        help="draw a profile, a compiled program or a compiled schema as a figure",
+        description="Draw a figure (needs matplotlib: pip install 'anytime-compose[plot]'). "
+        "FILE is a profile file (its expected quality against time, one curve per input "
+        "quality), a compiled program written by `anytime compile -o` (its expected quality "
+        "and its time allocation per module), or a schema file (.any), compiled as `anytime "
+        "compile` does and drawn against the baselines equal split, MIN and MAX.",
+    )
+    plot.add_argument("file", metavar="FILE", help="a profile file (.yaml) or a schema file (.any)")
+    plot.add_argument(
+        "-o",
+        "--output",
+        metavar="OUT.png",
+        help="the image to write; its suffix names the format (default: FILE with .png)",
+    )
+    plot.add_argument("--title", metavar="T", help="the figure's title (default: a description)")
+    schema = plot.add_argument_group("schema files (.any), as for `anytime compile`")
+    schema.add_argument("--schema", metavar="NAME", help="the schema to compile and draw")
+    schema.add_argument(
+        "--library",
+        dest="profiles",
+        metavar="DIR",
+        action="append",
+        default=[],
+        help="a directory of profile files (*.yaml), each a module; repeatable",
+    )
+    schema.add_argument("--no-plugins", action="store_true", help="do not load the plugins")
+    schema.add_argument(
+        "--allocator", choices=ALLOCATOR_NAMES, default="auto", help="as for compile (auto)"
+    )
+    schema.add_argument(
+        "--time-grid",
+        metavar="START:STOP:STEP",
+        help="the totals to compile for (default: as for compile)",
+    )
+    plot.set_defaults(run=run_plot)
+
+
+def run_plot(args: argparse.Namespace) -> int:
+    source = Path(args.file)
+    output = Path(args.output) if args.output is not None else source.with_suffix(".png")
+    try:
+        require_matplotlib()  # before any work
+        if source.suffix.lower() == SCHEMA_SUFFIX:
+            _plot_schema(args, output)
+        else:
+            for option in ("schema", "time_grid"):
+                if getattr(args, option) is not None:
+                    flag = "--" + option.replace("_", "-")
+                    raise InputError(
+                        f"anytime: error: {flag} is for schema files ({SCHEMA_SUFFIX}), and "
+                        f"{args.file} is read as a profile file"
+                    )
+            _plot_profile_file(args.file, output, args.title)
+    except (MissingMatplotlibError, PlotError) as error:
+        raise InputError(f"anytime: error: {error}") from None
+    except OSError as error:
+        if Path(error.filename or "") == output or error.filename is None:
+            raise InputError(
+                f"anytime: error: cannot write '{output}': {error.strerror or error}"
+            ) from None
+        raise
+    print(f"wrote {output}")
+    return EXIT_OK
+
+
+def _plot_profile_file(filename: str, output: Path, title: str | None) -> None:
+    profile = load_profile(filename)
+    table = _allocation_table(filename, profile)
+    if table is None:
+        plot_profile(profile, output, title=title)
+    else:
+        modules, allocation = table
+        plot_allocation(profile, modules, allocation, output, title=title)
+
+
+def _plot_schema(args: argparse.Namespace, output: Path) -> None:
+    library = open_library(args)
+    schemas = load_schemas(args.file)
+    if args.schema is None:
+        if len(schemas) > 1:
+            raise InputError(
+                f"anytime: error: {args.file} defines {len(schemas)} schemas: say which one "
+                f"to draw with --schema NAME (one of {', '.join(schemas.names)})"
+            )
+        name = schemas.names[0]
+    elif args.schema in schemas:
+        name = args.schema.lower()
+    else:
+        raise InputError(
+            f"{args.file}: error: no schema named '{args.schema}' "
+            f"(the file defines: {', '.join(schemas.names)})"
+        )
+    if args.time_grid is not None:
+        time_grid = _parse_time_grid(args.time_grid)
+    else:
+        time_grid = default_time_grid(schemas, library, name)
+    lines = Path(args.file).read_text(encoding="utf-8-sig").split("\n")
+    try:
+        compiled = compile_file(
+            schemas, library, time_grid, schema=name, allocator=args.allocator, source_lines=lines
+        )
+    except CompileError as error:
+        message = str(error)
+        raise InputError(
+            message if ": error: " in message else f"{args.file}: error: {message}"
+        ) from None
+    plot_compiled(next(c for c in compiled if c.name == name), output, title=args.title)
+
+
+def _allocation_table(
+    filename: str, profile: ConditionalPerformanceProfile
+) -> tuple[Sequence[str], Array] | None:
+    """A compiled program's `modules` and `allocation` fields, checked against its profile;
+    None for a plain profile. (`load_profile` has read and validated the rest of the file.)"""
+    data = yaml.safe_load(Path(filename).read_text(encoding="utf-8-sig"))
+    if "allocation" not in data and "modules" not in data:
+        return None
+    for field in ("modules", "allocation"):
+        if field not in data:
+            other = "allocation" if field == "modules" else "modules"
+            _fail(filename, field, f"missing field (a compiled program has it with {other})")
+    modules = data["modules"]
+    if not isinstance(modules, list) or not all(isinstance(m, str) and m for m in modules):
+        _fail(filename, "modules", f"expected a list of module names, got {modules!r}")
+    expected = (*profile.cell_shape, len(modules))
+    try:
+        allocation = np.asarray(data["allocation"], dtype=np.float64)
+    except (TypeError, ValueError):
+        allocation = None
+    if allocation is None or allocation.shape != expected:
+        got = "a ragged or non-numeric table" if allocation is None else list(allocation.shape)
+        _fail(
+            filename,
+            "allocation",
+            f"expected a table of shape {list(expected)} (input grids, time, one per module), "
+            f"got {got}",
+        )
+    if not np.all(np.isfinite(allocation)) or np.any(allocation < 0):
+        _fail(filename, "allocation", "expected finite times >= 0")
+    return modules, allocation
+
+
+def _fail(filename: str, field: str, problem: str) -> NoReturn:
+    raise InputError(f"{os.fspath(filename)}: {field}: {problem}")

@@ -1,0 +1,199 @@
+"""`anytime navigate`: run one navigation task frame by frame under a policy (see
+`domains.navigation.task` for the model and the definitions of the reported quantities)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from anytime.cli.common import EXIT_OK, InputError, positive_float, positive_int
+from anytime.runtime.monitor import DeadlineValue
+
+from ..movingai import MapError, load_map
+from ..task import POLICIES, NavigationTask, TaskReport, navigation_program, run_task
+from ..world import Position, World, is_power_of_two, random_world, reachable
+
+__all__ = ["add_command", "run_navigate"]
+
+
+def _size(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    return value
+
+
+def _position(text: str) -> Position:
+    try:
+        x, y = (int(part) for part in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected X,Y (two whole numbers), got {text!r}"
+        ) from None
+    return (x, y)
+
+
+def add_command(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    navigate = commands.add_parser(
+        "navigate",
+        help="run a navigation task frame by frame under the monitor (or a fixed policy)",
+        description="Run a navigation task: the robot senses a window around itself, plans with "
+        "the compiled program schemas/navigation.any (navigate), and moves frame by frame to the "
+        "goal; the monitor chooses each frame's contract time and the speed. Prints frames, "
+        "completion time, energy, value and utility, against the utility predicted at the start "
+        "and a clairvoyant bound.",
+    )
+    navigate.add_argument("--size", type=_size, default=128, help="world side, a power of two")
+    navigate.add_argument("--seed", type=int, default=0, help="world and vision seed")
+    navigate.add_argument("--map", metavar="FILE.map", help="a MovingAI map instead of a world")
+    navigate.add_argument("--start", type=_position, metavar="X,Y", help="start (with --map)")
+    navigate.add_argument("--goal", type=_position, metavar="X,Y", help="goal (with --map)")
+    navigate.add_argument(
+        "--radius",
+        type=positive_int,
+        help="sensor radius in cells (default: a quarter of the side)",
+    )
+    navigate.add_argument(
+        "--deadline",
+        type=positive_float,
+        metavar="TICKS",
+        help="full value until then (default: 6000 * side / 128)",
+    )
+    navigate.add_argument("--policy", choices=POLICIES, default="monitored")
+    navigate.add_argument(
+        "--contract", type=positive_float, metavar="TICKS", help="contract time of --policy fixed"
+    )
+    navigate.add_argument("--clock", choices=["work", "wall"], default="work")
+    navigate.add_argument("--out", metavar="DIR", help="write frame figures, a GIF, events.jsonl")
+    navigate.add_argument("--json", action="store_true", help="print the result as JSON")
+    navigate.set_defaults(run=run_navigate)
+
+
+def _world(args: argparse.Namespace) -> World:
+    if args.map is None:
+        if args.start is not None or args.goal is not None:
+            raise InputError("anytime navigate: error: --start and --goal need --map")
+        if not (args.size >= 8 and is_power_of_two(args.size)):
+            raise InputError(
+                f"anytime navigate: error: --size must be a power of two >= 8, got {args.size}"
+            )
+        return random_world(args.size, seed=args.seed)
+    try:
+        blocked, width, height = load_map(args.map)
+    except MapError as error:
+        raise InputError(f"anytime navigate: error: {error}") from None
+    except OSError as error:
+        raise InputError(
+            f"anytime navigate: error: cannot read '{args.map}': {error.strerror}"
+        ) from None
+    free = ~blocked[:height, :width]
+    cells = np.argwhere(free)
+    if cells.size == 0:
+        raise InputError(f"anytime navigate: error: {args.map}: the map has no free cell")
+    start = args.start or (int(cells[0][1]), int(cells[0][0]))
+    goal = args.goal or (int(cells[-1][1]), int(cells[-1][0]))
+    for name, (x, y) in (("start", start), ("goal", goal)):
+        if not (0 <= x < width and 0 <= y < height):
+            raise InputError(
+                f"anytime navigate: error: the {name} {x},{y} is outside the {width}x{height} map"
+            )
+        if blocked[y, x]:
+            raise InputError(f"anytime navigate: error: the {name} {x},{y} is a blocked cell")
+    if not reachable(blocked, start)[goal[1], goal[0]]:
+        raise InputError(
+            f"anytime navigate: error: the goal {goal[0]},{goal[1]} cannot be reached from the "
+            f"start {start[0]},{start[1]}"
+        )
+    return World(blocked, start, goal)
+
+
+def run_navigate(args: argparse.Namespace) -> int:
+    if args.policy == "fixed" and args.contract is None:
+        raise InputError("anytime navigate: error: --policy fixed needs --contract TICKS")
+    world = _world(args)
+    side = world.blocked.shape[0]
+    deadline = args.deadline if args.deadline is not None else 6000.0 * side / 128
+    task = NavigationTask(
+        world,
+        radius=args.radius or side // 4,
+        value=DeadlineValue(1000.0, deadline, 0.25 * 128 / side),
+        seed=args.seed,
+    )
+    warnings: list[str] = []
+    compiled, trace = navigation_program(warn=warnings.append)
+    for warning in warnings:
+        print(f"anytime: warning: {warning}", file=sys.stderr)
+    report = run_task(
+        task, compiled, trace, policy=args.policy, contract=args.contract, clock=args.clock
+    )
+    comparison: dict[str, TaskReport] = {}
+    if not args.json:
+        for policy in ("min", "max"):
+            if policy != args.policy:
+                comparison[policy] = run_task(
+                    task, compiled, trace, policy=policy, clock=args.clock
+                )
+    written: list[str] = []
+    if args.out is not None:
+        out = Path(args.out)
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+            report.log.write_jsonl(out / "events.jsonl")
+        except OSError as error:
+            raise InputError(
+                f"anytime navigate: error: cannot write to '{out}': {error.strerror}"
+            ) from None
+        written.append(str(out / "events.jsonl"))
+        try:
+            from ..frame_figures import write_frames
+        except ImportError as error:  # matplotlib is the optional `plot` extra
+            print(
+                f"anytime: warning: no figures ({error}); install the 'plot' extra", file=sys.stderr
+            )
+        else:
+            written.extend(write_frames(report, task, out))
+    if args.json:
+        print(json.dumps(_plain(report.as_json())))
+    else:
+        print(_summary(report, comparison), end="")
+        if written:
+            pngs = [w for w in written if w.endswith(".png")]
+            print(
+                f"wrote {len(pngs)} frame pictures, the animation and events.jsonl in "
+                f"{Path(args.out)}"
+            )
+    return EXIT_OK
+
+
+def _plain(record: dict[str, Any]) -> dict[str, Any]:
+    return {
+        k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in record.items()
+    }
+
+
+def _summary(report: TaskReport, comparison: dict[str, TaskReport]) -> str:
+    r = report
+    lines = [
+        f"navigation task: {r.size}x{r.size} world, seed {r.seed}, policy {r.policy}",
+        f"  frames           {r.frames}",
+        f"  completion time  {r.completion_time:.0f} ticks",
+        f"  route length     {r.route_length:.1f} (optimal {r.optimal_length:.1f})",
+        f"  energy           {r.energy:.1f}",
+        f"  value            {r.value:.1f}",
+        f"  utility          {r.utility:.1f}  (= value - energy)",
+        f"  predicted        {r.predicted_utility:.1f}  (error {100 * r.prediction_error:.1f}%)",
+        f"  clairvoyant      {r.optimal_utility:.1f}  (ratio {r.utility_ratio:.3f})",
+    ]
+    for name, other in comparison.items():
+        lines.append(
+            f"  policy {name:<9} utility {other.utility:.1f} in {other.frames} frames, "
+            f"{other.completion_time:.0f} ticks"
+        )
+    return "\n".join(lines) + "\n"

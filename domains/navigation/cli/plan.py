@@ -1,0 +1,305 @@
+"""`anytime plan`: solve path-finding problems on a MovingAI map with A* or the ATP.
+
+The way MovingAI path-finding results are reported: a map, the first N problems of its scenario
+file (or one start and goal), and per problem the length found against the optimal one, the node
+expansions and the time. For the ATP the quality is the papers' plan quality, optimal length /
+executed length (`execution.execute` follows the plan on the map), after its first plan and when
+run to completion.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+from attrs import frozen
+
+from anytime.cli.common import EXIT_OK, InputError, format_table, positive_int
+from anytime.modules import Context
+
+from ..abstraction import Pyramid
+from ..execution import execute, plan_quality
+from ..movingai import MapError, load_map, load_scenarios
+from ..planner import atp
+from ..search import find_path
+from ..world import BoolGrid, Position, reachable
+
+__all__ = ["Problem", "Solution", "add_command", "run_plan"]
+
+#: Lengths this close (relative) to a `.scen` optimal count as optimal: old-style files such as
+#: `arena.map.scen` print the optimal lengths to 6 significant digits (11.8284 for 11.828427).
+_SCEN_PRECISION = 1e-5
+
+
+@frozen
+class Problem:
+    """One problem to solve; `optimal` is the `.scen` optimal length when it applies, `where`
+    names the problem in messages."""
+
+    start: Position
+    goal: Position
+    optimal: float | None
+    where: str
+
+
+@frozen
+class Solution:
+    """What `anytime plan` reports for one problem (the keys of its JSON output)."""
+
+    start: Position
+    goal: Position
+    length: float
+    optimal: float
+    expansions: int
+    seconds: float
+    first_quality: float
+    final_quality: float
+
+
+def add_command(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    parser = commands.add_parser(
+        "plan",
+        help="solve path-finding problems on a MovingAI map with A* or the anytime planner",
+        description="Solve the first N problems of a MovingAI scenario file (by default "
+        "MAP.scen next to the map), or one --start/--goal problem, and print per problem the "
+        "length found, the optimal length (the .scen's with 8-connected movement, else A*'s), "
+        "node expansions (for the ATP those of all its searches), the wall time of planning "
+        "(not of loading the map or building the ATP's abstraction pyramid), and the plan "
+        "quality (optimal length / length of the route executed on the map) after the first "
+        "plan and at completion; the ATP is run to completion. Positions are X,Y = column,row "
+        "from the upper-left corner, as in .scen files.",
+    )
+    parser.add_argument("--map", required=True, metavar="FILE.map", help="a MovingAI .map file")
+    parser.add_argument(
+        "--scen", metavar="FILE.scen", help="the scenario file (default: FILE.map.scen)"
+    )
+    parser.add_argument("--start", type=_position, metavar="X,Y", help="one problem's start")
+    parser.add_argument("--goal", type=_position, metavar="X,Y", help="one problem's goal")
+    parser.add_argument(
+        "--planner",
+        choices=["astar", "atp"],
+        default="astar",
+        help="A* (the optimal baseline) or the anytime abstract planner (astar)",
+    )
+    parser.add_argument(
+        "--movement",
+        type=int,
+        choices=[4, 8],
+        default=8,
+        help="4- or 8-connected (octile, no corner cutting: the model of the .scen optimal "
+        "lengths) (8)",
+    )
+    parser.add_argument(
+        "--limit",
+        type=positive_int,
+        default=10,
+        metavar="N",
+        help="solve the first N problems of the scenario file (10)",
+    )
+    parser.add_argument("--json", action="store_true", help="print JSON")
+    parser.set_defaults(run=run_plan, usage_error=parser.error)
+
+
+def _position(text: str) -> Position:
+    parts = text.split(",")
+    try:
+        x, y = (int(part) for part in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected X,Y (two whole numbers), got {text!r}"
+        ) from None
+    return x, y
+
+
+def run_plan(args: argparse.Namespace) -> int:
+    if (args.start is None) != (args.goal is None):
+        args.usage_error("--start and --goal go together")
+    if args.start is not None and args.scen is not None:
+        args.usage_error("give either --scen or --start/--goal, not both")
+    try:
+        blocked, width, height = load_map(args.map)
+        problems = _problems(args, blocked, width, height)
+    except MapError as error:
+        raise InputError(f"{error.filename}:{error.line}: error: {error.message}") from None
+    pyramid = Pyramid.build(blocked) if args.planner == "atp" else None
+    solutions = [_solve(problem, blocked, pyramid, args.movement) for problem in problems]
+    reference = "scen" if problems[0].optimal is not None else "astar"
+    summary = _summary(solutions, args.planner, args.movement, reference)
+    if args.json:
+        rows = [_solution_json(solution) for solution in solutions]
+        print(json.dumps({"problems": rows, "summary": summary}, indent=2))
+    else:
+        print(_format(solutions, summary), end="")
+    return EXIT_OK
+
+
+def _problems(
+    args: argparse.Namespace, blocked: BoolGrid, width: int, height: int
+) -> list[Problem]:
+    """The problems the options name, each checked: free cells inside the map, goal reachable."""
+    if args.start is not None:
+        problems = [Problem(args.start, args.goal, None, "")]
+        for name, (x, y) in (("--start", args.start), ("--goal", args.goal)):
+            if not (0 <= x < width and 0 <= y < height):
+                raise InputError(
+                    f"anytime: error: {name} {x},{y} is outside the {width}x{height} map"
+                    f" '{args.map}'"
+                )
+            if blocked[y, x]:
+                raise InputError(
+                    f"anytime: error: {name} {x},{y} is a blocked cell of '{args.map}'"
+                )
+    else:
+        scen = args.scen
+        if scen is None:
+            scen = os.fspath(args.map) + ".scen"
+            if not Path(scen).is_file():
+                raise InputError(
+                    f"anytime: error: no scenario file '{scen}' next to the map: give --scen "
+                    "FILE.scen, or --start X,Y --goal X,Y"
+                )
+        scenarios = load_scenarios(scen, blocked)[: args.limit]
+        if not scenarios:
+            raise InputError(f"anytime: error: {scen}: no problems in the scenario file")
+        problems = []
+        for number, scenario in enumerate(scenarios, 1):
+            where = f"{scen}: problem {number}: "
+            if (scenario.width, scenario.height) != (width, height):
+                raise InputError(
+                    f"anytime: error: {where}it is for a {scenario.width}x{scenario.height} map,"
+                    f" '{args.map}' is {width}x{height}"
+                )
+            optimal = scenario.optimal if args.movement == 8 else None
+            problems.append(Problem(scenario.start, scenario.goal, optimal, where))
+    for problem in problems:
+        (sx, sy), (gx, gy) = problem.start, problem.goal
+        if not reachable(blocked, problem.start, args.movement)[gy, gx]:
+            raise InputError(
+                f"anytime: error: {problem.where}the goal {gx},{gy} cannot be reached from the"
+                f" start {sx},{sy} on '{args.map}'"
+            )
+    return problems
+
+
+def _solve(problem: Problem, blocked: BoolGrid, pyramid: Pyramid | None, movement: int) -> Solution:
+    """Plan, timing the planner alone; execute the ATP's first and final plans for quality."""
+    if pyramid is None:
+        begin = time.perf_counter()
+        found = find_path(blocked, problem.start, problem.goal, movement=movement, weight=0.0)
+        seconds = time.perf_counter() - begin
+        assert found is not None  # reachability was checked
+        optimal = found.length if problem.optimal is None else problem.optimal
+        quality = _quality(found.length, optimal)
+        return Solution(
+            problem.start,
+            problem.goal,
+            found.length,
+            optimal,
+            found.expansions,
+            seconds,
+            quality,
+            quality,
+        )
+    ctx = Context()
+    begin = time.perf_counter()
+    plans = atp(ctx, problem.start, problem.goal, pyramid, movement=movement)
+    first = last = next(plans).value
+    for result in plans:
+        last = result.value
+    seconds = time.perf_counter() - begin
+    if problem.optimal is not None:
+        optimal = problem.optimal
+    else:
+        reference = find_path(blocked, problem.start, problem.goal, movement=movement, weight=0.0)
+        assert reference is not None  # reachability was checked
+        optimal = reference.length
+    final = execute(last, blocked, movement=movement)
+    return Solution(
+        problem.start,
+        problem.goal,
+        final.length,
+        optimal,
+        int(ctx.ticks),
+        seconds,
+        _quality(execute(first, blocked, movement=movement).length, optimal),
+        _quality(final.length, optimal),
+    )
+
+
+def _quality(length: float, optimal: float) -> float:
+    """Plan quality, optimal / length; a length equal to a `.scen` optimal to the file's
+    precision is optimal."""
+    if math.isclose(length, optimal, rel_tol=_SCEN_PRECISION):
+        return 1.0
+    return plan_quality(length, optimal)
+
+
+def _length_ratio(solution: Solution) -> float:
+    if math.isclose(solution.length, solution.optimal, rel_tol=_SCEN_PRECISION):
+        return 1.0
+    return solution.length / solution.optimal
+
+
+def _summary(
+    solutions: list[Solution], planner: str, movement: int, reference: str
+) -> dict[str, Any]:
+    n = len(solutions)
+    return {
+        "planner": planner,
+        "movement": movement,
+        "optimal_from": reference,
+        "problems": n,
+        "mean_length_ratio": sum(_length_ratio(s) for s in solutions) / n,
+        "expansions": sum(s.expansions for s in solutions),
+        "seconds": sum(s.seconds for s in solutions),
+        "mean_first_quality": sum(s.first_quality for s in solutions) / n,
+        "mean_final_quality": sum(s.final_quality for s in solutions) / n,
+    }
+
+
+def _solution_json(solution: Solution) -> dict[str, Any]:
+    return {
+        "start": list(solution.start),
+        "goal": list(solution.goal),
+        "length": solution.length,
+        "optimal": solution.optimal,
+        "expansions": solution.expansions,
+        "seconds": solution.seconds,
+        "first_quality": solution.first_quality,
+        "final_quality": solution.final_quality,
+    }
+
+
+def _format(solutions: list[Solution], summary: dict[str, Any]) -> str:
+    rows = [
+        ["#", "START", "GOAL", "LENGTH", "OPTIMAL", "EXPANSIONS", "SECONDS", "FIRST Q", "FINAL Q"]
+    ]
+    for number, s in enumerate(solutions, 1):
+        rows.append(
+            [
+                str(number),
+                f"{s.start[0]},{s.start[1]}",
+                f"{s.goal[0]},{s.goal[1]}",
+                f"{s.length:.4f}",
+                f"{s.optimal:.4f}",
+                str(s.expansions),
+                f"{s.seconds:.4f}",
+                f"{s.first_quality:.4f}",
+                f"{s.final_quality:.4f}",
+            ]
+        )
+    source = "the .scen file" if summary["optimal_from"] == "scen" else "A*"
+    problems = "problem" if summary["problems"] == 1 else "problems"
+    line = (
+        f"{summary['problems']} {problems}, {summary['planner']}, {summary['movement']}-connected"
+        f" (optimal lengths from {source}): mean length / optimal"
+        f" {summary['mean_length_ratio']:.4f}, {summary['expansions']} expansions,"
+        f" {summary['seconds']:.3f} s planning, mean quality first"
+        f" {summary['mean_first_quality']:.4f} final {summary['mean_final_quality']:.4f}\n"
+    )
+    return format_table(rows) + line

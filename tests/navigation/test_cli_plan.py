@@ -1,0 +1,277 @@
+"""`anytime plan`: the JSON and table output on the shipped arena map with both planners, one
+explicit problem, and every kind of bad input as a one-line message with its exit code."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+from conftest import Cli
+
+from domains.navigation.movingai import load_scenarios
+
+MAPS = Path(__file__).resolve().parents[2] / "domains" / "navigation" / "maps"
+ARENA = str(MAPS / "arena.map")
+KEYS = {
+    "start",
+    "goal",
+    "length",
+    "optimal",
+    "expansions",
+    "seconds",
+    "first_quality",
+    "final_quality",
+}
+
+#: A 5x3 map split by a wall: (0, 0) and (4, 0) are free and not connected.
+SPLIT = "type octile\nheight 3\nwidth 5\nmap\n..@..\n..@..\n..@..\n"
+
+
+def _json(cli: Cli, *argv: str) -> dict:
+    code, out, err = cli("plan", "--map", ARENA, *argv, "--json")
+    assert (code, err) == (0, "")
+    return json.loads(out)
+
+
+def test_astar_lengths_are_the_scen_optimal_lengths(cli: Cli) -> None:
+    result = _json(cli, "--limit", "160")  # the whole file: 160 small problems
+    scenarios = load_scenarios(MAPS / "arena.map.scen")
+    assert len(result["problems"]) == 160
+    for problem, scenario in zip(result["problems"], scenarios, strict=True):
+        assert set(problem) == KEYS
+        assert (tuple(problem["start"]), tuple(problem["goal"])) == (scenario.start, scenario.goal)
+        assert problem["optimal"] == scenario.optimal
+        # The old-style arena file prints 6 significant digits: 11.8284 for 11.828427...
+        assert math.isclose(problem["length"], scenario.optimal, rel_tol=1e-5)
+        assert problem["first_quality"] == problem["final_quality"] == 1.0
+        assert problem["expansions"] >= 0 and problem["seconds"] >= 0
+    summary = result["summary"]
+    assert summary["problems"] == 160
+    assert summary["planner"] == "astar" and summary["movement"] == 8
+    assert summary["optimal_from"] == "scen"
+    assert summary["mean_length_ratio"] == 1.0
+    assert summary["mean_first_quality"] == summary["mean_final_quality"] == 1.0
+    assert summary["expansions"] == sum(p["expansions"] for p in result["problems"])
+    assert summary["seconds"] == pytest.approx(sum(p["seconds"] for p in result["problems"]))
+
+
+def test_atp_quality_is_optimal_over_executed_length(cli: Cli) -> None:
+    result = _json(cli, "--planner", "atp", "--limit", "60")
+    problems = result["problems"]
+    assert len(problems) == 60
+    for problem in problems:
+        assert set(problem) == KEYS
+        assert 0.0 < problem["first_quality"] <= 1.0
+        assert 0.0 < problem["final_quality"] <= 1.0
+        assert problem["length"] >= problem["optimal"] * (1 - 1e-5)
+        quality = min(1.0, problem["optimal"] / problem["length"]) if problem["length"] else 1.0
+        assert problem["final_quality"] == pytest.approx(quality, abs=1e-5)
+    summary = result["summary"]
+    assert summary["planner"] == "atp"
+    assert summary["mean_length_ratio"] >= 1.0
+    assert 0.0 < summary["mean_final_quality"] <= 1.0
+    assert summary["expansions"] == sum(p["expansions"] for p in problems) > 0
+
+
+def test_one_explicit_problem(cli: Cli) -> None:
+    astar = _json(cli, "--start", "1,11", "--goal", "45,40")
+    atp = _json(cli, "--start", "1,11", "--goal", "45,40", "--planner", "atp")
+    for result in (astar, atp):
+        (problem,) = result["problems"]
+        assert (problem["start"], problem["goal"]) == ([1, 11], [45, 40])
+        assert result["summary"]["optimal_from"] == "astar"
+    # Without a .scen file the optimal length is A*'s.
+    assert astar["problems"][0]["optimal"] == astar["problems"][0]["length"]
+    assert atp["problems"][0]["optimal"] == astar["problems"][0]["length"]
+    assert 0.0 < atp["problems"][0]["final_quality"] <= 1.0
+
+
+def test_four_connected_optimal_lengths_come_from_astar(cli: Cli) -> None:
+    result = _json(cli, "--movement", "4", "--limit", "5")
+    assert result["summary"]["optimal_from"] == "astar"
+    assert result["summary"]["movement"] == 4
+    for problem in result["problems"]:
+        assert problem["length"] == problem["optimal"]
+        assert problem["length"] == int(problem["length"])  # straight steps only
+
+
+def test_table_and_summary_line(cli: Cli) -> None:
+    code, out, err = cli("plan", "--map", ARENA, "--limit", "3", "--planner", "atp")
+    assert (code, err) == (0, "")
+    lines = out.splitlines()
+    assert lines[0].split() == [
+        "#",
+        "START",
+        "GOAL",
+        "LENGTH",
+        "OPTIMAL",
+        "EXPANSIONS",
+        "SECONDS",
+        "FIRST",
+        "Q",
+        "FINAL",
+        "Q",
+    ]
+    assert lines[1].split()[:5] == ["1", "1,11", "1,12", "1.0000", "1.0000"]
+    assert len(lines) == 5
+    assert lines[-1].startswith(
+        "3 problems, atp, 8-connected (optimal lengths from the .scen file): mean length /"
+        " optimal 1.0000, "
+    )
+
+
+def test_help(cli: Cli) -> None:
+    code, out, _ = cli("plan", "--help")
+    assert code == 0
+    assert out.startswith("usage: anytime plan")
+    assert "--planner {astar,atp}" in out
+    assert "(8)" in " ".join(out.split())  # the default movement is said
+
+
+def _split_map(tmp_path: Path) -> str:
+    path = tmp_path / "split.map"
+    path.write_text(SPLIT)
+    return str(path)
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--start", "60,3", "--goal", "1,11"], "--start 60,3 is outside the 49x49 map '{map}'"),
+        (["--start", "1,11", "--goal", "1,-1"], "--goal 1,-1 is outside the 49x49 map '{map}'"),
+        (["--start", "0,0", "--goal", "1,11"], "--start 0,0 is a blocked cell of '{map}'"),
+    ],
+    ids=["start-outside", "goal-outside", "start-blocked"],
+)
+def test_bad_positions(cli: Cli, argv: list[str], message: str) -> None:
+    code, out, err = cli("plan", "--map", ARENA, *argv)
+    assert (code, out) == (1, "")
+    assert err == "anytime: error: " + message.format(map=ARENA) + "\n"
+
+
+def test_unreachable_goal(cli: Cli, tmp_path: Path) -> None:
+    split = _split_map(tmp_path)
+    for planner in ("astar", "atp"):
+        code, out, err = cli(
+            "plan", "--map", split, "--start", "0,0", "--goal", "4,0", "--planner", planner
+        )
+        assert (code, out) == (1, "")
+        assert (
+            err
+            == f"anytime: error: the goal 4,0 cannot be reached from the start 0,0 on '{split}'\n"
+        )
+
+
+def test_unreachable_scenario_goal(cli: Cli, tmp_path: Path) -> None:
+    split = _split_map(tmp_path)
+    scen = tmp_path / "split.map.scen"
+    scen.write_text(
+        "version 1\n0\tsplit.map\t5\t3\t0\t0\t1\t2\t2.0\n0\tsplit.map\t5\t3\t0\t0\t3\t1\t3\n"
+    )
+    code, out, err = cli("plan", "--map", split)  # the .scen next to the map
+    assert (code, out) == (1, "")
+    assert err == (
+        f"anytime: error: {scen}: problem 2: the goal 3,1 cannot be reached from the start 0,0"
+        f" on '{split}'\n"
+    )
+    code, _, _ = cli("plan", "--map", split, "--limit", "1")
+    assert code == 0
+
+
+def test_scenario_of_another_size(cli: Cli, tmp_path: Path) -> None:
+    split = _split_map(tmp_path)
+    scen = tmp_path / "other.scen"
+    scen.write_text("version 1\n0\tother.map\t4\t3\t0\t0\t1\t2\t2.0\n")
+    code, out, err = cli("plan", "--map", split, "--scen", str(scen))
+    assert (code, out) == (1, "")
+    assert err == f"anytime: error: {scen}: problem 1: it is for a 4x3 map, '{split}' is 5x3\n"
+
+
+def test_missing_files(cli: Cli, tmp_path: Path) -> None:
+    code, out, err = cli("plan", "--map", str(tmp_path / "none.map"))
+    assert (code, out) == (1, "")
+    assert (
+        err == f"anytime: error: cannot read '{tmp_path / 'none.map'}': No such file or directory\n"
+    )
+    split = _split_map(tmp_path)
+    code, _, err = cli("plan", "--map", split)
+    assert code == 1
+    assert err == (
+        f"anytime: error: no scenario file '{split}.scen' next to the map: give --scen FILE.scen,"
+        " or --start X,Y --goal X,Y\n"
+    )
+    code, _, err = cli("plan", "--map", split, "--scen", str(tmp_path / "none.scen"))
+    assert code == 1
+    assert (
+        err
+        == f"anytime: error: cannot read '{tmp_path / 'none.scen'}': No such file or directory\n"
+    )
+
+
+def test_malformed_map_and_scenario(cli: Cli, tmp_path: Path) -> None:
+    bad = tmp_path / "bad.map"
+    bad.write_text(SPLIT.replace("..@..\n..@..\n..@..", "..@..\n..x..\n..@.."))
+    code, out, err = cli("plan", "--map", str(bad))
+    assert (code, out) == (1, "")
+    assert err == (
+        f"{bad}:6: error: unknown character 'x' at column 3 (passable: . G S; blocked: @ O T W)\n"
+    )
+    scen = tmp_path / "bad.scen"
+    scen.write_text("version 1\n0\tsplit.map\t5\t3\t0\t0\t1\t2\n")
+    code, out, err = cli("plan", "--map", _split_map(tmp_path), "--scen", str(scen))
+    assert (code, out) == (1, "")
+    assert err == f"{scen}:2: error: expected 9 tab-separated fields, found 8\n"
+    code, _, err = cli("plan", "--map", _split_map(tmp_path), "--start", "2,0", "--goal", "0,0")
+    assert (code, err) == (
+        1,
+        f"anytime: error: --start 2,0 is a blocked cell of '{tmp_path / 'split.map'}'\n",
+    )
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--start", "1,11"], "anytime plan: error: --start and --goal go together"),
+        (["--goal", "1,11"], "anytime plan: error: --start and --goal go together"),
+        (
+            ["--start", "1,11", "--goal", "1,12", "--scen", ARENA + ".scen"],
+            "anytime plan: error: give either --scen or --start/--goal, not both",
+        ),
+        (
+            ["--start", "1;11", "--goal", "1,12"],
+            "anytime plan: error: argument --start: expected X,Y (two whole numbers), got '1;11'",
+        ),
+        (
+            ["--start", "1,11", "--goal", "1,2,3"],
+            "anytime plan: error: argument --goal: expected X,Y (two whole numbers), got '1,2,3'",
+        ),
+        (["--limit", "0"], "anytime plan: error: argument --limit: expected a number >= 1, got 0"),
+        (["--movement", "6"], "anytime plan: error: argument --movement: invalid choice: 6"),
+        (["--planner", "dijkstra"], "anytime plan: error: argument --planner: invalid choice"),
+    ],
+    ids=[
+        "start-alone",
+        "goal-alone",
+        "scen-and-start",
+        "bad-start",
+        "bad-goal",
+        "zero-limit",
+        "bad-movement",
+        "bad-planner",
+    ],
+)
+def test_usage_errors(cli: Cli, argv: list[str], message: str) -> None:
+    code, out, err = cli("plan", "--map", ARENA, *argv)
+    assert (code, out) == (2, "")
+    assert err.startswith("usage: anytime plan")
+    assert err.splitlines()[-1].startswith(message)
+
+
+def test_map_is_required(cli: Cli) -> None:
+    code, _, err = cli("plan")
+    assert code == 2
+    assert (
+        err.splitlines()[-1] == "anytime plan: error: the following arguments are required: --map"
+    )
