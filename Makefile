@@ -8,10 +8,13 @@ INSTALLED := $(VENV)/.installed
 
 .PHONY: demo test lint typecheck pytest slow clean
 
+# The main job: a robot crosses a 128x128 world it does not know, frame by frame, under the
+# monitor; the frame program is schemas/navigation.any compiled against the measured profiles.
 demo: $(INSTALLED)
-	$(BIN)/anytime parse schemas/navigation.any
-	$(BIN)/anytime compile schemas/navigation.any --schema navigate --library schemas/profiles \
-		--time-grid 0:600:50 --resolution 10
+	$(BIN)/anytime compile schemas/navigation.any --schema navigate --time-grid 0:3000:250
+	$(BIN)/anytime navigate --out out/
+	@echo "The pictures are in out/: a planning and an execution view per frame (PNG), the"
+	@echo "whole run as out/run.gif, and the monitor's decisions in out/events.jsonl."
 
 test: lint typecheck pytest
 

@@ -1,0 +1,76 @@
+"""Frame-by-frame pictures of a navigation task (the papers' Figures 13 and 14): per frame, a
+planning view (the robot's map, the sensor window, the best plan; contract time, frame time,
+expected and actual plan quality, sensing time and quality) beside an execution view (the true
+map, the route so far; current time, energy, expected completion time and value), one PNG per
+frame, and an animated GIF of the run. Needs matplotlib (the `plot` extra), imported lazily."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from .task import NavigationTask, TaskReport
+
+__all__ = ["write_frames"]
+
+
+def write_frames(report: TaskReport, task: NavigationTask, out: str | Path) -> list[str]:
+    """Write `frame-NNN.png` for every frame and `run.gif` into `out`; return the paths.
+
+    Left, the planning view: the robot's map at planning time (what it had sensed and bumped
+    into), the sensor window, and the plan as squares of its abstraction levels
+    (`figures.draw_plan`). Right, the execution view: the true map and the route so far."""
+    from matplotlib.patches import Rectangle
+    from PIL import Image
+
+    from anytime.plot import new_figure, save_figure
+
+    from .figures import draw_plan
+
+    out = Path(out)
+    truth = np.asarray(task.world.blocked, dtype=bool)
+    written: list[str] = []
+    for frame in report.records:
+        figure = new_figure(11, 5.8)
+        left, right = figure.subplots(1, 2)
+        draw_plan(left, frame.known, frame.plan, legend=False)
+        x0, y0, x1, y1 = frame.window
+        left.add_patch(
+            Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, ec="tab:orange", lw=2, zorder=5)
+        )
+        left.set_title(
+            f"planning frame {frame.index}: contract {frame.contract:.0f}, "
+            f"frame {frame.frame_time:.0f} ticks\n"
+            f"plan quality {frame.plan_quality:.2f} (expected {frame.expected_quality:.2f}); "
+            f"sensing {frame.sensing_time:.0f} ticks, quality {frame.sensing_quality:.3f}",
+            fontsize=9,
+        )
+        upto = [c for f in report.records[: frame.index + 1] for c in f.route]
+        draw_plan(right, truth, None, route=upto, goal=task.world.goal, legend=False)
+        here = frame.route[-1]
+        right.plot(here[0] + 0.5, here[1] + 0.5, "o", color="tab:red", mec="black", zorder=6)
+        right.set_title(
+            f"execution: time {frame.exec_end:.0f} ticks, speed {frame.speed:g} cells/tick, "
+            f"energy {frame.energy:.0f}\n"
+            f"expected completion {frame.expected_completion:.0f}, "
+            f"expected value {frame.expected_value:.0f}",
+            fontsize=9,
+        )
+        figure.suptitle(
+            f"{report.policy}: frame {frame.index + 1} of {report.frames}; left: the robot's map,"
+            " sensor window (orange) and plan (squares by level); right: the true map, the route"
+            " so far and the robot (red)",
+            fontsize=10,
+        )
+        path = out / f"frame-{frame.index:03d}.png"
+        save_figure(figure, path)
+        written.append(str(path))
+    if written:
+        images = [Image.open(p).convert("P") for p in written]
+        gif = out / "run.gif"
+        images[0].save(gif, save_all=True, append_images=images[1:], duration=700, loop=0)
+        written.append(str(gif))
+    return written

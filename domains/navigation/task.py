@@ -1,0 +1,712 @@
+"""The navigation task: a robot covers a route frame by frame under a monitor (Zilberstein &
+Russell, "The run-time system").
+
+The robot senses only a square window of radius `radius` around itself, so it reaches the goal
+in *frames*. In each frame the compiled program `schemas/navigation.any` (`navigate`: sense,
+then plan) is run by the runtime executor under a contract time chosen by a *policy*, and the
+robot then follows its plan on the true map (`execution.execute`) up to the edge of the window,
+at a speed taken from a grid. Planning for the next frame overlaps that execution (the sensor
+looks around the point where the current segment ends, which the robot knows in advance), so a
+frame lasts `max(next contract, execution time)`; the first frame's planning is not overlapped
+(the robot waits). While a frame runs, the monitor's intra-frame rule (`Monitor.adjust`) is
+checked at a quarter, half and three quarters of the contract, against the plan quality the
+planner had actually reached by then, and moves the speed one step up or down the grid.
+
+Time is in ticks of the work clock (or, with a wall clock, in tick-equivalents measured with a
+calibrated rate). Quantities:
+
+- completion time `T`: when the robot stands on the goal;
+- value `V(T)`: a pluggable function of completion time; by default `DeadlineValue` (full
+  value until a deadline, then a linear decay);
+- energy `E = sum over cells moved of energy_per_cell(speed)`, with
+  `energy_per_cell(v) = e0 * (1 + (v / v0)^2)` (`QuadraticEnergy`; pluggable): faster costs
+  more per cell;
+- utility `U = V(T) - E`.
+
+Policies: `monitored` (the monitor's inter-frame rule: contract and speed of highest expected
+utility, see `TaskModel`), `fixed` (a given contract every frame; the speed as the monitor would
+choose for it), `min` and `max` (the smallest and largest contract of the grid, the papers'
+MIN/MAX baselines).
+
+Two references:
+
+- `predicted_utility`: the expected utility of the whole task that the monitor computes when
+  the task is presented, i.e. its first inter-frame decision: the highest over the contract
+  grid and the speed grid of E_q[V(T_hat) - E_hat], where the expectation is over the compiled
+  program's output-quality distribution at the contract, and `T_hat`, `E_hat` come from the
+  environment model `TaskModel` with the remaining distance the shortest route on the prior map
+  (nothing known: every cell free, i.e. the Manhattan distance for 4-connected movement).
+- `optimal_utility`: a clairvoyant bound on the same world: the true map known, no sensing or
+  planning time, a shortest route `L*`, at the best constant speed of the grid:
+  `max_v V(L* / v) - energy_per_cell(v) * L*`.
+
+and `prediction_error = |U - predicted_utility| / |predicted_utility|`,
+`utility_ratio = U / optimal_utility`.
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any, Protocol
+
+import attrs
+import numpy as np
+from attrs import field, frozen
+
+from anytime.clocks import Clock, WorkClock
+from anytime.compiler import compile_file
+from anytime.compiler.compile import CompiledProgram, default_time_grid
+from anytime.dsl import load_schemas
+from anytime.library import AnytimeLibrary, LibraryEntry
+from anytime.modules import Context, Result
+from anytime.profiles import VisionHyperbola, tabulate
+from anytime.profiles.profile import Array
+from anytime.runtime.monitor import Adjustment, DeadlineValue, EventLog, Monitor
+
+from .execution import execute, optimal_length, route_length
+from .vision import Q_A, T_A, T_B, Sensor
+from .world import BoolGrid, Position, World
+
+__all__ = [
+    "POLICIES",
+    "FrameRecord",
+    "NavigationTask",
+    "QuadraticEnergy",
+    "TaskModel",
+    "TaskReport",
+    "WallTicks",
+    "navigation_library",
+    "navigation_program",
+    "optimal_utility",
+    "run_task",
+]
+
+POLICIES = ("monitored", "fixed", "min", "max")
+
+#: The schema file of the papers' program.
+SCHEMA_FILE = Path(__file__).resolve().parents[2] / "schemas" / "navigation.any"
+
+#: Plan qualities below this count as this in the environment model (no division by 0).
+MIN_QUALITY = 0.05
+
+
+class EnergyModel(Protocol):
+    def __call__(self, speed: Any) -> Any:
+        """Energy per cell moved at `speed` (cells per tick); works on arrays."""
+        ...
+
+
+@frozen
+class QuadraticEnergy:
+    """`energy_per_cell(v) = e0 * (1 + (v / v0)^2)`: a base cost plus a cost of going fast."""
+
+    e0: float = 1.0
+    v0: float = 0.2
+
+    def __call__(self, speed: Any) -> Any:
+        return self.e0 * (1.0 + (np.asarray(speed, dtype=np.float64) / self.v0) ** 2)
+
+
+@frozen
+class NavigationTask:
+    """One task: a world, the sensor's reach, the speeds, the value and the energy.
+
+    Attributes:
+        world: the true map, start, goal and movement.
+        radius: the sensor sees the cells within `radius` (Chebyshev) of the robot.
+        speeds: the speed grid, cells per tick, increasing.
+        value: the value of completion time (a callable on arrays).
+        energy: energy per cell as a function of speed.
+        seed: fixes vision's errors (frame i uses seed * 7919 + i).
+    """
+
+    world: World
+    radius: int = 32
+    speeds: tuple[float, ...] = field(default=(0.05, 0.1, 0.15, 0.2), converter=tuple)
+    value: Callable[[Any], Any] = DeadlineValue(1000.0, 6000.0, 0.25)
+    energy: EnergyModel = QuadraticEnergy()
+    seed: int = 0
+
+    def window(self, position: Position) -> tuple[int, int, int, int]:
+        """The half-open box (x0, y0, x1, y1) the sensor sees from `position`."""
+        h, w = self.world.blocked.shape
+        x, y = position
+        r = self.radius
+        return (max(0, x - r), max(0, y - r), min(w, x + r + 1), min(h, y + r + 1))
+
+
+# --- the environment model the monitor plans with ------------------------------------------------
+
+
+@frozen
+class FrameState:
+    """What the monitor knows when it chooses a contract: the time now, the remaining distance
+    from where the plan will start (shortest route on the robot's map), the speed considered,
+    the progress in remaining distance expected per frame, and either that the robot waits for
+    this plan (the first frame) or the length of the segment it executes meanwhile."""
+
+    now: float
+    remaining: float
+    speed: float
+    step: float
+    waiting: bool
+    current: float = 0.0
+
+
+@frozen
+class TaskModel:
+    """The monitor's value and cost models for navigation.
+
+    With `d` the remaining distance from where the plan starts, `q` the plan quality (optimal
+    / executed length), `c` the contract and `v` the speed, the route left is `d / q` cells in
+    `f = ceil(d / step)` frames of `e = d / (q f v)` ticks each, each overlapped with the next
+    frame's planning (assumed to get the same contract). Before that the robot either waits
+    for the plan (first frame: `c`) or executes its current segment of `n` cells meanwhile
+    (`max(c, n / v)`), so
+
+        T_hat = now + (c or max(c, n / v)) + (f - 1) * max(c, e) + e,
+        E_hat = energy(v) * (n + d / q),
+
+    value `V(T_hat)`, cost `E_hat`. A plan of quality below `floor` is not taken at its word:
+    the robot's obstacle avoidance still follows it toward the goal, so its route is counted as
+    `d / floor` (without a floor, a profile's few failed runs at quality ~0 would dominate the
+    expectation of `d / q`).
+    """
+
+    task: NavigationTask
+    floor: float = 0.5
+
+    def _parts(self, state: FrameState, contract: Array, quality: Array) -> tuple[Array, Array]:
+        q = np.maximum(np.asarray(quality, dtype=np.float64), max(self.floor, MIN_QUALITY))
+        c = np.asarray(contract, dtype=np.float64)
+        d = state.remaining
+        frames = max(1.0, math.ceil(d / max(state.step, 1.0)))
+        path = d / q
+        per_frame = path / frames / state.speed
+        if state.waiting:
+            wait = c
+        else:
+            wait = np.maximum(c, state.current / state.speed)
+        completion = state.now + wait + (frames - 1) * np.maximum(c, per_frame) + per_frame
+        return completion, path + state.current
+
+    def value(self, state: FrameState, contract: Array, quality: Array) -> Array:
+        completion, _ = self._parts(state, contract, quality)
+        return np.asarray(self.task.value(completion), dtype=np.float64)
+
+    def cost(self, state: FrameState, contract: Array, quality: Array) -> Array:
+        _, path = self._parts(state, contract, quality)
+        return np.asarray(self.task.energy(state.speed) * path, dtype=np.float64)
+
+    def expected_completion(self, state: FrameState, contract: float, quality: float) -> float:
+        completion, _ = self._parts(state, np.float64(contract), np.float64(quality))
+        return float(completion)
+
+
+# --- the library and the compiled program --------------------------------------------------------
+
+
+def _stand_in_profiles() -> dict[str, Any]:
+    """Analytic profiles on the real modules' time scale, used while the measured ones are
+    missing: vision's hyperbola (T_A, Q_A, T_B) and a planner `q^2 (1 - exp(-t / 400))`."""
+    t_v = np.arange(0.0, 1201.0, 50.0)
+    t_p = np.arange(0.0, 2001.0, 100.0)
+    q_grid = [0.6, 0.7, 0.8, 0.9, 0.95, 1.0]
+    return {
+        "get-domain-description": tabulate(
+            VisionHyperbola(t_a=T_A, q_a=Q_A, t_b=T_B),
+            t_v,
+            module="get-domain-description",
+            kind="contract",
+        ),
+        "find-path": tabulate(
+            lambda t, q: q**2 * (1.0 - np.exp(-t / 400.0)),
+            t_p,
+            input_grids=[q_grid],
+            inputs=["domain"],
+            module="find-path",
+        ),
+    }
+
+
+@frozen
+class PlanTrace:
+    """What the traced planner saw in its last run: the map it was given and the quality of
+    each plan it yielded, with the program time (since the program started) of each."""
+
+    domain: list[Any] = field(factory=list)
+    qualities: list[tuple[float, float]] = field(factory=list)
+    origin: list[float] = field(factory=list)
+
+    def reset(self, start: float) -> None:
+        self.domain.clear()
+        self.qualities.clear()
+        self.origin[:] = [start]
+
+    def quality_at(self, elapsed: float) -> float:
+        """The best plan's quality at `elapsed` into the program (0 before the first plan)."""
+        best = 0.0
+        for t, q in self.qualities:
+            if t <= elapsed + 1e-9:
+                best = q
+        return best
+
+
+def navigation_library(
+    profile_dirs: Sequence[str | Path] = (), *, warn: Callable[[str], None] | None = None
+) -> tuple[AnytimeLibrary, PlanTrace]:
+    """The library `navigate` is compiled against: the navigation plugin's two modules with
+    their measured profiles (analytic stand-ins when those cannot be read, with a warning),
+    `find-path` wrapped so that its plans' qualities are recorded in the returned trace."""
+    from . import modules as nav
+
+    base = AnytimeLibrary.default(profile_dirs=profile_dirs, plugins=False)
+    stand_ins = _stand_in_profiles()
+    trace = PlanTrace()
+    library = AnytimeLibrary()
+    for module in (nav.get_domain_description, nav.find_path):
+        entry = base.get(module.name) or LibraryEntry.of_module(module)
+        try:
+            profile = entry.profile
+        except Exception as error:  # missing or malformed file: say so, use the stand-in
+            if warn is not None:
+                warn(f"{str(error).splitlines()[0]}; using an analytic stand-in profile")
+            profile = stand_ins[module.name]
+        assert profile is not None
+        function = module.function
+        if module.name == "find-path":
+            function = _traced(module.function, trace)
+        library.add(
+            LibraryEntry.of_module(
+                attrs.evolve(
+                    module,
+                    function=function,
+                    profile_source=profile,
+                    inputs=tuple(profile.inputs) if profile.inputs else module.inputs,
+                )
+            )
+        )
+    return library, trace
+
+
+def _traced(function: Callable[..., Any], trace: PlanTrace) -> Callable[..., Any]:
+    def find_path(ctx: Context, start: Position, goal: Position, domain: Result) -> Any:
+        trace.domain[:] = [domain]
+        origin = trace.origin[0] if trace.origin else ctx.start
+        for result in function(ctx, start, goal, domain):
+            trace.qualities.append((ctx.clock.now() - origin, float(result.quality)))
+            yield result
+
+    return find_path
+
+
+def navigation_program(
+    profile_dirs: Sequence[str | Path] = (), *, warn: Callable[[str], None] | None = None
+) -> tuple[CompiledProgram, PlanTrace]:
+    """`navigate` of `schemas/navigation.any`, compiled against `navigation_library`."""
+    library, trace = navigation_library(profile_dirs, warn=warn)
+    schemas = load_schemas(SCHEMA_FILE)
+    grid = default_time_grid(schemas, library, "navigate")
+    compiled = compile_file(schemas, library, grid, schema="navigate")
+    return compiled[-1], trace
+
+
+class WallTicks:
+    """A wall clock that reads in tick-equivalents: seconds of `time.perf_counter` times a rate
+    (ticks per second) measured by running the program once on the work clock."""
+
+    unit = "ticks"
+
+    def __init__(self, rate: float) -> None:
+        self.rate = rate
+        self._start = _time.perf_counter()
+
+    def now(self) -> float:
+        return (_time.perf_counter() - self._start) * self.rate
+
+    def advance(self, n: float) -> None:
+        pass
+
+
+# --- running a task ------------------------------------------------------------------------------
+
+
+@frozen
+class FrameRecord:
+    """One frame: its planning (the program run for it) and its execution.
+
+    Times are task times in ticks. `plan` is the program's output (a `MultiPath`, or None);
+    `route` the cells the robot moved along in this frame (its first cell is where it stood).
+    """
+
+    index: int
+    start: float
+    position: Position
+    window: tuple[int, int, int, int]
+    contract: float
+    expected_quality: float
+    plan_quality: float
+    sensing_time: float
+    sensing_quality: float
+    plan: Any = field(eq=False, repr=False)
+    known: BoolGrid = field(eq=False, repr=False)
+    planned_at: float
+    exec_start: float
+    exec_end: float
+    frame_time: float
+    speed: float
+    route: tuple[Position, ...] = field(repr=False)
+    energy: float
+    expected_completion: float
+    expected_value: float
+    adjustments: tuple[str, ...] = ()
+
+
+@frozen
+class TaskReport:
+    """The outcome of a task (see the module docstring for the definitions)."""
+
+    seed: int
+    size: int
+    policy: str
+    frames: int
+    completion_time: float
+    energy: float
+    value: float
+    utility: float
+    predicted_utility: float
+    prediction_error: float
+    optimal_utility: float
+    utility_ratio: float
+    route_length: float
+    optimal_length: float
+    reached: bool
+    route: tuple[Position, ...] = field(repr=False)
+    records: tuple[FrameRecord, ...] = field(repr=False)
+    log: EventLog = field(repr=False, eq=False)
+
+    def as_json(self) -> dict[str, Any]:
+        keys = (
+            "seed size frames completion_time energy value utility predicted_utility "
+            "prediction_error optimal_utility utility_ratio route_length optimal_length policy"
+        ).split()
+        return {k: getattr(self, k) for k in keys}
+
+
+def optimal_utility(task: NavigationTask, length: float) -> tuple[float, float]:
+    """The clairvoyant bound: (utility, speed) of the best constant speed of the grid on a
+    route of the shortest length `length`, with no sensing or planning time."""
+    speeds = np.asarray(task.speeds, dtype=np.float64)
+    utility = np.asarray(task.value(length / speeds)) - task.energy(speeds) * length
+    i = int(np.argmax(utility))
+    return float(utility[i]), float(speeds[i])
+
+
+def _segment(route: Sequence[Position], window: tuple[int, int, int, int]) -> list[Position]:
+    """The route from its start up to the last cell before it first leaves `window`."""
+    x0, y0, x1, y1 = window
+    cut = [route[0]]
+    for x, y in route[1:]:
+        if not (x0 <= x < x1 and y0 <= y < y1):
+            break
+        cut.append((x, y))
+    if len(cut) == 1 and len(route) > 1:
+        cut.append(route[1])
+    return cut
+
+
+def _belief_distance(known: BoolGrid, start: Position, goal: Position, movement: int) -> float:
+    free = np.array(known, dtype=bool)
+    for x, y in (start, goal):
+        free[y, x] = False
+    length = optimal_length(free, start, goal, movement=movement)
+    if length is None:  # the robot's map walls the goal off: fall back on the prior map
+        length = optimal_length(np.zeros_like(free), start, goal, movement=movement)
+    assert length is not None
+    return float(length)
+
+
+def run_task(
+    task: NavigationTask,
+    compiled: CompiledProgram,
+    trace: PlanTrace,
+    *,
+    policy: str = "monitored",
+    contract: float | None = None,
+    clock: str = "work",
+    max_frames: int = 200,
+) -> TaskReport:
+    """Run `task` under `policy` (`fixed` needs `contract`) and report what happened.
+
+    `compiled` and `trace` come from `navigation_program`. Raises ValueError for an unknown
+    policy, a missing contract, or a goal unreachable from the start.
+    """
+    if policy not in POLICIES:
+        raise ValueError(f"policy must be one of {', '.join(POLICIES)}, got {policy!r}")
+    world = task.world
+    truth = np.asarray(world.blocked, dtype=bool)
+    best_length = optimal_length(truth, world.start, world.goal, movement=world.movement)
+    if best_length is None:
+        raise ValueError(f"the goal {world.goal} cannot be reached from the start {world.start}")
+    profile = compiled.profile
+    n_inputs = profile.n_inputs
+    input_quality = (1.0,) * n_inputs if n_inputs else None
+    expected = np.asarray(profile.expected(np.ones(n_inputs), profile.time)).reshape(-1)
+    grid = profile.time[(profile.time > 0) & (expected > MIN_QUALITY)]
+    if grid.size == 0:
+        grid = profile.time[profile.time > 0]
+    if policy == "fixed":
+        if contract is None or not contract > 0:
+            raise ValueError("the fixed policy needs a contract time > 0")
+        contracts = np.array([float(contract)])
+    elif policy == "min":
+        contracts = grid[:1]
+    elif policy == "max":
+        contracts = grid[-1:]
+    else:
+        contracts = grid
+    model = TaskModel(task)
+    log = EventLog()
+    chooser = Monitor(profile, model, model, grid=contracts, input_quality=input_quality)
+    checker = Monitor(profile, model, model, grid=grid, input_quality=input_quality, log=log)
+    speeds = list(task.speeds)
+
+    run_clock = _make_clock(clock, compiled, task)
+
+    def decide(
+        now: float, position: Position, known: BoolGrid, step: float, current: float | None
+    ) -> tuple[Any, FrameState]:
+        remaining = _belief_distance(known, position, world.goal, world.movement)
+        best = None
+        for speed in speeds:
+            state = FrameState(now, remaining, speed, step, current is None, current or 0.0)
+            decision = chooser.choose_contract(state, now=now)
+            if best is None or decision.expected_utility > best[0].expected_utility + 1e-12:
+                best = (decision, state)
+        assert best is not None
+        decision, state = best
+        log.record(
+            now,
+            "contract",
+            {
+                "contract": decision.contract,
+                "speed": state.speed,
+                "remaining": remaining,
+                "expected_quality": decision.expected_quality,
+                "expected_value": decision.expected_value,
+                "expected_cost": decision.expected_cost,
+                "expected_utility": decision.expected_utility,
+            },
+        )
+        return decision, state
+
+    def plan(position: Position, known: BoolGrid, contract_time: float, index: int):
+        window = task.window(position)
+        sensor = Sensor(
+            truth,
+            seed=task.seed * 7919 + index,
+            window=window,
+            known=known,
+            movement=world.movement,
+        )
+        started = run_clock.now()
+        trace.reset(started)
+        result = compiled.run([position, world.goal, sensor], contract_time, run_clock)
+        spent = run_clock.now() - started
+        allocation = compiled.allocation_at(list(input_quality or ()), contract_time)
+        domain = trace.domain[0] if trace.domain else None
+        new_known = np.array(known, dtype=bool)
+        if domain is not None and domain.value is not None:
+            x0, y0, x1, y1 = window
+            new_known[y0:y1, x0:x1] = np.asarray(domain.value.blocked)[y0:y1, x0:x1]
+        sensing_quality = float(domain.quality) if domain is not None else 0.0
+        return {
+            "window": window,
+            "plan": result.value,
+            "quality": float(result.quality),
+            "sensing_time": float(allocation[0]),
+            "sensing_quality": sensing_quality,
+            "known": new_known,
+            "spent": spent,
+            "trace": list(trace.qualities),
+        }
+
+    known = np.zeros_like(truth)
+    position = world.start
+    now = 0.0
+    energy = 0.0
+    route: list[Position] = [position]
+    records: list[FrameRecord] = []
+    step = float(task.radius)
+    progress_per_frame: list[float] = []
+
+    decision, state = decide(now, position, known, step, None)
+    predicted = decision.expected_utility
+    planned = plan(position, known, decision.contract, 0)
+    planned_at = now
+    now += decision.contract if clock == "work" else planned["spent"]
+    frame_contract, frame_decision, speed_index = (
+        decision.contract,
+        decision,
+        speeds.index(state.speed),
+    )
+
+    while position != world.goal and len(records) < max_frames:
+        index = len(records)
+        known = planned["known"]
+        plan_value = planned["plan"]
+        executed = execute(
+            plan_value if plan_value is not None else [position, world.goal],
+            truth,
+            movement=world.movement,
+        )
+        segment = _segment(executed.route, planned["window"])
+        n_cells = route_length(segment)
+        end = segment[-1]
+        exec_start = now
+        # The next frame's contract is chosen now, for the window around the segment's end.
+        next_decision = next_state = next_plan = None
+        adjustments: list[str] = []
+        if end != world.goal:
+            next_decision, next_state = decide(now, end, known, step, n_cells)
+            speed_index = speeds.index(next_state.speed)
+            next_plan = plan(end, known, next_decision.contract, index + 1)
+        speed = speeds[speed_index]
+        # Execution of this segment, replayed against the next frame's planning.
+        t, done, frame_energy = 0.0, 0.0, 0.0
+        if next_decision is not None and n_cells > 0:
+            c = next_decision.contract
+            for fraction in (0.25, 0.5, 0.75):
+                checkpoint = fraction * c
+                reach = done + (checkpoint - t) * speed
+                if reach >= n_cells:
+                    break
+                frame_energy += float(task.energy(speed)) * (reach - done)
+                done, t = reach, checkpoint
+                assert next_plan is not None
+                trace_q = _quality_at(next_plan["trace"], checkpoint)
+                adjustment = checker.adjust(
+                    checkpoint, trace_q, done / n_cells, c, now=exec_start + checkpoint
+                )
+                if adjustment is Adjustment.FASTER and speed_index < len(speeds) - 1:
+                    speed_index += 1
+                elif adjustment is Adjustment.SLOWER and speed_index > 0:
+                    speed_index -= 1
+                adjustments.append(str(adjustment))
+                speed = speeds[speed_index]
+        t += (n_cells - done) / speed
+        frame_energy += float(task.energy(speed)) * (n_cells - done)
+        exec_time = t
+        if next_decision is not None:
+            next_spent = next_decision.contract if clock == "work" else next_plan["spent"]
+            frame_time = max(exec_time, next_spent)
+        else:
+            frame_time = exec_time
+        energy += frame_energy
+        route.extend(segment[1:])
+        known = _touch(known, truth, segment)
+        if next_plan is not None:
+            next_plan["known"] = _touch(next_plan["known"], truth, segment)
+        records.append(
+            FrameRecord(
+                index=index,
+                start=planned_at,
+                position=position,
+                window=planned["window"],
+                contract=frame_contract,
+                expected_quality=frame_decision.expected_quality,
+                plan_quality=planned["quality"],
+                sensing_time=planned["sensing_time"],
+                sensing_quality=planned["sensing_quality"],
+                plan=plan_value,
+                known=planned["known"],
+                planned_at=planned_at,
+                exec_start=exec_start,
+                exec_end=exec_start + exec_time,
+                frame_time=frame_time,
+                speed=speed,
+                route=tuple(segment),
+                energy=energy,
+                expected_completion=model.expected_completion(
+                    state, frame_decision.contract, frame_decision.expected_quality
+                ),
+                expected_value=frame_decision.expected_value,
+                adjustments=tuple(adjustments),
+            )
+        )
+        before = _belief_distance(known, position, world.goal, world.movement)
+        after = _belief_distance(known, end, world.goal, world.movement) if end != world.goal else 0
+        progress_per_frame.append(max(1.0, before - after))
+        step = float(np.mean(progress_per_frame))
+        position = end
+        if next_decision is None:
+            now = exec_start + exec_time
+            break
+        planned_at = exec_start
+        now = exec_start + frame_time
+        planned = next_plan
+        frame_contract, frame_decision, state = next_decision.contract, next_decision, next_state
+
+    reached = position == world.goal
+    value = float(np.asarray(task.value(now))) if reached else 0.0
+    utility = value - energy
+    best_utility, _ = optimal_utility(task, best_length)
+    error = abs(utility - predicted) / abs(predicted) if predicted else math.inf
+    ratio = utility / best_utility if best_utility else math.nan
+    return TaskReport(
+        seed=task.seed,
+        size=int(truth.shape[1]),
+        policy=policy if policy != "fixed" else f"fixed:{contracts[0]:g}",
+        frames=len(records),
+        completion_time=now,
+        energy=energy,
+        value=value,
+        utility=utility,
+        predicted_utility=predicted,
+        prediction_error=error,
+        optimal_utility=best_utility,
+        utility_ratio=ratio,
+        route_length=route_length(route),
+        optimal_length=float(best_length),
+        reached=reached,
+        route=tuple(route),
+        records=tuple(records),
+        log=log,
+    )
+
+
+def _touch(known: BoolGrid, truth: BoolGrid, segment: Sequence[Position]) -> BoolGrid:
+    """`known` plus the true state of the cells next to the route (what the robot bumped into
+    while moving: its memory of obstacles, whatever vision was given)."""
+    out = np.array(known, dtype=bool)
+    h, w = truth.shape
+    for x, y in segment:
+        y0, y1, x0, x1 = max(0, y - 1), min(h, y + 2), max(0, x - 1), min(w, x + 2)
+        out[y0:y1, x0:x1] = truth[y0:y1, x0:x1]
+    return out
+
+
+def _quality_at(trace: Sequence[tuple[float, float]], elapsed: float) -> float:
+    best = 0.0
+    for t, q in trace:
+        if t <= elapsed + 1e-9:
+            best = q
+    return min(1.0, max(0.0, best))
+
+
+def _make_clock(kind: str, compiled: CompiledProgram, task: NavigationTask) -> Clock:
+    if kind == "work":
+        return WorkClock()
+    if kind != "wall":
+        raise ValueError(f"clock must be 'work' or 'wall', got {kind!r}")
+    # Calibrate: ticks per second of the program on this machine, from one run.
+    sensor = Sensor(np.asarray(task.world.blocked), seed=task.seed, movement=task.world.movement)
+    work = WorkClock()
+    started = _time.perf_counter()
+    total = float(compiled.profile.time[-1])
+    compiled.run([task.world.start, task.world.goal, sensor], total, work)
+    seconds = max(_time.perf_counter() - started, 1e-6)
+    return WallTicks(work.now() / seconds)

@@ -1,0 +1,70 @@
+"""`anytime navigate`: end to end on a small world, and one-line errors for bad input."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+
+import pytest
+
+
+def navigate(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "anytime", "navigate", *args],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+
+
+def test_json_end_to_end():
+    done = navigate("--size", "32", "--seed", "2", "--radius", "8", "--json")
+    assert done.returncode == 0, done.stderr
+    result = json.loads(done.stdout)
+    assert set(result) == {
+        "seed", "size", "frames", "completion_time", "energy", "value", "utility",
+        "predicted_utility", "prediction_error", "optimal_utility", "utility_ratio",
+        "route_length", "optimal_length", "policy",
+    }  # fmt: skip
+    assert math.isclose(result["utility"], result["value"] - result["energy"])
+    assert result["frames"] > 1 and result["size"] == 32
+    assert result["route_length"] >= result["optimal_length"]
+
+
+def _map(tmp_path, rows):
+    path = tmp_path / "m.map"
+    path.write_text(
+        f"type octile\nheight {len(rows)}\nwidth {len(rows[0])}\nmap\n" + "\n".join(rows) + "\n"
+    )
+    return str(path)
+
+
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["--map", "/no/such.map"], "cannot read"),
+        (["--size", "-4"], "power of two"),
+        (["--start", "1,1"], "need --map"),
+    ],
+)
+def test_bad_input_one_line(args, words):
+    done = navigate(*args)
+    assert done.returncode == 1
+    assert words in done.stderr and done.stderr.count("\n") == 1
+    assert "Traceback" not in done.stderr
+
+
+def test_bad_maps(tmp_path):
+    malformed = tmp_path / "bad.map"
+    malformed.write_text("not a map\n")
+    walled = _map(tmp_path, ["....", "@@@@", "....", "...."])
+    for args, words in [
+        (["--map", str(malformed)], "error"),
+        (["--map", walled, "--start", "0,1", "--goal", "3,3"], "blocked"),
+        (["--map", walled, "--start", "0,0", "--goal", "3,3"], "cannot be reached"),
+    ]:
+        done = navigate(*args)
+        assert done.returncode == 1, (args, done.stderr)
+        assert words in done.stderr and "Traceback" not in done.stderr
