@@ -36,7 +36,7 @@ from attrs import field, frozen
 from anytime.modules import Context, Result
 
 from .abstraction import Pyramid, project
-from .search import SQRT2, find_path_to_box
+from .search import SQRT2, SearchLimit, find_path_to_box
 from .world import BoolGrid, Position, reachable
 
 __all__ = ["MultiPath", "Segment", "atp", "quality_estimate", "segmentize", "worst_segment"]
@@ -188,7 +188,9 @@ def atp(
 ) -> Iterator[Result]:
     """The anytime abstract planner: yields `Result(MultiPath, quality_estimate)` after the first
     plan and after every refinement; returns (SIGNAL(TERMINATION)) when nothing is refinable or
-    when `ctx` has expired after a yield. Work is the A* expansions PATH-FINDER reports.
+    when `ctx` has expired. Work is the A* expansions PATH-FINDER reports; a search is given
+    what is left of the allocation and stopped when it runs out, so the planner never works
+    past its deadline (the refinement under way is dropped; the last plan yielded stands).
 
     Args:
         ctx: the context; each A* expansion is one tick.
@@ -239,9 +241,13 @@ def atp(
             raise ValueError(f"{name} {position} is a blocked cell")
     planner = _Planner(pyramid, start, goal, movement, weight, margin, ctx)
     side = pyramid.side(top)
-    path = planner.plan(
-        top, [project(start, 0, top)], _point(goal, top), (0, 0, side - 1, side - 1)
-    ).cells
+    try:
+        path = planner.plan(
+            top, [project(start, 0, top)], _point(goal, top), (0, 0, side - 1, side - 1)
+        ).cells
+    except SearchLimit as stopped:  # the deadline came before the first plan
+        ctx.tick(stopped.expansions)
+        return
     segments = _pieces(top, path, segment_moves)
     plan = MultiPath(
         start, goal, segmentize(start, top), tuple(segments), segmentize(goal, top)[::-1]
@@ -273,7 +279,11 @@ def atp(
         old = heapq.heappop(heap)[2]
         live.discard(id(old))
         index = next(i for i in range(len(segments)) if segments[i] is old)
-        new = planner.refine(segments, index)
+        try:
+            new = planner.refine(segments, index)
+        except SearchLimit as stopped:  # the deadline came mid-refinement: keep the last plan
+            ctx.tick(stopped.expansions)
+            return
         extent, credit = _credit(old, _mean_obstacleness(old, pyramid), pyramid.top)
         sums[0] -= extent
         sums[1] -= credit
@@ -369,11 +379,13 @@ class _Planner:
                 impassable=~mask,
                 source_costs=source_costs,
                 box_costs=box_costs,
+                limit=self.ctx.remaining,
             )
             if found is not None:
                 self.ctx.tick(found.expansions)
                 return Segment(level, [(x + x0, y + y0) for x, y in found.path])
-            self.ctx.tick(mask.size)  # a failed search closes at most the whole window
+            # A failed search expanded every usable cell it could reach in the window.
+            self.ctx.tick(min(int(np.count_nonzero(mask)), self.ctx.remaining))
             if corridor == whole:
                 raise AssertionError(f"no path at level {level} between connected cells")
             margin = max(4 * margin, 4)

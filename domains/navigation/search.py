@@ -31,12 +31,20 @@ import numpy as np
 import numpy.typing as npt
 from attrs import frozen
 
-__all__ = ["PathResult", "find_path", "find_path_to_box"]
+__all__ = ["PathResult", "SearchLimit", "find_path", "find_path_to_box"]
 
 Position = tuple[int, int]
 
 SQRT2 = math.sqrt(2.0)
 _BLOCKED = -1.0  # the step multiplier of an impassable cell in the padded grid
+
+
+class SearchLimit(Exception):
+    """The search used up its `limit` of expansions before it could answer."""
+
+    def __init__(self, expansions: int) -> None:
+        super().__init__(f"stopped after {expansions} expansions")
+        self.expansions = expansions
 
 
 @frozen
@@ -111,15 +119,18 @@ def find_path_to_box(
     ctx: Any = None,
     source_costs: Sequence[float] | None = None,
     box_costs: npt.ArrayLike | None = None,
+    limit: float = math.inf,
 ) -> PathResult | None:
     """A cheapest path from any of `sources` to any cell of the rectangle `box`
     = (x0, y0, x1, y1), inclusive; `find_path` is the case of one source and a one-cell box.
 
     `source_costs` (one per source) and `box_costs` (shape of the box, `[y, x]`) are extra
     costs, >= 0, of starting at a source and of ending at a box cell: the path minimises their
-    sum with the path's own cost (`PathResult.cost` includes them). The heuristic is the
-    Manhattan or octile distance to the nearest cell of the box (still consistent). Impassable
-    sources are ignored and impassable box cells cannot be reached; otherwise as `find_path`.
+    sum with the path's own cost (`PathResult.cost` includes them). `limit` bounds the
+    expansions: reaching it raises `SearchLimit` (an anytime caller's deadline). The heuristic
+    is the Manhattan or octile distance to the nearest cell of the box (still consistent).
+    Impassable sources are ignored and impassable box cells cannot be reached; otherwise as
+    `find_path`.
     """
     obstacleness = np.asarray(cost, dtype=np.float64)
     if obstacleness.ndim != 2:
@@ -221,6 +232,8 @@ def find_path_to_box(
         if end > 0.0:  # ending here costs `end` more: a virtual entry competes with the rest
             counter += 1
             push(heap, (g[node] + end, -(g[node] + end), counter, -1 - node))
+        if expansions + 1 > limit:
+            raise SearchLimit(expansions)
         done[node] = 1
         expansions += 1
         if tick is not None:

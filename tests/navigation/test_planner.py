@@ -146,16 +146,23 @@ def test_segmentize_is_the_chain_of_cells_containing_the_position() -> None:
 
 
 @pytest.mark.parametrize("movement", MOVEMENTS)
-def test_interruption_keeps_a_result(movement: int) -> None:
+def test_interruption_keeps_a_result_and_never_works_past_the_deadline(movement: int) -> None:
     world = random_world(128, seed=4, movement=movement)
     pyramid = Pyramid.build(world.blocked)
-    ctx = Context(allocation=20)
+    full = Context()
+    ticks = [full.elapsed for _ in atp(full, world.start, world.goal, pyramid, movement=movement)]
+    assert len(ticks) > 3
+    # Enough for the second plan and part of the third refinement.
+    allocation = (ticks[1] + ticks[2]) / 2
+    ctx = Context(allocation=allocation)
     results = list(atp(ctx, world.start, world.goal, pyramid, movement=movement))
-    assert len(results) >= 1
-    assert ctx.expired
-    assert results[-1].value.refinable  # stopped before the plan was fully refined
-    complete = list(atp(Context(), world.start, world.goal, pyramid, movement=movement))
-    assert len(results) < len(complete)
+    assert len(results) == 2
+    assert results[-1].value.refinable
+    assert ctx.elapsed <= allocation
+    # Less than the first plan needs: no result, and no work past the deadline either.
+    short = Context(allocation=ticks[0] / 2)
+    assert list(atp(short, world.start, world.goal, pyramid, movement=movement)) == []
+    assert short.elapsed <= ticks[0] / 2
 
 
 def test_rejects_a_blocked_start_and_a_bad_top() -> None:
