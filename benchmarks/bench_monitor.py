@@ -28,7 +28,10 @@ def main() -> None:
     size = 64 if args.quick else args.size
     radius = args.radius or size // 4
     compiled, trace = navigation_program(warn=print)
-    fixed = [float(t) for t in compiled.profile.time if t > 0][1::3]
+    # Every contract of the grid up to 1000 ticks (where the best fixed policies are), then a
+    # few longer ones.
+    grid = [float(t) for t in compiled.profile.time if t > 0]
+    fixed = [t for t in grid if t <= 1000] + [t for t in grid if t > 1000][1::3]
     policies = [("monitored", None), ("min", None), ("max", None)] + [("fixed", t) for t in fixed]
     rows: dict[str, list[tuple[float, float, float]]] = {}
     started = time.perf_counter()

@@ -9,6 +9,7 @@ import pytest
 
 from anytime.modules import Context, Result
 from domains.navigation.abstraction import Pyramid, project
+from domains.navigation.execution import execute, optimal_length, plan_quality
 from domains.navigation.planner import MultiPath, Segment, atp, quality_estimate, segmentize
 from domains.navigation.world import random_world
 
@@ -173,3 +174,27 @@ def test_rejects_a_blocked_start_and_a_bad_top() -> None:
         next(atp(Context(), (0, 0), (7, 7), pyramid))
     with pytest.raises(ValueError, match=r"top must be in \[0, 3\], got 5"):
         next(atp(Context(), (1, 0), (7, 7), pyramid, top=5))
+
+
+@pytest.mark.parametrize("movement", MOVEMENTS)
+def test_true_quality_is_non_decreasing_in_expectation(movement: int) -> None:
+    """The papers' quality (optimal / executed length, the plan followed on the true map) of
+    the first, middle and final plans, averaged over worlds, does not fall as ATP refines."""
+    stages = []
+    for seed in range(12):
+        world = random_world(64, seed=seed, density=0.25, movement=movement)
+        results = list(
+            atp(Context(), world.start, world.goal, Pyramid.build(world.blocked), movement=movement)
+        )
+        optimal = optimal_length(world.blocked, world.start, world.goal, movement=movement)
+        assert optimal is not None
+        plans = [results[0], results[len(results) // 2], results[-1]]
+        stages.append(
+            [
+                plan_quality(execute(r.value, world.blocked, movement=movement).length, optimal)
+                for r in plans
+            ]
+        )
+    first, middle, final = np.mean(stages, axis=0)
+    assert first <= middle + 1e-9 <= final + 2e-9
+    assert final > 0.9
