@@ -132,6 +132,7 @@ class AnytimeModule:
     profile_source: ProfileSource = None
     combine: Callable[[Sequence[float]], float] = _min_quality
     origin: str = ""
+    probability: float | None = None  # an elementary test's chance of being true (for `if`)
 
     @property
     def arity(self) -> int:
@@ -205,6 +206,7 @@ def _declare(
     profile: ProfileSource,
     combine: Callable[[Sequence[float]], float] = _min_quality,
     registry: Registry | None,
+    probability: float | None = None,
 ) -> AnytimeModule:
     module_name = (name or function.__name__.replace("_", "-")).lower()
     where = f"module '{module_name}' ({_qualified(function)})"
@@ -246,6 +248,7 @@ def _declare(
         profile_source=profile,
         combine=combine,
         origin=f"python module {function.__module__}",
+        probability=probability,
     )
     return (registry if registry is not None else REGISTRY).add(module)
 
@@ -306,12 +309,16 @@ def elementary(
     inputs: Sequence[str] | None = None,
     combine: Callable[[Sequence[float]], float] = _min_quality,
     registry: Registry | None = None,
+    probability: float | None = None,
 ) -> Callable[[Callable[..., Any]], AnytimeModule]:
     """Register a plain function `f(*args)` that takes no time and no context.
 
     Quality-carrying inputs arrive as `Result`s, as they do for anytime modules. It returns a
     plain value, whose quality is `combine` of its inputs' qualities (default: the minimum).
+    `probability`, for a test used as the condition of an `if`, is the chance it is true.
     """
+    if probability is not None and not 0 <= probability <= 1:
+        raise ModuleError(f"elementary '{name}': probability must be in [0, 1], got {probability}")
 
     def decorate(function: Callable[..., Any]) -> AnytimeModule:
         return _declare(
@@ -322,6 +329,7 @@ def elementary(
             profile=None,
             combine=combine,
             registry=registry,
+            probability=probability,
         )
 
     return decorate

@@ -5,11 +5,12 @@ from anytime.compiler.allocators import (
     DynamicProgramming,
     Exhaustive,
     HillClimbing,
+    Proportional,
     dp_obstacle,
 )
 from anytime.compiler.compile import CompiledProgram, compile_file, compile_program
 from anytime.compiler.evaluate import Dist, Evaluator
-from anytime.compiler.execute import ExecutionError, execute
+from anytime.compiler.execute import ExecutionError, NoApplicableAlternative, execute
 from anytime.compiler.model import CompileError, CompileModel, build_model
 from anytime.compiler.report import compiled_to_dict, format_report
 
@@ -24,6 +25,8 @@ __all__ = [
     "ExecutionError",
     "Exhaustive",
     "HillClimbing",
+    "NoApplicableAlternative",
+    "Proportional",
     "build_model",
     "compile_file",
     "compile_program",

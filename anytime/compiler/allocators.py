@@ -13,6 +13,12 @@ Each works on a batch of cells at once: rows of program input qualities `q (C, m
   can hand a module's whole share to another (measured in benchmarks/bench_compiler.py: half the
   mean gap to the optimum of starting with T/2n).
 - `Exhaustive`: every allocation of the lattice simplex; exact, and exponential in n.
+- `Proportional`: Romanenko's rule for sharing a decision time T_d among alternatives,
+  `T_i = T_d * T_i* / sum_j T_j*`, with `T_i*` a lower bound on the time module i needs: here
+  the least time at which its expected quality (with perfect inputs) rises above its value at
+  no time, i.e. its first variant. Applied to every anytime module (a multi-module
+  alternative so gets the sum of its modules' bounds). Kept as a baseline: it looks at no
+  profile beyond that first point.
 - `DynamicProgramming`: local compilation. For a tree whose modules are deterministic and
   input-monotone, the best output of a subtree given its time depends on nothing else, so each
   node keeps the best quality of its subtree for every budget and the parent chooses how to split
@@ -30,7 +36,7 @@ from numpy.typing import ArrayLike
 
 from anytime.compiler.evaluate import Evaluator
 from anytime.compiler.model import CompileError, CompileModel, CompileNode
-from anytime.profiles.profile import Array
+from anytime.profiles.profile import Array, ConditionalPerformanceProfile
 
 IMPROVEMENT = 1e-12  # a trade must raise E[Q_out] by more than this to count
 EXHAUSTIVE_LIMIT = 4_000_000  # rows the exhaustive search may evaluate in one compile
@@ -166,6 +172,46 @@ class Exhaustive:
         return allocation, best
 
 
+def least_useful_time(profile: ConditionalPerformanceProfile) -> float:
+    """Romanenko's `T*`: the first time on the profile's grid at which, with perfect inputs, its
+    expected quality rises above what it gives with no time (its first variant; for a profile
+    that never improves, its first time)."""
+    best_input = np.ones((len(profile.time), profile.n_inputs))
+    curve = profile.expected(best_input, profile.time)
+    better = curve > curve[0] + 1e-12
+    return float(profile.time[np.argmax(better)] if np.any(better) else profile.time[0])
+
+
+def proportional_split(units: np.ndarray, weights: Array) -> np.ndarray:
+    """`units` split in proportion to `weights` on the lattice (largest remainders first);
+    an equal split when every weight is 0."""
+    n = len(weights)
+    if n == 0 or not weights.sum() > 0:
+        return equal_split(units, n) if n else np.zeros((len(units), 0), dtype=np.int64)
+    exact = units[:, None] * (weights / weights.sum())[None, :]
+    base = np.floor(exact + 1e-9).astype(np.int64)
+    left = units - base.sum(axis=1)
+    rank = np.argsort(np.argsort(-(exact - base), axis=1, kind="stable"), axis=1)
+    split: np.ndarray = base + (rank < left[:, None])
+    return split
+
+
+class Proportional:
+    """Romanenko's proportional split: each module's share of T is proportional to `T*`."""
+
+    name = "proportional"
+
+    def allocate(
+        self, evaluator: Evaluator, quality: Array, units: np.ndarray, dt: float
+    ) -> tuple[np.ndarray, Array]:
+        nodes = evaluator.model.anytime_nodes
+        if not nodes:
+            return nothing_to_allocate(evaluator, quality, units)
+        star = np.array([least_useful_time(n.profile) for n in nodes if n.profile is not None])
+        allocation = proportional_split(units, star)
+        return allocation, evaluator.expected(quality, allocation * dt)
+
+
 def dp_obstacle(model: CompileModel) -> str | None:
     """Why local compilation would not be exact for this program (None: it is exact)."""
     shape = model.graph.shape
@@ -175,6 +221,10 @@ def dp_obstacle(model: CompileModel) -> str | None:
             "only for chains and trees"
         )
     for node in model.nodes:
+        if node.role == "precondition":
+            continue  # its quality flows nowhere
+        if node.role == "if":
+            return "an if's output is a mixture of its branches, not a function of its time"
         if node.kind == "elementary":
             if not node.monotone_combine:
                 return (
@@ -317,8 +367,11 @@ class DynamicProgramming:
         return table, index, candidates
 
 
-ALLOCATORS: dict[str, type[HillClimbing] | type[Exhaustive] | type[DynamicProgramming]] = {
+ALLOCATORS: dict[
+    str, type[HillClimbing] | type[Exhaustive] | type[DynamicProgramming] | type[Proportional]
+] = {
     "hill-climbing": HillClimbing,
     "exhaustive": Exhaustive,
     "dp": DynamicProgramming,
+    "proportional": Proportional,
 }

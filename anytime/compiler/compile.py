@@ -143,15 +143,30 @@ def compile_program(
     Args:
         time_grid: the totals T to fill the table for (increasing, >= 0).
         input_quality: the grid of qualities for every quality-carrying program input.
-        allocator: "auto", "dp", "hill-climbing" or "exhaustive".
+        allocator: "auto", "dp", "hill-climbing", "exhaustive" or "proportional".
         resolution: the time unit allocations are multiples of (default: the grid's step);
             every T must be a multiple of it.
     """
-    model = build_model(program, library, filename, source_lines)
     time = _check_time_grid(time_grid, filename)
     dt = _resolution(time, resolution, filename)
     units = np.rint(time / dt).astype(np.int64)
     q_grid = _check_quality_grid(input_quality, filename)
+    lattice = np.arange(int(units.max()) + 1) * dt
+
+    def compile_branch(branch: Program) -> CompiledProgram:
+        """A branch of an if, on every lattice time up to the largest total."""
+        return compile_program(
+            branch,
+            library,
+            lattice,
+            q_grid,
+            allocator=allocator,
+            resolution=dt,
+            filename=filename,
+            source_lines=source_lines,
+        )
+
+    model = build_model(program, library, filename, source_lines, compile_branch)
     m = len(model.quality_inputs)
     cell_shape = (len(q_grid),) * m + (len(time),)
     if m:
@@ -267,6 +282,10 @@ def _choose(model: CompileModel, allocator: str, small: bool = False) -> tuple[s
         "dp": "dp: local compilation, exact for this tree of monotone modules",
         "hill-climbing": "hill-climbing as in the papers (may stop at a local maximum)",
         "exhaustive": "exhaustive: every allocation on the time lattice",
+        "proportional": (
+            "proportional: Romanenko's rule, T_i = T * T_i* / sum T_j*, with T_i* the least "
+            "time at which module i's expected quality rises (a baseline, not optimal)"
+        ),
     }
     return allocator, notes[allocator]
 

@@ -9,7 +9,11 @@ approximation for DAGs, where a shared result makes later inputs correlated.
   combination of input qualities to the exact quality its curve gives there: no binning.
 - A module with a stochastic profile gives a distribution over its quality bins, each standing
   for its midpoint (the profile's interpolated distribution mixed over the input combinations).
-- An elementary function combines the input qualities (min by default).
+- An elementary function combines the input qualities (min by default). A `best-of` is one:
+  its quality is the maximum of its alternatives', so its distribution is that of the maximum
+  of independent variables (the product of their CDFs), computed exactly on the joint support.
+- An `if` is the mixture of its branches' compiled output distributions, weighted by the
+  branches' probabilities.
 
 When a support grows past `MAX_SUPPORT` values it is folded onto a fixed grid by splitting each
 value's mass between its two neighbouring grid points, which keeps the mean exact.
@@ -116,6 +120,8 @@ class Evaluator:
 
     @staticmethod
     def _node(node: CompileNode, inputs: list[Dist], alloc: Array, batch: int) -> Dist:
+        if node.role == "if":
+            return _mixture(node, inputs, alloc, batch)
         q, p = _combinations(inputs, batch)  # (B, C1..Cm, m), (B, C1..Cm)
         if node.kind == "elementary":
             assert node.combine is not None
@@ -135,6 +141,29 @@ class Evaluator:
                 probs = np.einsum("bc,bck->bk", p.reshape(batch, -1), d)
                 out = Dist(np.broadcast_to(profile.values, probs.shape).copy(), probs)
         return fold(out) if out.values.shape[1] > MAX_SUPPORT else out
+
+
+def _mixture(node: CompileNode, inputs: list[Dist], alloc: Array, batch: int) -> Dist:
+    """An if: each branch's output distribution (its compiled profile at the if's time),
+    weighted by the branch's probability; the supports are concatenated (a mixture)."""
+    assert node.time_index is not None
+    values, probs = [], []
+    for plan in node.branches:
+        profile = plan.compiled.profile
+        q, p = _combinations([inputs[a] for a in plan.axes], batch)
+        t = np.broadcast_to(
+            alloc[:, node.time_index].reshape((batch,) + (1,) * (p.ndim - 1)), p.shape
+        )
+        if plan.deterministic:
+            values.append(profile.expected(q, t).reshape(batch, -1))
+            probs.append(plan.probability * p.reshape(batch, -1))
+        else:
+            d = profile.distribution(q, t).reshape(batch, -1, profile.n_bins)
+            mixed = np.einsum("bc,bck->bk", p.reshape(batch, -1), d)
+            values.append(np.broadcast_to(profile.values, mixed.shape))
+            probs.append(plan.probability * mixed)
+    out = Dist(np.concatenate(values, axis=1), np.concatenate(probs, axis=1))
+    return fold(out) if out.values.shape[1] > MAX_SUPPORT else out
 
 
 def _combinations(inputs: list[Dist], batch: int) -> tuple[Array, Array]:

@@ -4,7 +4,10 @@
 compiled allocation table (interpolated at the actual input qualities and total), on one shared
 clock (a `WorkClock` unless given). An interruptible module runs until its allocation is spent
 and answers with the last `Result` it yielded; a contract module gets its allocation up front;
-an elementary function's output quality combines its inputs' qualities. Failure handling,
+an elementary function's output quality combines its inputs' qualities. A best-of evaluates
+its preconditions, re-splits its alternatives' time among the applicable ones (`resplit`), runs
+those and answers with the result of highest quality (none applicable: `NoApplicableAlternative`);
+an if runs the compiled branch its condition selects with the if's time. Failure handling,
 hard interruption and adaptive re-allocation belong to the runtime; this executor lets a
 module's exception propagate.
 """
@@ -15,11 +18,16 @@ import threading
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+from numpy.typing import ArrayLike
+
 from anytime.clocks import Clock, WorkClock
+from anytime.compiler.evaluate import Evaluator
 from anytime.dsl.graph import InputRef, NodeRef, Source
 from anytime.dsl.program import Literal
 from anytime.errors import AnytimeError
 from anytime.modules import AnytimeModule, Context, Result
+from anytime.profiles.profile import Array
 
 if TYPE_CHECKING:
     from anytime.compiler.compile import CompiledProgram
@@ -28,6 +36,10 @@ if TYPE_CHECKING:
 
 class ExecutionError(AnytimeError, RuntimeError):
     """A compiled program cannot run: missing inputs, or a module known only by its profile."""
+
+
+class NoApplicableAlternative(ExecutionError):
+    """Every precondition of a best-of was false: there is no alternative to run."""
 
 
 def execute(
@@ -46,7 +58,47 @@ def execute(
     allocation = compiled.allocation_at(qualities, total)
     clock = clock if clock is not None else WorkClock()
     results: dict[int, Result] = {}
+    applicable: dict[int, list[bool]] = {}
+
+    def active(node: CompileNode) -> bool:
+        """Whether a node runs: every alternative it is inside is applicable. The first time
+        an alternative of a best-of is looked at, its preconditions (numbered before every
+        alternative) decide which are, and the time is re-split among those."""
+        nonlocal allocation
+        tag = node.branch
+        if node.role == "precondition":
+            assert tag is not None
+            return active(model.node(tag[0]))
+        if tag is None:
+            return True
+        choice = model.node(tag[0])
+        if not active(choice):
+            return False
+        if choice.index not in applicable:
+            applicable[choice.index] = [bool(results[p].value) for p in choice.preconditions]
+            allocation = resplit(compiled, choice, applicable[choice.index], allocation, qualities)
+        return applicable[choice.index][tag[1]]
+
     for node in model.nodes:
+        if not active(node):
+            continue
+        if node.role == "best-of":
+            if node.index not in applicable:
+                applicable[node.index] = [bool(results[p].value) for p in node.preconditions]
+            results[node.index] = _best_of(compiled, node, applicable[node.index], values, results)
+            continue
+        if node.role == "if":
+            assert node.time_index is not None and node.condition is not None
+            condition = source_value(node.condition, values, results)
+            plan = node.branches[0 if _truth(condition) else 1]
+            index_of = {n.variable: i for i, n in enumerate(model.graph.nodes)}
+            branch_inputs = {
+                name: values[name] if name not in index_of else results[index_of[name]]
+                for name in plan.compiled.model.program.inputs
+            }
+            given = float(allocation[node.time_index])
+            results[node.index] = execute(plan.compiled, branch_inputs, given, clock, stop)
+            continue
         module, args, kwargs = call_arguments(compiled, node, values, results)
         if node.kind == "elementary":
             carrying = {module.parameters.index(name) for name in module.inputs}
@@ -94,6 +146,101 @@ def call_arguments(
     args = [argument(source, i in carrying) for i, source in enumerate(call.args)]
     kwargs = {name: argument(source, False) for name, source in call.keywords}
     return module, args, kwargs
+
+
+def source_value(source: Source, values: Mapping[str, Any], results: Mapping[int, Result]) -> Any:
+    """What an argument stands for: a literal's value, an input's value, or a call's Result."""
+    if isinstance(source, Literal):
+        return source.value
+    if isinstance(source, InputRef):
+        return values[source.name]
+    return results[source.index]
+
+
+def _truth(value: Any) -> bool:
+    return bool(value.value if isinstance(value, Result) else value)
+
+
+def _best_of(
+    compiled: CompiledProgram,
+    node: CompileNode,
+    applicable: Sequence[bool],
+    values: Mapping[str, Any],
+    results: Mapping[int, Result],
+) -> Result:
+    """The result of highest quality among the applicable alternatives (the first on ties)."""
+    call = compiled.model.graph.nodes[node.index]
+    n = len(call.args) // 2
+    candidates = [
+        source_value(source, values, results)
+        for source, ok in zip(call.args[n:], applicable, strict=True)
+        if ok
+    ]
+    if not candidates:
+        raise NoApplicableAlternative(
+            f"schema '{compiled.model.program.name}': no alternative of best-of "
+            f"'{call.variable}' is applicable (all {n} preconditions are false)"
+        )
+    wrapped = [c if isinstance(c, Result) else Result(c, 1.0) for c in candidates]
+    return max(wrapped, key=lambda r: r.quality)
+
+
+class _Restricted:
+    """The program's evaluator with the allocation fixed except on `free` modules, and some
+    nodes' qualities fixed (the alternatives that will not run give quality 0)."""
+
+    def __init__(
+        self, evaluator: Evaluator, base: Array, free: Sequence[int], observed: dict[int, float]
+    ) -> None:
+        self.evaluator, self.base, self.free, self.observed = evaluator, base, list(free), observed
+
+    @property
+    def n_modules(self) -> int:
+        return len(self.free)
+
+    def expected(self, quality: ArrayLike, allocation: ArrayLike) -> Array:
+        part = np.atleast_2d(np.asarray(allocation, dtype=np.float64))
+        full = np.tile(self.base, (len(part), 1))
+        full[:, self.free] = part
+        return self.evaluator.expected(quality, full, self.observed)
+
+
+def resplit(
+    compiled: CompiledProgram,
+    choice: CompileNode,
+    applicable: Sequence[bool],
+    allocation: Array,
+    qualities: Sequence[float],
+) -> Array:
+    """Re-split the time the compiled allocation gives a best-of's alternatives among the
+    applicable ones, on the fly: the same search as the compiler (exhaustive on the compiled
+    lattice where affordable, else hill-climbing), maximising the program's expected quality
+    with the other modules' times kept and the inapplicable alternatives at quality 0."""
+    from anytime.compiler.allocators import Exhaustive, HillClimbing
+
+    model = compiled.model
+    groups = [model.alternative_modules(choice.index, i) for i in range(len(choice.slots))]
+    everything = sorted({m for g in groups for m in g})
+    free = sorted({m for g, ok in zip(groups, applicable, strict=True) if ok for m in g})
+    new = np.array(allocation, dtype=np.float64)
+    budget = float(new[everything].sum())
+    new[everything] = 0.0
+    if not free or budget <= 0 or all(applicable):
+        return np.array(allocation, dtype=np.float64) if all(applicable) else new
+    dt = compiled.resolution
+    units = np.array([int(np.floor(budget / dt + 1e-9))])
+    observed = {
+        slot.index: 0.0
+        for slot, ok in zip(choice.slots, applicable, strict=True)
+        if not ok and slot.kind == "node"
+    }
+    restricted = _Restricted(Evaluator(model), new, free, observed)
+    q = np.asarray(qualities, dtype=np.float64).reshape(1, -1)
+    search = Exhaustive() if Exhaustive.computable(units, len(free)) else HillClimbing()
+    split, _ = search.allocate(restricted, q, units, dt)
+    new[free] = split[0] * dt
+    new[free[0]] += budget - units[0] * dt
+    return new
 
 
 def bind_inputs(

@@ -14,16 +14,22 @@ import builtins
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, Literal
 
+import attrs
 import numpy as np
 from attrs import frozen
 
 from anytime.dsl.graph import DataflowGraph, InputRef, NodeRef, Source
 from anytime.dsl.normalize import suggest
 from anytime.dsl.program import Literal as LiteralArg
-from anytime.dsl.program import Program
+from anytime.dsl.program import Program, Step, Var
 from anytime.errors import AnytimeError, Diagnostic, SchemaError
 from anytime.library import AnytimeLibrary, LibraryEntry
-from anytime.profiles.profile import ConditionalPerformanceProfile, point_mass
+from anytime.profiles.profile import (
+    ConditionalPerformanceProfile,
+    default_bins,
+    new_profile,
+    point_mass,
+)
 
 
 class CompileError(AnytimeError, ValueError):
@@ -37,6 +43,28 @@ class Slot:
     kind: Literal["node", "input", "constant"]
     index: int = 0  # node index, or index among the program's quality-carrying inputs
     value: float = 1.0  # for a constant
+
+
+Role = Literal["module", "precondition", "best-of", "if"]
+
+
+@frozen(eq=False)
+class BranchPlan:
+    """One branch of an `if`, compiled as a program of its own.
+
+    Attributes:
+        probability: the probability that this branch runs.
+        compiled: the branch compiled on the time lattice (a `CompiledProgram`).
+        axes: for each quality-carrying input of the branch, its position in the if node's slots.
+    """
+
+    probability: float
+    compiled: Any
+    axes: tuple[int, ...]
+
+    @property
+    def deterministic(self) -> bool:
+        return is_deterministic(self.compiled.profile)
 
 
 @frozen(eq=False)
@@ -54,6 +82,14 @@ class CompileNode:
         monotone_combine: the combination is known to be non-decreasing in every input.
         time_index: the node's position in an allocation vector (anytime nodes).
         entry: the library entry (None for elementary functions unknown to the library).
+        role: "module" for an ordinary call; "precondition" for the test of a best-of
+            alternative (elementary, its quality flows nowhere); "best-of" for the choice
+            (elementary: its slots are the alternatives, its quality their maximum); "if" for a
+            conditional (anytime: its time goes to the branch that runs).
+        branch: (choice node index, alternative) for a call inside a best-of alternative.
+        preconditions: for a best-of, the node index of each alternative's precondition.
+        branches: for an if, the then and else branches.
+        condition: for an if, where the condition's value comes from.
     """
 
     index: int
@@ -66,6 +102,11 @@ class CompileNode:
     monotone_combine: bool = True
     time_index: int | None = None
     entry: LibraryEntry | None = None
+    role: Role = "module"
+    branch: tuple[int, int] | None = None
+    preconditions: tuple[int, ...] = ()
+    branches: tuple[BranchPlan, ...] = ()
+    condition: Source | None = None
 
 
 @frozen(eq=False)
@@ -87,6 +128,27 @@ class CompileModel:
     @property
     def module_names(self) -> tuple[str, ...]:
         return tuple(n.name for n in self.anytime_nodes)
+
+    def node(self, index: int) -> CompileNode:
+        """The node with this graph index."""
+        return next(n for n in self.nodes if n.index == index)
+
+    def alternative_modules(self, choice: int, alternative: int) -> tuple[int, ...]:
+        """The allocation-vector positions of the anytime modules inside one alternative of a
+        best-of (through nested choices too)."""
+        return tuple(
+            n.time_index
+            for n in self.anytime_nodes
+            if n.time_index is not None and self.inside(n, (choice, alternative))
+        )
+
+    def inside(self, node: CompileNode, branch: tuple[int, int]) -> bool:
+        tag = node.branch
+        while tag is not None:
+            if tag == branch:
+                return True
+            tag = self.node(tag[0]).branch
+        return False
 
 
 def is_deterministic(profile: ConditionalPerformanceProfile) -> bool:
@@ -126,8 +188,14 @@ def build_model(
     library: AnytimeLibrary,
     filename: str = "<schema>",
     source_lines: Sequence[str] = (),
+    compile_branch: Callable[[Program], Any] | None = None,
 ) -> CompileModel:
     """Resolve `program` against `library`.
+
+    A best-of becomes an elementary node taking the maximum of its alternatives' qualities
+    (they run side by side, sharing the time); an if becomes one anytime node whose branches
+    are compiled as programs of their own by `compile_branch` (the calls inside them are not
+    nodes of this model), its profile the mixture of theirs.
 
     Raises:
         SchemaError: a call to an unknown function, to a module without a profile, or whose
@@ -155,8 +223,80 @@ def build_model(
             return Slot("input", index)
         return Slot("constant", value=1.0)
 
+    step_of = {step.target: step for step in program.steps}
+    index_of = {node.variable: i for i, node in enumerate(graph.nodes)}
+
+    def in_if(variable: str) -> bool:
+        tag = step_of[variable].branch
+        while tag is not None:
+            if step_of[tag[0]].kind == "if":
+                return True
+            tag = step_of[tag[0]].branch
+        return False
+
+    def role_and_branch(variable: str) -> tuple[Role, tuple[int, int] | None]:
+        tag = step_of[variable].branch
+        if tag is None:
+            return "module", None
+        choice = step_of[tag[0]]
+        n = len(choice.args) // 2
+        is_test = choice.kind == "best-of" and Var(variable) in choice.args[:n]
+        role: Role = "precondition" if is_test else "module"
+        return role, (index_of[tag[0]], tag[1])
+
     time_index = 0
     for index, node in enumerate(graph.nodes):
+        if in_if(node.variable):
+            continue
+        if node.kind == "best-of":
+            n = len(node.args) // 2
+            pre = tuple(s.index for s in node.args[:n] if isinstance(s, NodeRef))
+            _, branch = role_and_branch(node.variable)
+            nodes.append(
+                CompileNode(
+                    index,
+                    "best-of",
+                    "elementary",
+                    tuple(slot(s) for s in node.args[n:]),
+                    None,
+                    True,
+                    _COMBINATIONS[builtins.max],
+                    True,
+                    role="best-of",
+                    branch=branch,
+                    preconditions=pre,
+                )
+            )
+            continue
+        if node.kind == "if":
+            built = _if_node(program, graph, step_of[node.variable], index, library, compile_branch)
+            if isinstance(built, str):
+                complain(index, built)
+                continue
+            plans, names = built
+            _, branch = role_and_branch(node.variable)
+            reads: list[Source] = [
+                InputRef(v) if v not in index_of else NodeRef(index_of[v]) for v in names
+            ]
+            mixture = _mixture(plans, names, f"{program.name}/{node.variable}")
+            nodes.append(
+                CompileNode(
+                    index,
+                    "if",
+                    "anytime",
+                    tuple(slot(s) for s in reads),
+                    mixture,
+                    False,
+                    time_index=time_index,
+                    role="if",
+                    branch=branch,
+                    branches=plans,
+                    condition=node.args[0],
+                )
+            )
+            time_index += 1
+            continue
+        role, branch = role_and_branch(node.variable)
         entry = library.get(node.function)
         if entry is None:
             hint = suggest(node.function, library.names())
@@ -167,6 +307,14 @@ def build_model(
             complain(index, sources)
             continue
         slots = tuple(slot(s) for s in sources)
+        if role == "precondition" and entry.kind != "elementary":
+            complain(
+                index,
+                f"the precondition '{entry.name}' must be an elementary function (it takes no "
+                f"time), but it is {'an' if entry.kind == 'interruptible' else 'a'} "
+                f"{entry.kind} module",
+            )
+            continue
         if entry.kind == "elementary":
             assert entry.module is not None
             combine, monotone = _vector_combine(entry.module.combine)
@@ -181,6 +329,8 @@ def build_model(
                     combine,
                     monotone,
                     entry=entry,
+                    role=role,
+                    branch=branch,
                 )
             )
             continue
@@ -206,6 +356,7 @@ def build_model(
                 is_deterministic(profile),
                 time_index=time_index,
                 entry=entry,
+                branch=branch,
             )
         )
         time_index += 1
@@ -275,15 +426,116 @@ def _quality_sources(
 
 def _renumbered(node: CompileNode, renumber: Mapping[int, int]) -> CompileNode:
     slots = tuple(Slot("input", renumber[s.index]) if s.kind == "input" else s for s in node.slots)
-    return CompileNode(
-        node.index,
-        node.name,
-        node.kind,
-        slots,
-        node.profile,
-        node.deterministic,
-        node.combine,
-        node.monotone_combine,
-        node.time_index,
-        node.entry,
+    return attrs.evolve(node, slots=slots)
+
+
+def branch_program(program: Program, choice: Step, branch: int) -> Program | str:
+    """One branch of an `if` as a program of its own: its inputs are the variables it reads
+    from outside (program inputs or earlier results), in order of first use."""
+    tag = (choice.target, branch)
+    steps = [
+        attrs.evolve(s, branch=None) if s.branch == tag else s
+        for s in program.steps
+        if program.inside(s, tag)
+    ]
+    output = choice.args[1 + branch]
+    word = ("then", "else")[branch]
+    if not isinstance(output, Var):
+        return f"the {word} branch of 'if' is a constant: give a variable or a call"
+    produced = {s.target for s in steps}
+    reads = [v for s in steps for v in s.variables() if v not in produced]
+    if output.name not in produced:
+        reads.append(output.name)
+    return Program(
+        name=f"{program.name}/{choice.target}/{word}",
+        inputs=tuple(dict.fromkeys(reads)),
+        steps=tuple(steps),
+        output=output.name,
+    )
+
+
+def _if_node(
+    program: Program,
+    graph: DataflowGraph,
+    step: Step,
+    index: int,
+    library: AnytimeLibrary,
+    compile_branch: Callable[[Program], Any] | None,
+) -> tuple[tuple[BranchPlan, ...], list[str]] | str:
+    """The branches of an if, compiled, and the names of the quality inputs they read."""
+    keywords = dict(step.keywords)
+    p: float | None = None
+    if "p" in keywords and isinstance(keywords["p"], LiteralArg):
+        p = float(keywords["p"].value)
+    else:
+        condition = graph.nodes[index].args[0]
+        function = graph.nodes[condition.index].function if isinstance(condition, NodeRef) else None
+        entry = library.get(function) if function is not None else None
+        declared = getattr(entry.module, "probability", None) if entry and entry.module else None
+        if declared is None:
+            what = f"'{function}' declares" if function else "the condition is not a call and"
+            return (
+                f"the probability of the condition of 'if' is unknown: {what} no probability; "
+                "give it as (if CONDITION THEN ELSE :p P)"
+            )
+        p = float(declared)
+    if compile_branch is None:
+        return "an 'if' can only be compiled by compile_program"
+    compiled = []
+    for branch in (0, 1):
+        sub = branch_program(program, step, branch)
+        if isinstance(sub, str):
+            return sub
+        compiled.append(compile_branch(sub))
+    names = list(dict.fromkeys(n for c in compiled for n in c.model.quality_inputs))
+    plans = tuple(
+        BranchPlan(
+            prob,
+            c,
+            tuple(names.index(n) for n in c.model.quality_inputs),
+        )
+        for prob, c in zip((p, 1.0 - p), compiled, strict=True)
+    )
+    return plans, names
+
+
+def _mixture(
+    plans: Sequence[BranchPlan], names: Sequence[str], module: str
+) -> ConditionalPerformanceProfile:
+    """The if's profile: the branches' compiled profiles mixed with their probabilities, on the
+    union of their input axes (a branch that does not read an input is constant along it)."""
+    profiles = [plan.compiled.profile for plan in plans]
+    grids = [np.asarray(g) for p in profiles for g in p.input_grids]
+    q_grid = grids[0] if grids else np.zeros(0)
+    time = profiles[0].time
+    bins = profiles[0].bins
+    same = all(np.array_equal(p.bins, bins) for p in profiles)
+    if not same:
+        bins = default_bins()
+    m = len(names)
+    shape = (len(q_grid),) * m + (len(time),)
+    mean = np.zeros(shape)
+    probability = np.zeros(shape + (len(bins) - 1,))
+    for plan, profile in zip(plans, profiles, strict=True):
+        order = np.argsort(plan.axes)
+        expand = [a for a in range(m) if a not in plan.axes]
+        cells = profile.mean if profile.mean is not None else profile.probability @ profile.values
+        cells = np.moveaxis(cells, list(range(len(order))), list(np.argsort(order)))
+        probs = profile.probability
+        if not same:  # each old bin's mass to the new bin holding its midpoint
+            k = np.clip(np.searchsorted(bins, profile.values, side="right") - 1, 0, len(bins) - 2)
+            probs = np.einsum("...k,kj->...j", probs, np.eye(len(bins) - 1)[k])
+        probs = np.moveaxis(probs, list(range(len(order))), list(np.argsort(order)))
+        mean = mean + plan.probability * np.expand_dims(cells, tuple(expand))
+        probability = probability + plan.probability * np.expand_dims(probs, tuple(expand))
+    return new_profile(
+        input_grids=[q_grid] * m,
+        time=time,
+        bins=bins,
+        probability=probability,
+        mean=np.clip(mean, 0.0, 1.0),
+        inputs=names,
+        module=module,
+        kind="contract",
+        time_unit=profiles[0].time_unit,
     )

@@ -9,11 +9,14 @@ place, and all of them are raised together in one `SchemaError`.
 from __future__ import annotations
 
 import difflib
-from collections.abc import Collection, Iterable, Mapping
+from collections.abc import Callable, Collection, Iterable, Mapping
 
 from anytime.dsl.nodes import Call, Expr, Number, SchemaDef, Setf, SourceFile, Span, String, Symbol
-from anytime.dsl.program import Arg, Literal, Program, SchemaFile, Step, Var
+from anytime.dsl.program import Arg, Branch, Literal, Program, SchemaFile, Step, Var
 from anytime.errors import Diagnostic, SchemaError
+
+#: The special forms: choices among alternatives and conditionals, not functions.
+SPECIAL_FORMS = ("best-of", "if", "when")
 
 #: Known functions: a name -> arity mapping (None: any number of arguments), or just names.
 KnownFunctions = Mapping[str, int | None] | Collection[str]
@@ -93,7 +96,7 @@ class _Checker:
             for step in program.steps:
                 if step.kind == "schema":
                     self.check_schema_call(step, schema_arity[step.function])
-                elif known_functions is not None:
+                elif step.kind == "call" and known_functions is not None:
                     self.check_library_call(step, known_functions, schema_arity)
 
     def check_schema_call(self, step: Step, arity: int) -> None:
@@ -171,6 +174,7 @@ class _ProgramBuilder:
             form.target for form in schema.body if isinstance(form, Setf)
         }
         self.counter = 0
+        self.branch: Branch | None = None  # the alternative or branch being flattened
         self.undefined = False  # dead-code errors would only repeat an undefined-variable one
 
     def build(self) -> Program:
@@ -233,12 +237,164 @@ class _ProgramBuilder:
         return self.call(expr, name)
 
     def call(self, call: Call, name: str | None) -> Var:
+        if call.function == "best-of":
+            return self.best_of(call, name)
+        if call.function == "if":
+            return self.conditional(call, name)
+        if call.function == "when":
+            self.checker.error(
+                call.function_span,
+                "'when' is allowed only as an alternative of best-of: "
+                "(best-of (when PRECONDITION EXPR) ...)",
+            )
         args = tuple(self.expression(arg, None) for arg in call.args)
         keywords = tuple((k.name, self.expression(k.value, None)) for k in call.keywords)
         target = name if name is not None else self.fresh()
         kind = "schema" if call.function in self.schemas else "call"
         self.steps.append(
-            Step(target, call.function, args, keywords, kind, call.span, call.function_span)
+            Step(
+                target,
+                call.function,
+                args,
+                keywords,
+                kind,
+                call.span,
+                call.function_span,
+                self.branch,
+            )
+        )
+        return Var(target)
+
+    def within(self, branch: Branch, expr: Expr, flatten: Callable[[Expr], Arg]) -> Arg:
+        """Flatten `expr` with its steps tagged as inside `branch`."""
+        outer, self.branch = self.branch, branch
+        try:
+            return flatten(expr)
+        finally:
+            self.branch = outer
+
+    def best_of(self, call: Call, name: str | None) -> Var:
+        """`(best-of (when PRE EXPR) ...)`: every precondition first, then every alternative;
+        the step's arguments are the preconditions' results, then the alternatives' values."""
+        error = self.checker.error
+        target = name if name is not None else self.fresh()
+        for keyword in call.keywords:
+            error(keyword.span, f"best-of takes no keyword arguments (got :{keyword.name})")
+        if not call.args:
+            error(
+                call.span,
+                "best-of needs at least one alternative: (best-of (when PRECONDITION EXPR) ...)",
+            )
+        forms: list[tuple[int, Expr, Expr]] = []
+        for index, form in enumerate(call.args):
+            if not (isinstance(form, Call) and form.function == "when"):
+                error(
+                    _span_of(form),
+                    "an alternative of best-of must be (when PRECONDITION EXPR)",
+                )
+            elif len(form.args) != 2 or form.keywords:
+                got = len(form.args) + len(form.keywords)
+                error(
+                    form.span,
+                    "when takes a precondition and an expression: (when PRECONDITION EXPR), "
+                    f"got {_count(got)}",
+                )
+            else:
+                forms.append((index, form.args[0], form.args[1]))
+        preconditions = [self.within((target, i), pre, self.precondition) for i, pre, _ in forms]
+        alternatives = [
+            self.within((target, i), expr, lambda e: self.expression(e, None))
+            for i, _, expr in forms
+        ]
+        self.steps.append(
+            Step(
+                target,
+                "best-of",
+                (*preconditions, *alternatives),
+                (),
+                "best-of",
+                call.span,
+                call.function_span,
+                self.branch,
+            )
+        )
+        return Var(target)
+
+    def precondition(self, expr: Expr) -> Arg:
+        """A precondition is one call of an elementary function of variables and constants
+        (whether the function is elementary is checked against the library by the compiler)."""
+        error = self.checker.error
+        if not isinstance(expr, Call):
+            what = "a variable" if isinstance(expr, Symbol) else "a constant"
+            error(
+                expr.span,
+                f"the precondition of 'when' must be a call of an elementary function, not {what}",
+            )
+            return self.expression(expr, None)
+        if expr.function in SPECIAL_FORMS or expr.function in self.schemas:
+            error(
+                expr.function_span,
+                "the precondition of 'when' must be a call of an elementary function, "
+                f"not of '{expr.function}'",
+            )
+        for arg in expr.args:
+            if isinstance(arg, Call):
+                error(
+                    arg.span,
+                    "the arguments of a precondition must be variables or constants "
+                    "(a precondition is one cheap, elementary test)",
+                )
+        return self.call(expr, None)
+
+    def conditional(self, call: Call, name: str | None) -> Var:
+        """`(if CONDITION THEN ELSE [:p P])`: the condition always runs; each branch's steps
+        are tagged with its index (0: then, 1: else)."""
+        error = self.checker.error
+        target = name if name is not None else self.fresh()
+        keywords: list[tuple[str, Arg]] = []
+        for keyword in call.keywords:
+            if keyword.name != "p":
+                error(
+                    keyword.span,
+                    f"if takes only the keyword :p, the probability of the condition "
+                    f"(got :{keyword.name})",
+                )
+            elif not isinstance(keyword.value, Number) or not 0 <= keyword.value.value <= 1:
+                got = (
+                    format(keyword.value.value)
+                    if isinstance(keyword.value, Number)
+                    else "a " + type(keyword.value).__name__.lower()
+                )
+                error(
+                    keyword.value.span,
+                    f"the :p of if must be a number in [0, 1] (the probability that the "
+                    f"condition holds), got {got}",
+                )
+            else:
+                keywords.append(("p", Literal(keyword.value.value)))
+        if len(call.args) != 3:
+            error(
+                call.span,
+                "if takes a condition, a then expression and an else expression: "
+                f"(if CONDITION THEN ELSE [:p P]), got {_count(len(call.args))}",
+            )
+            args: tuple[Arg, ...] = tuple(self.expression(a, None) for a in call.args)
+        else:
+            condition = self.expression(call.args[0], None)
+            then = self.within((target, 0), call.args[1], lambda e: self.expression(e, None))
+            other = self.within((target, 1), call.args[2], lambda e: self.expression(e, None))
+            args = (condition, then, other)
+        self.steps.append(
+            Step(
+                target,
+                "if",
+                args,
+                tuple(keywords),
+                "if",
+                call.span,
+                call.function_span,
+                self.branch,
+            )
         )
         return Var(target)
 
@@ -273,6 +429,10 @@ class _ProgramBuilder:
                     self.assigned_at[step.target],
                     f"variable '{step.target}' is assigned but never used",
                 )
+
+
+def _span_of(expr: Expr) -> Span:
+    return expr.span
 
 
 def _count(n: int) -> str:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import re
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 from anytime.dsl.graph import DataflowGraph, InputRef, NodeRef, Source
@@ -22,18 +22,39 @@ def format_arg(arg: Arg) -> str:
     return arg.name if isinstance(arg, Var) else format_literal(arg.value)
 
 
-def format_call(step: Step) -> str:
-    parts = [step.function, *(format_arg(a) for a in step.args)]
-    parts += [f":{name} {format_arg(value)}" for name, value in step.keywords]
+def format_call(step: Step, inline: Mapping[str, Step] | None = None) -> str:
+    """A step as a call; a `best-of` or `if` step with its alternatives or branches written
+    back as nested expressions (the steps in `inline`, those inside choices)."""
+    inline = inline or {}
+
+    def arg(a: Arg) -> str:
+        if isinstance(a, Var) and a.name in inline:
+            return format_call(inline[a.name], inline)
+        return format_arg(a)
+
+    if step.kind == "best-of":
+        n = len(step.args) // 2
+        whens = [
+            f"(when {arg(p)} {arg(e)})" for p, e in zip(step.args[:n], step.args[n:], strict=True)
+        ]
+        return "(" + " ".join(["best-of", *whens]) + ")"
+    parts = [step.function, *(arg(a) for a in step.args)]
+    parts += [f":{name} {arg(value)}" for name, value in step.keywords]
     return "(" + " ".join(parts) + ")"
 
 
 def format_program(program: Program) -> str:
-    """The program as a straight-line `defschema`; parsing it gives back an equal program."""
+    """The program as a straight-line `defschema`; parsing it gives back an equal program.
+    Steps inside a choice's alternatives or branches are written nested in the choice."""
+    inline = {s.target: s for s in program.steps if s.branch is not None}
     lines = [f"(defschema {program.name} ({' '.join(program.inputs)})"]
     if program.doc is not None:
         lines.append(INDENT + format_literal(program.doc))
-    lines += [f"{INDENT}(setf {s.target} {format_call(s)})" for s in program.steps]
+    lines += [
+        f"{INDENT}(setf {s.target} {format_call(s, inline)})"
+        for s in program.steps
+        if s.branch is None
+    ]
     lines.append(f"{INDENT}{program.output})")
     return "\n".join(lines)
 
@@ -57,22 +78,38 @@ def arg_to_json(arg: Arg) -> Any:
     return arg.name if isinstance(arg, Var) else {"literal": arg.value}
 
 
+def step_to_json(step: Step) -> dict[str, Any]:
+    """A step; a step inside a choice adds `branch`, and the choices name their parts:
+    best-of `alternatives` [{"when", "value"}], if `condition`, `then`, `else`, `p`."""
+    out: dict[str, Any] = {
+        "target": step.target,
+        "function": step.function,
+        "kind": step.kind,
+        "args": [arg_to_json(a) for a in step.args],
+        "keywords": {name: arg_to_json(value) for name, value in step.keywords},
+    }
+    if step.kind == "best-of":
+        n = len(step.args) // 2
+        out["alternatives"] = [
+            {"when": arg_to_json(p), "value": arg_to_json(e)}
+            for p, e in zip(step.args[:n], step.args[n:], strict=True)
+        ]
+    elif step.kind == "if" and len(step.args) == 3:
+        p = dict(step.keywords).get("p")
+        out["condition"], out["then"], out["else"] = (arg_to_json(a) for a in step.args)
+        out["p"] = p.value if isinstance(p, Literal) else None
+    if step.branch is not None:
+        out["branch"] = {"choice": step.branch[0], "alternative": step.branch[1]}
+    return out
+
+
 def program_to_json(program: Program) -> dict[str, Any]:
     graph = program.graph
     return {
         "name": program.name,
         "doc": program.doc,
         "inputs": list(program.inputs),
-        "steps": [
-            {
-                "target": step.target,
-                "function": step.function,
-                "kind": step.kind,
-                "args": [arg_to_json(a) for a in step.args],
-                "keywords": {name: arg_to_json(value) for name, value in step.keywords},
-            }
-            for step in program.steps
-        ],
+        "steps": [step_to_json(step) for step in program.steps],
         "output": program.output,
         "shape": graph.shape,
     }

@@ -35,8 +35,14 @@ class Literal:
 
 Arg = Var | Literal
 
-#: What a step does; the language grows new kinds (conditionals, choices) beside these two.
-STEP_KINDS = ("call", "schema")
+#: What a step does: a library call, a call to another schema, a choice among alternatives
+#: (`(best-of (when PRE EXPR) ...)`), or a conditional (`(if COND THEN ELSE :p P)`).
+STEP_KINDS = ("call", "schema", "best-of", "if")
+
+#: Which choice a step belongs to: (the choice step's target, the alternative's index). For
+#: `best-of`, the precondition and the steps of alternative i carry index i; for `if`, the
+#: steps of the then branch carry 0 and those of the else branch 1.
+Branch = tuple[str, int]
 
 
 @frozen
@@ -45,6 +51,11 @@ class Step:
 
     `kind` is "call" for a function of the anytime library and "schema" for a call to another
     schema of the same file (hierarchical composition: that schema is compiled first).
+
+    A `best-of` step has function "best-of", the n preconditions' results then the n
+    alternatives' values as arguments; an `if` step has function "if", arguments (condition,
+    then, else) and possibly the keyword `p`. `branch` says which alternative or branch of
+    which choice a step is inside (None: it always runs).
     """
 
     target: str
@@ -54,6 +65,7 @@ class Step:
     kind: str = "call"
     span: Span | None = field(default=None, eq=False, repr=False)
     function_span: Span | None = field(default=None, eq=False, repr=False)
+    branch: Branch | None = None
 
     def inputs(self) -> Iterator[Arg]:
         """Every argument, positional first, then keyword values."""
@@ -91,6 +103,15 @@ class Program:
             if step.target == target:
                 return step
         raise KeyError(target)
+
+    def inside(self, step: Step, branch: Branch) -> bool:
+        """Whether `step` is inside `branch`, directly or through nested choices."""
+        tag = step.branch
+        while tag is not None:
+            if tag == branch:
+                return True
+            tag = self.step(tag[0]).branch
+        return False
 
     def callees(self) -> tuple[str, ...]:
         """Names of the schemas this program calls, in order of first call."""

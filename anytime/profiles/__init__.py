@@ -1,6 +1,13 @@
 """Performance profiles: the data model, analytic families, file format and profile builder."""
 
-from anytime.profiles.families import Constant, Exponential, Step, VisionHyperbola, tabulate
+from anytime.profiles.families import (
+    Constant,
+    DiscreteVariants,
+    Exponential,
+    Step,
+    VisionHyperbola,
+    tabulate,
+)
 from anytime.profiles.profile import (
     ConditionalPerformanceProfile,
     PerformanceProfile,
@@ -14,6 +21,7 @@ __all__ = [
     "Constant",
     "Exponential",
     "PerformanceProfile",
+    "DiscreteVariants",
     "Step",
     "VisionHyperbola",
     "default_bins",

@@ -87,6 +87,52 @@ class Step:
 
 
 @frozen
+class DiscreteVariants:
+    """A module with a finite set of (time, quality) variants (Romanenko's `{(T_k, Q_k)}`):
+    with time t it delivers the best variant whose time fits, 0 before the cheapest.
+
+    `profile(dt, horizon)` tabulates it on the allocators' lattice (every multiple of `dt`),
+    with each variant's time rounded *up* to the lattice (a variant needing 15 with dt 10 is
+    ready at 20: never promised early). On that lattice the tabulated profile is exact, so the
+    exhaustive search and dp, which only evaluate lattice points, optimise the step function
+    exactly; between lattice points the table interpolates linearly.
+    """
+
+    variants: tuple[tuple[float, float], ...] = field(converter=_sorted_variants)
+
+    def __attrs_post_init__(self) -> None:
+        _check(len(self.variants) > 0, "variants: needs at least one (time, quality) variant")
+        for t, q in self.variants:
+            _check(
+                t >= 0 and 0 <= q <= 1, f"variants: ({t}, {q}) outside time >= 0, quality [0, 1]"
+            )
+
+    def __call__(self, t: ArrayLike) -> Array:
+        return Step(self.variants)(t)
+
+    def snapped(self, dt: float) -> DiscreteVariants:
+        """The variants with their times rounded up to multiples of `dt`."""
+        _check(dt > 0, f"variants: dt must be > 0, got {dt}")
+        return DiscreteVariants(
+            tuple((float(np.ceil(t / dt - 1e-9) * dt), q) for t, q in self.variants)
+        )
+
+    def profile(
+        self,
+        dt: float,
+        horizon: float,
+        *,
+        module: str = "",
+        kind: Kind = "contract",
+        time_unit: TimeUnit = "ticks",
+    ) -> ConditionalPerformanceProfile:
+        """The deterministic profile on the lattice 0, dt, ..., >= horizon (snapped variants)."""
+        steps = int(np.ceil(horizon / dt - 1e-9))
+        lattice = np.arange(steps + 1) * dt
+        return tabulate(self.snapped(dt), lattice, module=module, kind=kind, time_unit=time_unit)
+
+
+@frozen
 class VisionHyperbola:
     """The papers' vision profile: no output before `t_a`; `q_a` at `t_a`, rising along a
     hyperbola to 1.0 at `t_b`, and 1.0 after.

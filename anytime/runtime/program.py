@@ -23,7 +23,7 @@ from anytime.clocks import Clock, WorkClock
 from anytime.compiler.allocators import Exhaustive, HillClimbing
 from anytime.compiler.compile import CompiledProgram
 from anytime.compiler.evaluate import Evaluator
-from anytime.compiler.execute import bind_inputs, call_arguments
+from anytime.compiler.execute import ExecutionError, bind_inputs, call_arguments
 from anytime.dsl.graph import NodeRef
 from anytime.modules import Result
 from anytime.profiles.profile import Array
@@ -88,6 +88,11 @@ def run_program(
     """Run `compiled` with `total` time (inputs positional or by name; `Result`s carry their
     quality, plain values have quality 1)."""
     model = compiled.model
+    if any(n.role in ("best-of", "if") for n in model.nodes):
+        raise ExecutionError(
+            f"schema '{model.program.name}': run_program does not run best-of or if yet; "
+            "use CompiledProgram.run"
+        )
     values = bind_inputs(model.program.name, model.program.inputs, inputs)
     qualities = [
         values[name].quality if isinstance(values[name], Result) else 1.0

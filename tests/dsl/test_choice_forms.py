@@ -1,0 +1,134 @@
+"""`best-of` and `if`: their straight-line form, JSON, round trip, and their errors."""
+
+from __future__ import annotations
+
+import pytest
+
+from anytime.dsl import format_program, parse_schemas, program_to_json
+from anytime.errors import SchemaError
+
+CHOOSE = """(defschema choose (w)
+  (setf plan (best-of (when (left-clear? w) (detour-left (sense w)))
+                      (when (right-clear? w) (detour-right w))))
+  (setf out (if (lucky? plan) (refine plan) (refine2 (refine plan)) :p 0.7))
+  out)
+"""
+
+
+def test_choices_flatten_with_their_branches() -> None:
+    program = parse_schemas(CHOOSE)["choose"]
+    steps = {s.target: s for s in program.steps}
+    assert steps["plan"].kind == "best-of"
+    assert [a.name for a in steps["plan"].args] == ["t1", "t2", "t4", "t5"]  # tests, then values
+    assert [steps[v].branch for v in ("t1", "t3", "t4", "t2", "t5")] == [
+        ("plan", 0),
+        ("plan", 0),
+        ("plan", 0),
+        ("plan", 1),
+        ("plan", 1),
+    ]
+    assert steps["out"].kind == "if" and steps["t6"].branch is None  # the condition always runs
+    assert [steps[v].branch for v in ("t7", "t8", "t9")] == [("out", 0), ("out", 1), ("out", 1)]
+
+
+def test_print_parses_back_to_the_same_program() -> None:
+    program = parse_schemas(CHOOSE)["choose"]
+    assert parse_schemas(format_program(program))["choose"] == program
+
+
+def test_json_names_the_parts_of_each_choice() -> None:
+    steps = program_to_json(parse_schemas(CHOOSE)["choose"])["steps"]
+    best_of = next(s for s in steps if s["kind"] == "best-of")
+    assert best_of["alternatives"] == [{"when": "t1", "value": "t4"}, {"when": "t2", "value": "t5"}]
+    conditional = next(s for s in steps if s["kind"] == "if")
+    assert (conditional["condition"], conditional["then"], conditional["else"]) == (
+        "t6",
+        "t7",
+        "t9",
+    )
+    assert conditional["p"] == 0.7 and conditional["keywords"] == {"p": {"literal": 0.7}}
+    assert steps[0]["branch"] == {"choice": "plan", "alternative": 0}
+    assert "branch" not in conditional
+
+
+ERRORS = {
+    "when-outside-best-of": (
+        "(defschema p (x) (f (when (ok x) x)))",
+        1,
+        22,
+        "'when' is allowed only as an alternative of best-of: "
+        "(best-of (when PRECONDITION EXPR) ...)",
+    ),
+    "best-of-without-alternatives": (
+        "(defschema p (x) (best-of))",
+        1,
+        18,
+        "best-of needs at least one alternative: (best-of (when PRECONDITION EXPR) ...)",
+    ),
+    "alternative-not-when": (
+        "(defschema p (x) (best-of (f x)))",
+        1,
+        27,
+        "an alternative of best-of must be (when PRECONDITION EXPR)",
+    ),
+    "when-arity": (
+        "(defschema p (x) (best-of (when (ok x))))",
+        1,
+        27,
+        "when takes a precondition and an expression: (when PRECONDITION EXPR), got 1 argument",
+    ),
+    "precondition-variable": (
+        "(defschema p (x) (best-of (when x (f x))))",
+        1,
+        33,
+        "the precondition of 'when' must be a call of an elementary function, not a variable",
+    ),
+    "precondition-nested-call": (
+        "(defschema p (x) (best-of (when (ok (g x)) (f x))))",
+        1,
+        37,
+        "the arguments of a precondition must be variables or constants "
+        "(a precondition is one cheap, elementary test)",
+    ),
+    "if-arity": (
+        "(defschema p (x) (if (ok x) (f x)))",
+        1,
+        18,
+        "if takes a condition, a then expression and an else expression: "
+        "(if CONDITION THEN ELSE [:p P]), got 2 arguments",
+    ),
+    "p-out-of-range": (
+        "(defschema p (x) (if (ok x) (f x) (g x) :p 1.5))",
+        1,
+        44,
+        "the :p of if must be a number in [0, 1] (the probability that the condition holds), "
+        "got 1.5",
+    ),
+    "p-not-a-number": (
+        '(defschema p (x) (if (ok x) (f x) (g x) :p "high"))',
+        1,
+        44,
+        "the :p of if must be a number in [0, 1] (the probability that the condition holds), "
+        "got a string",
+    ),
+    "if-other-keyword": (
+        "(defschema p (x) (if (ok x) (f x) (g x) :q 0.5))",
+        1,
+        41,
+        "if takes only the keyword :p, the probability of the condition (got :q)",
+    ),
+}
+
+
+@pytest.mark.parametrize(("text", "line", "column", "message"), ERRORS.values(), ids=ERRORS)
+def test_choice_errors_point_at_the_source(text: str, line: int, column: int, message: str) -> None:
+    with pytest.raises(SchemaError) as raised:
+        parse_schemas(text, filename="e.any")
+    first = raised.value.diagnostics[0]
+    assert (first.line, first.column, first.message) == (line, column, message)
+
+
+def test_known_functions_do_not_include_the_special_forms() -> None:
+    text = "(defschema p (x) (best-of (when (ok x) (f x))))"
+    program = parse_schemas(text, known_functions={"ok": 1, "f": 1})["p"]
+    assert program.steps[-1].kind == "best-of"
