@@ -1,6 +1,14 @@
 """The runtime: executing anytime modules and compiled programs under contracts and
-interruption, and the frame monitor."""
+interruption, the frame monitor, and deadlines from critical events."""
 
+from anytime.runtime.deadline import (
+    CostBoundError,
+    CriticalEvent,
+    Deadline,
+    critical_event,
+    deadline_from,
+    proportional_split,
+)
 from anytime.runtime.executor import RunRecord, Status, run
 from anytime.runtime.monitor import (
     Adjustment,
@@ -18,7 +26,10 @@ from anytime.runtime.program import ProgramRecord, run_program
 __all__ = [
     "Adjustment",
     "ContractDecision",
+    "CostBoundError",
     "CostModel",
+    "CriticalEvent",
+    "Deadline",
     "DeadlineValue",
     "EventLog",
     "Monitor",
@@ -28,6 +39,9 @@ __all__ = [
     "RunRecord",
     "Status",
     "ValueModel",
+    "critical_event",
+    "deadline_from",
+    "proportional_split",
     "run",
     "run_program",
 ]
