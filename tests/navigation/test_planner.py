@@ -41,7 +41,11 @@ def _neighbours(a: tuple[int, int], b: tuple[int, int], movement: int) -> bool:
 def test_first_plan_is_at_the_top_level_in_equal_segments(movement: int, top: int | None) -> None:
     world = random_world(64, seed=1, movement=movement)
     pyramid = Pyramid.build(world.blocked)
-    first = next(atp(Context(), world.start, world.goal, pyramid, movement=movement, top=top))
+    first = next(
+        atp(
+            Context(), world.start, world.goal, pyramid, movement=movement, top=top, segment_moves=8
+        )
+    )
     level = max(pyramid.top - 4, 0) if top is None else top
     plan = first.value
     assert {s.level for s in plan.segments} == {level}
@@ -198,3 +202,11 @@ def test_true_quality_is_non_decreasing_in_expectation(movement: int) -> None:
     first, middle, final = np.mean(stages, axis=0)
     assert first <= middle + 1e-9 <= final + 2e-9
     assert final > 0.9
+
+
+def test_by_default_the_first_plan_is_one_segment_on_a_16_by_16_grid() -> None:
+    world = random_world(128, seed=2)
+    pyramid = Pyramid.build(world.blocked)
+    first = next(atp(Context(), world.start, world.goal, pyramid)).value
+    assert [s.level for s in first.segments] == [pyramid.top - 4]
+    assert pyramid.side(pyramid.top - 4) == 16
