@@ -7,7 +7,7 @@ frame, and an animated GIF of the run. Needs matplotlib (the `plot` extra), impo
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -15,6 +15,46 @@ if TYPE_CHECKING:
     from .task import NavigationTask, TaskReport
 
 __all__ = ["write_frames"]
+
+#: Colours of the chosen alternatives of obstacle overcoming, and of the moving obstacles.
+CHOICE_COLOURS = {"detour-left": "tab:purple", "detour-right": "tab:cyan", "wait": "gold"}
+OBSTACLE_COLOUR = "tab:brown"
+
+
+def _draw_obstacles(axes: Any, frame: Any) -> None:
+    """The moving obstacles at the frame's end (squares, velocity as arrows scaled to 60
+    ticks of motion) and each alternative chosen in the frame: its route in its own colour,
+    labelled with its name at the branch cell."""
+    from matplotlib.patches import Rectangle
+
+    for obstacle in frame.obstacles:
+        (x, y), (vx, vy), size = obstacle.position, obstacle.velocity, obstacle.size
+        axes.add_patch(
+            Rectangle(
+                (x + 0.5 - size / 2, y + 0.5 - size / 2),
+                size,
+                size,
+                color=OBSTACLE_COLOUR,
+                zorder=7,
+            )
+        )
+        axes.arrow(x + 0.5, y + 0.5, 60 * vx, 60 * vy, width=0.15, color=OBSTACLE_COLOUR, zorder=7)
+    for name, cells in frame.choices:
+        colour = CHOICE_COLOURS.get(name, "magenta")
+        xs = [c[0] + 0.5 for c in cells]
+        ys = [c[1] + 0.5 for c in cells]
+        axes.plot(xs, ys, "-", color=colour, lw=2.5, zorder=8)
+        axes.plot(xs[:1], ys[:1], "s", color=colour, mec="black", zorder=8)
+        axes.annotate(
+            name,
+            (xs[0], ys[0]),
+            color=colour,
+            fontsize=8,
+            zorder=9,
+            xytext=(4, 4),
+            textcoords="offset points",
+            fontweight="bold",
+        )
 
 
 def write_frames(report: TaskReport, task: NavigationTask, out: str | Path) -> list[str]:
@@ -52,11 +92,17 @@ def write_frames(report: TaskReport, task: NavigationTask, out: str | Path) -> l
         draw_plan(right, truth, None, route=upto, goal=task.world.goal, legend=False)
         here = frame.route[-1]
         right.plot(here[0] + 0.5, here[1] + 0.5, "o", color="tab:red", mec="black", zorder=6)
+        _draw_obstacles(right, frame)
         right.set_title(
             f"execution: time {frame.exec_end:.0f} ticks, speed {frame.speed:g} cells/tick, "
             f"energy {frame.energy:.0f}\n"
             f"expected completion {frame.expected_completion:.0f}, "
-            f"expected value {frame.expected_value:.0f}",
+            f"expected value {frame.expected_value:.0f}"
+            + (
+                f"; {frame.decisions} decisions, {frame.collisions} collisions"
+                if frame.obstacles
+                else ""
+            ),
             fontsize=9,
         )
         figure.suptitle(

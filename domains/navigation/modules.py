@@ -10,6 +10,10 @@ Each comes with a problem set for the profile builder (`anytime profile get-doma
 `anytime profile find-path`), whose score is the papers' true quality: the fraction of cells a
 map gets right, and optimal length / executed length for a plan followed on the true map
 (`execution`). The measured profiles ship in `profiles/` next to this file.
+
+The modules of the situation "obstacle overcoming" (`left-clear?`, `right-clear?`,
+`can-wait?`, `detour-left`, `detour-right`, `wait`) are defined in `overcoming_modules` and
+imported here so that the plugin exposes them.
 """
 
 from __future__ import annotations
@@ -26,6 +30,14 @@ from anytime.profiles.trials import Instance
 
 from .abstraction import Pyramid
 from .execution import execute, optimal_length, plan_quality
+from .overcoming_modules import (  # the situation "obstacle overcoming": part of the plugin
+    can_wait,
+    detour_left,
+    detour_right,
+    left_clear,
+    right_clear,
+    wait,
+)
 from .planner import atp
 from .vision import (
     Q_A,
@@ -42,8 +54,14 @@ from .world import Position, random_world
 __all__ = [
     "PlannerProblems",
     "VisionProblems",
+    "can_wait",
+    "detour_left",
+    "detour_right",
     "find_path",
     "get_domain_description",
+    "left_clear",
+    "right_clear",
+    "wait",
 ]
 
 #: The world the profiles are measured on (the papers' setting: 4-connected, random rectangles).

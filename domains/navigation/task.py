@@ -67,6 +67,7 @@ from anytime.profiles.profile import Array
 from anytime.runtime.monitor import Adjustment, DeadlineValue, EventLog, Monitor
 
 from .execution import execute, optimal_length, route_length
+from .obstacles import MovingObstacle, Plan, Traffic
 from .vision import Q_A, T_A, T_B, Sensor
 from .world import BoolGrid, Position, World
 
@@ -363,6 +364,10 @@ class FrameRecord:
     expected_completion: float
     expected_value: float
     adjustments: tuple[str, ...] = ()
+    obstacles: tuple[MovingObstacle, ...] = field(default=(), repr=False)
+    choices: tuple[tuple[str, tuple[Position, ...]], ...] = field(default=(), repr=False)
+    decisions: int = 0
+    collisions: int = 0
 
 
 @frozen
@@ -387,12 +392,18 @@ class TaskReport:
     route: tuple[Position, ...] = field(repr=False)
     records: tuple[FrameRecord, ...] = field(repr=False)
     log: EventLog = field(repr=False, eq=False)
+    moving_obstacles: int = 0
+    decisions: int = 0
+    collisions: int = 0
+    evasions: int = 0
 
     def as_json(self) -> dict[str, Any]:
         keys = (
             "seed size frames completion_time energy value utility predicted_utility "
             "prediction_error optimal_utility utility_ratio route_length optimal_length policy"
         ).split()
+        if self.moving_obstacles:
+            keys += ["moving_obstacles", "decisions", "collisions", "evasions"]
         return {k: getattr(self, k) for k in keys}
 
 
@@ -438,11 +449,22 @@ def run_task(
     contract: float | None = None,
     clock: str = "work",
     max_frames: int = 200,
+    obstacles: Sequence[MovingObstacle] = (),
+    overcome: Any = None,
 ) -> TaskReport:
     """Run `task` under `policy` (`fixed` needs `contract`) and report what happened.
 
     `compiled` and `trace` come from `navigation_program`. Raises ValueError for an unknown
     policy, a missing contract, or a goal unreachable from the start.
+
+    With moving `obstacles` (the situation "obstacle overcoming", `overcoming`), each phase in
+    which the robot is on the map (waiting for the first plan at the start, executing a
+    segment, standing at its end until the next plan is ready) is followed by
+    `overcoming.follow` on the work clock of the task: the robot predicts arrivals along what
+    it is about to do and, when a critical event arises, decides with `overcome` (default: the
+    compiled `overcome-obstacle`, `overcoming_modules.schema_decider`), with the reflex
+    `evade` as a fallback. Then the speed is the frame's speed throughout its segment (no
+    intra-frame adjustments), and detours are searched on the true map near the robot.
     """
     if policy not in POLICIES:
         raise ValueError(f"policy must be one of {', '.join(POLICIES)}, got {policy!r}")
@@ -534,6 +556,46 @@ def run_task(
             "trace": list(trace.qualities),
         }
 
+    traffic = Traffic(world, obstacles) if obstacles else None
+    counts = {"decisions": 0, "collisions": 0, "evasions": 0}
+    if traffic is not None and overcome is None:
+        from .overcoming_modules import schema_decider
+
+        overcome = schema_decider()
+
+    def among_obstacles(
+        cells: Sequence[Position], start: float, speed: float, hold: float
+    ) -> tuple[list[Position], float, tuple[tuple[str, tuple[Position, ...]], ...]]:
+        """Follow `cells` from `start` at `speed`, then stand on the last until `hold`."""
+        from .overcoming import _collisions, follow
+
+        assert traffic is not None
+        work = WorkClock()
+        work.advance(start)
+        plans: list[Plan] = []
+        decisions: list[Any] = []
+        if len(cells) > 1:
+            part = follow(traffic, Plan(start, cells, speed), work, overcome, fallback=True)
+            plans += part.plans
+            decisions += part.decisions
+            counts["evasions"] += len(part.evasions)
+        if work.now() < hold - 1e-9:
+            steps = max(1, math.ceil((hold - work.now()) * speed))
+            standing = Plan(work.now(), [cells[-1]] * (steps + 1), steps / (hold - work.now()))
+            part = follow(traffic, standing, work, overcome, fallback=True)
+            plans += part.plans
+            decisions += part.decisions
+            counts["evasions"] += len(part.evasions)
+        end = work.now()
+        counts["decisions"] += len(decisions)
+        counts["collisions"] += _collisions(traffic, plans, end)
+        moved = _moved(plans, end) if plans else [cells[0]]
+        assert moved[-1] == cells[-1]
+        choices = tuple(
+            (d.chosen, tuple(d.plan.cells)) for d in decisions if d.plan is not None and d.chosen
+        )
+        return moved, end, choices
+
     known = np.zeros_like(truth)
     position = world.start
     now = 0.0
@@ -548,6 +610,8 @@ def run_task(
     planned = plan(position, known, decision.contract, 0)
     planned_at = now
     now += decision.contract if clock == "work" else planned["spent"]
+    if traffic is not None:  # the robot waits for its first plan at the start
+        _, now, _ = among_obstacles([position], 0.0, state.speed, now)
     frame_contract, frame_decision, speed_index = (
         decision.contract,
         decision,
@@ -577,7 +641,17 @@ def run_task(
         speed = speeds[speed_index]
         # Execution of this segment, replayed against the next frame's planning.
         t, done, frame_energy = 0.0, 0.0, 0.0
-        if next_decision is not None and n_cells > 0:
+        choices: tuple[tuple[str, tuple[Position, ...]], ...] = ()
+        frame_counts = dict(counts)
+        if traffic is not None:
+            hold = exec_start
+            if next_decision is not None:
+                hold += next_decision.contract if clock == "work" else next_plan["spent"]
+            segment, finished, choices = among_obstacles(segment, exec_start, speed, hold)
+            n_cells = route_length(segment)
+            done, t = n_cells, finished - exec_start
+            frame_energy = float(task.energy(speed)) * n_cells
+        if traffic is None and next_decision is not None and n_cells > 0:
             c = next_decision.contract
             for fraction in (0.25, 0.5, 0.75):
                 checkpoint = fraction * c
@@ -597,8 +671,9 @@ def run_task(
                     speed_index -= 1
                 adjustments.append(str(adjustment))
                 speed = speeds[speed_index]
-        t += (n_cells - done) / speed
-        frame_energy += float(task.energy(speed)) * (n_cells - done)
+        if traffic is None:
+            t += (n_cells - done) / speed
+            frame_energy += float(task.energy(speed)) * (n_cells - done)
         exec_time = t
         if next_decision is not None:
             next_spent = next_decision.contract if clock == "work" else next_plan["spent"]
@@ -635,6 +710,10 @@ def run_task(
                 ),
                 expected_value=frame_decision.expected_value,
                 adjustments=tuple(adjustments),
+                obstacles=() if traffic is None else traffic.at(math.floor(exec_start + exec_time)),
+                choices=choices,
+                decisions=counts["decisions"] - frame_counts["decisions"],
+                collisions=counts["collisions"] - frame_counts["collisions"],
             )
         )
         before = _belief_distance(known, position, world.goal, world.movement)
@@ -675,7 +754,24 @@ def run_task(
         route=tuple(route),
         records=tuple(records),
         log=log,
+        moving_obstacles=len(obstacles),
+        decisions=counts["decisions"],
+        collisions=counts["collisions"],
+        evasions=counts["evasions"],
     )
+
+
+def _moved(plans: Sequence[Plan], end: float) -> list[Position]:
+    """The cells the robot moved through, following each plan from its start until the next
+    one's (the last until `end`), without repeats of a cell it stood on."""
+    cells: list[Position] = []
+    for plan, following in zip(plans, [*plans[1:], None], strict=True):
+        stop = end if following is None else following.start - 1e-9
+        last = plan.index_at(stop) if stop >= plan.start else -1
+        for cell in plan.cells[: last + 1]:
+            if not cells or cells[-1] != cell:
+                cells.append(cell)
+    return cells
 
 
 def _touch(known: BoolGrid, truth: BoolGrid, segment: Sequence[Position]) -> BoolGrid:

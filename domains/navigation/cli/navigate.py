@@ -16,6 +16,7 @@ from anytime.cli.common import EXIT_OK, InputError, positive_float, positive_int
 from anytime.runtime.monitor import DeadlineValue
 
 from ..movingai import MapError, load_map
+from ..obstacles import MovingObstacle, random_obstacles
 from ..task import POLICIES, NavigationTask, TaskReport, navigation_program, run_task
 from ..world import Position, World, is_power_of_two, random_world, reachable
 
@@ -27,6 +28,13 @@ def _size(text: str) -> int:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    return value
+
+
+def _count(text: str) -> int:
+    value = _size(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
     return value
 
 
@@ -71,6 +79,14 @@ def add_command(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -
         "--contract", type=positive_float, metavar="TICKS", help="contract time of --policy fixed"
     )
     navigate.add_argument("--clock", choices=["work", "wall"], default="work")
+    navigate.add_argument(
+        "--moving-obstacles",
+        type=_count,
+        default=0,
+        metavar="K",
+        help="K moving obstacles (from the seed); the robot decides how to overcome each one "
+        "with the compiled schema schemas/obstacles.any (overcome-obstacle)",
+    )
     navigate.add_argument("--out", metavar="DIR", help="write frame figures, a GIF, events.jsonl")
     navigate.add_argument("--json", action="store_true", help="print the result as JSON")
     navigate.set_defaults(run=run_navigate)
@@ -130,15 +146,27 @@ def run_navigate(args: argparse.Namespace) -> int:
     compiled, trace = navigation_program(warn=warnings.append)
     for warning in warnings:
         print(f"anytime: warning: {warning}", file=sys.stderr)
+    obstacles: tuple[MovingObstacle, ...] = ()
+    if args.moving_obstacles:
+        try:
+            obstacles = random_obstacles(world, args.moving_obstacles, args.seed)
+        except ValueError as error:
+            raise InputError(f"anytime navigate: error: --moving-obstacles: {error}") from None
     report = run_task(
-        task, compiled, trace, policy=args.policy, contract=args.contract, clock=args.clock
+        task,
+        compiled,
+        trace,
+        policy=args.policy,
+        contract=args.contract,
+        clock=args.clock,
+        obstacles=obstacles,
     )
     comparison: dict[str, TaskReport] = {}
     if not args.json:
         for policy in ("min", "max"):
             if policy != args.policy:
                 comparison[policy] = run_task(
-                    task, compiled, trace, policy=policy, clock=args.clock
+                    task, compiled, trace, policy=policy, clock=args.clock, obstacles=obstacles
                 )
     written: list[str] = []
     if args.out is not None:
@@ -191,6 +219,11 @@ def _summary(report: TaskReport, comparison: dict[str, TaskReport]) -> str:
         f"  predicted        {r.predicted_utility:.1f}  (error {100 * r.prediction_error:.1f}%)",
         f"  clairvoyant      {r.optimal_utility:.1f}  (ratio {r.utility_ratio:.3f})",
     ]
+    if r.moving_obstacles:
+        lines.append(
+            f"  obstacles        {r.moving_obstacles} moving: {r.decisions} decisions, "
+            f"{r.collisions} collisions, {r.evasions} evasions"
+        )
     for name, other in comparison.items():
         lines.append(
             f"  policy {name:<9} utility {other.utility:.1f} in {other.frames} frames, "

@@ -1,0 +1,73 @@
+"""The schema of the situation "obstacle overcoming" (`schemas/obstacles.any`): it parses,
+compiles with the compiler's split and with Romanenko's proportional one (the compiled split
+never worse in expected quality), and decides a hand-built situation within T_d."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+
+from anytime.clocks import WorkClock
+from anytime.dsl import load_schemas
+from anytime.runtime.deadline import deadline_from
+from domains.navigation.obstacles import MovingObstacle, Plan, Traffic
+from domains.navigation.overcoming import ObstacleSituation, encounter_at, obstacle_arrival
+from domains.navigation.overcoming_modules import (
+    SCHEMA_FILE,
+    can_wait,
+    left_clear,
+    overcoming_program,
+    right_clear,
+    schema_decider,
+)
+from domains.navigation.world import World
+
+
+def test_the_schema_parses() -> None:
+    program = load_schemas(SCHEMA_FILE)["overcome-obstacle"]
+    assert program.inputs == ("situation",)
+    assert [step.function for step in program.steps] == [
+        "left-clear?", "right-clear?", "can-wait?", "detour-left", "detour-right", "wait",
+        "best-of",
+    ]  # fmt: skip
+
+
+def test_it_compiles_and_the_compiled_split_is_never_worse_than_proportional() -> None:
+    auto = overcoming_program("auto")
+    proportional = overcoming_program("proportional")
+    assert set(auto.modules) == {"detour-left", "detour-right", "wait"}
+    np.testing.assert_allclose(auto.allocation.sum(axis=-1), auto.profile.time, atol=1e-9)
+    assert np.all(auto.expected >= proportional.expected - 1e-9)
+    assert np.all(auto.expected >= auto.baselines["equal"] - 1e-9)
+
+
+def test_anytime_compile_works_on_the_file() -> None:
+    for extra in ([], ["--allocator", "proportional"]):
+        done = subprocess.run(
+            [sys.executable, "-m", "anytime", "compile", str(SCHEMA_FILE)]
+            + ["--schema", "overcome-obstacle", *extra],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+        assert done.returncode == 0, done.stderr
+        assert "overcome-obstacle" in done.stdout
+
+
+def test_the_schema_decides_a_parked_obstacle_within_t_d() -> None:
+    world = World(np.zeros((16, 16), dtype=bool), (0, 0), (15, 15))
+    traffic = Traffic(world, [MovingObstacle((10.0, 8.0), (0.0, 0.0))])  # parked on the route
+    plan = Plan(0.0, [(x, 8) for x in range(16)], 0.1)
+    clock = WorkClock()
+    situation = ObstacleSituation(traffic, plan, 0.0)
+    deadline = deadline_from(situation, [obstacle_arrival], clock, margin=20)
+    encounter = encounter_at(situation, deadline)
+    assert left_clear(encounter) and right_clear(encounter) and not can_wait(encounter)
+    decision = schema_decider()(situation, deadline, clock)
+    assert decision.within and decision.chosen in ("detour-left", "detour-right")
+    assert [o.name for o in decision.outcomes] == ["detour-left", "detour-right", "wait"]
+    assert not decision.outcomes[2].applicable
+    assert decision.plan is not None
+    assert traffic.first_conflict(decision.plan, decision.plan.start, 1, 400) is None
