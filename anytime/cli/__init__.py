@@ -20,11 +20,11 @@ from importlib import metadata
 
 from anytime import __version__
 from anytime.cli import library, measure, plot, schemas
-from anytime.cli.common import EXIT_INPUT, EXIT_OK, EXIT_USAGE, InputError
+from anytime.cli.common import EXIT_INPUT, EXIT_OK, EXIT_USAGE, InputError, UsageError
 from anytime.errors import AnytimeError
 from anytime.library import LibraryError
 
-__all__ = ["COMMAND_GROUP", "InputError", "build_parser", "main"]
+__all__ = ["COMMAND_GROUP", "InputError", "UsageError", "build_parser", "main"]
 
 #: The entry-point group through which plugins add subcommands.
 COMMAND_GROUP = "anytime.commands"
@@ -39,6 +39,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     run: Callable[[argparse.Namespace], int] = args.run
     try:
         return run(args)
+    except UsageError as error:
+        print(error, file=sys.stderr)
+        return EXIT_USAGE
     except LibraryError as error:
         print(f"anytime: error: {error}", file=sys.stderr)
         return EXIT_INPUT

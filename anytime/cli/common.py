@@ -17,6 +17,11 @@ class InputError(AnytimeError):
     """Bad input found by the command itself; the message is printed as it is."""
 
 
+class UsageError(InputError):
+    """Options that do not go together, found after parsing (argparse cannot check them):
+    printed as it is, exit status 2 like argparse's own usage errors."""
+
+
 def positive_int(text: str) -> int:
     try:
         value = int(text)

@@ -46,7 +46,6 @@ def _map(tmp_path, rows):
     [
         (["--map", "/no/such.map"], "cannot read"),
         (["--size", "-4"], "power of two"),
-        (["--start", "1,1"], "need --map"),
     ],
 )
 def test_bad_input_one_line(args, words):
@@ -54,6 +53,18 @@ def test_bad_input_one_line(args, words):
     assert done.returncode == 1
     assert words in done.stderr and done.stderr.count("\n") == 1
     assert "Traceback" not in done.stderr
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--start", "1,1"], "anytime navigate: error: --start and --goal need --map\n"),
+        (["--policy", "fixed"], "anytime navigate: error: --policy fixed needs --contract TICKS\n"),
+    ],
+)
+def test_options_that_do_not_go_together_are_usage_errors(args, message):
+    done = navigate(*args)
+    assert (done.returncode, done.stderr) == (2, message)
 
 
 def test_bad_maps(tmp_path):

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from anytime.cli.common import EXIT_OK, InputError, positive_float, positive_int
+from anytime.cli.common import EXIT_OK, InputError, UsageError, positive_float, positive_int
 from anytime.runtime.monitor import DeadlineValue
 
 from ..movingai import MapError, load_map
@@ -95,7 +95,7 @@ def add_command(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -
 def _world(args: argparse.Namespace) -> World:
     if args.map is None:
         if args.start is not None or args.goal is not None:
-            raise InputError("anytime navigate: error: --start and --goal need --map")
+            raise UsageError("anytime navigate: error: --start and --goal need --map")
         if not (args.size >= 8 and is_power_of_two(args.size)):
             raise InputError(
                 f"anytime navigate: error: --size must be a power of two >= 8, got {args.size}"
@@ -132,7 +132,7 @@ def _world(args: argparse.Namespace) -> World:
 
 def run_navigate(args: argparse.Namespace) -> int:
     if args.policy == "fixed" and args.contract is None:
-        raise InputError("anytime navigate: error: --policy fixed needs --contract TICKS")
+        raise UsageError("anytime navigate: error: --policy fixed needs --contract TICKS")
     world = _world(args)
     side = world.blocked.shape[0]
     deadline = args.deadline if args.deadline is not None else 6000.0 * side / 128
