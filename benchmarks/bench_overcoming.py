@@ -151,11 +151,17 @@ def main(argv: Sequence[str] | None = None) -> None:
                     f"{np.mean(v[:, 1] > 0):.2f}",
                     f"{np.sum(ref[mask, 0] >= v[:, 0] - 1e-9)}/{k}",
                     f"{np.sum(ref[mask, 1] >= v[:, 1] - 1e-9)}/{k}",
+                    f"{np.max(v[:, 0] - ref[mask, 0], initial=0.0):.3f}",
                 ]
             )
         header = ["split", "expected", "realised", "valid", "compiled >= (exp.)"]
         print(f"\n{label} situations")
-        print(table([*header, "compiled >= (real.)"], out))
+        print(table([*header, "compiled >= (real.)", "most above compiled (exp.)"], out))
+    print(
+        "\n(the compiled split is searched on the compile lattice; the proportional and equal"
+        "\n splits use the exact T: at T = 52 the lattice's best, 32 + 20, is 0.002 below an"
+        "\n even 26 + 26 it cannot express)"
+    )
 
 
 if __name__ == "__main__":
