@@ -23,7 +23,7 @@ lint: $(INSTALLED)
 	$(BIN)/ruff format --check anytime domains tests benchmarks
 
 typecheck: $(INSTALLED)
-	$(BIN)/mypy anytime
+	$(BIN)/mypy anytime domains
 
 pytest: $(INSTALLED)
 	$(BIN)/pytest

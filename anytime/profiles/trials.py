@@ -33,6 +33,10 @@ class BuildError(AnytimeError, ValueError):
     """A profile cannot be built as asked: bad grids, a problem set that breaks its contract."""
 
 
+def _as_tuple(values: Sequence[Any]) -> tuple[Any, ...]:
+    return tuple(values)
+
+
 @frozen
 class Instance:
     """One problem: the module's arguments after the context, and what the scorer needs.
@@ -45,7 +49,7 @@ class Instance:
         reference: anything `ProblemSet.score` compares an output against (an optimal answer).
     """
 
-    args: tuple[Any, ...] = field(converter=tuple)
+    args: tuple[Any, ...] = field(converter=_as_tuple)
     reference: Any = None
 
 

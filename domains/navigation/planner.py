@@ -408,7 +408,7 @@ class _Planner:
         if isinstance(corridor[0], int):
             boxes = [corridor]
         else:
-            boxes = [_children(cell) for cell in corridor]  # type: ignore[arg-type]
+            boxes = [_children(cell) for cell in corridor]
         boxes += [_point(s) for s in sources] + [box]
         x0 = max(min(b[0] for b in boxes) - margin, 0)
         y0 = max(min(b[1] for b in boxes) - margin, 0)

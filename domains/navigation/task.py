@@ -56,7 +56,7 @@ import attrs
 import numpy as np
 from attrs import field, frozen
 
-from anytime.clocks import Clock, WorkClock
+from anytime.clocks import Clock, Unit, WorkClock
 from anytime.compiler import compile_file
 from anytime.compiler.compile import CompiledProgram, default_time_grid
 from anytime.dsl import load_schemas
@@ -203,7 +203,9 @@ class TaskModel:
         return np.asarray(self.task.energy(state.speed) * path, dtype=np.float64)
 
     def expected_completion(self, state: FrameState, contract: float, quality: float) -> float:
-        completion, _ = self._parts(state, np.float64(contract), np.float64(quality))
+        completion, _ = self._parts(
+            state, np.asarray(contract, dtype=np.float64), np.asarray(quality, dtype=np.float64)
+        )
         return float(completion)
 
 
@@ -319,7 +321,7 @@ class WallTicks:
     """A wall clock that reads in tick-equivalents: seconds of `time.perf_counter` times a rate
     (ticks per second) measured by running the program once on the work clock."""
 
-    unit = "ticks"
+    unit: Unit = "ticks"
 
     def __init__(self, rate: float) -> None:
         self.rate = rate
@@ -525,7 +527,9 @@ def run_task(
         )
         return decision, state
 
-    def plan(position: Position, known: BoolGrid, contract_time: float, index: int):
+    def plan(
+        position: Position, known: BoolGrid, contract_time: float, index: int
+    ) -> dict[str, Any]:
         window = task.window(position)
         sensor = Sensor(
             truth,
@@ -646,6 +650,7 @@ def run_task(
         if traffic is not None:
             hold = exec_start
             if next_decision is not None:
+                assert next_plan is not None
                 hold += next_decision.contract if clock == "work" else next_plan["spent"]
             segment, finished, choices = among_obstacles(segment, exec_start, speed, hold)
             n_cells = route_length(segment)
@@ -676,6 +681,7 @@ def run_task(
             frame_energy += float(task.energy(speed)) * (n_cells - done)
         exec_time = t
         if next_decision is not None:
+            assert next_plan is not None
             next_spent = next_decision.contract if clock == "work" else next_plan["spent"]
             frame_time = max(exec_time, next_spent)
         else:
@@ -726,6 +732,7 @@ def run_task(
             break
         planned_at = exec_start
         now = exec_start + frame_time
+        assert next_plan is not None and next_state is not None
         planned = next_plan
         frame_contract, frame_decision, state = next_decision.contract, next_decision, next_state
 
