@@ -14,7 +14,9 @@ import time
 import numpy as np
 
 from anytime.runtime.monitor import DeadlineValue
-from domains.navigation.task import NavigationTask, navigation_program, run_task
+from domains.navigation.frame_program import navigation_program
+from domains.navigation.frames import run_task
+from domains.navigation.task import NavigationTask
 from domains.navigation.world import random_world
 
 

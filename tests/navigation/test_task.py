@@ -6,7 +6,9 @@ import math
 
 import pytest
 
-from domains.navigation.task import NavigationTask, navigation_program, optimal_utility, run_task
+from domains.navigation.frame_program import navigation_program
+from domains.navigation.frames import run_task
+from domains.navigation.task import NavigationTask, optimal_utility
 from domains.navigation.world import random_world
 
 

@@ -15,9 +15,11 @@ import numpy as np
 from anytime.cli.common import EXIT_OK, InputError, UsageError, positive_float, positive_int
 from anytime.runtime.monitor import DeadlineValue
 
+from ..frame_program import navigation_program
+from ..frames import run_task
 from ..movingai import MapError, load_map
 from ..obstacles import MovingObstacle, random_obstacles
-from ..task import POLICIES, NavigationTask, TaskReport, navigation_program, run_task
+from ..task import POLICIES, NavigationTask, TaskReport
 from ..world import Position, World, is_power_of_two, random_world, reachable
 
 __all__ = ["add_command", "run_navigate"]

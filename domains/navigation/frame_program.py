@@ -1,0 +1,133 @@
+"""The frame's program: `navigate` of `schemas/navigation.any` (sense, then plan), compiled
+against the navigation plugin's modules and their measured profiles, with the planner traced so
+that the monitor can compare its quality so far with the profile's expectation."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import attrs
+import numpy as np
+from attrs import field, frozen
+
+from anytime.compiler import compile_file
+from anytime.compiler.compile import CompiledProgram, default_time_grid
+from anytime.dsl import load_schemas
+from anytime.library import AnytimeLibrary, LibraryEntry
+from anytime.modules import Context, Result
+from anytime.profiles import VisionHyperbola, tabulate
+
+from .vision import Q_A, T_A, T_B
+from .world import Position
+
+__all__ = ["SCHEMA_FILE", "PlanTrace", "navigation_library", "navigation_program"]
+
+#: The schema file of the papers' program.
+SCHEMA_FILE = Path(__file__).resolve().parents[2] / "schemas" / "navigation.any"
+
+
+def _stand_in_profiles() -> dict[str, Any]:
+    """Analytic profiles on the real modules' time scale, used while the measured ones are
+    missing: vision's hyperbola (T_A, Q_A, T_B) and a planner `q^2 (1 - exp(-t / 400))`."""
+    t_v = np.arange(0.0, 1201.0, 50.0)
+    t_p = np.arange(0.0, 2001.0, 100.0)
+    q_grid = [0.6, 0.7, 0.8, 0.9, 0.95, 1.0]
+    return {
+        "get-domain-description": tabulate(
+            VisionHyperbola(t_a=T_A, q_a=Q_A, t_b=T_B),
+            t_v,
+            module="get-domain-description",
+            kind="contract",
+        ),
+        "find-path": tabulate(
+            lambda t, q: q**2 * (1.0 - np.exp(-t / 400.0)),
+            t_p,
+            input_grids=[q_grid],
+            inputs=["domain"],
+            module="find-path",
+        ),
+    }
+
+
+@frozen
+class PlanTrace:
+    """What the traced planner saw in its last run: the map it was given and the quality of
+    each plan it yielded, with the program time (since the program started) of each."""
+
+    domain: list[Any] = field(factory=list)
+    qualities: list[tuple[float, float]] = field(factory=list)
+    origin: list[float] = field(factory=list)
+
+    def reset(self, start: float) -> None:
+        self.domain.clear()
+        self.qualities.clear()
+        self.origin[:] = [start]
+
+    def quality_at(self, elapsed: float) -> float:
+        """The best plan's quality at `elapsed` into the program (0 before the first plan)."""
+        best = 0.0
+        for t, q in self.qualities:
+            if t <= elapsed + 1e-9:
+                best = q
+        return best
+
+
+def navigation_library(
+    profile_dirs: Sequence[str | Path] = (), *, warn: Callable[[str], None] | None = None
+) -> tuple[AnytimeLibrary, PlanTrace]:
+    """The library `navigate` is compiled against: the navigation plugin's two modules with
+    their measured profiles (analytic stand-ins when those cannot be read, with a warning),
+    `find-path` wrapped so that its plans' qualities are recorded in the returned trace."""
+    from . import modules as nav
+
+    base = AnytimeLibrary.default(profile_dirs=profile_dirs, plugins=False)
+    stand_ins = _stand_in_profiles()
+    trace = PlanTrace()
+    library = AnytimeLibrary()
+    for module in (nav.get_domain_description, nav.find_path):
+        entry = base.get(module.name) or LibraryEntry.of_module(module)
+        try:
+            profile = entry.profile
+        except Exception as error:  # missing or malformed file: say so, use the stand-in
+            if warn is not None:
+                warn(f"{str(error).splitlines()[0]}; using an analytic stand-in profile")
+            profile = stand_ins[module.name]
+        assert profile is not None
+        function = module.function
+        if module.name == "find-path":
+            function = _traced(module.function, trace)
+        library.add(
+            LibraryEntry.of_module(
+                attrs.evolve(
+                    module,
+                    function=function,
+                    profile_source=profile,
+                    inputs=tuple(profile.inputs) if profile.inputs else module.inputs,
+                )
+            )
+        )
+    return library, trace
+
+
+def _traced(function: Callable[..., Any], trace: PlanTrace) -> Callable[..., Any]:
+    def find_path(ctx: Context, start: Position, goal: Position, domain: Result) -> Any:
+        trace.domain[:] = [domain]
+        origin = trace.origin[0] if trace.origin else ctx.start
+        for result in function(ctx, start, goal, domain):
+            trace.qualities.append((ctx.clock.now() - origin, float(result.quality)))
+            yield result
+
+    return find_path
+
+
+def navigation_program(
+    profile_dirs: Sequence[str | Path] = (), *, warn: Callable[[str], None] | None = None
+) -> tuple[CompiledProgram, PlanTrace]:
+    """`navigate` of `schemas/navigation.any`, compiled against `navigation_library`."""
+    library, trace = navigation_library(profile_dirs, warn=warn)
+    schemas = load_schemas(SCHEMA_FILE)
+    grid = default_time_grid(schemas, library, "navigate")
+    compiled = compile_file(schemas, library, grid, schema="navigate")
+    return compiled[-1], trace
