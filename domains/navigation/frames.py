@@ -141,7 +141,9 @@ def run_task(
         remaining = _belief_distance(known, position, world.goal, world.movement)
         best = None
         for speed in speeds:
-            state = FrameState(now, remaining, speed, step, current is None, current or 0.0)
+            state = FrameState(
+                now, remaining, speed, step, current is None, current or 0.0, detour()
+            )
             decision = chooser.choose_contract(state, now=now)
             if best is None or decision.expected_utility > best[0].expected_utility + 1e-12:
                 best = (decision, state)
@@ -243,6 +245,11 @@ def run_task(
     records: list[FrameRecord] = []
     step = float(task.radius)
     progress_per_frame: list[float] = []
+    # The detour factor: cells walked over the cells the model predicted for that progress.
+    walked, foreseen = [0.0], [0.0]
+
+    def detour() -> float:
+        return walked[0] / foreseen[0] if foreseen[0] > 0 else 1.0
 
     decision, state = decide(now, position, known, step, None)
     predicted = decision.expected_utility
@@ -360,6 +367,8 @@ def run_task(
         before = _belief_distance(known, position, world.goal, world.movement)
         after = _belief_distance(known, end, world.goal, world.movement) if end != world.goal else 0
         progress_per_frame.append(max(1.0, before - after))
+        walked[0] += n_cells
+        foreseen[0] += max(before - after, 1.0) / max(frame_decision.expected_quality, 0.5)
         step = float(np.mean(progress_per_frame))
         position = end
         if next_decision is None:

@@ -134,8 +134,9 @@ class NavigationTask:
 class FrameState:
     """What the monitor knows when it chooses a contract: the time now, the remaining distance
     from where the plan will start (shortest route on the robot's map), the speed considered,
-    the progress in remaining distance expected per frame, and either that the robot waits for
-    this plan (the first frame) or the length of the segment it executes meanwhile."""
+    the progress in remaining distance expected per frame, either that the robot waits for
+    this plan (the first frame) or the length of the segment it executes meanwhile, and the
+    detour factor learned so far (see `TaskModel`)."""
 
     now: float
     remaining: float
@@ -143,14 +144,19 @@ class FrameState:
     step: float
     waiting: bool
     current: float = 0.0
+    detour: float = 1.0
 
 
 @frozen
 class TaskModel:
     """The monitor's value and cost models for navigation.
 
-    With `d` the remaining distance from where the plan starts, `q` the plan quality (optimal
-    / executed length), `c` the contract and `v` the speed, the route left is `d / q` cells in
+    With `d` the remaining distance from where the plan starts (times the detour factor: what
+    the frames so far walked per cell of progress, over what this model predicted for them,
+    1 before any frame; frame by frame the robot plans with only a window of the map known, so
+    its route is longer than one plan's quality says, and the monitor learns by how much), `q`
+    the plan quality (optimal / executed length), `c` the contract and `v` the speed, the route
+    left is `d / q` cells in
     `f = ceil(d / step)` frames of `e = d / (q f v)` ticks each, each overlapped with the next
     frame's planning (assumed to get the same contract). Before that the robot either waits
     for the plan (first frame: `c`) or executes its current segment of `n` cells meanwhile
@@ -171,7 +177,7 @@ class TaskModel:
     def _parts(self, state: FrameState, contract: Array, quality: Array) -> tuple[Array, Array]:
         q = np.maximum(np.asarray(quality, dtype=np.float64), max(self.floor, MIN_QUALITY))
         c = np.asarray(contract, dtype=np.float64)
-        d = state.remaining
+        d = state.remaining * state.detour
         frames = max(1.0, math.ceil(d / max(state.step, 1.0)))
         path = d / q
         per_frame = path / frames / state.speed
