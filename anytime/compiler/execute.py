@@ -55,48 +55,18 @@ def execute(
     program = model.program
     values = bind_inputs(program.name, program.inputs, inputs)
     qualities = [_quality(values[name]) for name in model.quality_inputs]
-    allocation = compiled.allocation_at(qualities, total)
     clock = clock if clock is not None else WorkClock()
     results: dict[int, Result] = {}
-    applicable: dict[int, list[bool]] = {}
-
-    def active(node: CompileNode) -> bool:
-        """Whether a node runs: every alternative it is inside is applicable. The first time
-        an alternative of a best-of is looked at, its preconditions (numbered before every
-        alternative) decide which are, and the time is re-split among those."""
-        nonlocal allocation
-        tag = node.branch
-        if node.role == "precondition":
-            assert tag is not None
-            return active(model.node(tag[0]))
-        if tag is None:
-            return True
-        choice = model.node(tag[0])
-        if not active(choice):
-            return False
-        if choice.index not in applicable:
-            applicable[choice.index] = [bool(results[p].value) for p in choice.preconditions]
-            allocation = resplit(compiled, choice, applicable[choice.index], allocation, qualities)
-        return applicable[choice.index][tag[1]]
+    choices = Choices(compiled, qualities, compiled.allocation_at(qualities, total))
 
     for node in model.nodes:
-        if not active(node):
+        if not choices.active(node, results):
             continue
         if node.role == "best-of":
-            if node.index not in applicable:
-                applicable[node.index] = [bool(results[p].value) for p in node.preconditions]
-            results[node.index] = _best_of(compiled, node, applicable[node.index], values, results)
+            results[node.index] = choices.best(node, values, results)
             continue
         if node.role == "if":
-            assert node.time_index is not None and node.condition is not None
-            condition = source_value(node.condition, values, results)
-            plan = node.branches[0 if _truth(condition) else 1]
-            index_of = {n.variable: i for i, n in enumerate(model.graph.nodes)}
-            branch_inputs = {
-                name: values[name] if name not in index_of else results[index_of[name]]
-                for name in plan.compiled.model.program.inputs
-            }
-            given = float(allocation[node.time_index])
+            plan, branch_inputs, given = choices.branch(node, values, results)
             results[node.index] = execute(plan.compiled, branch_inputs, given, clock, stop)
             continue
         module, args, kwargs = call_arguments(compiled, node, values, results)
@@ -105,13 +75,84 @@ def execute(
             results[node.index] = _elementary(module, args, kwargs, carrying)
         else:
             assert node.time_index is not None
-            ctx = Context(allocation=float(allocation[node.time_index]), clock=clock, stop=stop)
+            ctx = Context(
+                allocation=float(choices.allocation[node.time_index]), clock=clock, stop=stop
+            )
             results[node.index] = _anytime(module, ctx, args, kwargs)
     output = model.graph.output
     if isinstance(output, NodeRef):
         return results[output.index]
     value = values[output.name]
     return value if isinstance(value, Result) else Result(value, 1.0)
+
+
+class Choices:
+    """Which calls of a program run, and with how much time, as its choices are decided.
+
+    A call inside an alternative of a best-of runs only if that alternative is applicable (and
+    the best-of itself runs); the first time an alternative is looked at, the preconditions
+    (numbered before every alternative) decide which are, and the time the compiled allocation
+    gives the alternatives is re-split among those (`resplit`). Shared by this executor and the
+    runtime's `run_program`.
+
+    Attributes:
+        allocation: the time of each anytime module, updated by every re-split.
+    """
+
+    def __init__(
+        self, compiled: CompiledProgram, qualities: Sequence[float], allocation: Array
+    ) -> None:
+        self.compiled = compiled
+        self.qualities = list(qualities)
+        self.allocation = allocation
+        self.applicable: dict[int, list[bool]] = {}
+
+    def active(self, node: CompileNode, results: Mapping[int, Result]) -> bool:
+        """Whether `node` runs: every alternative it is inside is applicable."""
+        model = self.compiled.model
+        tag = node.branch
+        if node.role == "precondition":
+            assert tag is not None
+            return self.active(model.node(tag[0]), results)
+        if tag is None:
+            return True
+        choice = model.node(tag[0])
+        if not self.active(choice, results):
+            return False
+        return self.decided(choice, results)[tag[1]]
+
+    def decided(self, choice: CompileNode, results: Mapping[int, Result]) -> list[bool]:
+        """The applicable alternatives of a best-of (its preconditions must have run)."""
+        if choice.index not in self.applicable:
+            found = [bool(results[p].value) for p in choice.preconditions]
+            self.applicable[choice.index] = found
+            self.allocation = resplit(self.compiled, choice, found, self.allocation, self.qualities)
+        return self.applicable[choice.index]
+
+    def best(
+        self, node: CompileNode, values: Mapping[str, Any], results: Mapping[int, Result]
+    ) -> Result:
+        """A best-of's answer: its best applicable alternative's result.
+
+        Raises:
+            NoApplicableAlternative: every precondition was false.
+        """
+        return _best_of(self.compiled, node, self.decided(node, results), values, results)
+
+    def branch(
+        self, node: CompileNode, values: Mapping[str, Any], results: Mapping[int, Result]
+    ) -> tuple[Any, dict[str, Any], float]:
+        """An if's branch to run, its inputs, and the if's time: (the branch's plan, whose
+        `compiled` program runs, inputs by name, time)."""
+        assert node.time_index is not None and node.condition is not None
+        condition = source_value(node.condition, values, results)
+        plan = node.branches[0 if _truth(condition) else 1]
+        index_of = {n.variable: i for i, n in enumerate(self.compiled.model.graph.nodes)}
+        inputs = {
+            name: values[name] if name not in index_of else results[index_of[name]]
+            for name in plan.compiled.model.program.inputs
+        }
+        return plan, inputs, float(self.allocation[node.time_index])
 
 
 def call_arguments(

@@ -23,7 +23,14 @@ from anytime.clocks import Clock, WorkClock
 from anytime.compiler.allocators import Exhaustive, HillClimbing
 from anytime.compiler.compile import CompiledProgram
 from anytime.compiler.evaluate import Evaluator
-from anytime.compiler.execute import ExecutionError, bind_inputs, call_arguments
+from anytime.compiler.execute import (
+    Choices,
+    ExecutionError,
+    NoApplicableAlternative,
+    bind_inputs,
+    call_arguments,
+)
+from anytime.compiler.model import CompileNode
 from anytime.dsl.graph import NodeRef
 from anytime.modules import Result
 from anytime.profiles.profile import Array
@@ -88,10 +95,10 @@ def run_program(
     """Run `compiled` with `total` time (inputs positional or by name; `Result`s carry their
     quality, plain values have quality 1)."""
     model = compiled.model
-    if any(n.role in ("best-of", "if") for n in model.nodes):
+    if adaptive and any(n.role in ("best-of", "if") for n in model.nodes):
         raise ExecutionError(
-            f"schema '{model.program.name}': run_program does not run best-of or if yet; "
-            "use CompiledProgram.run"
+            f"schema '{model.program.name}': adaptive re-allocation does not handle best-of or "
+            "if yet; run it with adaptive=False"
         )
     values = bind_inputs(model.program.name, model.program.inputs, inputs)
     qualities = [
@@ -100,26 +107,53 @@ def run_program(
     ]
     clock = clock if clock is not None else WorkClock()
     start = clock.now()
-    allocation = np.array(compiled.allocation_at(qualities, total), dtype=np.float64)
+    choices = Choices(
+        compiled, qualities, np.array(compiled.allocation_at(qualities, total), dtype=np.float64)
+    )
     evaluator = Evaluator(model)
     results: dict[int, Result] = {}
     records: dict[int, RunRecord] = {}
+    inner: list[RunRecord] = []  # the calls of the branches that ifs ran
     observed: dict[int, float] = {}
 
     for node in model.nodes:
-        module, args, kwargs = call_arguments(compiled, node, values, results)
-        if node.kind == "anytime":
-            assert node.time_index is not None
-            if adaptive and observed:
-                left = max(0.0, total - (clock.now() - start))
-                allocation = _reallocate(compiled, evaluator, qualities, observed, allocation, left)
-            given = float(allocation[node.time_index])
-            record = run(module, args, kwargs, allocation=given, clock=clock, stop=stop, hard=hard)
+        if not choices.active(node, results):
+            continue
+        if node.role == "best-of":
+            record = _best_of_record(choices, node, values, results)
+        elif node.role == "if":
+            plan, branch_inputs, given = choices.branch(node, values, results)
+            sub = run_program(
+                plan.compiled, branch_inputs, given, clock=clock, hard=hard, stop=stop
+            )
+            inner.extend(sub.records)
+            record = RunRecord(
+                module=f"if -> {plan.compiled.name}",
+                status=sub.status,
+                result=sub.result,
+                time_used=sub.time_used,
+                allocation=given,
+                registered=int(sub.result is not None),
+            )
         else:
-            record = run(module, args, kwargs, clock=clock)
+            module, args, kwargs = call_arguments(compiled, node, values, results)
+            if node.kind == "anytime":
+                assert node.time_index is not None
+                if adaptive and observed:
+                    left = max(0.0, total - (clock.now() - start))
+                    choices.allocation = _reallocate(
+                        compiled, evaluator, qualities, observed, choices.allocation, left
+                    )
+                given = float(choices.allocation[node.time_index])
+                record = run(
+                    module, args, kwargs, allocation=given, clock=clock, stop=stop, hard=hard
+                )
+            else:
+                record = run(module, args, kwargs, clock=clock)
         records[node.index] = record
         results[node.index] = record.result if record.result is not None else Result(None, 0.0)
         observed[node.index] = results[node.index].quality
+    allocation = choices.allocation
     output = model.graph.output
     if isinstance(output, NodeRef):
         final = records[output.index].result
@@ -127,7 +161,7 @@ def run_program(
         value = values[output.name]
         final = value if isinstance(value, Result) else Result(value, 1.0)
     used = clock.now() - start
-    if any(r.status == Status.FAILED for r in records.values()):
+    if any(r.status == Status.FAILED for r in [*records.values(), *inner]):
         status = Status.FAILED
     elif final is None:
         status = Status.NO_RESULT
@@ -138,9 +172,34 @@ def run_program(
     return ProgramRecord(
         result=final,
         status=status,
-        records=tuple(records.values()),
+        records=(*records.values(), *inner),
         allocations=tuple(float(a) for a in allocation),
         time_used=used,
+    )
+
+
+def _best_of_record(
+    choices: Choices, node: CompileNode, values: Mapping[str, Any], results: Mapping[int, Result]
+) -> RunRecord:
+    """A best-of's answer as a run record: none applicable is a status, not an exception."""
+    try:
+        best = choices.best(node, values, results)
+    except NoApplicableAlternative as error:
+        return RunRecord(
+            module="best-of",
+            status=Status.NO_RESULT,
+            result=None,
+            time_used=0.0,
+            allocation=0.0,
+            error=str(error),
+        )
+    return RunRecord(
+        module="best-of",
+        status=Status.COMPLETED,
+        result=best,
+        time_used=0.0,
+        allocation=0.0,
+        registered=1,
     )
 
 

@@ -1,0 +1,63 @@
+"""The runtime's `run_program` runs best-of and if like `CompiledProgram.run`, with a run record
+per call: the best applicable alternative with the time re-split, no applicable alternative as
+a status (not an exception), the branch an if's condition selects; adaptive runs refuse them."""
+
+from __future__ import annotations
+
+import pytest
+from choice_modules import BEST_OF, compiled, library
+
+from anytime.compiler import ExecutionError
+from anytime.runtime import Status, run_program
+
+
+def test_best_of_runs_the_applicable_alternatives_and_keeps_the_best() -> None:
+    program = compiled(BEST_OF, lib=library(steady=0.6, gamble=0.9))
+    both = run_program(program, ["left right"], 6)
+    assert both.status == Status.COMPLETED
+    assert both.result is not None and both.result.value[0] == "gamble"
+    assert both.quality == 0.9
+    assert [r.module for r in both.records] == [
+        "left-clear?",
+        "right-clear?",
+        "steady",
+        "gamble",
+        "best-of",
+    ]
+    assert sum(r.allocation for r in both.records if r.module in ("steady", "gamble")) == 6
+    left = run_program(program, ["left"], 6)  # gamble is not applicable: steady gets it all
+    assert left.result is not None and left.result.value == ("steady", 6.0)
+    assert [r.module for r in left.records] == ["left-clear?", "right-clear?", "steady", "best-of"]
+
+
+def test_no_applicable_alternative_is_a_status_with_the_reason() -> None:
+    record = run_program(compiled(BEST_OF), ["nowhere"], 6)
+    assert (record.status, record.result) == (Status.NO_RESULT, None)
+    (choice,) = [r for r in record.records if r.module == "best-of"]
+    assert choice.status == Status.NO_RESULT
+    assert choice.error == (
+        "schema 'choose': no alternative of best-of 't1' is applicable "
+        "(all 2 preconditions are false)"
+    )
+
+
+def test_if_runs_the_branch_its_condition_selects_with_the_ifs_time() -> None:
+    program = compiled(
+        "(defschema c (w) (if (sunny? w) (steady) (gamble)))", library(steady=0.6, gamble=0.9)
+    )
+    sunny = run_program(program, ["sun"], 5)
+    assert sunny.status == Status.COMPLETED
+    assert sunny.result is not None and sunny.result.value == ("steady", 5.0)
+    modules = [r.module for r in sunny.records]
+    assert modules[0] == "sunny?" and modules[1].startswith("if -> ") and "steady" in modules
+    rainy = run_program(program, ["rain"], 5)
+    assert rainy.result is not None and rainy.result.value == ("gamble", 5.0)
+
+
+def test_adaptive_runs_refuse_choices_with_a_clear_message() -> None:
+    with pytest.raises(ExecutionError) as raised:
+        run_program(compiled(BEST_OF), ["left"], 6, adaptive=True)
+    assert str(raised.value) == (
+        "schema 'choose': adaptive re-allocation does not handle best-of or if yet; "
+        "run it with adaptive=False"
+    )
