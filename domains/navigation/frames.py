@@ -12,6 +12,8 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+from attrs import define, frozen
+from attrs import evolve as replace
 
 from anytime.clocks import Clock, Unit, WorkClock
 from anytime.compiler.compile import CompiledProgram
@@ -103,53 +105,146 @@ def run_task(
     `evade` as a fallback. Then the speed is the frame's speed throughout its segment (no
     intra-frame adjustments), and detours are searched on the true map near the robot.
     """
-    if policy not in POLICIES:
-        raise ValueError(f"policy must be one of {', '.join(POLICIES)}, got {policy!r}")
-    world = task.world
-    truth = np.asarray(world.blocked, dtype=bool)
-    best_length = optimal_length(truth, world.start, world.goal, movement=world.movement)
-    if best_length is None:
-        raise ValueError(f"the goal {world.goal} cannot be reached from the start {world.start}")
-    profile = compiled.profile
-    n_inputs = profile.n_inputs
-    input_quality = (1.0,) * n_inputs if n_inputs else None
-    expected = np.asarray(profile.expected(np.ones(n_inputs), profile.time)).reshape(-1)
-    grid = profile.time[(profile.time > 0) & (expected > MIN_QUALITY)]
-    if grid.size == 0:
-        grid = profile.time[profile.time > 0]
-    if policy == "fixed":
-        if contract is None or not contract > 0:
-            raise ValueError("the fixed policy needs a contract time > 0")
-        contracts = np.array([float(contract)])
-    elif policy == "min":
-        contracts = grid[:1]
-    elif policy == "max":
-        contracts = grid[-1:]
-    else:
-        contracts = grid
-    model = TaskModel(task)
-    log = EventLog()
-    chooser = Monitor(profile, model, model, grid=contracts, input_quality=input_quality)
-    checker = Monitor(profile, model, model, grid=grid, input_quality=input_quality, log=log)
-    speeds = list(task.speeds)
+    run = _TaskRun(task, compiled, trace, policy, contract, clock, obstacles, overcome)
+    return run.run(max_frames)
 
-    run_clock = _make_clock(clock, compiled, task)
+
+Choices = tuple[tuple[str, tuple[Position, ...]], ...]
+
+
+@frozen
+class _Planned:
+    """What one frame's sensing and planning gave: the sensor window, the plan and its quality,
+    the sensing time and quality, the robot's map after sensing, the time the program took,
+    and the planner's quality trace (program time, quality)."""
+
+    window: tuple[int, int, int, int]
+    plan: Any
+    quality: float
+    sensing_time: float
+    sensing_quality: float
+    known: BoolGrid
+    spent: float
+    trace: tuple[tuple[float, float], ...]
+
+
+@define
+class _Executed:
+    """One frame's execution: the cells walked, its time and energy, the speed at its end, the
+    intra-frame adjustments, and the alternatives chosen around obstacles."""
+
+    segment: list[Position]
+    time: float
+    energy: float
+    speed: float
+    adjustments: list[str]
+    choices: Choices
+
+
+class _TaskRun:
+    """One run of a task: the policy's contract grid, the monitors, the clock, the obstacles,
+    and what the robot knows and has done so far."""
+
+    def __init__(
+        self,
+        task: NavigationTask,
+        compiled: CompiledProgram,
+        trace: PlanTrace,
+        policy: str,
+        contract: float | None,
+        clock: str,
+        obstacles: Sequence[MovingObstacle],
+        overcome: Any,
+    ) -> None:
+        if policy not in POLICIES:
+            raise ValueError(f"policy must be one of {', '.join(POLICIES)}, got {policy!r}")
+        self.task, self.compiled, self.trace = task, compiled, trace
+        self.policy, self.clock_kind, self.obstacles = policy, clock, tuple(obstacles)
+        world = self.world = task.world
+        self.truth = np.asarray(world.blocked, dtype=bool)
+        best = optimal_length(self.truth, world.start, world.goal, movement=world.movement)
+        if best is None:
+            raise ValueError(
+                f"the goal {world.goal} cannot be reached from the start {world.start}"
+            )
+        self.best_length = best
+        profile = compiled.profile
+        n_inputs = profile.n_inputs
+        self.input_quality = (1.0,) * n_inputs if n_inputs else None
+        expected = np.asarray(profile.expected(np.ones(n_inputs), profile.time)).reshape(-1)
+        grid = profile.time[(profile.time > 0) & (expected > MIN_QUALITY)]
+        if grid.size == 0:
+            grid = profile.time[profile.time > 0]
+        if policy == "fixed":
+            if contract is None or not contract > 0:
+                raise ValueError("the fixed policy needs a contract time > 0")
+            self.contracts = np.array([float(contract)])
+        elif policy == "min":
+            self.contracts = grid[:1]
+        elif policy == "max":
+            self.contracts = grid[-1:]
+        else:
+            self.contracts = grid
+        self.model = TaskModel(task)
+        self.log = EventLog()
+        self.chooser = Monitor(
+            profile, self.model, self.model, grid=self.contracts, input_quality=self.input_quality
+        )
+        self.checker = Monitor(
+            profile,
+            self.model,
+            self.model,
+            grid=grid,
+            input_quality=self.input_quality,
+            log=self.log,
+        )
+        self.speeds = list(task.speeds)
+        self.run_clock = _make_clock(clock, compiled, task)
+        self.traffic = Traffic(world, self.obstacles) if self.obstacles else None
+        if self.traffic is not None and overcome is None:
+            from .overcoming_modules import schema_decider
+
+            overcome = schema_decider()
+        self.overcome = overcome
+        self.counts = {"decisions": 0, "collisions": 0, "evasions": 0}
+        # What the monitor learns frame by frame: the progress per frame, and the detour factor
+        # (cells walked over the cells the model predicted for that progress).
+        self.progress: list[float] = []
+        self.walked = self.foreseen = 0.0
+
+    # --- one frame's steps ----------------------------------------------------------------
+
+    def detour(self) -> float:
+        return self.walked / self.foreseen if self.foreseen > 0 else 1.0
+
+    def step(self) -> float:
+        return float(np.mean(self.progress)) if self.progress else float(self.task.radius)
 
     def decide(
-        now: float, position: Position, known: BoolGrid, step: float, current: float | None
+        self, now: float, position: Position, known: BoolGrid, current: float | None
     ) -> tuple[Any, FrameState]:
+        """The contract and speed of highest expected utility for the plan made from
+        `position` (`current`: the length of the segment executed meanwhile; None: the robot
+        waits for this plan), logged as a "contract" event."""
+        world = self.world
         remaining = _belief_distance(known, position, world.goal, world.movement)
         best = None
-        for speed in speeds:
+        for speed in self.speeds:
             state = FrameState(
-                now, remaining, speed, step, current is None, current or 0.0, detour()
+                now,
+                remaining,
+                speed,
+                self.step(),
+                current is None,
+                current or 0.0,
+                self.detour(),
             )
-            decision = chooser.choose_contract(state, now=now)
+            decision = self.chooser.choose_contract(state, now=now)
             if best is None or decision.expected_utility > best[0].expected_utility + 1e-12:
                 best = (decision, state)
         assert best is not None
         decision, state = best
-        log.record(
+        self.log.record(
             now,
             "contract",
             {
@@ -164,66 +259,65 @@ def run_task(
         )
         return decision, state
 
-    def plan(
-        position: Position, known: BoolGrid, contract_time: float, index: int
-    ) -> dict[str, Any]:
+    def plan(self, position: Position, known: BoolGrid, contract: float, index: int) -> _Planned:
+        """Sense the window around `position` and plan from it with the compiled program."""
+        task, world = self.task, self.world
         window = task.window(position)
         sensor = Sensor(
-            truth,
+            self.truth,
             seed=task.seed * 7919 + index,
             window=window,
             known=known,
             movement=world.movement,
         )
-        started = run_clock.now()
-        trace.reset(started)
-        result = compiled.run([position, world.goal, sensor], contract_time, run_clock)
-        spent = run_clock.now() - started
-        allocation = compiled.allocation_at(list(input_quality or ()), contract_time)
-        domain = trace.domain[0] if trace.domain else None
+        started = self.run_clock.now()
+        self.trace.reset(started)
+        result = self.compiled.run([position, world.goal, sensor], contract, self.run_clock)
+        spent = self.run_clock.now() - started
+        allocation = self.compiled.allocation_at(list(self.input_quality or ()), contract)
+        domain = self.trace.domain[0] if self.trace.domain else None
         new_known = np.array(known, dtype=bool)
         if domain is not None and domain.value is not None:
             x0, y0, x1, y1 = window
             new_known[y0:y1, x0:x1] = np.asarray(domain.value.blocked)[y0:y1, x0:x1]
-        sensing_quality = float(domain.quality) if domain is not None else 0.0
-        return {
-            "window": window,
-            "plan": result.value,
-            "quality": float(result.quality),
-            "sensing_time": float(allocation[0]),
-            "sensing_quality": sensing_quality,
-            "known": new_known,
-            "spent": spent,
-            "trace": list(trace.qualities),
-        }
+        return _Planned(
+            window=window,
+            plan=result.value,
+            quality=float(result.quality),
+            sensing_time=float(allocation[0]),
+            sensing_quality=float(domain.quality) if domain is not None else 0.0,
+            known=new_known,
+            spent=spent,
+            trace=tuple(self.trace.qualities),
+        )
 
-    traffic = Traffic(world, obstacles) if obstacles else None
-    counts = {"decisions": 0, "collisions": 0, "evasions": 0}
-    if traffic is not None and overcome is None:
-        from .overcoming_modules import schema_decider
-
-        overcome = schema_decider()
+    def planning_time(self, decision: Any, planned: _Planned) -> float:
+        """How long a frame's planning takes: its contract (work clock) or the time it took."""
+        return float(decision.contract) if self.clock_kind == "work" else planned.spent
 
     def among_obstacles(
-        cells: Sequence[Position], start: float, speed: float, hold: float
-    ) -> tuple[list[Position], float, tuple[tuple[str, tuple[Position, ...]], ...]]:
-        """Follow `cells` from `start` at `speed`, then stand on the last until `hold`."""
+        self, cells: Sequence[Position], start: float, speed: float, hold: float
+    ) -> tuple[list[Position], float, Choices]:
+        """Follow `cells` from `start` at `speed`, then stand on the last until `hold`, deciding
+        around the obstacles on the way: the cells moved through, the time at the end, and the
+        alternatives chosen."""
         from .overcoming import _collisions, follow
 
-        assert traffic is not None
+        assert self.traffic is not None
+        traffic, counts = self.traffic, self.counts
         work = WorkClock()
         work.advance(start)
         plans: list[Plan] = []
         decisions: list[Any] = []
         if len(cells) > 1:
-            part = follow(traffic, Plan(start, cells, speed), work, overcome, fallback=True)
+            part = follow(traffic, Plan(start, cells, speed), work, self.overcome, fallback=True)
             plans += part.plans
             decisions += part.decisions
             counts["evasions"] += len(part.evasions)
         if work.now() < hold - 1e-9:
             steps = max(1, math.ceil((hold - work.now()) * speed))
             standing = Plan(work.now(), [cells[-1]] * (steps + 1), steps / (hold - work.now()))
-            part = follow(traffic, standing, work, overcome, fallback=True)
+            part = follow(traffic, standing, work, self.overcome, fallback=True)
             plans += part.plans
             decisions += part.decisions
             counts["evasions"] += len(part.evasions)
@@ -237,80 +331,44 @@ def run_task(
         )
         return moved, end, choices
 
-    known = np.zeros_like(truth)
-    position = world.start
-    now = 0.0
-    energy = 0.0
-    route: list[Position] = [position]
-    records: list[FrameRecord] = []
-    step = float(task.radius)
-    progress_per_frame: list[float] = []
-    # The detour factor: cells walked over the cells the model predicted for that progress.
-    walked, foreseen = [0.0], [0.0]
-
-    def detour() -> float:
-        return walked[0] / foreseen[0] if foreseen[0] > 0 else 1.0
-
-    decision, state = decide(now, position, known, step, None)
-    predicted = decision.expected_utility
-    planned = plan(position, known, decision.contract, 0)
-    planned_at = now
-    now += decision.contract if clock == "work" else planned["spent"]
-    if traffic is not None:  # the robot waits for its first plan at the start
-        _, now, _ = among_obstacles([position], 0.0, state.speed, now)
-    frame_contract, frame_decision, speed_index = (
-        decision.contract,
-        decision,
-        speeds.index(state.speed),
-    )
-
-    while position != world.goal and len(records) < max_frames:
-        index = len(records)
-        known = planned["known"]
-        plan_value = planned["plan"]
-        executed = execute(
-            plan_value if plan_value is not None else [position, world.goal],
-            truth,
-            movement=world.movement,
-        )
-        segment = _segment(executed.route, planned["window"])
-        n_cells = route_length(segment)
-        end = segment[-1]
-        exec_start = now
-        # The next frame's contract is chosen now, for the window around the segment's end.
-        next_decision = next_state = next_plan = None
-        adjustments: list[str] = []
-        if end != world.goal:
-            next_decision, next_state = decide(now, end, known, step, n_cells)
-            speed_index = speeds.index(next_state.speed)
-            next_plan = plan(end, known, next_decision.contract, index + 1)
+    def execute_segment(
+        self,
+        segment: list[Position],
+        start: float,
+        speed_index: int,
+        following: tuple[Any, _Planned] | None,
+    ) -> tuple[_Executed, int]:
+        """Walk `segment` from time `start` while the next frame plans (`following`: its
+        decision and planning; None at the last frame). Without obstacles the intra-frame rule
+        is checked at a quarter, half and three quarters of the next contract against the
+        planner's quality so far, and moves the speed one step; with obstacles the speed is
+        kept and the robot decides around them (`among_obstacles`)."""
+        task, speeds = self.task, self.speeds
         speed = speeds[speed_index]
-        # Execution of this segment, replayed against the next frame's planning.
-        t, done, frame_energy = 0.0, 0.0, 0.0
-        choices: tuple[tuple[str, tuple[Position, ...]], ...] = ()
-        frame_counts = dict(counts)
-        if traffic is not None:
-            hold = exec_start
-            if next_decision is not None:
-                assert next_plan is not None
-                hold += next_decision.contract if clock == "work" else next_plan["spent"]
-            segment, finished, choices = among_obstacles(segment, exec_start, speed, hold)
-            n_cells = route_length(segment)
-            done, t = n_cells, finished - exec_start
-            frame_energy = float(task.energy(speed)) * n_cells
-        if traffic is None and next_decision is not None and n_cells > 0:
-            c = next_decision.contract
+        n_cells = route_length(segment)
+        if self.traffic is not None:
+            hold = start
+            if following is not None:
+                hold += self.planning_time(*following)
+            walked, finished, choices = self.among_obstacles(segment, start, speed, hold)
+            length = route_length(walked)
+            energy = float(task.energy(speed)) * length
+            return _Executed(walked, finished - start, energy, speed, [], choices), speed_index
+        t, done, energy = 0.0, 0.0, 0.0
+        adjustments: list[str] = []
+        if following is not None and n_cells > 0:
+            decision, planned = following
+            c = decision.contract
             for fraction in (0.25, 0.5, 0.75):
                 checkpoint = fraction * c
                 reach = done + (checkpoint - t) * speed
                 if reach >= n_cells:
                     break
-                frame_energy += float(task.energy(speed)) * (reach - done)
+                energy += float(task.energy(speed)) * (reach - done)
                 done, t = reach, checkpoint
-                assert next_plan is not None
-                trace_q = _quality_at(next_plan["trace"], checkpoint)
-                adjustment = checker.adjust(
-                    checkpoint, trace_q, done / n_cells, c, now=exec_start + checkpoint
+                quality = _quality_at(planned.trace, checkpoint)
+                adjustment = self.checker.adjust(
+                    checkpoint, quality, done / n_cells, c, now=start + checkpoint
                 )
                 if adjustment is Adjustment.FASTER and speed_index < len(speeds) - 1:
                     speed_index += 1
@@ -318,98 +376,156 @@ def run_task(
                     speed_index -= 1
                 adjustments.append(str(adjustment))
                 speed = speeds[speed_index]
-        if traffic is None:
-            t += (n_cells - done) / speed
-            frame_energy += float(task.energy(speed)) * (n_cells - done)
-        exec_time = t
-        if next_decision is not None:
-            assert next_plan is not None
-            next_spent = next_decision.contract if clock == "work" else next_plan["spent"]
-            frame_time = max(exec_time, next_spent)
-        else:
-            frame_time = exec_time
-        energy += frame_energy
-        route.extend(segment[1:])
-        known = _touch(known, truth, segment)
-        if next_plan is not None:
-            next_plan["known"] = _touch(next_plan["known"], truth, segment)
-        records.append(
-            FrameRecord(
-                index=index,
-                start=planned_at,
-                position=position,
-                window=planned["window"],
-                contract=frame_contract,
-                expected_quality=frame_decision.expected_quality,
-                plan_quality=planned["quality"],
-                sensing_time=planned["sensing_time"],
-                sensing_quality=planned["sensing_quality"],
-                plan=plan_value,
-                known=planned["known"],
-                planned_at=planned_at,
-                exec_start=exec_start,
-                exec_end=exec_start + exec_time,
-                frame_time=frame_time,
-                speed=speed,
-                route=tuple(segment),
-                energy=energy,
-                expected_completion=model.expected_completion(
-                    state, frame_decision.contract, frame_decision.expected_quality
-                ),
-                expected_value=frame_decision.expected_value,
-                adjustments=tuple(adjustments),
-                obstacles=() if traffic is None else traffic.at(math.floor(exec_start + exec_time)),
-                choices=choices,
-                decisions=counts["decisions"] - frame_counts["decisions"],
-                collisions=counts["collisions"] - frame_counts["collisions"],
-            )
-        )
-        before = _belief_distance(known, position, world.goal, world.movement)
-        after = _belief_distance(known, end, world.goal, world.movement) if end != world.goal else 0
-        progress_per_frame.append(max(1.0, before - after))
-        walked[0] += n_cells
-        foreseen[0] += max(before - after, 1.0) / max(frame_decision.expected_quality, 0.5)
-        step = float(np.mean(progress_per_frame))
-        position = end
-        if next_decision is None:
-            now = exec_start + exec_time
-            break
-        planned_at = exec_start
-        now = exec_start + frame_time
-        assert next_plan is not None and next_state is not None
-        planned = next_plan
-        frame_contract, frame_decision, state = next_decision.contract, next_decision, next_state
+        t += (n_cells - done) / speed
+        energy += float(task.energy(speed)) * (n_cells - done)
+        return _Executed(segment, t, energy, speed, adjustments, ()), speed_index
 
-    reached = position == world.goal
-    value = float(np.asarray(task.value(now))) if reached else 0.0
-    utility = value - energy
-    best_utility, _ = optimal_utility(task, best_length)
-    error = abs(utility - predicted) / abs(predicted) if predicted else math.inf
-    ratio = utility / best_utility if best_utility else math.nan
-    return TaskReport(
-        seed=task.seed,
-        size=int(truth.shape[1]),
-        policy=policy if policy != "fixed" else f"fixed:{contracts[0]:g}",
-        frames=len(records),
-        completion_time=now,
-        energy=energy,
-        value=value,
-        utility=utility,
-        predicted_utility=predicted,
-        prediction_error=error,
-        optimal_utility=best_utility,
-        utility_ratio=ratio,
-        route_length=route_length(route),
-        optimal_length=float(best_length),
-        reached=reached,
-        route=tuple(route),
-        records=tuple(records),
-        log=log,
-        moving_obstacles=len(obstacles),
-        decisions=counts["decisions"],
-        collisions=counts["collisions"],
-        evasions=counts["evasions"],
-    )
+    def learn(
+        self, known: BoolGrid, start: Position, end: Position, walked: float, q: float
+    ) -> None:
+        """After a frame from `start` to `end`: the progress it made on the robot's map, and the
+        cells it walked against what the model predicted for that progress (plan quality q)."""
+        world = self.world
+        before = _belief_distance(known, start, world.goal, world.movement)
+        after = _belief_distance(known, end, world.goal, world.movement) if end != world.goal else 0
+        self.progress.append(max(1.0, before - after))
+        self.walked += walked
+        self.foreseen += max(before - after, 1.0) / max(q, 0.5)
+
+    # --- the task ------------------------------------------------------------------------
+
+    def run(self, max_frames: int) -> TaskReport:
+        world, truth, counts = self.world, self.truth, self.counts
+        known = np.zeros_like(truth)
+        position = world.start
+        now = energy = 0.0
+        route: list[Position] = [position]
+        records: list[FrameRecord] = []
+
+        decision, state = self.decide(now, position, known, None)
+        predicted = decision.expected_utility
+        planned = self.plan(position, known, decision.contract, 0)
+        planned_at = now
+        now += self.planning_time(decision, planned)
+        if self.traffic is not None:  # the robot waits for its first plan at the start
+            _, now, _ = self.among_obstacles([position], 0.0, state.speed, now)
+        speed_index = self.speeds.index(state.speed)
+
+        while position != world.goal and len(records) < max_frames:
+            index = len(records)
+            known = planned.known
+            executed = execute(
+                planned.plan if planned.plan is not None else [position, world.goal],
+                truth,
+                movement=world.movement,
+            )
+            segment = _segment(executed.route, planned.window)
+            end = segment[-1]
+            exec_start = now
+            # The next frame's contract is chosen now, for the window around the segment's end.
+            following = None
+            next_state = None
+            if end != world.goal:
+                next_decision, next_state = self.decide(now, end, known, route_length(segment))
+                speed_index = self.speeds.index(next_state.speed)
+                next_planned = self.plan(end, known, next_decision.contract, index + 1)
+                following = (next_decision, next_planned)
+            frame_counts = dict(counts)
+            done, speed_index = self.execute_segment(segment, exec_start, speed_index, following)
+            segment = done.segment
+            frame_time = done.time
+            if following is not None:
+                frame_time = max(done.time, self.planning_time(*following))
+            energy += done.energy
+            route.extend(segment[1:])
+            known = _touch(known, truth, segment)
+            records.append(
+                FrameRecord(
+                    index=index,
+                    start=planned_at,
+                    position=position,
+                    window=planned.window,
+                    contract=decision.contract,
+                    expected_quality=decision.expected_quality,
+                    plan_quality=planned.quality,
+                    sensing_time=planned.sensing_time,
+                    sensing_quality=planned.sensing_quality,
+                    plan=planned.plan,
+                    known=planned.known,
+                    planned_at=planned_at,
+                    exec_start=exec_start,
+                    exec_end=exec_start + done.time,
+                    frame_time=frame_time,
+                    speed=done.speed,
+                    route=tuple(segment),
+                    energy=energy,
+                    expected_completion=self.model.expected_completion(
+                        state, decision.contract, decision.expected_quality
+                    ),
+                    expected_value=decision.expected_value,
+                    adjustments=tuple(done.adjustments),
+                    obstacles=()
+                    if self.traffic is None
+                    else self.traffic.at(math.floor(exec_start + done.time)),
+                    choices=done.choices,
+                    decisions=counts["decisions"] - frame_counts["decisions"],
+                    collisions=counts["collisions"] - frame_counts["collisions"],
+                )
+            )
+            self.learn(known, position, end, route_length(segment), decision.expected_quality)
+            position = end
+            if following is None:
+                now = exec_start + done.time
+                break
+            planned_at = exec_start
+            now = exec_start + frame_time
+            decision, planned = following
+            assert next_state is not None
+            state = next_state
+            planned = replace(planned, known=_touch(planned.known, truth, segment))
+
+        return self.report(position, now, energy, route, records, predicted)
+
+    def report(
+        self,
+        position: Position,
+        now: float,
+        energy: float,
+        route: list[Position],
+        records: list[FrameRecord],
+        predicted: float,
+    ) -> TaskReport:
+        task = self.task
+        reached = position == self.world.goal
+        value = float(np.asarray(task.value(now))) if reached else 0.0
+        utility = value - energy
+        best_utility, _ = optimal_utility(task, self.best_length)
+        error = abs(utility - predicted) / abs(predicted) if predicted else math.inf
+        ratio = utility / best_utility if best_utility else math.nan
+        return TaskReport(
+            seed=task.seed,
+            size=int(self.truth.shape[1]),
+            policy=self.policy if self.policy != "fixed" else f"fixed:{self.contracts[0]:g}",
+            frames=len(records),
+            completion_time=now,
+            energy=energy,
+            value=value,
+            utility=utility,
+            predicted_utility=predicted,
+            prediction_error=error,
+            optimal_utility=best_utility,
+            utility_ratio=ratio,
+            route_length=route_length(route),
+            optimal_length=float(self.best_length),
+            reached=reached,
+            route=tuple(route),
+            records=tuple(records),
+            log=self.log,
+            moving_obstacles=len(self.obstacles),
+            decisions=self.counts["decisions"],
+            collisions=self.counts["collisions"],
+            evasions=self.counts["evasions"],
+        )
 
 
 def _moved(plans: Sequence[Plan], end: float) -> list[Position]:
