@@ -6,7 +6,7 @@ import re
 from collections.abc import Iterable, Mapping
 from typing import Any
 
-from anytime.dsl.graph import DataflowGraph, InputRef, NodeRef, Source
+from anytime.dsl.graph import DataflowGraph, InputRef, Node, NodeRef, Source
 from anytime.dsl.program import Arg, Literal, Program, Step, Var
 
 INDENT = "  "
@@ -124,7 +124,9 @@ def _quote(text: str) -> str:
 
 def graph_to_dot(graphs: Iterable[DataflowGraph]) -> str:
     """One digraph with a cluster per program: inputs as ellipses, calls as boxes
-    (schema calls with a double border), edges labelled with the variable they carry."""
+    (schema calls with a double border), choices (`best-of`, `if`) as diamonds whose incoming
+    edges say what they carry (`when 1`, `alternative 1`, ...; `condition`, `then`, `else`),
+    other edges labelled with the variable they carry."""
     out = ["digraph schemas {", "  rankdir=LR;", '  node [fontname="Helvetica"];']
     for number, graph in enumerate(graphs):
         prefix = f"s{number}_"
@@ -140,17 +142,32 @@ def graph_to_dot(graphs: Iterable[DataflowGraph]) -> str:
             constants = [f"{slot}={_source_text(s)}" for slot, s in _literals(node.sources())]
             label = node.function + ("\\n" + ", ".join(constants) if constants else "")
             border = ", peripheries=2" if node.kind == "schema" else ""
-            out.append(f'    {ident(NodeRef(index))} [shape=box{border}, label="{label}"];')
+            shape = "diamond" if node.kind in ("best-of", "if") else "box"
+            out.append(f'    {ident(NodeRef(index))} [shape={shape}{border}, label="{label}"];')
         for edge in graph.edges:
+            role = _edge_role(graph.nodes[edge.target], edge.slot)
+            text = edge.variable if role is None else f"{role}: {edge.variable}"
             out.append(
-                f"    {ident(edge.source)} -> {ident(NodeRef(edge.target))}"
-                f" [label={_quote(edge.variable)}];"
+                f"    {ident(edge.source)} -> {ident(NodeRef(edge.target))} [label={_quote(text)}];"
             )
         out.append(f'    {prefix}output [shape=doublecircle, label="out"];')
         out.append(f"    {ident(graph.output)} -> {prefix}output;")
         out.append("  }")
     out.append("}")
     return "\n".join(out) + "\n"
+
+
+def _edge_role(target: Node, slot: int | str) -> str | None:
+    """What an argument of a choice is: a best-of's preconditions come first, then its
+    alternatives (as many); an if's are its condition, then and else."""
+    if not isinstance(slot, int):
+        return None
+    if target.kind == "best-of":
+        n = len(target.args) // 2
+        return f"when {slot + 1}" if slot < n else f"alternative {slot - n + 1}"
+    if target.kind == "if":
+        return ("condition", "then", "else")[slot] if slot < 3 else None
+    return None
 
 
 def _literals(

@@ -132,3 +132,24 @@ def test_known_functions_do_not_include_the_special_forms() -> None:
     text = "(defschema p (x) (best-of (when (ok x) (f x))))"
     program = parse_schemas(text, known_functions={"ok": 1, "f": 1})["p"]
     assert program.steps[-1].kind == "best-of"
+
+
+def test_dot_draws_choices_as_diamonds_with_labelled_arguments() -> None:
+    from anytime.dsl import graph_to_dot
+
+    text = (
+        "(defschema c (w) (best-of (when (l? w) (left w)) (when (r? w) (right w))))\n"
+        "(defschema d (w) (if (sunny? w) (left w) (right w) :p 0.7))"
+    )
+    dot = graph_to_dot(program.graph for program in parse_schemas(text).programs)
+    lines = [line.strip() for line in dot.splitlines()]
+    assert 's0_n4 [shape=diamond, label="best-of"];' in lines
+    assert [line for line in lines if "-> s0_n4" in line] == [
+        's0_n0 -> s0_n4 [label="when 1: t2"];',
+        's0_n1 -> s0_n4 [label="when 2: t3"];',
+        's0_n2 -> s0_n4 [label="alternative 1: t4"];',
+        's0_n3 -> s0_n4 [label="alternative 2: t5"];',
+    ]
+    assert 's1_n0 -> s1_n3 [label="condition: t2"];' in lines
+    assert 's1_n1 -> s1_n3 [label="then: t3"];' in lines
+    assert 's1_n2 -> s1_n3 [label="else: t4"];' in lines
