@@ -99,7 +99,7 @@ def run_task(
     With moving `obstacles` (the situation "obstacle overcoming", `overcoming`), each phase in
     which the robot is on the map (waiting for the first plan at the start, executing a
     segment, standing at its end until the next plan is ready) is followed by
-    `overcoming.follow` on the work clock of the task: the robot predicts arrivals along what
+    `crossing.follow` on the work clock of the task: the robot predicts arrivals along what
     it is about to do and, when a critical event arises, decides with `overcome` (default: the
     compiled `overcome-obstacle`, `overcoming_modules.schema_decider`), with the reflex
     `evade` as a fallback. Then the speed is the frame's speed throughout its segment (no
@@ -301,7 +301,7 @@ class _TaskRun:
         """Follow `cells` from `start` at `speed`, then stand on the last until `hold`, deciding
         around the obstacles on the way: the cells moved through, the time at the end, and the
         alternatives chosen."""
-        from .overcoming import _collisions, follow
+        from .crossing import collisions, follow
 
         assert self.traffic is not None
         traffic, counts = self.traffic, self.counts
@@ -323,7 +323,7 @@ class _TaskRun:
             counts["evasions"] += len(part.evasions)
         end = work.now()
         counts["decisions"] += len(decisions)
-        counts["collisions"] += _collisions(traffic, plans, end)
+        counts["collisions"] += collisions(traffic, plans, end)
         moved = _moved(plans, end) if plans else [cells[0]]
         assert moved[-1] == cells[-1]
         choices = tuple(

@@ -11,8 +11,8 @@ import sys
 
 import pytest
 
+from domains.navigation.crossing import simulate
 from domains.navigation.obstacles import random_obstacles
-from domains.navigation.overcoming import simulate
 from domains.navigation.overcoming_modules import schema_decider
 from domains.navigation.search import find_path
 from domains.navigation.world import random_world

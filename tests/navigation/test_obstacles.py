@@ -5,13 +5,13 @@ import pytest
 
 from anytime.clocks import WorkClock
 from anytime.runtime.deadline import EVENTS, deadline_from
+from domains.navigation.crossing import simulate
 from domains.navigation.obstacles import MovingObstacle, Plan, Traffic, random_obstacles
 from domains.navigation.overcoming import (
     ObstacleSituation,
     decide_best,
     obstacle_arrival,
     side_clear,
-    simulate,
 )
 from domains.navigation.search import find_path
 from domains.navigation.world import World, random_world
