@@ -55,6 +55,22 @@ def library_options(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def library_directories(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """`--library DIR` (repeatable) and `--no-plugins`, as `anytime compile` and `anytime plot`
+    name the library options (the same `profiles`/`no_plugins` as `library_options`)."""
+    parser.add_argument(
+        "--library",
+        dest="profiles",
+        metavar="DIR",
+        action="append",
+        default=[],
+        help="a directory of profile files (*.yaml), each a module; repeatable",
+    )
+    parser.add_argument(
+        "--no-plugins", action="store_true", help="do not load the installed plugins"
+    )
+
+
 def open_library(args: argparse.Namespace) -> AnytimeLibrary:
     """The library the options describe; plugins that failed to load are warned about."""
     library = AnytimeLibrary.default(profile_dirs=args.profiles, plugins=not args.no_plugins)

@@ -20,10 +20,9 @@ from typing import NoReturn
 import numpy as np
 import yaml
 
-from anytime.cli.common import EXIT_OK, InputError, open_library
-from anytime.cli.schemas import _parse_time_grid
-from anytime.compiler import CompileError, compile_file
-from anytime.compiler.compile import ALLOCATOR_NAMES, default_time_grid
+from anytime.cli.common import EXIT_OK, InputError, library_directories, open_library
+from anytime.cli.schemas import check_schema_name, compile_schemas
+from anytime.compiler.compile import ALLOCATOR_NAMES
 from anytime.dsl import load_schemas
 from anytime.plot import (
     MissingMatplotlibError,
@@ -60,15 +59,7 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     plot.add_argument("--title", metavar="T", help="the figure's title (default: a description)")
     schema = plot.add_argument_group("schema files (.any), as for `anytime compile`")
     schema.add_argument("--schema", metavar="NAME", help="the schema to compile and draw")
-    schema.add_argument(
-        "--library",
-        dest="profiles",
-        metavar="DIR",
-        action="append",
-        default=[],
-        help="a directory of profile files (*.yaml), each a module; repeatable",
-    )
-    schema.add_argument("--no-plugins", action="store_true", help="do not load the plugins")
+    library_directories(schema)
     schema.add_argument(
         "--allocator", choices=ALLOCATOR_NAMES, default="auto", help="as for compile (auto)"
     )
@@ -128,27 +119,12 @@ def _plot_schema(args: argparse.Namespace, output: Path) -> None:
                 f"to draw with --schema NAME (one of {', '.join(schemas.names)})"
             )
         name = schemas.names[0]
-    elif args.schema in schemas:
+    else:
+        check_schema_name(schemas, args.file, args.schema)
         name = args.schema.lower()
-    else:
-        raise InputError(
-            f"{args.file}: error: no schema named '{args.schema}' "
-            f"(the file defines: {', '.join(schemas.names)})"
-        )
-    if args.time_grid is not None:
-        time_grid = _parse_time_grid(args.time_grid)
-    else:
-        time_grid = default_time_grid(schemas, library, name)
-    lines = Path(args.file).read_text(encoding="utf-8-sig").split("\n")
-    try:
-        compiled = compile_file(
-            schemas, library, time_grid, schema=name, allocator=args.allocator, source_lines=lines
-        )
-    except CompileError as error:
-        message = str(error)
-        raise InputError(
-            message if ": error: " in message else f"{args.file}: error: {message}"
-        ) from None
+    compiled = compile_schemas(
+        args.file, schemas, library, args.time_grid, schema=name, allocator=args.allocator
+    )
     plot_compiled(next(c for c in compiled if c.name == name), output, title=args.title)
 
 

@@ -6,17 +6,26 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from collections.abc import Sequence
 from pathlib import Path
 
 from anytime.cli.common import (
     EXIT_OK,
     InputError,
+    library_directories,
     library_options,
     open_library,
 )
-from anytime.compiler import CompileError, compile_file, compiled_to_dict, format_report
+from anytime.compiler import (
+    CompiledProgram,
+    CompileError,
+    compile_file,
+    compiled_to_dict,
+    format_report,
+)
 from anytime.compiler.compile import ALLOCATOR_NAMES, DEFAULT_INPUT_QUALITY, default_time_grid
-from anytime.dsl import format_programs, graph_to_dot, load_schemas, program_to_json
+from anytime.dsl import SchemaFile, format_programs, graph_to_dot, load_schemas, program_to_json
+from anytime.library import AnytimeLibrary
 
 
 def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -81,17 +90,7 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     compile_.add_argument("-o", "--output", metavar="OUT.yaml", help="write the compiled profile")
     compile_.add_argument("--json", action="store_true", help="print the report as JSON")
-    compile_.add_argument(
-        "--library",
-        dest="profiles",
-        metavar="DIR",
-        action="append",
-        default=[],
-        help="a directory of profile files (*.yaml), each a module; repeatable",
-    )
-    compile_.add_argument(
-        "--no-plugins", action="store_true", help="do not load the installed plugins"
-    )
+    library_directories(compile_)
     compile_.set_defaults(run=run_compile)
 
 
@@ -102,11 +101,7 @@ def run_parse(args: argparse.Namespace) -> int:
     schemas = load_schemas(args.file, known)
     programs = schemas.programs
     if args.schema is not None:
-        if args.schema not in schemas:
-            defined = ", ".join(schemas.names)
-            raise InputError(
-                f"{args.file}: error: no schema named '{args.schema}' (the file defines: {defined})"
-            )
+        check_schema_name(schemas, args.file, args.schema)
         programs = (schemas[args.schema],)
     if args.json:
         print(json.dumps({"schemas": [program_to_json(p) for p in programs]}, indent=2))
@@ -121,37 +116,22 @@ def run_compile(args: argparse.Namespace) -> int:
     library = open_library(args)
     # Calls are checked against the library for the compiled schemas only (by the compiler).
     schemas = load_schemas(args.file)
-    if args.schema is not None and args.schema not in schemas:
-        defined = ", ".join(schemas.names)
-        raise InputError(
-            f"{args.file}: error: no schema named '{args.schema}' (the file defines: {defined})"
-        )
+    check_schema_name(schemas, args.file, args.schema)
     if args.output is not None and args.schema is None and len(schemas) > 1:
         raise InputError(
             f"anytime: error: {args.file} defines {len(schemas)} schemas: say which one to "
             "write with --schema NAME"
         )
-    if args.time_grid is not None:
-        time_grid = _parse_time_grid(args.time_grid)
-    else:
-        time_grid = default_time_grid(schemas, library, args.schema)
-    quality = _parse_numbers(args.input_quality, "--input-quality")
-    lines = Path(args.file).read_text(encoding="utf-8-sig").split("\n")
-    try:
-        compiled = compile_file(
-            schemas,
-            library,
-            time_grid,
-            quality,
-            schema=args.schema,
-            allocator=args.allocator,
-            resolution=args.resolution,
-            source_lines=lines,
-        )
-    except CompileError as error:
-        message = str(error)
-        prefixed = message if ": error: " in message else f"{args.file}: error: {message}"
-        raise InputError(prefixed) from None
+    compiled = compile_schemas(
+        args.file,
+        schemas,
+        library,
+        args.time_grid,
+        schema=args.schema,
+        allocator=args.allocator,
+        input_quality=_parse_numbers(args.input_quality, "--input-quality"),
+        resolution=args.resolution,
+    )
     wanted = [c for c in compiled if args.schema is None or c.name == args.schema.lower()]
     if args.time_unit is not None:
         for result in wanted:
@@ -176,6 +156,51 @@ def run_compile(args: argparse.Namespace) -> int:
         if args.output is not None:
             print(f"wrote {args.output}")
     return EXIT_OK
+
+
+def check_schema_name(schemas: SchemaFile, filename: str, name: str | None) -> None:
+    """A schema name given on the command line must be one the file defines."""
+    if name is not None and name not in schemas:
+        defined = ", ".join(schemas.names)
+        raise InputError(
+            f"{filename}: error: no schema named '{name}' (the file defines: {defined})"
+        )
+
+
+def compile_schemas(
+    filename: str,
+    schemas: SchemaFile,
+    library: AnytimeLibrary,
+    time_grid: str | None,
+    *,
+    schema: str | None,
+    allocator: str,
+    input_quality: Sequence[float] = DEFAULT_INPUT_QUALITY,
+    resolution: float | None = None,
+) -> list[CompiledProgram]:
+    """`compile_file` as the commands run it: the time grid from its START:STOP:STEP text (or
+    the default), the file's lines for error messages, compile errors as one-line input
+    errors naming the file."""
+    if time_grid is not None:
+        grid = _parse_time_grid(time_grid)
+    else:
+        grid = default_time_grid(schemas, library, schema)
+    lines = Path(filename).read_text(encoding="utf-8-sig").split("\n")
+    try:
+        return compile_file(
+            schemas,
+            library,
+            grid,
+            input_quality,
+            schema=schema,
+            allocator=allocator,
+            resolution=resolution,
+            source_lines=lines,
+        )
+    except CompileError as error:
+        message = str(error)
+        prefixed = message if ": error: " in message else f"{filename}: error: {message}"
+        raise InputError(prefixed) from None
 
 
 def _parse_numbers(text: str, option: str) -> list[float]:
