@@ -189,6 +189,13 @@ def compile_program(
         )
     allocation, _ = ALLOCATORS[chosen]().allocate(evaluator, q_rows, u_rows, dt)
     output = evaluator.evaluate(q_rows, allocation * dt)
+    allocation, output, idle = _never_worse_with_more_time(allocation, output, len(time))
+    if idle:
+        notes.append(
+            f"at {idle} of the table's totals a smaller total does better: there the program "
+            "uses that allocation and leaves the rest of the time unused, so its quality never "
+            "falls as the total grows"
+        )
     baselines = {
         name: evaluator.expected(q_rows, split * dt).reshape(cell_shape)
         for name, split in _baselines(model, u_rows, dt).items()
@@ -314,6 +321,28 @@ def _baselines(model: CompileModel, units: np.ndarray, dt: float) -> dict[str, n
             split[:, 1:] = equal_split(units - split[:, 0], n - 1)
         result[name] = split
     return result
+
+
+def _never_worse_with_more_time(
+    allocation: np.ndarray, output: Dist, n_times: int
+) -> tuple[np.ndarray, Dist, int]:
+    """A contract program may finish early: at a total T where some smaller total of the grid
+    gives a higher expected quality (modules whose profiles fall with time can make it so),
+    use the best smaller total's allocation and leave the rest unused. Rows are (input
+    quality cell, time) in time-fastest order. Returns the allocation, the output and how many
+    totals changed."""
+    expected = output.expected().reshape(-1, n_times)
+    best_so_far = np.maximum.accumulate(expected, axis=1)
+    steps = np.arange(n_times)
+    # The index of the best total up to each one; a total keeps its own allocation unless a
+    # smaller one is better by more than rounding.
+    own = expected >= best_so_far - 1e-12
+    best = np.maximum.accumulate(np.where(own, steps, 0), axis=1)
+    changed = int(np.count_nonzero(best != steps))
+    if not changed:
+        return allocation, output, 0
+    rows = (np.arange(expected.shape[0])[:, None] * n_times + best).reshape(-1)
+    return allocation[rows], Dist(output.values[rows], output.probs[rows]), changed
 
 
 def _compiled_profile(
