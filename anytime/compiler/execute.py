@@ -121,6 +121,18 @@ class Choices:
             return False
         return self.decided(choice, results)[tag[1]]
 
+    def ruled_out(self, node: CompileNode) -> bool:
+        """Whether `node` is known not to run: it is inside an alternative found inapplicable
+        (looks only at choices already decided)."""
+        tag = node.branch
+        if tag is None:
+            return False
+        choice = self.compiled.model.node(tag[0])
+        if self.ruled_out(choice):
+            return True
+        decided = self.applicable.get(choice.index)
+        return decided is not None and not decided[tag[1]]
+
     def decided(self, choice: CompileNode, results: Mapping[int, Result]) -> list[bool]:
         """The applicable alternatives of a best-of (its preconditions must have run)."""
         if choice.index not in self.applicable:

@@ -25,7 +25,6 @@ from anytime.compiler.compile import CompiledProgram
 from anytime.compiler.evaluate import Evaluator
 from anytime.compiler.execute import (
     Choices,
-    ExecutionError,
     NoApplicableAlternative,
     bind_inputs,
     call_arguments,
@@ -95,11 +94,6 @@ def run_program(
     """Run `compiled` with `total` time (inputs positional or by name; `Result`s carry their
     quality, plain values have quality 1)."""
     model = compiled.model
-    if adaptive and any(n.role in ("best-of", "if") for n in model.nodes):
-        raise ExecutionError(
-            f"schema '{model.program.name}': adaptive re-allocation does not handle best-of or "
-            "if yet; run it with adaptive=False"
-        )
     values = bind_inputs(model.program.name, model.program.inputs, inputs)
     qualities = [
         values[name].quality if isinstance(values[name], Result) else 1.0
@@ -124,7 +118,13 @@ def run_program(
         elif node.role == "if":
             plan, branch_inputs, given = choices.branch(node, values, results)
             sub = run_program(
-                plan.compiled, branch_inputs, given, clock=clock, hard=hard, stop=stop
+                plan.compiled,
+                branch_inputs,
+                given,
+                clock=clock,
+                adaptive=adaptive,
+                hard=hard,
+                stop=stop,
             )
             inner.extend(sub.records)
             record = RunRecord(
@@ -140,6 +140,9 @@ def run_program(
             if node.kind == "anytime":
                 assert node.time_index is not None
                 if adaptive and observed:
+                    for other in model.anytime_nodes:  # alternatives that will not run
+                        if other.index not in observed and choices.ruled_out(other):
+                            observed[other.index] = 0.0
                     left = max(0.0, total - (clock.now() - start))
                     choices.allocation = _reallocate(
                         compiled, evaluator, qualities, observed, choices.allocation, left

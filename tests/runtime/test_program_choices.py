@@ -1,13 +1,13 @@
 """The runtime's `run_program` runs best-of and if like `CompiledProgram.run`, with a run record
 per call: the best applicable alternative with the time re-split, no applicable alternative as
-a status (not an exception), the branch an if's condition selects; adaptive runs refuse them."""
+a status (not an exception), the branch an if's condition selects; adaptive runs re-allocate
+only among the modules that will run."""
 
 from __future__ import annotations
 
 import pytest
 from choice_modules import BEST_OF, compiled, library
 
-from anytime.compiler import ExecutionError
 from anytime.runtime import Status, run_program
 
 
@@ -54,10 +54,26 @@ def test_if_runs_the_branch_its_condition_selects_with_the_ifs_time() -> None:
     assert rainy.result is not None and rainy.result.value == ("gamble", 5.0)
 
 
-def test_adaptive_runs_refuse_choices_with_a_clear_message() -> None:
-    with pytest.raises(ExecutionError) as raised:
-        run_program(compiled(BEST_OF), ["left"], 6, adaptive=True)
-    assert str(raised.value) == (
-        "schema 'choose': adaptive re-allocation does not handle best-of or if yet; "
-        "run it with adaptive=False"
+@pytest.mark.parametrize("applicable", ["left", "right", "left right"])
+def test_adaptive_runs_give_the_time_of_alternatives_that_will_not_run_to_those_that_will(
+    applicable: str,
+) -> None:
+    program = compiled(BEST_OF, lib=library(steady=0.6, gamble=0.9))
+    plain = run_program(program, [applicable], 6)
+    adaptive = run_program(program, [applicable], 6, adaptive=True)
+    assert adaptive.status == Status.COMPLETED
+    assert adaptive.result is not None and plain.result is not None
+    assert adaptive.result.value[0] == plain.result.value[0]
+    ran = [r for r in adaptive.records if r.module in ("steady", "gamble")]
+    assert [r.module for r in ran] == [
+        name for name, side in (("steady", "left"), ("gamble", "right")) if side in applicable
+    ]
+    assert sum(r.allocation for r in ran) == 6  # nothing left to an alternative that won't run
+
+
+def test_adaptive_runs_run_the_branch_of_an_if() -> None:
+    program = compiled(
+        "(defschema c (w) (if (sunny? w) (steady) (gamble)))", library(steady=0.6, gamble=0.9)
     )
+    record = run_program(program, ["rain"], 5, adaptive=True)
+    assert record.result is not None and record.result.value == ("gamble", 5.0)
