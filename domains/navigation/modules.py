@@ -24,12 +24,12 @@ from typing import Any
 import numpy as np
 from attrs import frozen
 
-from anytime.modules import Context, Result, contract, interruptible
+from anytime.modules import Context, Result, contract, elementary, interruptible
 from anytime.profiles.builder import register_problems
 from anytime.profiles.trials import Instance
 
-from .abstraction import Pyramid
-from .execution import execute, optimal_length, plan_quality
+from .abstraction import Pyramid, project
+from .execution import Execution, execute, optimal_length, plan_quality
 from .overcoming_modules import (  # the situation "obstacle overcoming": part of the plugin
     can_wait,
     detour_left,
@@ -38,7 +38,8 @@ from .overcoming_modules import (  # the situation "obstacle overcoming": part o
     right_clear,
     wait,
 )
-from .planner import atp
+from .planner import MultiPath, Segment, atp, quality_estimate, segmentize
+from .search import SearchLimit, find_path_to_box
 from .vision import (
     Q_A,
     DomainDescription,
@@ -100,6 +101,60 @@ def find_path(ctx: Context, start: Position, goal: Position, domain: Result) -> 
     yield from atp(ctx, start, goal, Pyramid.build(blocked), movement=description.movement)
 
 
+@contract("a-star", inputs=["domain"], profile="profiles/a-star.yaml")
+def a_star(ctx: Context, start: Position, goal: Position, domain: Result, level: int = 2) -> Result:
+    """Plain A* at one abstraction level of the map `domain` describes (the level's cells of
+    2^level x 2^level base cells), as a contract: the plan if the search finishes within the
+    allocation (one tick per expansion), with the ATP's quality estimate; else no plan
+    (`None`, quality 0). A baseline the anytime planner can be compared with in a schema."""
+    description: DomainDescription = domain.value
+    blocked = np.array(description.blocked, dtype=bool)
+    for x, y in (start, goal):
+        blocked[y, x] = False
+    pyramid = Pyramid.build(blocked)
+    top = min(int(level), pyramid.top)
+    try:
+        found = find_path_to_box(
+            pyramid.levels[top],
+            [project(start, 0, top)],
+            _point(project(goal, 0, top)),
+            movement=description.movement,
+            impassable=pyramid.levels[top] >= 1.0,
+            limit=ctx.remaining,
+        )
+    except SearchLimit as stopped:
+        ctx.tick(stopped.expansions)
+        return Result(None, 0.0)
+    if found is None:
+        return Result(None, 0.0)
+    ctx.tick(found.expansions)
+    plan = MultiPath(
+        start,
+        goal,
+        segmentize(start, top),
+        (Segment(top, found.path),),
+        segmentize(goal, top)[::-1],
+    )
+    return Result(plan, quality_estimate(plan, pyramid))
+
+
+@elementary("better-plan", combine=max)
+def better_plan(first: Result, second: Result) -> Any:
+    """The plan of higher quality (the first on ties); its quality is the better one."""
+    return (first if first.quality >= second.quality else second).value
+
+
+@elementary("execute-plan", inputs=["plan"])
+def execute_plan(plan: Result, sensor: Sensor) -> Execution:
+    """Follow the plan in the world the sensor looks at (`execution.execute`): the route the
+    robot walks. Elementary: walking is not planning time; its quality is the plan's."""
+    return execute(plan.value, sensor.truth, movement=sensor.movement)
+
+
+def _point(position: Position) -> tuple[int, int, int, int]:
+    return (position[0], position[1], position[0], position[1])
+
+
 # --- problem sets for the profile builder --------------------------------------------------------
 
 
@@ -147,6 +202,8 @@ class PlannerProblems:
         return Instance((world.start, world.goal, domain), reference=(world.blocked, optimal))
 
     def score(self, instance: Instance, value: Any) -> float:
+        if value is None:  # no plan (a contract planner out of time)
+            return 0.0
         truth, optimal = instance.reference
         executed = execute(value, truth, movement=self.movement)
         return plan_quality(executed.length, optimal)
@@ -180,6 +237,13 @@ register_problems(
 )
 register_problems(
     find_path,
+    PlannerProblems(),
+    time=np.arange(0.0, 2001.0, 100.0),
+    input_grids=[[0.6, 0.8, 0.85, 0.9, 0.95, 1.0]],
+    bins=BINS,
+)
+register_problems(
+    a_star,
     PlannerProblems(),
     time=np.arange(0.0, 2001.0, 100.0),
     input_grids=[[0.6, 0.8, 0.85, 0.9, 0.95, 1.0]],

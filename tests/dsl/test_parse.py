@@ -99,7 +99,7 @@ def test_navigation_json_field_by_field(navigation_any: Path) -> None:
     assert two["output"] == "t1"
     spa = program_to_json(schemas["sense-plan-act"])
     assert spa["steps"][0]["kind"] == "schema"
-    assert spa["steps"][1]["args"] == ["plan", "start", "goal"]
+    assert spa["steps"][1]["args"] == ["plan", "sensor"]
 
 
 def test_symbols_are_case_insensitive_strings_are_not() -> None:
