@@ -166,8 +166,11 @@ def test_512_maps_hardest_buckets_match_the_optimal_lengths(name: str) -> None:
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", MAPS_512)
-def test_512_maps_every_problem_matches_the_optimal_length(name: str) -> None:
-    _check_scenarios(name, load_scenarios(MOVINGAI / f"{name}.scen"))
+def test_512_maps_problems_of_every_bucket_match_the_optimal_length(name: str) -> None:
+    """Up to 1000 problems per map, evenly spread over the file (so over every bucket): all
+    12,000 of the maze's would take about an hour."""
+    problems = load_scenarios(MOVINGAI / f"{name}.scen")
+    _check_scenarios(name, problems[:: max(1, len(problems) // 1000)])
 
 
 @pytest.mark.parametrize("movement", [4, 8])
