@@ -37,8 +37,6 @@ import argparse
 import contextlib
 import gc
 import math
-import os
-import platform
 import signal
 import statistics
 import time
@@ -49,7 +47,7 @@ from typing import Any
 
 import numpy as np
 from attrs import frozen
-from tables import table  # benchmarks/tables.py: a script's own folder is on sys.path
+from tables import machine, table  # benchmarks/tables.py: a script's own folder is on sys.path
 
 from anytime.modules import Context
 from domains.navigation.abstraction import Pyramid
@@ -443,14 +441,7 @@ def main() -> None:
     began = time.perf_counter()
     small, large, count = (5, 2, 2) if args.quick else (20, 10, 12)
     repeats = args.repeats if args.repeats is not None else 2 if args.quick else 3
-    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    load = ""
-    if hasattr(os, "getloadavg"):
-        load = ", load average " + " ".join(f"{x:.2f}" for x in os.getloadavg())
-    print(
-        f"Python {platform.python_version()}, numpy {np.__version__},"
-        f" {cpus} CPU(s) available, {platform.machine()}{load}"
-    )
+    print(machine())
     print()
     suites = [
         corner_suite(128, 4, small, repeats),

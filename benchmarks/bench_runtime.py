@@ -22,8 +22,6 @@ Run: .venv/bin/python benchmarks/bench_runtime.py [--runs N] [--allocation S] [-
 from __future__ import annotations
 
 import argparse
-import os
-import platform
 import statistics
 import sys
 import threading
@@ -32,7 +30,7 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 import numpy as np
-from tables import table  # benchmarks/tables.py: a script's own folder is on sys.path
+from tables import machine, table  # benchmarks/tables.py: a script's own folder is on sys.path
 
 from anytime.clocks import Clock, WallClock, WorkClock
 from anytime.modules import AnytimeModule, Context, Registry, Result, interruptible
@@ -256,14 +254,7 @@ def main() -> None:
     parser.add_argument("--yields", type=int, default=100_000, help="yields per overhead run")
     parser.add_argument("--repeats", type=int, default=7, help="overhead runs per side")
     args = parser.parse_args()
-    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    load = ""
-    if hasattr(os, "getloadavg"):
-        load = ", load average " + " ".join(f"{x:.2f}" for x in os.getloadavg())
-    print(
-        f"Python {platform.python_version()}, numpy {np.__version__},"
-        f" {cpus} CPU(s) available, {platform.machine()}{load}"
-    )
+    print(machine())
     print()
     print(bench_latency(args.runs, args.allocation, args.period))
     print()
