@@ -11,7 +11,7 @@ INSTALLED := $(VENV)/.installed
 # The main job: a robot crosses a 128x128 world it does not know, frame by frame, under the
 # monitor; the frame program is schemas/navigation.any compiled against the measured profiles.
 demo: $(INSTALLED)
-	$(BIN)/anytime compile schemas/navigation.any --schema navigate --time-grid 0:3000:250
+	$(BIN)/anytime compile domains/navigation/anytime_navigation/schemas/navigation.any --schema navigate --time-grid 0:3000:250
 	$(BIN)/anytime navigate --out out/
 	@echo "The pictures are in out/: a planning and an execution view per frame (PNG), the"
 	@echo "whole run as out/run.gif, and the monitor's decisions in out/events.jsonl."
@@ -19,11 +19,11 @@ demo: $(INSTALLED)
 test: lint typecheck pytest
 
 lint: $(INSTALLED)
-	$(BIN)/ruff check anytime domains tests benchmarks
-	$(BIN)/ruff format --check anytime domains tests benchmarks
+	$(BIN)/ruff check anytime domains/navigation tests benchmarks
+	$(BIN)/ruff format --check anytime domains/navigation tests benchmarks
 
 typecheck: $(INSTALLED)
-	$(BIN)/mypy anytime domains
+	$(BIN)/mypy
 
 pytest: $(INSTALLED)
 	$(BIN)/pytest
@@ -32,12 +32,12 @@ pytest: $(INSTALLED)
 slow: $(INSTALLED)
 	$(BIN)/pytest -m slow
 
-$(INSTALLED): pyproject.toml
+$(INSTALLED): pyproject.toml domains/navigation/pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 11))' || \
 		{ echo "anytime-compose needs Python >= 3.11 (set PYTHON=...)"; exit 1; }
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	$(BIN)/python -m pip install --quiet -e '.[dev]' -e domains/navigation
 	touch $@
 
 clean:

@@ -6,21 +6,24 @@ giving `LibraryEntry`s and any problems found:
 - `RegistrySource`: modules registered in-process by the decorators of `anytime.modules`;
 - `ProfileDirectory`: a directory of profile files (`*.yaml`), each a profile-only entry named by
   its `module` field (a module described by its profile alone: enough to compile a schema);
-- `PluginSource`: installed plugins, found through the entry-point group `anytime.plugins`.
+- `PluginSource`: installed plugins, found through the entry-point group `anytime.plugins`,
+  each entry point naming a `Plugin` object (or a function returning one): its modules, how
+  `anytime profile` measures them, its critical events and its subcommands.
 
 A name defined by two sources is a `LibraryError` naming both origins, except when both reach
-the same module object (a plugin's import registers its modules in the process-wide registry too):
-the entry then keeps the more specific origin, the plugin's. A plugin that fails to load is
+the same module object (a module registered in-process and also listed by a plugin): the entry
+then keeps the more specific origin, the plugin's. A plugin that fails to load is
 recorded in `problems` with its name and error, and the other plugins still load. Profile files
 named by modules are read when a profile is first needed, then cached.
 """
 
 from __future__ import annotations
 
+import argparse
 import inspect
 import os
 import types
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from importlib import metadata
 from pathlib import Path
 from typing import Any, Protocol
@@ -30,6 +33,7 @@ from attrs import field, frozen
 from anytime.dsl.normalize import suggest
 from anytime.errors import AnytimeError, ProfileError
 from anytime.modules import REGISTRY, AnytimeModule, Registry
+from anytime.profiles.builder import Measurement, registered_measurements, registered_problems
 from anytime.profiles.io import load_profile
 from anytime.profiles.profile import ConditionalPerformanceProfile
 
@@ -60,7 +64,7 @@ class LibraryEntry:
             entry).
         arity: the number of positional arguments a call must pass, or None when it may vary
             (a parameter with a default, `*args`) or is unknown (a profile-only entry).
-        origin: where it was defined, for messages: "plugin 'navigation' (domains.navigation)",
+        origin: where it was defined, for messages: "plugin 'navigation' (anytime_navigation)",
             "python module tests.x", "profile file profiles/a.yaml".
         module: the module, or None for a profile-only entry.
         profile_source: the profile, the path of its file, or None.
@@ -183,12 +187,84 @@ def _arity(module: AnytimeModule) -> int | None:
     return module.arity
 
 
+class CommandGroup(Protocol):
+    """Where a plugin adds its subcommands (`Plugin.add_commands` receives one)."""
+
+    def add_command(
+        self,
+        name: str,
+        *,
+        help: str,
+        run: Callable[[argparse.Namespace], int],
+        description: str | None = None,
+    ) -> argparse.ArgumentParser:
+        """Add `anytime NAME`: returns its parser, to add arguments to. `run(args)` returns the
+        exit status; an `AnytimeError` it raises is printed as one line (exit 1), a
+        `UsageError` too (exit 2)."""
+        ...
+
+
+def _as_tuple(values: Iterable[Any]) -> tuple[Any, ...]:
+    return tuple(values)
+
+
+def _check_modules(_: Any, attribute: Any, values: tuple[Any, ...]) -> None:
+    for index, value in enumerate(values):
+        if not isinstance(value, AnytimeModule):
+            raise TypeError(
+                f"Plugin.{attribute.name}[{index}]: expected an anytime module, got"
+                f" {value!r} ({type(value).__name__})"
+            )
+
+
+def _check_measurements(_: Any, attribute: Any, values: Mapping[str, Any]) -> None:
+    for name, value in values.items():
+        if not isinstance(value, Measurement):
+            raise TypeError(
+                f"Plugin.problem_sets[{name!r}]: expected a Measurement (Measurement.of(problems,"
+                f" time=...)), got {type(value).__name__}"
+            )
+
+
+def _lower_keys(values: Mapping[str, Measurement]) -> Mapping[str, Measurement]:
+    return types.MappingProxyType({name.lower(): m for name, m in values.items()})
+
+
+@frozen
+class Plugin:
+    """What a plugin gives the framework; the object its `anytime.plugins` entry point names.
+
+    Attributes:
+        name: the plugin's name, for messages.
+        modules: its anytime modules (made with `anytime.plugin`'s decorators, which register
+            nothing by themselves).
+        problem_sets: module name -> how `anytime profile` / `check` / `calibrate` measure it.
+        critical_events: its critical-event estimators (made with `critical_event`).
+        add_commands: a function adding the plugin's subcommands to a `CommandGroup`.
+    """
+
+    name: str
+    modules: tuple[AnytimeModule, ...] = field(
+        default=(), converter=_as_tuple, validator=_check_modules
+    )
+    problem_sets: Mapping[str, Measurement] = field(
+        factory=dict, converter=_lower_keys, validator=_check_measurements
+    )
+    critical_events: tuple[AnytimeModule, ...] = field(
+        default=(), converter=_as_tuple, validator=_check_modules
+    )
+    add_commands: Callable[[CommandGroup], None] | None = None
+
+
 @frozen
 class Loaded:
-    """What one source gave: its entries, and the problems it reported instead of raising."""
+    """What one source gave: its entries, the measurements of its modules, the plugins it
+    loaded, and the problems it reported instead of raising."""
 
     entries: tuple[LibraryEntry, ...] = ()
     problems: tuple[str, ...] = ()
+    measurements: Mapping[str, Measurement] = field(factory=dict)
+    plugins: tuple[Plugin, ...] = ()
 
 
 class Source(Protocol):
@@ -218,7 +294,8 @@ class RegistrySource:
         self.name = name
 
     def load(self) -> Loaded:
-        return Loaded(tuple(LibraryEntry.of_module(m) for m in self.registry))
+        entries = tuple(LibraryEntry.of_module(m) for m in self.registry)
+        return Loaded(entries, measurements=registered_measurements())
 
 
 class ProfileDirectory:
@@ -244,14 +321,16 @@ class ProfileDirectory:
 class PluginSource:
     """Installed plugins: the entry points of group `anytime.plugins`.
 
-    An entry point's object is a Python module, whose top-level `AnytimeModule`s (and the
-    modules its import added to `registry`) are the plugin's; a callable returning an iterable
-    of `AnytimeModule`s; or one `AnytimeModule`. A plugin that fails to import, raises, or gives
-    anything else is reported as a problem naming it, and the others still load.
+    An entry point's object is a `Plugin`, or a function returning one. For plugins written
+    before `Plugin` existed it may also be a Python module (its top-level `AnytimeModule`s and
+    those its import added to `registry` are the plugin's), a callable returning anytime
+    modules, or one `AnytimeModule`. A plugin that fails to import, raises, or gives anything
+    else is reported as a problem naming it, and the others still load.
 
     Args:
         entry_points: the entry points to load (default: those installed, found when loading).
-        registry: the registry a plugin's import may fill (default: the process-wide one).
+        registry: the registry an old-style plugin's import may fill (default: the process-wide
+            one).
     """
 
     generic = False
@@ -271,19 +350,25 @@ class PluginSource:
             found = discover_plugins()
         entries: list[LibraryEntry] = []
         problems: list[str] = []
+        measurements: dict[str, Measurement] = {}
+        plugins: list[Plugin] = []
         for entry_point in found:
             label = f"plugin '{entry_point.name}' ({entry_point.value})"
             try:
-                modules = self._modules(entry_point)
+                plugin = self._plugin(entry_point)
             except Exception as error:  # a plugin's failure must not break the others
                 problems.append(f"{label}: {type(error).__name__}: {_one_line(error)}")
                 continue
-            entries.extend(LibraryEntry.of_module(m, origin=label) for m in modules)
-        return Loaded(tuple(entries), tuple(problems))
+            plugins.append(plugin)
+            entries.extend(LibraryEntry.of_module(m, origin=label) for m in plugin.modules)
+            measurements.update(plugin.problem_sets)
+        return Loaded(tuple(entries), tuple(problems), measurements, tuple(plugins))
 
-    def _modules(self, entry_point: metadata.EntryPoint) -> list[AnytimeModule]:
+    def _plugin(self, entry_point: metadata.EntryPoint) -> Plugin:
         before = set(map(id, self.registry))
         loaded: Any = entry_point.load()
+        if isinstance(loaded, Plugin):
+            return loaded
         found: Iterable[Any]
         if isinstance(loaded, AnytimeModule):
             found = [loaded]
@@ -292,17 +377,25 @@ class PluginSource:
             found = [*attributes, *(m for m in self.registry if id(m) not in before)]
         elif callable(loaded):
             found = loaded()
+            if isinstance(found, Plugin):
+                return found
         else:
             raise TypeError(
-                f"expected a Python module, a callable or an anytime module,"
-                f" got {type(loaded).__name__}"
+                f"expected a Plugin, a function returning one, a Python module or anytime"
+                f" modules, got {type(loaded).__name__}"
             )
         modules: dict[int, AnytimeModule] = {}
         for item in found:
             if not isinstance(item, AnytimeModule):
                 raise TypeError(f"expected anytime modules, got {item!r} ({type(item).__name__})")
             modules.setdefault(id(item), item)
-        return list(modules.values())
+        return Plugin(entry_point.name, tuple(modules.values()))
+
+
+def load_plugins() -> tuple[tuple[Plugin, ...], tuple[str, ...]]:
+    """The installed plugins, and the problems of those that failed to load."""
+    loaded = PluginSource().load()
+    return loaded.plugins, loaded.problems
 
 
 def discover_plugins(group: str = PLUGIN_GROUP) -> tuple[metadata.EntryPoint, ...]:
@@ -329,13 +422,19 @@ class AnytimeLibrary:
         self.sources = tuple(sources)
         self._entries: dict[str, LibraryEntry] = {}
         self._generic: set[str] = set()  # names whose entry came from a generic source
+        self._measurements: dict[str, Measurement] = {}
         problems: list[str] = []
+        plugins: list[Plugin] = []
         for source in self.sources:
             loaded = source.load()
             problems.extend(loaded.problems)
+            plugins.extend(loaded.plugins)
             for entry in loaded.entries:
                 self._add(entry, generic=source.generic)
+            for name, measurement in loaded.measurements.items():
+                self._measurements.setdefault(name, measurement)
         self.problems = tuple(problems)
+        self.plugins = tuple(plugins)
 
     @classmethod
     def default(
@@ -401,6 +500,14 @@ class AnytimeLibrary:
     def known_functions(self) -> dict[str, int | None]:
         """Name -> arity (None: not checked), as `anytime.dsl.parse_schemas` takes it."""
         return {entry.name: entry.arity for entry in self}
+
+    def measurement(self, name: str) -> Measurement:
+        """How `anytime profile` measures module `name` (its problem set and grid).
+
+        Raises:
+            BuildError: no source declares one; the message lists those that do.
+        """
+        return registered_problems(name, self._measurements)
 
     def profile(self, name: str) -> ConditionalPerformanceProfile | None:
         """The profile of `name` (read on first use); None for a module without one."""

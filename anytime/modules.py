@@ -10,7 +10,9 @@ Every value that flows between modules is a `Result(value, quality)`. A module r
   combination of its inputs' qualities (by default the minimum).
 
 The decorators check the function against what they declare and register it in a `Registry`
-(by default the process-wide `REGISTRY`, one of the anytime library's sources).
+(by default the process-wide `REGISTRY`, one of the anytime library's sources, for interactive
+use). With `register=False` (what `anytime.plugin`'s decorators pass) they only declare the
+module: a plugin lists its modules in its `Plugin` object, and importing it registers nothing.
 """
 
 from __future__ import annotations
@@ -19,8 +21,10 @@ import importlib
 import inspect
 import math
 import os
+import sys
 import threading
 from collections.abc import Callable, Iterator, Sequence
+from importlib import resources
 from pathlib import Path
 from typing import Any, Literal
 
@@ -206,6 +210,7 @@ def _declare(
     profile: ProfileSource,
     combine: Callable[[Sequence[float]], float] = _min_quality,
     registry: Registry | None,
+    register: bool = True,
     probability: float | None = None,
 ) -> AnytimeModule:
     module_name = (name or function.__name__.replace("_", "-")).lower()
@@ -234,11 +239,7 @@ def _declare(
     if len(set(declared)) != len(declared):
         raise ModuleError(f"{where}: an input is declared twice: {', '.join(declared)}")
     if profile is not None and not isinstance(profile, ConditionalPerformanceProfile):
-        profile = Path(profile)
-        if not profile.is_absolute():  # relative to the file that defines the module
-            source = inspect.getsourcefile(function)
-            if source is not None:
-                profile = Path(source).parent / profile
+        profile = _beside(function, Path(profile))
     module = AnytimeModule(
         name=module_name,
         kind=kind,
@@ -250,7 +251,23 @@ def _declare(
         origin=f"python module {function.__module__}",
         probability=probability,
     )
+    if not register:
+        return module
     return (registry if registry is not None else REGISTRY).add(module)
+
+
+def _beside(function: Callable[..., Any], path: Path) -> Path:
+    """A relative profile path is relative to the defining module's package, read as a package
+    resource (so that it is found in an installed wheel), else to the defining file."""
+    if path.is_absolute():
+        return path
+    package = getattr(sys.modules.get(function.__module__), "__package__", None)
+    if package:
+        root = resources.files(package)
+        if isinstance(root, Path):  # a package on the file system (not inside a zip)
+            return root / path
+    source = inspect.getsourcefile(function)
+    return Path(source).parent / path if source is not None else path
 
 
 def interruptible(
@@ -259,6 +276,7 @@ def interruptible(
     inputs: Sequence[str] | None = None,
     profile: ProfileSource = None,
     registry: Registry | None = None,
+    register: bool = True,
 ) -> Callable[[Callable[..., Iterator[Result]]], AnytimeModule]:
     """Register a generator `f(ctx, *args)` that yields successively better `Result`s.
 
@@ -268,6 +286,8 @@ def interruptible(
         profile: its conditional performance profile, or the path of its profile file
             (relative to the defining file).
         registry: where to register it (default: the process-wide `REGISTRY`).
+        register: False to declare the module without registering it anywhere (a plugin's
+            modules are registered by its `Plugin` object).
     """
 
     def decorate(function: Callable[..., Iterator[Result]]) -> AnytimeModule:
@@ -278,6 +298,7 @@ def interruptible(
             inputs=inputs,
             profile=profile,
             registry=registry,
+            register=register,
         )
 
     return decorate
@@ -289,6 +310,7 @@ def contract(
     inputs: Sequence[str] | None = None,
     profile: ProfileSource = None,
     registry: Registry | None = None,
+    register: bool = True,
 ) -> Callable[[Callable[..., Result]], AnytimeModule]:
     """Register a function `f(ctx, *args) -> Result` that uses `ctx.allocation` up front.
 
@@ -297,7 +319,13 @@ def contract(
 
     def decorate(function: Callable[..., Result]) -> AnytimeModule:
         return _declare(
-            function, name=name, kind="contract", inputs=inputs, profile=profile, registry=registry
+            function,
+            name=name,
+            kind="contract",
+            inputs=inputs,
+            profile=profile,
+            registry=registry,
+            register=register,
         )
 
     return decorate
@@ -310,6 +338,7 @@ def elementary(
     combine: Callable[[Sequence[float]], float] = _min_quality,
     registry: Registry | None = None,
     probability: float | None = None,
+    register: bool = True,
 ) -> Callable[[Callable[..., Any]], AnytimeModule]:
     """Register a plain function `f(*args)` that takes no time and no context.
 
@@ -329,6 +358,7 @@ def elementary(
             profile=None,
             combine=combine,
             registry=registry,
+            register=register,
             probability=probability,
         )
 

@@ -183,7 +183,7 @@ def catalogue_cases(library: AnytimeLibrary | None = None) -> list[CatalogueCase
         if entry.module is None or entry.kind not in ("interruptible", "contract"):
             continue
         try:
-            measurement = registered_problems(entry.name)
+            measurement = library.measurement(entry.name)
         except BuildError:
             continue
         cases.append(CatalogueCase(entry.module, measurement.problems, measurement.grid))
@@ -209,6 +209,7 @@ def check_module(
     seed: int = 0,
     time: ArrayLike | None = None,
     input_grids: Sequence[ArrayLike] | None = None,
+    registered: Grid | None = None,
     tolerance: float = 0.02,
     confidence: float = 0.99,
 ) -> CatalogueReport:
@@ -221,6 +222,8 @@ def check_module(
         time: allocations (ticks) to run at (default: the declared profile's grid, else the
             registered one).
         input_grids: one grid of input qualities per quality-carrying input (default: as time).
+        registered: the grid of the module's problem set (default: the one registered with
+            `register_problems`, if any), used when it declares no profile.
         tolerance: the absolute slack of the profile check, on top of sampling error.
         confidence: the profile check's family-wise confidence over all cells.
 
@@ -238,7 +241,7 @@ def check_module(
     if not 0 < confidence < 1:
         raise CatalogueError(f"confidence: expected a number between 0 and 1, got {confidence!r}")
     declared, verdict = _declared(module)
-    grid = _grid(module, declared, time, input_grids)
+    grid = _grid(module, declared, time, input_grids, registered)
     session = _Session(module, problems, grid, trials, seed)
     checks = [_check_pickle(module, problems)]
     deadline = session.deadline_runs()
@@ -284,12 +287,13 @@ def _grid(
     declared: ConditionalPerformanceProfile | None,
     time: ArrayLike | None,
     input_grids: Sequence[ArrayLike] | None,
+    registered: Grid | None,
 ) -> Grid:
     """The explicit grids, else the declared profile's, else the registered ones."""
-    source: Grid | None = None
+    source: Grid | None = registered
     if declared is not None:
         source = Grid(declared.time, declared.input_grids)
-    else:
+    elif source is None:
         with suppress(BuildError):
             source = registered_problems(module.name).grid
     if source is None and (time is None or (input_grids is None and module.inputs)):

@@ -3,7 +3,7 @@
     .venv/bin/python benchmarks/bench_monitor.py [--worlds 30] [--size 128] [--quick]
 
 Per policy: mean utility, mean prediction error |U - predicted| / |predicted| and mean utility
-ratio U / clairvoyant bound (definitions in `domains.navigation.task`).
+ratio U / clairvoyant bound (definitions in `anytime_navigation.task`).
 """
 
 from __future__ import annotations
@@ -12,12 +12,12 @@ import argparse
 import time
 
 import numpy as np
+from anytime_navigation.frame_program import navigation_program
+from anytime_navigation.frames import run_task
+from anytime_navigation.task import NavigationTask
+from anytime_navigation.world import random_world
 
 from anytime.runtime.monitor import DeadlineValue
-from domains.navigation.frame_program import navigation_program
-from domains.navigation.frames import run_task
-from domains.navigation.task import NavigationTask
-from domains.navigation.world import random_world
 
 
 def main() -> None:

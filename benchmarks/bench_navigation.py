@@ -46,18 +46,24 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from anytime_navigation.abstraction import Pyramid
+from anytime_navigation.execution import Execution, execute, plan_quality, waypoints
+from anytime_navigation.movingai import Scenario, load_problems
+from anytime_navigation.planner import MultiPath, atp
+from anytime_navigation.search import find_path
+from anytime_navigation.world import BoolGrid, Position, random_world
 from attrs import frozen
 from tables import machine, table  # benchmarks/tables.py: a script's own folder is on sys.path
 
 from anytime.modules import Context
-from domains.navigation.abstraction import Pyramid
-from domains.navigation.execution import Execution, execute, plan_quality, waypoints
-from domains.navigation.movingai import Scenario, load_problems
-from domains.navigation.planner import MultiPath, atp
-from domains.navigation.search import find_path
-from domains.navigation.world import BoolGrid, Position, random_world
 
-MAPS = Path(__file__).resolve().parent.parent / "domains" / "navigation" / "maps"
+MAPS = (
+    Path(__file__).resolve().parent.parent
+    / "domains"
+    / "navigation"
+    / "anytime_navigation"
+    / "maps"
+)
 MOVINGAI = ("8room_000", "maze512-1-0", "random512-10-0")
 
 #: The ATP configurations compared: name -> keyword arguments of `atp`.

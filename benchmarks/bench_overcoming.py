@@ -33,14 +33,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).parent))
-from tables import table  # noqa: E402
-
-from anytime.clocks import WorkClock  # noqa: E402
-from anytime.compiler.allocators import least_useful_time  # noqa: E402
-from anytime.compiler.execute import resplit  # noqa: E402
-from anytime.modules import Context  # noqa: E402
-from domains.navigation.overcoming import Encounter  # noqa: E402
-from domains.navigation.overcoming_modules import (  # noqa: E402
+from anytime_navigation.overcoming import Encounter  # noqa: E402
+from anytime_navigation.overcoming_modules import (  # noqa: E402
     MODULES,
     can_wait,
     left_clear,
@@ -48,7 +42,13 @@ from domains.navigation.overcoming_modules import (  # noqa: E402
     right_clear,
     situations,
 )
-from domains.navigation.world import random_world  # noqa: E402
+from anytime_navigation.world import random_world  # noqa: E402
+from tables import table  # noqa: E402
+
+from anytime.clocks import WorkClock  # noqa: E402
+from anytime.compiler.allocators import least_useful_time  # noqa: E402
+from anytime.compiler.execute import resplit  # noqa: E402
+from anytime.modules import Context  # noqa: E402
 
 NAMES = ("detour-left", "detour-right", "wait")
 SPEEDS = (0.05, 0.1, 0.15, 0.2)

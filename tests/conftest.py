@@ -4,6 +4,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from anytime_navigation.resources import data_file
 
 from anytime.cli import main
 
@@ -15,7 +16,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 @pytest.fixture
 def navigation_any() -> Path:
-    return ROOT / "schemas" / "navigation.any"
+    return Path(str(data_file("schemas", "navigation.any")))
 
 
 @pytest.fixture

@@ -446,8 +446,8 @@ def test_every_way_a_plugin_can_fail_is_one_line_naming_it(registry: Registry) -
     assert library.problems == (
         "plugin 'raises' (bad:make): RuntimeError: no licence sorry",
         "plugin 'junk' (bad:junk): TypeError: expected anytime modules, got 42 (int)",
-        "plugin 'number' (bad:NUMBER): TypeError: expected a Python module, a callable or an "
-        "anytime module, got int",
+        "plugin 'number' (bad:NUMBER): TypeError: expected a Plugin, a function returning one, a"
+        " Python module or anytime modules, got int",
         "plugin 'import' (bad): ImportError: cannot import name 'x' from 'y'",
     )
     assert {entry.name: entry.origin for entry in library} == {

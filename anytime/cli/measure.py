@@ -16,12 +16,12 @@ from anytime.cli.common import (
     positive_float,
     positive_int,
 )
+from anytime.library import AnytimeLibrary
 from anytime.modules import AnytimeModule
 from anytime.profiles.builder import (
     BuildError,
     ProfileRequest,
     profile_module,
-    registered_problems,
 )
 from anytime.profiles.io import load_profile, save_profile
 from anytime.runtime.calibrate import CalibrationError, calibrate, convert_profile
@@ -116,7 +116,7 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 
 def run_profile(args: argparse.Namespace) -> int:
-    module = _runnable(args)
+    module, library = _runnable(args)
     request = ProfileRequest(
         trials=args.trials,
         seed=args.seed,
@@ -126,7 +126,7 @@ def run_profile(args: argparse.Namespace) -> int:
         quiet=args.quiet,
     )
     try:
-        build = profile_module(module, request)
+        build = profile_module(module, request, measurement=library.measurement(module.name))
     except BuildError as error:
         raise InputError(f"anytime: error: {error}") from None
     output = Path(args.output if args.output is not None else f"{module.name}.yaml")
@@ -152,21 +152,22 @@ def run_profile(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _runnable(args: argparse.Namespace) -> AnytimeModule:
-    """The module `args.module` names, which must have code to run."""
-    entry = open_library(args)[args.module]
+def _runnable(args: argparse.Namespace) -> tuple[AnytimeModule, AnytimeLibrary]:
+    """The module `args.module` names, which must have code to run, and its library."""
+    library = open_library(args)
+    entry = library[args.module]
     if entry.module is None:
         raise InputError(
             f"anytime: error: module '{entry.name}' has no code to run: it is only a profile "
             f"({entry.origin})"
         )
-    return entry.module
+    return entry.module, library
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
     if (args.profile is None) != (args.output is None):
         args.usage_error("--profile FILE and -o OUT go together")
-    module = _runnable(args)
+    module, library = _runnable(args)
     profile = None
     if args.profile is not None:  # checked before the measurement spends its seconds
         profile = load_profile(args.profile)
@@ -182,7 +183,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
                 f" calibrated), got '{profile.module}'"
             )
     try:
-        plan = registered_problems(module.name)
+        plan = library.measurement(module.name)
         calibration = calibrate(module, args.seconds, measurement=plan, seed=args.seed)
     except (BuildError, CalibrationError) as error:
         raise InputError(f"anytime: error: {error}") from None
@@ -204,10 +205,16 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
 
 def run_check(args: argparse.Namespace) -> int:
-    module = _runnable(args)
+    module, library = _runnable(args)
     try:
-        plan = registered_problems(module.name)
-        report = check_module(module, plan.problems, trials=args.trials, seed=args.seed)
+        plan = library.measurement(module.name)
+        report = check_module(
+            module,
+            plan.problems,
+            registered=plan.grid,
+            trials=args.trials,
+            seed=args.seed,
+        )
     except (BuildError, CatalogueError) as error:
         raise InputError(f"anytime: error: {error}") from None
     if args.json:

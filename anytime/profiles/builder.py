@@ -33,7 +33,7 @@ import importlib
 import math
 import secrets
 import time as _time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
 from typing import Any, Literal
@@ -76,6 +76,7 @@ __all__ = [
     "dask_executor",
     "profile_module",
     "register_problems",
+    "registered_measurements",
     "registered_problems",
 ]
 
@@ -91,6 +92,19 @@ class Measurement:
     problems: ProblemSet
     grid: Grid
 
+    @classmethod
+    def of(
+        cls,
+        problems: ProblemSet,
+        *,
+        time: ArrayLike,
+        input_grids: Sequence[ArrayLike] = (),
+        bins: ArrayLike | None = None,
+    ) -> Measurement:
+        """Measure on `problems` at run times `time`, input qualities `input_grids` (one grid
+        per input), into quality `bins` (default: ten equal bins)."""
+        return cls(problems, Grid(time, input_grids, default_bins() if bins is None else bins))
+
 
 _MEASUREMENTS: dict[str, Measurement] = {}
 
@@ -103,21 +117,30 @@ def register_problems(
     input_grids: Sequence[ArrayLike] = (),
     bins: ArrayLike | None = None,
 ) -> Measurement:
-    """Declare how `anytime profile MODULE` measures `module` (a domain calls this beside its
-    module's decorator). Registering a name again replaces the earlier declaration."""
+    """Declare, for interactive use, how `anytime profile MODULE` measures `module` (a plugin
+    gives a `Measurement.of(...)` per module in its `Plugin.problem_sets` instead). Registering
+    a name again replaces the earlier declaration."""
     name = (module.name if isinstance(module, AnytimeModule) else module).lower()
-    grid = Grid(time, input_grids, default_bins() if bins is None else bins)
-    measurement = Measurement(problems, grid)
+    measurement = Measurement.of(problems, time=time, input_grids=input_grids, bins=bins)
     _MEASUREMENTS[name] = measurement
     return measurement
 
 
-def registered_problems(name: str) -> Measurement:
-    """The measurement registered for module `name`; an error lists the known ones."""
-    found = _MEASUREMENTS.get(name.lower())
+def registered_measurements() -> dict[str, Measurement]:
+    """Module name -> the measurement declared with `register_problems` (a copy)."""
+    return dict(_MEASUREMENTS)
+
+
+def registered_problems(
+    name: str, measurements: Mapping[str, Measurement] | None = None
+) -> Measurement:
+    """The measurement of module `name` in `measurements` (default: those registered with
+    `register_problems`); an error lists the known ones."""
+    source = _MEASUREMENTS if measurements is None else measurements
+    found = source.get(name.lower())
     if found is not None:
         return found
-    known = sorted(_MEASUREMENTS)
+    known = sorted(source)
     close = difflib.get_close_matches(name.lower(), known, n=1)
     hint = f"; did you mean '{close[0]}'?" if close else ""
     listed = ", ".join(known) if known else "none"

@@ -91,6 +91,7 @@ def critical_event(
     *,
     cost_bound: float,
     registry: Registry | None = None,
+    register: bool = True,
 ) -> Callable[[Callable[..., float | None]], CriticalEvent]:
     """Register `f(ctx, situation)` returning the time until its event, or None (no event).
 
@@ -98,13 +99,17 @@ def critical_event(
         name: the event's name (default: the function's, with '-' for '_').
         cost_bound: an upper bound on its own cost, in the clock's unit (ticks).
         registry: where to register it (default: `EVENTS`).
+        register: False to declare it without registering it (a plugin lists its events in
+            its `Plugin` object; `deadline_from` takes the event objects themselves).
     """
     bound = _cost_bound(cost_bound)
 
     def decorate(function: Callable[..., float | None]) -> CriticalEvent:
         # `contract` checks the signature (a context first) and names the offender.
-        module = contract(name, inputs=[], registry=Registry())(cast(Any, function))
+        module = contract(name, inputs=[], register=False)(cast(Any, function))
         event = CriticalEvent(**attrs.asdict(module, recurse=False), cost_bound=bound)
+        if not register:
+            return event
         added = (registry if registry is not None else EVENTS).add(event)
         assert isinstance(added, CriticalEvent)
         return added

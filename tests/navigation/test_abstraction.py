@@ -2,10 +2,9 @@
 
 import numpy as np
 import pytest
+from anytime_navigation.abstraction import Pyramid, cell_bounds, project
 from hypothesis import given
 from hypothesis import strategies as st
-
-from domains.navigation.abstraction import Pyramid, cell_bounds, project
 
 
 def direct_obstacleness(blocked: np.ndarray, level: int) -> np.ndarray:

@@ -8,11 +8,11 @@ import math
 from pathlib import Path
 
 import pytest
+from anytime_navigation.movingai import load_scenarios
+from anytime_navigation.resources import data_file
 from conftest import Cli
 
-from domains.navigation.movingai import load_scenarios
-
-MAPS = Path(__file__).resolve().parents[2] / "domains" / "navigation" / "maps"
+MAPS = Path(str(data_file("maps")))
 ARENA = str(MAPS / "arena.map")
 KEYS = {
     "start",

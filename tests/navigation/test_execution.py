@@ -9,12 +9,8 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import assume, given, settings
-from hypothesis import strategies as st
-
-from anytime.modules import Context
-from domains.navigation.abstraction import Pyramid, cell_bounds, project
-from domains.navigation.execution import (
+from anytime_navigation.abstraction import Pyramid, cell_bounds, project
+from anytime_navigation.execution import (
     Execution,
     execute,
     optimal_length,
@@ -22,10 +18,14 @@ from domains.navigation.execution import (
     route_length,
     waypoints,
 )
-from domains.navigation.planner import MultiPath, Segment, atp, segmentize
-from domains.navigation.search import find_path
-from domains.navigation.vision import prior_map, sense
-from domains.navigation.world import BoolGrid, Position, World, random_world, reachable
+from anytime_navigation.planner import MultiPath, Segment, atp, segmentize
+from anytime_navigation.search import find_path
+from anytime_navigation.vision import prior_map, sense
+from anytime_navigation.world import BoolGrid, Position, World, random_world, reachable
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+
+from anytime.modules import Context
 
 MOVEMENTS = [pytest.param(4, id="4-connected"), pytest.param(8, id="8-connected")]
 

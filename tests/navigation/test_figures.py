@@ -7,11 +7,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from anytime_navigation import abstraction, execution, planner, vision, world
+from anytime_navigation.figures import draw_plan, plot_plan, plot_refinement
 
 from anytime.modules import Context, Result
 from anytime.plot import new_figure
-from domains.navigation import abstraction, execution, planner, vision, world
-from domains.navigation.figures import draw_plan, plot_plan, plot_refinement
 
 pytest.importorskip("matplotlib")
 

@@ -4,17 +4,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from anytime.errors import AnytimeError
-from domains.navigation.movingai import (
+from anytime_navigation.movingai import (
     MapError,
     Scenario,
     load_map,
     load_problems,
     load_scenarios,
 )
+from anytime_navigation.resources import data_file
 
-SAMPLES = Path(__file__).resolve().parents[2] / "domains" / "navigation" / "maps"
+from anytime.errors import AnytimeError
+
+SAMPLES = Path(str(data_file("maps")))
 
 # name, width, height, padded side, problems (the README table)
 MAPS = [

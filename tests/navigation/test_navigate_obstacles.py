@@ -10,12 +10,11 @@ import subprocess
 import sys
 
 import pytest
-
-from domains.navigation.crossing import simulate
-from domains.navigation.obstacles import random_obstacles
-from domains.navigation.overcoming_modules import schema_decider
-from domains.navigation.search import find_path
-from domains.navigation.world import random_world
+from anytime_navigation.crossing import simulate
+from anytime_navigation.obstacles import random_obstacles
+from anytime_navigation.overcoming_modules import schema_decider
+from anytime_navigation.search import find_path
+from anytime_navigation.world import random_world
 
 
 @pytest.mark.parametrize("seed", range(30), ids=lambda s: f"seed{s}")

@@ -5,21 +5,20 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from anytime_navigation.modules import PROBLEM_SETS, find_path, get_domain_description
 
-from anytime.profiles.builder import registered_problems
 from anytime.testing import assert_module_passes
-from domains.navigation.modules import find_path, get_domain_description
 
 
 def test_vision_passes_the_catalogue() -> None:
-    problems = registered_problems("get-domain-description").problems
+    problems = PROBLEM_SETS["get-domain-description"].problems
     report = assert_module_passes(get_domain_description, problems, trials=4)
     assert report.passed
 
 
 def test_the_planner_passes_the_catalogue_on_a_coarse_grid() -> None:
     """A few times and map qualities keep it fast; `make slow` runs the registered grid."""
-    problems = registered_problems("find-path").problems
+    problems = PROBLEM_SETS["find-path"].problems
     report = assert_module_passes(
         find_path,
         problems,
@@ -33,5 +32,5 @@ def test_the_planner_passes_the_catalogue_on_a_coarse_grid() -> None:
 
 @pytest.mark.slow
 def test_the_planner_passes_the_catalogue_on_its_registered_grid() -> None:
-    problems = registered_problems("find-path").problems
+    problems = PROBLEM_SETS["find-path"].problems
     assert_module_passes(find_path, problems, trials=10)

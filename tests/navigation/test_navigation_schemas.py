@@ -7,13 +7,14 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from anytime_navigation.execution import Execution
+from anytime_navigation.resources import data_file
+from anytime_navigation.vision import Sensor
+from anytime_navigation.world import random_world
 
 from anytime import AnytimeLibrary, compile_file, load_schemas
-from domains.navigation.execution import Execution
-from domains.navigation.vision import Sensor
-from domains.navigation.world import random_world
 
-SCHEMAS = Path(__file__).resolve().parents[2] / "schemas" / "navigation.any"
+SCHEMAS = Path(str(data_file("schemas", "navigation.any")))
 GRID = np.arange(0.0, 2001.0, 250.0)
 
 

@@ -2,19 +2,20 @@
 
 import numpy as np
 import pytest
-
-from anytime.clocks import WorkClock
-from anytime.runtime.deadline import EVENTS, deadline_from
-from domains.navigation.crossing import simulate
-from domains.navigation.obstacles import MovingObstacle, Plan, Traffic, random_obstacles
-from domains.navigation.overcoming import (
+from anytime_navigation.crossing import simulate
+from anytime_navigation.obstacles import MovingObstacle, Plan, Traffic, random_obstacles
+from anytime_navigation.overcoming import (
     ObstacleSituation,
     decide_best,
     obstacle_arrival,
     side_clear,
 )
-from domains.navigation.search import find_path
-from domains.navigation.world import World, random_world
+from anytime_navigation.plugin import PLUGIN
+from anytime_navigation.search import find_path
+from anytime_navigation.world import World, random_world
+
+from anytime.clocks import WorkClock
+from anytime.runtime.deadline import EVENTS, deadline_from
 
 
 def _open(n: int = 16) -> World:
@@ -67,8 +68,9 @@ def test_arrival_by_hand() -> None:
     assert slow.arrival(route, 0.5, 0.0, radius=1, horizon=9) is None
 
 
-def test_the_estimator_is_registered_and_sets_t_d() -> None:
-    assert EVENTS.get("obstacle-arrival") is obstacle_arrival
+def test_the_estimator_is_the_plugins_and_sets_t_d() -> None:
+    assert PLUGIN.critical_events == (obstacle_arrival,)
+    assert EVENTS.get("obstacle-arrival") is None  # importing the plugin registers nothing
     world = _open(16)
     traffic = Traffic(world, [MovingObstacle((6.0, 0.0), (0.0, 0.5))])
     plan = Plan(0.0, [(x, 5) for x in range(16)], 0.5)

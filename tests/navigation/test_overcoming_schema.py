@@ -8,13 +8,9 @@ import subprocess
 import sys
 
 import numpy as np
-
-from anytime.clocks import WorkClock
-from anytime.dsl import load_schemas
-from anytime.runtime.deadline import deadline_from
-from domains.navigation.obstacles import MovingObstacle, Plan, Traffic
-from domains.navigation.overcoming import ObstacleSituation, encounter_at, obstacle_arrival
-from domains.navigation.overcoming_modules import (
+from anytime_navigation.obstacles import MovingObstacle, Plan, Traffic
+from anytime_navigation.overcoming import ObstacleSituation, encounter_at, obstacle_arrival
+from anytime_navigation.overcoming_modules import (
     SCHEMA_FILE,
     can_wait,
     left_clear,
@@ -22,7 +18,11 @@ from domains.navigation.overcoming_modules import (
     right_clear,
     schema_decider,
 )
-from domains.navigation.world import World
+from anytime_navigation.world import World
+
+from anytime.clocks import WorkClock
+from anytime.dsl import load_schemas
+from anytime.runtime.deadline import deadline_from
 
 
 def test_the_schema_parses() -> None:

@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from anytime_navigation.abstraction import Pyramid, project
+from anytime_navigation.execution import execute, optimal_length, plan_quality
+from anytime_navigation.planner import MultiPath, Segment, atp, quality_estimate, segmentize
+from anytime_navigation.world import random_world
 
 from anytime.modules import Context, Result
-from domains.navigation.abstraction import Pyramid, project
-from domains.navigation.execution import execute, optimal_length, plan_quality
-from domains.navigation.planner import MultiPath, Segment, atp, quality_estimate, segmentize
-from domains.navigation.world import random_world
 
 MOVEMENTS = [pytest.param(4, id="4-connected"), pytest.param(8, id="8-connected")]
 

@@ -8,14 +8,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from anytime_navigation.movingai import Scenario, load_map, load_scenarios
+from anytime_navigation.resources import data_file
+from anytime_navigation.search import SQRT2, PathResult, find_path
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from anytime.modules import Context
-from domains.navigation.movingai import Scenario, load_map, load_scenarios
-from domains.navigation.search import SQRT2, PathResult, find_path
 
-MOVINGAI = Path(__file__).resolve().parents[2] / "domains" / "navigation" / "maps"
+MOVINGAI = Path(str(data_file("maps")))
 MAPS_512 = ["random512-10-0.map", "8room_000.map", "maze512-1-0.map"]
 
 

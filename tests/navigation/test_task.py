@@ -5,11 +5,10 @@ from __future__ import annotations
 import math
 
 import pytest
-
-from domains.navigation.frame_program import navigation_program
-from domains.navigation.frames import run_task
-from domains.navigation.task import NavigationTask, optimal_utility
-from domains.navigation.world import random_world
+from anytime_navigation.frame_program import navigation_program
+from anytime_navigation.frames import run_task
+from anytime_navigation.task import NavigationTask, optimal_utility
+from anytime_navigation.world import random_world
 
 
 @pytest.fixture(scope="module")

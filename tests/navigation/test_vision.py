@@ -4,17 +4,17 @@ import math
 
 import numpy as np
 import pytest
-
-from anytime.modules import Context
-from anytime.profiles.families import VisionHyperbola
-from domains.navigation.vision import (
+from anytime_navigation.vision import (
     error_draws,
     fraction_correct,
     prior_map,
     sense,
     sense_progressively,
 )
-from domains.navigation.world import World, random_world
+from anytime_navigation.world import World, random_world
+
+from anytime.modules import Context
+from anytime.profiles.families import VisionHyperbola
 
 PROFILE = {"t_a": 10.0, "q_a": 0.6, "t_b": 100.0}
 CURVE = VisionHyperbola(**PROFILE)

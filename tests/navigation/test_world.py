@@ -4,8 +4,7 @@ from collections import deque
 
 import numpy as np
 import pytest
-
-from domains.navigation.world import World, random_world, reachable
+from anytime_navigation.world import World, random_world, reachable
 
 
 def bfs_reachable(blocked: np.ndarray, start: tuple[int, int], movement: int) -> np.ndarray:

@@ -1,5 +1,5 @@
 """`anytime navigate`: run one navigation task frame by frame under a policy (see
-`domains.navigation.task` for the model and the definitions of the reported quantities)."""
+`anytime_navigation.task` for the model and the definitions of the reported quantities)."""
 
 from __future__ import annotations
 
@@ -12,8 +12,15 @@ from typing import Any
 
 import numpy as np
 
-from anytime.cli.common import EXIT_OK, InputError, UsageError, positive_float, positive_int
-from anytime.runtime.monitor import DeadlineValue
+from anytime.plugin import (
+    EXIT_OK,
+    CommandGroup,
+    DeadlineValue,
+    InputError,
+    UsageError,
+    positive_float,
+    positive_int,
+)
 
 from ..frame_program import navigation_program
 from ..frames import run_task
@@ -50,9 +57,10 @@ def _position(text: str) -> Position:
     return (x, y)
 
 
-def add_command(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    navigate = commands.add_parser(
+def add_command(commands: CommandGroup) -> None:
+    navigate = commands.add_command(
         "navigate",
+        run=run_navigate,
         help="run a navigation task frame by frame under the monitor (or a fixed policy)",
         description="Run a navigation task: the robot senses a window around itself, plans with "
         "the compiled program schemas/navigation.any (navigate), and moves frame by frame to the "
@@ -91,7 +99,6 @@ def add_command(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -
     )
     navigate.add_argument("--out", metavar="DIR", help="write frame figures, a GIF, events.jsonl")
     navigate.add_argument("--json", action="store_true", help="print the result as JSON")
-    navigate.set_defaults(run=run_navigate)
 
 
 def _world(args: argparse.Namespace) -> World:

@@ -19,8 +19,7 @@ from typing import Any
 
 from attrs import frozen
 
-from anytime.cli.common import EXIT_OK, InputError, format_table, positive_int
-from anytime.modules import Context
+from anytime.plugin import EXIT_OK, CommandGroup, Context, InputError, format_table, positive_int
 
 from ..abstraction import Pyramid
 from ..execution import execute, plan_quality
@@ -61,9 +60,10 @@ class Solution:
     final_quality: float
 
 
-def add_command(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    parser = commands.add_parser(
+def add_command(commands: CommandGroup) -> None:
+    parser = commands.add_command(
         "plan",
+        run=run_plan,
         help="solve path-finding problems on a MovingAI map with A* or the anytime planner",
         description="Solve the first N problems of a MovingAI scenario file (by default "
         "MAP.scen next to the map), or one --start/--goal problem, and print per problem the "
@@ -102,7 +102,6 @@ def add_command(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -
         help="solve the first N problems of the scenario file (10)",
     )
     parser.add_argument("--json", action="store_true", help="print JSON")
-    parser.set_defaults(run=run_plan, usage_error=parser.error)
 
 
 def _position(text: str) -> Position:

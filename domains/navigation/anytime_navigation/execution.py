@@ -52,7 +52,7 @@ import numpy as np
 from attrs import frozen
 from scipy import ndimage
 
-from anytime.modules import Context
+from anytime.plugin import Context
 
 from .abstraction import cell_bounds
 from .planner import MultiPath

@@ -26,7 +26,8 @@ a handful of deterministic variants would misstate it. Regenerate them (from the
 root) with
 
     for m in detour-left detour-right wait; do
-      .venv/bin/anytime profile $m --trials 100 -o domains/navigation/profiles/$m.yaml
+      .venv/bin/anytime profile $m --trials 100 \
+        -o domains/navigation/anytime_navigation/profiles/$m.yaml
     done
 
 Deciding with the schema (`schema_decider`): the robot computes T_d with `deadline_from`, fixes
@@ -40,21 +41,28 @@ from __future__ import annotations
 
 import functools
 import math
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 from attrs import frozen
 
-from anytime.clocks import Clock, WorkClock
-from anytime.compiler import NoApplicableAlternative, compile_program
-from anytime.compiler.compile import CompiledProgram
-from anytime.dsl import load_schemas
-from anytime.library import AnytimeLibrary, LibraryEntry
-from anytime.modules import Context, Result, contract, elementary
-from anytime.profiles.builder import register_problems
-from anytime.profiles.trials import Instance
-from anytime.runtime.deadline import Deadline, deadline_from
+from anytime.plugin import (
+    AnytimeLibrary,
+    Clock,
+    CompiledProgram,
+    Context,
+    Deadline,
+    Instance,
+    LibraryEntry,
+    Measurement,
+    NoApplicableAlternative,
+    Result,
+    WorkClock,
+    compile_program,
+    contract,
+    deadline_from,
+    elementary,
+)
 
 from .obstacles import Plan, Traffic, random_obstacles
 from .overcoming import (
@@ -70,10 +78,12 @@ from .overcoming import (
     obstacle_arrival,
     side_clear,
 )
+from .resources import data_file, load_schema_file
 from .search import find_path
 from .world import random_world
 
 __all__ = [
+    "PROBLEM_SETS",
     "SCHEMA_FILE",
     "Attempt",
     "OvercomingProblems",
@@ -89,7 +99,7 @@ __all__ = [
 ]
 
 #: The schema file of the situation.
-SCHEMA_FILE = Path(__file__).resolve().parents[2] / "schemas" / "obstacles.any"
+SCHEMA_FILE = data_file("schemas", "obstacles.any")
 
 #: The totals the program is compiled for (ticks); T_d above the last gets the last split
 #: scaled up. Allocations are multiples of `RESOLUTION`.
@@ -263,10 +273,13 @@ class OvercomingProblems:
 
 PRECONDITIONS = {"detour-left": left_clear, "detour-right": right_clear, "wait": can_wait}
 
-for _module in (detour_left, detour_right, wait):
-    register_problems(
-        _module, OvercomingProblems(_module.name), time=PROFILE_TIME, bins=PROFILE_BINS
+#: How `anytime profile MODULE` measures the alternatives.
+PROBLEM_SETS = {
+    module.name: Measurement.of(
+        OvercomingProblems(module.name), time=PROFILE_TIME, bins=PROFILE_BINS
     )
+    for module in (detour_left, detour_right, wait)
+}
 
 
 # --- the compiled program and the decision -------------------------------------------------------
@@ -283,7 +296,7 @@ def overcoming_library() -> AnytimeLibrary:
 @functools.cache
 def overcoming_program(allocator: str = "auto") -> CompiledProgram:
     """`overcome-obstacle` of `schemas/obstacles.any`, compiled for `TIME_GRID` (cached)."""
-    program = load_schemas(SCHEMA_FILE)["overcome-obstacle"]
+    program = load_schema_file("obstacles.any")["overcome-obstacle"]
     return compile_program(
         program,
         overcoming_library(),

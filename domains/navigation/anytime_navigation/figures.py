@@ -21,8 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from anytime.modules import Result
-from anytime.plot import new_figure, save_figure
+from anytime.plugin import Result, new_figure, save_figure
 
 from .abstraction import cell_bounds
 from .execution import execute, optimal_length, plan_quality

@@ -15,9 +15,7 @@ import numpy as np
 from attrs import define, frozen
 from attrs import evolve as replace
 
-from anytime.clocks import Clock, Unit, WorkClock
-from anytime.compiler.compile import CompiledProgram
-from anytime.runtime.monitor import Adjustment, EventLog, Monitor
+from anytime.plugin import Adjustment, Clock, CompiledProgram, EventLog, Monitor, Unit, WorkClock
 
 from .execution import execute, optimal_length, route_length
 from .frame_program import PlanTrace

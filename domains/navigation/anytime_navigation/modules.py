@@ -24,9 +24,15 @@ from typing import Any
 import numpy as np
 from attrs import frozen
 
-from anytime.modules import Context, Result, contract, elementary, interruptible
-from anytime.profiles.builder import register_problems
-from anytime.profiles.trials import Instance
+from anytime.plugin import (
+    Context,
+    Instance,
+    Measurement,
+    Result,
+    contract,
+    elementary,
+    interruptible,
+)
 
 from .abstraction import Pyramid, project
 from .execution import Execution, execute, optimal_length, plan_quality
@@ -53,6 +59,7 @@ from .vision import (
 from .world import Position, random_world
 
 __all__ = [
+    "PROBLEM_SETS",
     "PlannerProblems",
     "VisionProblems",
     "can_wait",
@@ -232,20 +239,18 @@ BINS = [
     1.0,
 ]
 
-register_problems(
-    get_domain_description, VisionProblems(), time=np.arange(0.0, 1201.0, 50.0), bins=BINS
-)
-register_problems(
-    find_path,
-    PlannerProblems(),
-    time=np.arange(0.0, 2001.0, 100.0),
-    input_grids=[[0.6, 0.8, 0.85, 0.9, 0.95, 1.0]],
-    bins=BINS,
-)
-register_problems(
-    a_star,
-    PlannerProblems(),
-    time=np.arange(0.0, 2001.0, 100.0),
-    input_grids=[[0.6, 0.8, 0.85, 0.9, 0.95, 1.0]],
-    bins=BINS,
-)
+_PLANNER_TIME = np.arange(0.0, 2001.0, 100.0)
+_MAP_QUALITIES = [[0.6, 0.8, 0.85, 0.9, 0.95, 1.0]]
+
+#: How `anytime profile MODULE` measures each module (its problem set and grid).
+PROBLEM_SETS = {
+    "get-domain-description": Measurement.of(
+        VisionProblems(), time=np.arange(0.0, 1201.0, 50.0), bins=BINS
+    ),
+    "find-path": Measurement.of(
+        PlannerProblems(), time=_PLANNER_TIME, input_grids=_MAP_QUALITIES, bins=BINS
+    ),
+    "a-star": Measurement.of(
+        PlannerProblems(), time=_PLANNER_TIME, input_grids=_MAP_QUALITIES, bins=BINS
+    ),
+}

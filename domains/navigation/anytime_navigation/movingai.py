@@ -21,7 +21,7 @@ import numpy as np
 from attrs import frozen
 from numpy.typing import NDArray
 
-from anytime.errors import AnytimeError
+from anytime.plugin import AnytimeError
 
 from .world import BoolGrid, Position
 

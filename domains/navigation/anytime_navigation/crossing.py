@@ -11,8 +11,7 @@ from collections.abc import Sequence
 import numpy as np
 from attrs import frozen
 
-from anytime.clocks import Clock, WorkClock
-from anytime.runtime.deadline import deadline_from
+from anytime.plugin import Clock, WorkClock, deadline_from
 
 from .obstacles import EPS, LOOKAHEAD, SAFETY_RADIUS, MovingObstacle, Plan, Traffic
 from .overcoming import (

@@ -66,7 +66,7 @@ def write_frames(report: TaskReport, task: NavigationTask, out: str | Path) -> l
     from matplotlib.patches import Rectangle
     from PIL import Image
 
-    from anytime.plot import new_figure, save_figure
+    from anytime.plugin import new_figure, save_figure
 
     from .figures import draw_plan
 

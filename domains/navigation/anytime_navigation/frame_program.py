@@ -12,20 +12,26 @@ import attrs
 import numpy as np
 from attrs import field, frozen
 
-from anytime.compiler import compile_file
-from anytime.compiler.compile import CompiledProgram, default_time_grid
-from anytime.dsl import load_schemas
-from anytime.library import AnytimeLibrary, LibraryEntry
-from anytime.modules import Context, Result
-from anytime.profiles import VisionHyperbola, tabulate
+from anytime.plugin import (
+    AnytimeLibrary,
+    CompiledProgram,
+    Context,
+    LibraryEntry,
+    Result,
+    VisionHyperbola,
+    compile_file,
+    default_time_grid,
+    tabulate,
+)
 
+from .resources import data_file, load_schema_file
 from .vision import Q_A, T_A, T_B
 from .world import Position
 
 __all__ = ["SCHEMA_FILE", "PlanTrace", "navigation_library", "navigation_program"]
 
 #: The schema file of the papers' program.
-SCHEMA_FILE = Path(__file__).resolve().parents[2] / "schemas" / "navigation.any"
+SCHEMA_FILE = data_file("schemas", "navigation.any")
 
 
 def _stand_in_profiles() -> dict[str, Any]:
@@ -127,7 +133,7 @@ def navigation_program(
 ) -> tuple[CompiledProgram, PlanTrace]:
     """`navigate` of `schemas/navigation.any`, compiled against `navigation_library`."""
     library, trace = navigation_library(profile_dirs, warn=warn)
-    schemas = load_schemas(SCHEMA_FILE)
+    schemas = load_schema_file("navigation.any")
     grid = default_time_grid(schemas, library, "navigate")
     compiled = compile_file(schemas, library, grid, schema="navigate")
     return compiled[-1], trace

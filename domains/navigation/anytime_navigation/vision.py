@@ -32,9 +32,8 @@ import numpy as np
 from attrs import field, frozen
 from numpy.typing import NDArray
 
-from anytime.modules import Context, Result
-from anytime.profiles.families import VisionHyperbola
-from domains.navigation.world import BoolGrid, World
+from anytime.plugin import Context, Result, VisionHyperbola
+from anytime_navigation.world import BoolGrid, World
 
 FloatGrid = NDArray[np.float64]
 

@@ -49,14 +49,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
 from attrs import field, frozen
 
-from anytime.profiles.profile import Array
-from anytime.runtime.monitor import DeadlineValue, EventLog
+from anytime.plugin import Array, DeadlineValue, EventLog
 
 from .obstacles import MovingObstacle
 from .world import BoolGrid, Position, World
@@ -76,7 +74,6 @@ __all__ = [
 POLICIES = ("monitored", "fixed", "min", "max")
 
 #: The schema file of the papers' program.
-SCHEMA_FILE = Path(__file__).resolve().parents[2] / "schemas" / "navigation.any"
 
 #: Plan qualities below this count as this in the environment model (no division by 0).
 MIN_QUALITY = 0.05

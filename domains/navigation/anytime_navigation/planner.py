@@ -33,7 +33,7 @@ import numpy as np
 import numpy.typing as npt
 from attrs import field, frozen
 
-from anytime.modules import Context, Result
+from anytime.plugin import Context, Result
 
 from .abstraction import Pyramid, project
 from .search import SQRT2, SearchLimit, find_path_to_box

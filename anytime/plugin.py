@@ -1,0 +1,162 @@
+"""The public plugin API: everything a plugin imports, in one module.
+
+A plugin is a distribution of its own whose `anytime.plugins` entry point names a `Plugin`
+object (or a function returning one)::
+
+    [project.entry-points."anytime.plugins"]
+    my-domain = "my_domain:plugin"
+
+The plugin's modules are made with the decorators below, which declare a module without
+registering it anywhere: importing a plugin changes nothing in the process, and the framework
+sees the plugin only through its `Plugin` object (so `--no-plugins` simply leaves it out). A
+plugin imports from `anytime` and `anytime.plugin` only; the rest of the framework is internal
+and may change between releases.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Sequence
+from typing import Any
+
+from anytime.cli.common import (
+    EXIT_INPUT,
+    EXIT_OK,
+    EXIT_USAGE,
+    InputError,
+    UsageError,
+    format_table,
+    positive_float,
+    positive_int,
+)
+from anytime.clocks import Clock, Unit, WallClock, WorkClock
+from anytime.compiler import NoApplicableAlternative, compile_file, compile_program
+from anytime.compiler.compile import CompiledProgram, default_time_grid
+from anytime.dsl import SchemaFile, load_schemas, parse_schemas
+from anytime.errors import AnytimeError, ProfileError
+from anytime.library import AnytimeLibrary, CommandGroup, LibraryEntry, Plugin
+from anytime.modules import AnytimeModule, Context, ProfileSource, Result
+from anytime.modules import contract as _contract
+from anytime.modules import elementary as _elementary
+from anytime.modules import interruptible as _interruptible
+from anytime.plot import new_figure, save_figure
+from anytime.profiles import ConditionalPerformanceProfile, VisionHyperbola, tabulate
+from anytime.profiles.builder import Measurement
+from anytime.profiles.profile import Array
+from anytime.profiles.trials import Instance, ProblemSet
+from anytime.runtime.deadline import (
+    CriticalEvent,
+    Deadline,
+    deadline_from,
+    proportional_split,
+)
+from anytime.runtime.deadline import critical_event as _critical_event
+from anytime.runtime.monitor import Adjustment, DeadlineValue, EventLog, Monitor
+
+__all__ = [
+    "EXIT_INPUT",
+    "EXIT_OK",
+    "EXIT_USAGE",
+    "Adjustment",
+    "AnytimeError",
+    "AnytimeLibrary",
+    "AnytimeModule",
+    "Array",
+    "Clock",
+    "CommandGroup",
+    "CompiledProgram",
+    "ConditionalPerformanceProfile",
+    "Context",
+    "CriticalEvent",
+    "Deadline",
+    "DeadlineValue",
+    "EventLog",
+    "InputError",
+    "Instance",
+    "LibraryEntry",
+    "Measurement",
+    "Monitor",
+    "NoApplicableAlternative",
+    "Plugin",
+    "ProblemSet",
+    "ProfileError",
+    "Result",
+    "SchemaFile",
+    "Unit",
+    "UsageError",
+    "VisionHyperbola",
+    "WallClock",
+    "WorkClock",
+    "compile_file",
+    "compile_program",
+    "contract",
+    "critical_event",
+    "deadline_from",
+    "default_time_grid",
+    "elementary",
+    "format_table",
+    "interruptible",
+    "load_schemas",
+    "new_figure",
+    "parse_schemas",
+    "positive_float",
+    "positive_int",
+    "proportional_split",
+    "save_figure",
+    "tabulate",
+]
+
+
+def interruptible(
+    name: str | None = None,
+    *,
+    inputs: Sequence[str] | None = None,
+    profile: ProfileSource = None,
+) -> Callable[[Callable[..., Iterator[Result]]], AnytimeModule]:
+    """Declare a generator `f(ctx, *args)` that yields successively better `Result`s.
+
+    As `anytime.interruptible`, but registers nothing: list the module in your `Plugin`.
+    A relative `profile` path is a file of the defining module's package.
+    """
+    return _interruptible(name, inputs=inputs, profile=profile, register=False)
+
+
+def contract(
+    name: str | None = None,
+    *,
+    inputs: Sequence[str] | None = None,
+    profile: ProfileSource = None,
+) -> Callable[[Callable[..., Result]], AnytimeModule]:
+    """Declare a function `f(ctx, *args) -> Result` that reads `ctx.allocation` up front.
+
+    As `anytime.contract`, but registers nothing: list the module in your `Plugin`.
+    """
+    return _contract(name, inputs=inputs, profile=profile, register=False)
+
+
+def elementary(
+    name: str | None = None,
+    *,
+    inputs: Sequence[str] | None = None,
+    combine: Callable[[Sequence[float]], float] | None = None,
+    probability: float | None = None,
+) -> Callable[[Callable[..., Any]], AnytimeModule]:
+    """Declare a plain function `f(*args)` that takes no time and no context.
+
+    As `anytime.elementary`, but registers nothing: list the module in your `Plugin`.
+    """
+    if combine is None:
+        return _elementary(name, inputs=inputs, probability=probability, register=False)
+    return _elementary(
+        name, inputs=inputs, combine=combine, probability=probability, register=False
+    )
+
+
+def critical_event(
+    name: str | None = None, *, cost_bound: float
+) -> Callable[[Callable[..., float | None]], CriticalEvent]:
+    """Declare `f(ctx, situation)` returning the time until its event, or None (no event).
+
+    As `anytime.runtime.deadline.critical_event`, but registers nothing: list it in your
+    `Plugin.critical_events` and give the object itself to `deadline_from`.
+    """
+    return _critical_event(name, cost_bound=cost_bound, register=False)

@@ -1,1 +1,0 @@
-"""Domain plugins shipped with anytime-compose; each registers itself like a third-party plugin."""
