@@ -1,4 +1,4 @@
-"""`anytime library list|show` and `anytime parse --library/--profiles`, as a user meets them."""
+"""`anytime library list|show` and `anytime parse --check-calls/--profiles`, as users meet them."""
 
 import importlib.metadata
 import json
@@ -282,7 +282,7 @@ def test_parse_with_profiles_reports_an_unknown_function_at_its_call(
 def test_parse_without_a_library_does_not_check_functions(cli: Cli, registry: Registry) -> None:
     Path("nav.any").write_text(SCHEMA)
     assert cli("parse", "nav.any")[0] == 0
-    code, _, err = cli("parse", "nav.any", "--library")
+    code, _, err = cli("parse", "nav.any", "--check-calls")
     assert code == 1
     assert err.splitlines()[0] == (
         "nav.any:3:17: error: unknown function 'get-domain-descripton'"
@@ -319,7 +319,7 @@ def test_parse_with_the_library_sees_plugins_and_warns_about_broken_ones(
     cli: Cli, toy_plugins: list[Any]
 ) -> None:
     Path("toy.any").write_text("(defschema p (d)\n  (toy-cont d 10))\n")
-    code, out, err = cli("parse", "toy.any", "--library")
+    code, out, err = cli("parse", "toy.any", "--check-calls")
     assert (code, out) == (1, "")
     assert err == (
         "anytime: warning: plugin 'broken' (toy_anytime_plugin.broken): ModuleNotFoundError:"
@@ -329,11 +329,11 @@ def test_parse_with_the_library_sees_plugins_and_warns_about_broken_ones(
         "     ^~~~~~~~\n"
     )
     Path("toy.any").write_text("(defschema p (d)\n  (toy-count d))\n")
-    code, _, err = cli("parse", "toy.any", "--library", "--no-plugins")
+    code, _, err = cli("parse", "toy.any", "--check-calls", "--no-plugins")
     assert err.splitlines()[0] == (
         "toy.any:2:4: error: unknown function 'toy-count' (known: p, plan-route)"
     )
-    code, _, err = cli("parse", "toy.any", "--library")
+    code, _, err = cli("parse", "toy.any", "--check-calls")
     assert (
         err.splitlines()[1] == "toy.any:2:4: error: function 'toy-count' takes 2 arguments, got 1"
     )

@@ -221,7 +221,7 @@ def test_plot_a_compiled_file_and_a_schema(
     schemas, library = setup
     compiled = tmp_path / "p.yaml"
     code, _, err = cli(
-        "compile", str(schemas), "--schema", "p", "--library", str(library), "--no-plugins",
+        "compile", str(schemas), "--schema", "p", "--profiles", str(library), "--no-plugins",
         "--time-grid", "0:40:5", "-o", str(compiled),
     )  # fmt: skip
     assert (code, err) == (0, "")
@@ -231,7 +231,7 @@ def test_plot_a_compiled_file_and_a_schema(
     )
     assert png_size(tmp_path / "c.png") == (700, 700)
     code, out, err = cli(
-        "plot", str(schemas), "--schema", "P", "--library", str(library), "--no-plugins",
+        "plot", str(schemas), "--schema", "P", "--profiles", str(library), "--no-plugins",
         "--time-grid", "0:40:10",
     )  # fmt: skip
     assert (code, out, err) == (0, f"wrote {tmp_path / 'p.png'}\n", "")
@@ -291,7 +291,7 @@ def test_bad_input_is_one_line_and_exit_1(
     fill = {"any": str(schemas), "dir": str(tmp_path)}
     args = [a.format(**fill) for a in argv]
     if args[0].endswith(".any"):
-        args += ["--library", str(library), "--no-plugins"]
+        args += ["--profiles", str(library), "--no-plugins"]
     code, out, err = cli("plot", *args)
     assert (code, out) == (1, "")
     assert err.startswith(message.format(**fill))

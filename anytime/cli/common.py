@@ -42,29 +42,15 @@ def positive_float(text: str) -> float:
     return value
 
 
-def library_options(parser: argparse.ArgumentParser) -> None:
+def library_options(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """`--profiles DIR` (repeatable) and `--no-plugins`: the options of every command that reads
+    the anytime library (`args.profiles`, `args.no_plugins`, as `open_library` reads them)."""
     parser.add_argument(
         "--profiles",
         metavar="DIR",
         action="append",
         default=[],
         help="also a directory of profile files (*.yaml), each a module; repeatable",
-    )
-    parser.add_argument(
-        "--no-plugins", action="store_true", help="do not load the installed plugins"
-    )
-
-
-def library_directories(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
-    """`--library DIR` (repeatable) and `--no-plugins`, as `anytime compile` and `anytime plot`
-    name the library options (the same `profiles`/`no_plugins` as `library_options`)."""
-    parser.add_argument(
-        "--library",
-        dest="profiles",
-        metavar="DIR",
-        action="append",
-        default=[],
-        help="a directory of profile files (*.yaml), each a module; repeatable",
     )
     parser.add_argument(
         "--no-plugins", action="store_true", help="do not load the installed plugins"

@@ -20,7 +20,7 @@ from typing import NoReturn
 import numpy as np
 import yaml
 
-from anytime.cli.common import EXIT_OK, InputError, library_directories, open_library
+from anytime.cli.common import EXIT_OK, InputError, library_options, open_library
 from anytime.cli.schemas import check_schema_name, compile_schemas
 from anytime.compiler.compile import ALLOCATOR_NAMES
 from anytime.dsl import load_schemas
@@ -59,7 +59,7 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     plot.add_argument("--title", metavar="T", help="the figure's title (default: a description)")
     schema = plot.add_argument_group("schema files (.any), as for `anytime compile`")
     schema.add_argument("--schema", metavar="NAME", help="the schema to compile and draw")
-    library_directories(schema)
+    library_options(schema)
     schema.add_argument(
         "--allocator", choices=ALLOCATOR_NAMES, default="auto", help="as for compile (auto)"
     )

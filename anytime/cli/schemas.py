@@ -12,7 +12,6 @@ from pathlib import Path
 from anytime.cli.common import (
     EXIT_OK,
     InputError,
-    library_directories,
     library_options,
     open_library,
 )
@@ -41,7 +40,7 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     output.add_argument("--json", action="store_true", help="print JSON")
     output.add_argument("--dot", action="store_true", help="print the dataflow graph as DOT")
     parse.add_argument(
-        "--library",
+        "--check-calls",
         action="store_true",
         help="check every called function against the anytime library (installed plugins and "
         "in-process modules; implied by --profiles)",
@@ -90,13 +89,13 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     compile_.add_argument("-o", "--output", metavar="OUT.yaml", help="write the compiled profile")
     compile_.add_argument("--json", action="store_true", help="print the report as JSON")
-    library_directories(compile_)
+    library_options(compile_)
     compile_.set_defaults(run=run_compile)
 
 
 def run_parse(args: argparse.Namespace) -> int:
     known = None
-    if args.library or args.profiles:
+    if args.check_calls or args.profiles:
         known = open_library(args).known_functions()
     schemas = load_schemas(args.file, known)
     programs = schemas.programs

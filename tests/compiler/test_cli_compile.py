@@ -79,7 +79,7 @@ def compile_p(cli: Cli, setup: tuple[Path, Path], *options: str) -> tuple[int, s
         str(schemas),
         "--schema",
         "p",
-        "--library",
+        "--profiles",
         str(library),
         "--no-plugins",
         *options,
@@ -142,7 +142,7 @@ def test_json_of_every_schema_of_a_file(cli: Cli, setup: tuple[Path, Path], tmp_
     code, out, err = cli(
         "compile",
         str(path),
-        "--library",
+        "--profiles",
         str(library),
         "--no-plugins",
         "--json",
@@ -218,7 +218,7 @@ def test_bad_time_grids_exit_1_with_one_line(cli: Cli, setup: tuple[Path, Path],
 def test_unknown_function_names_its_place(cli: Cli, setup: tuple[Path, Path]) -> None:
     schemas, library = setup
     code, out, err = cli(
-        "compile", str(schemas), "--schema", "q", "--library", str(library), "--no-plugins"
+        "compile", str(schemas), "--schema", "q", "--profiles", str(library), "--no-plugins"
     )
     assert (code, out) == (1, "")
     assert err == (
@@ -238,7 +238,7 @@ def test_module_without_a_profile(
     _, library = setup
     path = tmp_path / "guess.any"
     path.write_text("(defschema g (x)\n  (plan (guess x)))\n")
-    code, out, err = cli("compile", str(path), "--library", str(library), "--no-plugins")
+    code, out, err = cli("compile", str(path), "--profiles", str(library), "--no-plugins")
     assert (code, out) == (1, "")
     assert err.splitlines()[0] == (
         f"{path}:2:10: error: module 'guess' has no performance profile (python module "

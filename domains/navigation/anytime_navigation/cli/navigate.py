@@ -97,6 +97,14 @@ def add_command(commands: CommandGroup) -> None:
         help="K moving obstacles (from the seed); the robot decides how to overcome each one "
         "with the compiled schema schemas/obstacles.any (overcome-obstacle)",
     )
+    navigate.add_argument(
+        "--profiles",
+        metavar="DIR",
+        action="append",
+        default=[],
+        help="also a directory of profile files (*.yaml): a find-path or get-domain-description "
+        "profile there replaces the shipped one; repeatable",
+    )
     navigate.add_argument("--out", metavar="DIR", help="write frame figures, a GIF, events.jsonl")
     navigate.add_argument("--json", action="store_true", help="print the result as JSON")
 
@@ -152,7 +160,7 @@ def run_navigate(args: argparse.Namespace) -> int:
         seed=args.seed,
     )
     warnings: list[str] = []
-    compiled, trace = navigation_program(warn=warnings.append)
+    compiled, trace = navigation_program(args.profiles, warn=warnings.append)
     for warning in warnings:
         print(f"anytime: warning: {warning}", file=sys.stderr)
     obstacles: tuple[MovingObstacle, ...] = ()
