@@ -6,7 +6,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 INSTALLED := $(VENV)/.installed
 
-.PHONY: demo test lint typecheck pytest slow clean
+.PHONY: demo test lint typecheck pytest slow wheel-check clean
 
 # The main job: a robot crosses a 128x128 world it does not know, frame by frame, under the
 # monitor; the frame program is schemas/navigation.any compiled against the measured profiles.
@@ -19,14 +19,19 @@ demo: $(INSTALLED)
 test: lint typecheck pytest
 
 lint: $(INSTALLED)
-	$(BIN)/ruff check anytime domains/navigation tests benchmarks
-	$(BIN)/ruff format --check anytime domains/navigation tests benchmarks
+	$(BIN)/ruff check anytime domains/navigation tests benchmarks .ci
+	$(BIN)/ruff format --check anytime domains/navigation tests benchmarks .ci
 
 typecheck: $(INSTALLED)
 	$(BIN)/mypy
 
 pytest: $(INSTALLED)
 	$(BIN)/pytest
+
+# The install a user gets: both wheels built, installed into a fresh environment outside the
+# repository and run from another directory (CI runs it after `make test`).
+wheel-check: $(INSTALLED)
+	.ci/wheel-check $(BIN)/python
 
 # Long checks, kept out of `make test`.
 slow: $(INSTALLED)
