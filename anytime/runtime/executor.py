@@ -175,10 +175,16 @@ def run(
 def _wait(
     finished: threading.Event, ctx: Context, caller_stop: threading.Event, poll: float
 ) -> None:
-    """Until the module finishes, its allocation is spent, or the caller stops it."""
+    """Until the module finishes, its allocation is spent, or the caller stops it.
+
+    On the wall clock the deadline comes by itself. On the work clock time moves only when the
+    module ticks, so the deadline has come only once it has ticked *past* its allocation: a
+    module that reaches it exactly is still registering its answer there, and is awaited as
+    soft mode awaits it (otherwise a contract given 0 ticks would race its own start)."""
     wall = ctx.clock.unit == "seconds"
     while not finished.is_set():
-        if caller_stop.is_set() or ctx.elapsed >= ctx.allocation:
+        spent = ctx.elapsed >= ctx.allocation if wall else _late(ctx.elapsed, ctx.allocation)
+        if caller_stop.is_set() or spent:
             return
         remaining = ctx.allocation - ctx.elapsed
         finished.wait(min(remaining, 0.01) if wall else min(remaining, poll))

@@ -254,12 +254,16 @@ def test_interrupting_at_any_tick_keeps_the_last_result_yielded_in_time(
 
 
 @SETTINGS
-@given(steps=steps_strategy, allocation=st.integers(0, 30).map(lambda n: n + 0.5))
+@given(
+    steps=steps_strategy,
+    allocation=st.integers(0, 30).flatmap(lambda n: st.sampled_from([float(n), n + 0.5])),
+)
 def test_hard_interruption_on_the_work_clock_answers_like_soft_interruption(
     steps: list[tuple[float, float]], allocation: float
 ) -> None:
-    """Off the tick lattice (no result is yielded exactly at the deadline, where the worker and
-    the polling caller would race), hard and soft interruption give the same record."""
+    """On the tick lattice too (a result yielded exactly at the deadline): the work clock moves
+    only when the module ticks, so the caller awaits it until it ticks past its allocation, and
+    hard and soft interruption give the same record."""
     hard = run(script, (steps,), allocation=allocation, hard=True, poll=0.0005)
     soft = run(script, (steps,), allocation=allocation)
     assert hard == soft
@@ -489,16 +493,25 @@ def test_a_module_that_misbehaves_when_closed_changes_nothing(how: str) -> None:
 
 @pytest.mark.parametrize(
     ("work", "hard"),
-    [(0.0, False), (7.0, False), (10.0, False), (0.0, True), (7.0, True)],
-    ids=["idle", "within", "exactly", "idle-hard", "within-hard"],
+    [(0.0, False), (7.0, False), (10.0, False), (0.0, True), (7.0, True), (10.0, True)],
+    ids=["idle", "within", "exactly", "idle-hard", "within-hard", "exactly-hard"],
 )
 def test_a_contract_within_its_allocation_completes(work: float, hard: bool) -> None:
-    """(Not exactly at the deadline in hard mode: there the polling caller and the worker
-    race.)"""
     record = run(estimate, (work, 0.8), allocation=10, hard=hard)
     assert record.status == Status.COMPLETED
     assert record.result == Result(("estimate", 10.0), 0.8)
     assert (record.time_used, record.registered) == (work, 1)
+
+
+@pytest.mark.parametrize("allocation", [0.0, 10.0])
+def test_hard_mode_awaits_a_contract_on_the_work_clock_every_time(allocation: float) -> None:
+    """A contract that spends exactly its allocation (0 included) answers in every run: the
+    caller does not race the module's start (it answered 1 run in 100 at 0 ticks)."""
+    records = [
+        run(estimate, (allocation, 0.8), allocation=allocation, hard=True) for _ in range(200)
+    ]
+    assert {r.status for r in records} == {Status.COMPLETED}
+    assert {r.result for r in records} == {Result(("estimate", allocation), 0.8)}
 
 
 def test_a_contract_that_overruns_expires_and_keeps_its_result() -> None:

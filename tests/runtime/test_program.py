@@ -273,9 +273,10 @@ STUCK = Registry()
 
 @interruptible("wedge", inputs=["x"], profile=conditional(0.1, input="x"), registry=STUCK)
 def wedge(ctx: Context, x: Result, release: threading.Event) -> Iterator[Result]:
-    """Registers a result, works to its deadline, then is stuck until released."""
+    """Registers a result, works past its deadline (on the work clock the deadline has passed
+    only once the module ticks past it), then is stuck until released."""
     yield Result("wedged", 0.5 * x.quality)
-    ctx.tick(ctx.allocation)
+    ctx.tick(ctx.allocation + 1)
     release.wait(30)
     yield Result("late", x.quality)
 
@@ -314,7 +315,7 @@ def test_a_stuck_module_cut_off_by_hard_interruption_does_not_stop_the_rest(
     assert after_record.result is not None
     assert after_record.result.value == ("after", "wedged")
     assert record.result == after_record.result
-    assert record.status == Status.COMPLETED
+    assert record.status == Status.CONTRACT_EXPIRED  # the wedge's overrun tick is charged
 
 
 # --- (e) adaptive mode ------------------------------------------------------------------------
