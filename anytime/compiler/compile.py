@@ -119,12 +119,16 @@ class CompiledProgram:
         )
 
     def allocation_at(self, quality: Sequence[float], total: float) -> Array:
-        """The allocation for program input qualities `quality` and total time `total`:
-        the table interpolated like the profile, rescaled to spend exactly `total`."""
+        """The allocation for program input qualities `quality` and total time `total`: the
+        table interpolated like the profile, exactly the table's split at grid totals.
+
+        It is never rescaled: where the compiler kept a smaller total's split (more time would
+        not have helped), spending the rest would run the split it rejected. Between grid
+        totals the split is the interpolation of its neighbours', which spends no more than
+        `total` (each neighbour spends no more than its own); beyond the grid, the largest
+        total's split."""
         q = np.asarray(quality, dtype=np.float64)
-        allocation = self.profile.interpolate(self.allocation, q, np.float64(total))
-        spent = allocation.sum()
-        return allocation * (total / spent) if spent > 0 else allocation
+        return self.profile.interpolate(self.allocation, q, np.float64(total))
 
 
 def compile_program(
