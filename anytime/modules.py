@@ -28,6 +28,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Literal
 
+import attrs
 from attrs import field, frozen
 
 from anytime.clocks import Clock, WorkClock
@@ -149,9 +150,18 @@ class AnytimeModule:
         return f"<{self.kind} module {self.name!r} from {self.origin}>"
 
     def __reduce__(self) -> tuple[Any, ...]:
-        # Pickled by reference, as functions are, so that process pools and Dask workers can
-        # receive it: the decorated name in its Python module is this object.
-        return (_import_object, (self.function.__module__, self.function.__qualname__))
+        # Pickled by reference, as functions are, so that process pools and Dask workers get
+        # the very module: the decorated name in its Python module is this object. A module
+        # that is not importable by that name (one made by `make_interruptible`, say) pickles
+        # by value, which works when its function does.
+        where = (self.function.__module__, self.function.__qualname__)
+        try:
+            found = _import_object(*where)
+        except Exception:  # not importable by that name: by value
+            found = None
+        if found is self:
+            return (_import_object, where)
+        return (_rebuild, (type(self), attrs.asdict(self, recurse=False)))
 
 
 def _import_object(module: str, qualname: str) -> Any:
@@ -159,6 +169,10 @@ def _import_object(module: str, qualname: str) -> Any:
     for part in qualname.split("."):
         target = getattr(target, part)
     return target
+
+
+def _rebuild(kind: type[AnytimeModule], fields: dict[str, Any]) -> AnytimeModule:
+    return kind(**fields)
 
 
 class Registry:

@@ -4,7 +4,8 @@
 `ProblemSet`, as the profile builder takes) under the work clock and reports named checks, each
 passed, failed or skipped, with a message that says what was seen and where:
 
-- **pickle**: the module pickles by reference and its problem set pickles, as worker processes
+- **pickle**: the module pickles (by reference, or by value when it is not importable by its
+  name) and its problem set pickles, as worker processes
   (`anytime profile --workers`, Dask) need;
 - **quality**: every answer is a `Result`, of quality in [0, 1] (`Result` refuses others: a
   module that tries fails here, not with a bare traceback);
@@ -494,13 +495,13 @@ def _check_pickle(module: AnytimeModule, problems: ProblemSet) -> Check:
         return Check(
             "pickle",
             False,
-            f"does not pickle by reference: {name} cannot be imported by a worker process"
-            f" ({_headline(exc)}); define the module at the top level of a Python module",
+            f"does not pickle: {name} cannot be imported by a worker process, nor its function"
+            f" pickled by value ({_headline(exc)}); define the module at the top level of a"
+            " Python module",
         )
-    if restored is not module:
-        return Check(
-            "pickle", False, f"{name} imports as {restored!r}, not as this module ({module!r})"
-        )
+    by_reference = restored is module
+    if not by_reference and (restored.name, restored.kind) != (module.name, module.kind):
+        return Check("pickle", False, f"{name} unpickles as {restored!r}, not as {module!r}")
     kind = type(problems).__qualname__
     try:
         pickle.loads(pickle.dumps(problems))
@@ -510,7 +511,8 @@ def _check_pickle(module: AnytimeModule, problems: ProblemSet) -> Check:
             False,
             f"the module pickles, but its problem set ({kind}) does not: {_headline(exc)}",
         )
-    return Check("pickle", True, f"pickles by reference ({name}); its problem set pickles")
+    how = f"by reference ({name})" if by_reference else "by value (not importable by its name)"
+    return Check("pickle", True, f"pickles {how}; its problem set pickles")
 
 
 def _first(bad: list[tuple[_Run, str]], total: int, what: str) -> str:

@@ -245,7 +245,7 @@ def test_a_module_that_changes_a_registered_value() -> None:
     )
 
 
-def test_a_module_defined_in_a_function_does_not_pickle_by_reference() -> None:
+def test_a_module_defined_in_a_function_does_not_pickle() -> None:
     @interruptible("catalogue-local", inputs=["data"], profile=COUNTING, registry=Registry())
     def local(ctx: Context, data: Result, limit: int) -> Iterator[Result]:
         for done in range(1, limit + 1):
@@ -254,11 +254,11 @@ def test_a_module_defined_in_a_function_does_not_pickle_by_reference() -> None:
 
     report = check_module(local, Counting(), trials=5)
     assert [c.name for c in report.failed] == ["pickle"], report.format()
+    where = "test_a_module_defined_in_a_function_does_not_pickle.<locals>.local"
     assert report["pickle"].message == (
-        "does not pickle by reference: test_catalogue.test_a_module_defined_in_a_function_does"
-        "_not_pickle_by_reference.<locals>.local cannot be imported by a worker process"
-        " (AttributeError: 'function' object has no attribute '<locals>'); define the module"
-        " at the top level of a Python module"
+        f"does not pickle: test_catalogue.{where} cannot be imported by a worker process, nor"
+        f" its function pickled by value (AttributeError: Can't pickle local object '{where}');"
+        " define the module at the top level of a Python module"
     )
 
 

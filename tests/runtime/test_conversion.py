@@ -5,6 +5,7 @@ the work clock, through a compiled program, and on two worker processes)."""
 from __future__ import annotations
 
 import math
+import pickle
 import threading
 import time
 from collections.abc import Iterator
@@ -34,11 +35,14 @@ from anytime.profiles import (
     PerformanceProfile,
     tabulate,
 )
+from anytime.profiles.builder import Measurement, ProfileRequest, profile_module
+from anytime.profiles.trials import Instance
 from anytime.runtime.conversion import (
     ConversionError,
     interruptible_profile,
     make_interruptible,
 )
+from anytime.runtime.executor import run
 from anytime.runtime.schedules import (
     Schedule,
     ScheduleError,
@@ -260,7 +264,7 @@ def test_the_interruptible_profile_never_beats_the_contract(r: float, m: int, ra
     base = tabulate(Exponential(rate), grid, kind="contract")
     profile = interruptible_profile(base, Schedule(unit=1.0, base=r, workers=m))
     assert profile.mean is not None and base.mean is not None
-    assert np.all(profile.mean <= base.mean + 1e-15)
+    assert np.all(profile.mean <= base.expected_at(profile.time) + 1e-15)
     assert np.all(np.diff(profile.mean) >= -1e-15)
     np.testing.assert_allclose(profile.probability.sum(axis=-1), 1.0)
 
@@ -274,7 +278,7 @@ def test_the_profile_has_no_result_before_the_first_contract_and_keeps_input_axe
         kind="contract",
         time_unit="seconds",
     )
-    profile = interruptible_profile(base, geometric(10.0), module="fast")
+    profile = interruptible_profile(base, geometric(10.0), base.time, module="fast")
     assert (profile.module, profile.kind, profile.time_unit) == ("fast", "interruptible", "seconds")
     assert profile.inputs == ("x",) and profile.probability.shape == base.probability.shape
     assert profile.mean is not None and base.mean is not None
@@ -357,8 +361,8 @@ def test_converting_a_compiled_program() -> None:
     assert (module.name, module.parameters, module.inputs) == ("p-interruptible", ("x",), ("x",))
     profile = module.profile_source
     assert isinstance(profile, ConditionalPerformanceProfile) and profile.kind == "interruptible"
-    assert profile.probability.shape == compiled.profile.probability.shape
     grid = compiled.profile.time
+    assert set(grid) <= set(profile.time)  # with the finish times (and the instant before) added
     for i, q in enumerate((0.0, 0.5, 1.0)):
         clock = WorkClock()
         trace = drive(module, Context(allocation=80.0, clock=clock), Result("map", q))
@@ -408,6 +412,73 @@ def tiny_program() -> CompiledProgram:
     library = AnytimeLibrary([RegistrySource(registry)])
     program = parse_schemas("(defschema p (x) (refine (guess x)))", "p.any")["p"]
     return compile_program(program, library, time_grid, [0.0, 0.5, 1.0])
+
+
+# --- the constructed profile is the schedule's step function -----------------------------------
+
+#: A contract profiled on a coarse grid (every 100 ticks), the common case: the schedule's
+#: finish times (10, 30, 70, 150, ...) fall between its grid times.
+COARSE = tabulate(CURVE, np.arange(0.0, 1001.0, 100.0), kind="contract", module="coarse")
+
+
+@contract("coarse", inputs=[], profile=COARSE, registry=TOYS)
+def coarse(ctx: Context, problem: Any) -> Result:
+    """Its quality is its profile's (interpolated on the coarse grid), so that the tests see
+    the conversion's own error, not the contract profile's."""
+    ctx.tick(ctx.allocation)
+    return Result(ctx.allocation, float(COARSE.expected_at(ctx.allocation)))
+
+
+def test_the_made_profile_steps_exactly_where_contracts_finish() -> None:
+    """Between the contract's grid times the made profile used to ramp each step (errors up to
+    0.1); it now holds every finish time and the instant before it, so it is exact there and
+    agrees with runs on the work clock at any time."""
+    module = make_interruptible(coarse, t0=10.0, r=2.0)
+    profile = module.profile_source
+    assert isinstance(profile, PerformanceProfile)
+    contracts = geometric(10.0, 2.0).contracts(1000.0)
+    inside = contracts.finish <= 1000.0
+    finish, lengths = contracts.finish[inside], contracts.length[inside]
+    np.testing.assert_allclose(finish, [10, 30, 70, 150, 310, 630])
+    before = profile.expected_at(np.nextafter(finish, -np.inf))
+    at = profile.expected_at(finish)
+    np.testing.assert_allclose(at, COARSE.expected_at(lengths), atol=1e-12)
+    np.testing.assert_allclose(before[1:], at[:-1], atol=1e-12)
+    assert before[0] == 0.0
+    for t in (5.0, 10.0, 29.0, 30.0, 69.5, 149.0, 151.0, 629.0, 700.0, 1000.0):
+        record = run(module, ("problem",), allocation=t)
+        assert record.quality == pytest.approx(float(profile.expected_at(t)), abs=1e-9), t
+
+
+def test_a_made_module_pickles_by_value_and_profiles_on_two_workers() -> None:
+    """It is not importable by any name (it is made at run time), so it pickles by value, its
+    contract by reference: `anytime profile --workers 2` can measure it (a 56-line traceback
+    before), and the two workers measure what one does."""
+    module = make_interruptible(coarse, t0=10.0, r=2.0)
+    restored = pickle.loads(pickle.dumps(module))
+    assert (restored.name, restored.kind, restored.inputs) == (module.name, "interruptible", ())
+    assert [r.value for r in drive_all(restored, 100.0)] == [10.0, 20.0, 40.0]
+    measurement = Measurement.of(Allocations(), time=[0, 10, 30, 100, 300])
+    one = profile_module(module, ProfileRequest(trials=4), measurement=measurement).profile
+    two = profile_module(
+        module, ProfileRequest(trials=4, workers=2), measurement=measurement
+    ).profile
+    assert one == two
+    np.testing.assert_allclose(one.mean, module.profile_source.expected_at(one.time), atol=1e-9)
+
+
+class Allocations:
+    """Problems for `coarse` made interruptible: its quality is its profile's, exactly."""
+
+    def instance(self, rng: np.random.Generator, input_qualities: tuple[float, ...]) -> Instance:
+        return Instance(("problem",), None)
+
+    def score(self, instance: Instance, value: Any) -> float:
+        return float(COARSE.expected_at(value))
+
+
+def drive_all(module: AnytimeModule, allocation: float) -> list[Result]:
+    return list(module(Context(allocation=allocation), "problem"))
 
 
 # --- on worker processes ----------------------------------------------------------------------
