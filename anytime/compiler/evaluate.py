@@ -7,8 +7,10 @@ approximation for DAGs, where a shared result makes later inputs correlated.
 
 - A module whose profile is deterministic (a point mass at the cell mean everywhere) maps each
   combination of input qualities to the exact quality its curve gives there: no binning.
-- A module with a stochastic profile gives a distribution over its quality bins, each standing
-  for its midpoint (the profile's interpolated distribution mixed over the input combinations).
+- A module with a stochastic profile gives a distribution over its quality bins (the profile's
+  interpolated distribution mixed over the input combinations), each standing for its
+  representative (`ConditionalPerformanceProfile.representatives`): so the expected quality is
+  the profile's exact mean where it has one, never a bin midpoint.
 - An elementary function combines the input qualities (min by default). A `best-of` is one:
   its quality is the maximum of its alternatives', so its distribution is that of the maximum
   of independent variables (the product of their CDFs), computed exactly on the joint support.
@@ -28,7 +30,7 @@ from attrs import frozen
 from numpy.typing import ArrayLike
 
 from anytime.compiler.model import CompileModel, CompileNode, Slot
-from anytime.profiles.profile import Array
+from anytime.profiles.profile import Array, ConditionalPerformanceProfile
 
 MAX_SUPPORT = 64
 FOLD_GRID = np.linspace(0.0, 1.0, 41)
@@ -137,10 +139,27 @@ class Evaluator:
                 values = profile.expected(q, t)
                 out = Dist(values.reshape(batch, -1), p.reshape(batch, -1))
             else:
-                d = profile.distribution(q, t).reshape(batch, -1, profile.n_bins)
-                probs = np.einsum("bc,bck->bk", p.reshape(batch, -1), d)
-                out = Dist(np.broadcast_to(profile.values, probs.shape).copy(), probs)
+                out = _binned(profile, q, t, p, batch)
         return fold(out) if out.values.shape[1] > MAX_SUPPORT else out
+
+
+def _binned(
+    profile: ConditionalPerformanceProfile, q: Array, t: Array, p: Array, batch: int
+) -> Dist:
+    """A stochastic module's output: its distribution mixed over the input combinations, each
+    bin standing for the mass-weighted mean of the combinations' representatives (so the
+    output's mean is the profile's expected quality, mixed the same way: exact where the
+    profile has a `mean` table)."""
+    k = profile.n_bins
+    d = profile.distribution(q, t).reshape(batch, -1, k)
+    v = profile.representatives(q, t).reshape(batch, -1, k)
+    w = p.reshape(batch, -1)
+    probs = np.einsum("bc,bck->bk", w, d)
+    moments = np.einsum("bc,bck,bck->bk", w, d, v)
+    values = np.divide(
+        moments, probs, out=np.broadcast_to(profile.values, probs.shape).copy(), where=probs > 0
+    )
+    return Dist(np.clip(values, 0.0, 1.0), probs)
 
 
 def _mixture(node: CompileNode, inputs: list[Dist], alloc: Array, batch: int) -> Dist:
@@ -158,10 +177,9 @@ def _mixture(node: CompileNode, inputs: list[Dist], alloc: Array, batch: int) ->
             values.append(profile.expected(q, t).reshape(batch, -1))
             probs.append(plan.probability * p.reshape(batch, -1))
         else:
-            d = profile.distribution(q, t).reshape(batch, -1, profile.n_bins)
-            mixed = np.einsum("bc,bck->bk", p.reshape(batch, -1), d)
-            values.append(np.broadcast_to(profile.values, mixed.shape))
-            probs.append(plan.probability * mixed)
+            branch = _binned(profile, q, t, p, batch)
+            values.append(branch.values)
+            probs.append(plan.probability * branch.probs)
     out = Dist(np.concatenate(values, axis=1), np.concatenate(probs, axis=1))
     return fold(out) if out.values.shape[1] > MAX_SUPPORT else out
 

@@ -6,10 +6,11 @@ it is interpolated multilinearly (the papers use linear interpolation); outside 
 clamped to the nearest end, so asking for more time than the table covers gives the quality of
 its longest run, and asking below the lowest input quality gives that of the lowest.
 
-A bin stands for one quality value, its representative (by default its midpoint) when a
-distribution is propagated into the next module. Expected quality uses the per-cell `mean` table
-when one is known (a measured profile's sample mean, or the exact curve of a deterministic
-profile), so bin width does not blur it; otherwise the representatives.
+A bin stands for one quality value, its representative, when a distribution is propagated into
+the next module: its midpoint, moved so that the cell's distribution has the profile's exact
+mean where the per-cell `mean` table is known (a measured profile's sample mean, or the exact
+curve of a deterministic profile); so bin width does not blur expected quality, no result
+counts as exactly 0, and a module that always reaches 1.0 as exactly 1.0.
 """
 
 from __future__ import annotations
@@ -179,6 +180,34 @@ class ConditionalPerformanceProfile:
         """Expected output quality at input qualities `q` (..., m) and times `t` (...)."""
         table = self.mean if self.mean is not None else self.probability @ self.values
         return self.interpolate(table, q, t)
+
+    def representatives(self, q: ArrayLike, t: ArrayLike) -> Array:
+        """The quality each bin stands for at (q, t), shape (..., K).
+
+        Without a `mean` table, the bin midpoints. With one, each midpoint moves the same
+        fraction of the way to its bin's lower edge (or upper edge) so that the distribution's
+        mean is the profile's expected quality, staying inside its bin: so no result (a mean
+        of exactly 0) stands for 0, not for the first bin's midpoint, and a module that always
+        reaches 1.0 stands for 1.0. (A mean the bins cannot hold, below the mean of the lower
+        edges or above that of the upper ones, is met as closely as the bins allow.)"""
+        distribution = self.distribution(q, t)
+        values = np.broadcast_to(self.values, distribution.shape)
+        if self.mean is None:
+            return values.copy()
+        lower, upper = self.bins[:-1], self.bins[1:]
+        mean = self.expected(q, t)[..., None]
+        at_mid = distribution @ self.values
+        down = (at_mid - distribution @ lower)[..., None]  # how far the mean can fall, and rise
+        up = (distribution @ upper - at_mid)[..., None]
+        gap = mean - at_mid[..., None]
+        share_down = np.divide(-gap, down, out=np.zeros_like(gap), where=(gap < 0) & (down > 0))
+        share_up = np.divide(gap, up, out=np.zeros_like(gap), where=(gap > 0) & (up > 0))
+        moved = (
+            values
+            - np.minimum(share_down, 1.0) * (self.values - lower)
+            + np.minimum(share_up, 1.0) * (upper - self.values)
+        )
+        return np.clip(moved, 0.0, 1.0)
 
     def standard_error(self, q: ArrayLike, t: ArrayLike) -> Array:
         """Standard error of the measured expected quality (0 for analytic profiles)."""

@@ -123,6 +123,29 @@ def test_rows_sum_to_one_after_propagation(data: st.DataObject, profile: Profile
 
 
 @settings(deadline=None)
+@given(st.data(), profiles())
+def test_representatives_stay_in_their_bins_and_give_the_profiles_mean(
+    data: st.DataObject, profile: Profile
+) -> None:
+    """Where the mean table is one the bins can hold (between the means of the distribution's
+    lower and upper bin edges), the bins' representatives reproduce it exactly; never a bin
+    midpoint where the profile knows better."""
+    q, t = data.draw(points(profile))
+    distribution = profile.distribution(q, t)
+    values = profile.representatives(q, t)
+    assert values.shape == distribution.shape
+    lower, upper = profile.bins[:-1], profile.bins[1:]
+    assert np.all((values >= lower - 1e-12) & (values <= upper + 1e-12))
+    mean = profile.expected(q, t)
+    holdable = (distribution @ lower <= mean) & (mean <= distribution @ upper)
+    np.testing.assert_allclose(
+        np.einsum("nk,nk->n", distribution, values)[holdable], mean[holdable], atol=1e-9
+    )
+    if profile.mean is None:
+        np.testing.assert_array_equal(values, np.broadcast_to(profile.values, values.shape))
+
+
+@settings(deadline=None)
 @given(profiles())
 def test_interpolation_at_grid_points_returns_the_table(profile: Profile) -> None:
     q, t = grid_points(profile)

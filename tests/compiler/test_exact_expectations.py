@@ -1,0 +1,89 @@
+"""Expected qualities are exact where the profile knows them: a measured profile's bins stand
+for their measured means, not their midpoints, so no result counts as exactly 0 and a module
+that always reaches 1.0 as exactly 1.0, through a program as well as alone; checked against
+runs, not against the compiler itself."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Any
+
+import attrs
+import numpy as np
+import pytest
+
+from anytime.clocks import WorkClock
+from anytime.compiler import compile_program
+from anytime.dsl import parse_schemas
+from anytime.library import AnytimeLibrary, LibraryEntry
+from anytime.modules import AnytimeModule, Context, Registry, Result, interruptible
+from anytime.profiles.builder import build_profile
+from anytime.profiles.trials import Instance
+
+MODULES = Registry()
+TIME = [0.0, 5.0, 10.0, 20.0]
+
+
+@interruptible("exact", inputs=[], registry=MODULES)
+def exact(ctx: Context, delay: int) -> Iterator[Result]:
+    """Nothing for `delay` ticks (5 or 10, by the problem), then the exact answer: a stochastic
+    profile, with no result at T = 0 and always quality 1.0 from T = 10."""
+    ctx.tick(delay)
+    yield Result("answer", 1.0)
+
+
+@interruptible("refine", inputs=["x"], registry=MODULES)
+def refine(ctx: Context, x: Result) -> Iterator[Result]:
+    """At once as good as its input; never better."""
+    yield Result(x.value, x.quality)
+
+
+class Problems:
+    """An answer's true quality is the quality of what it was made from (1.0 for `exact`)."""
+
+    def instance(self, rng: np.random.Generator, input_qualities: tuple[float, ...]) -> Instance:
+        if input_qualities:
+            return Instance((Result("answer", input_qualities[0]),), input_qualities[0])
+        return Instance((int(rng.choice([5, 10])),), 1.0)
+
+    def score(self, instance: Instance, value: Any) -> float:
+        return float(instance.reference) if value == "answer" else 0.0
+
+
+def measured(module: AnytimeModule, **grid: Any) -> LibraryEntry:
+    """The module with the profile the builder measures for it."""
+    profile = build_profile(module, Problems(), time=TIME, trials=8, **grid).profile
+    return LibraryEntry.of_module(attrs.evolve(module, profile_source=profile))
+
+
+@pytest.fixture(scope="module")
+def library() -> AnytimeLibrary:
+    library = AnytimeLibrary()
+    library.add(measured(exact))
+    library.add(measured(refine, input_grids=[[0.0, 0.5, 1.0]]))
+    return library
+
+
+def test_a_measured_module_that_always_reaches_one_compiles_to_exactly_one(
+    library: AnytimeLibrary,
+) -> None:
+    """With the default ten bins it compiled to 0.950 (the last bin's midpoint), and to 0.050
+    at T = 0 where nothing runs."""
+    program = parse_schemas("(defschema p (delay) (exact delay))", "p.any")["p"]
+    compiled = compile_program(program, library, TIME)
+    half = library.profile("exact").mean[1]  # the share of the trials with a delay of 5
+    np.testing.assert_array_equal(compiled.expected, [0.0, half, 1.0, 1.0])
+
+
+def test_a_chain_fed_no_result_or_a_perfect_result_expects_exactly_what_runs_give(
+    library: AnytimeLibrary,
+) -> None:
+    """No result upstream (T = 0) is exactly 0 downstream; a perfect one (T >= 10) exactly
+    1.0, which is what every run gives."""
+    program = parse_schemas("(defschema p (delay) (refine (exact delay)))", "p.any")["p"]
+    compiled = compile_program(program, library, [0.0, 10.0, 15.0, 20.0], resolution=5.0)
+    np.testing.assert_array_equal(compiled.expected, [0.0, 1.0, 1.0, 1.0])
+    for total in (10.0, 15.0, 20.0):
+        for delay in (5, 10):
+            record = compiled.run({"delay": delay}, total, WorkClock())
+            assert record.quality == 1.0, (total, delay)
