@@ -5,7 +5,8 @@ Every value that flows between modules is a `Result(value, quality)`. A module r
 
 - an **interruptible** module is a generator that yields successively better `Result`s (the
   papers' REGISTER-RESULT); whatever it yielded last is the answer when time runs out;
-- a **contract** module reads its allocation from `ctx.allocation` and returns one `Result`;
+- a **contract** module reads its allocation from `ctx.allocation` and returns one `Result`, or
+  None when it has none;
 - an **elementary** function takes no context and no time; its output quality is a declared
   combination of its inputs' qualities (by default the minimum).
 
@@ -52,6 +53,27 @@ def _quality(value: float) -> float:
     if not 0.0 <= q <= 1.0 or math.isnan(q):
         raise ValueError(f"a Result's quality must be in [0, 1], got {value!r}")
     return q
+
+
+class Missing:
+    """The value a module that declares `accepts_missing` gets for an input whose producer
+    registered no result (every other module is then not called: its step has no result)."""
+
+    value = None
+    quality = 0.0
+
+    def __bool__(self) -> bool:
+        return False
+
+    def __repr__(self) -> str:
+        return "MISSING"
+
+    def __reduce__(self) -> str:
+        return "MISSING"
+
+
+#: The one `Missing` value.
+MISSING = Missing()
 
 
 @frozen
@@ -127,6 +149,8 @@ class AnytimeModule:
         profile: the conditional performance profile, a path to its file, or None.
         combine: for an elementary function, how input qualities make the output's.
         origin: where it was defined, for messages ("python module x.y", "plugin nav", ...).
+        accepts_missing: whether it is called when an input has no result (with `MISSING` for
+            it); otherwise it is not called, and its step has no result either.
     """
 
     name: str
@@ -138,6 +162,7 @@ class AnytimeModule:
     combine: Callable[[Sequence[float]], float] = _min_quality
     origin: str = ""
     probability: float | None = None  # an elementary test's chance of being true (for `if`)
+    accepts_missing: bool = False  # called with `MISSING` for an input that has no result
 
     @property
     def arity(self) -> int:
@@ -226,6 +251,7 @@ def _declare(
     registry: Registry | None,
     register: bool = True,
     probability: float | None = None,
+    accepts_missing: bool = False,
 ) -> AnytimeModule:
     module_name = (name or function.__name__.replace("_", "-")).lower()
     where = f"module '{module_name}' ({_qualified(function)})"
@@ -264,6 +290,7 @@ def _declare(
         combine=combine,
         origin=f"python module {function.__module__}",
         probability=probability,
+        accepts_missing=accepts_missing,
     )
     if not register:
         return module
@@ -291,6 +318,7 @@ def interruptible(
     profile: ProfileSource = None,
     registry: Registry | None = None,
     register: bool = True,
+    accepts_missing: bool = False,
 ) -> Callable[[Callable[..., Iterator[Result]]], AnytimeModule]:
     """Register a generator `f(ctx, *args)` that yields successively better `Result`s.
 
@@ -302,6 +330,8 @@ def interruptible(
         registry: where to register it (default: the process-wide `REGISTRY`).
         register: False to declare the module without registering it anywhere (a plugin's
             modules are registered by its `Plugin` object).
+        accepts_missing: call it even when an input has no result, with `MISSING` for it
+            (default: it is not called, and has no result either).
     """
 
     def decorate(function: Callable[..., Iterator[Result]]) -> AnytimeModule:
@@ -313,6 +343,7 @@ def interruptible(
             profile=profile,
             registry=registry,
             register=register,
+            accepts_missing=accepts_missing,
         )
 
     return decorate
@@ -325,13 +356,15 @@ def contract(
     profile: ProfileSource = None,
     registry: Registry | None = None,
     register: bool = True,
-) -> Callable[[Callable[..., Result]], AnytimeModule]:
-    """Register a function `f(ctx, *args) -> Result` that uses `ctx.allocation` up front.
+    accepts_missing: bool = False,
+) -> Callable[[Callable[..., Result | None]], AnytimeModule]:
+    """Register a function `f(ctx, *args) -> Result` that uses `ctx.allocation` up front (it
+    returns None when it has no result).
 
     Arguments as for `interruptible`.
     """
 
-    def decorate(function: Callable[..., Result]) -> AnytimeModule:
+    def decorate(function: Callable[..., Result | None]) -> AnytimeModule:
         return _declare(
             function,
             name=name,
@@ -340,6 +373,7 @@ def contract(
             profile=profile,
             registry=registry,
             register=register,
+            accepts_missing=accepts_missing,
         )
 
     return decorate
@@ -353,6 +387,7 @@ def elementary(
     registry: Registry | None = None,
     probability: float | None = None,
     register: bool = True,
+    accepts_missing: bool = False,
 ) -> Callable[[Callable[..., Any]], AnytimeModule]:
     """Register a plain function `f(*args)` that takes no time and no context.
 
@@ -374,6 +409,7 @@ def elementary(
             registry=registry,
             register=register,
             probability=probability,
+            accepts_missing=accepts_missing,
         )
 
     return decorate

@@ -90,15 +90,16 @@ class CompiledProgram:
         inputs: Sequence[Any] | Mapping[str, Any],
         total: float,
         clock: Clock | None = None,
-    ) -> Result:
-        """Run the program as a contract algorithm with `total` time (see `execute`)."""
+    ) -> Result | None:
+        """Run the program as a contract algorithm with `total` time (see `execute`): the
+        output's result, or None when it has none."""
         return execute(self, inputs, total, clock)
 
     def as_module(self, origin: str | None = None) -> AnytimeModule:
         """This program as a contract module of the library, with its compiled profile."""
         program = self.model.program
 
-        def run_contract(ctx: Context, *args: Any) -> Result:
+        def run_contract(ctx: Context, *args: Any) -> Result | None:
             return execute(self, args, ctx.allocation, ctx.clock, ctx.stop)
 
         run_contract.__qualname__ = run_contract.__name__ = program.name.replace("-", "_")

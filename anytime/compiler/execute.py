@@ -10,6 +10,11 @@ those and answers with the result of highest quality (none applicable: `NoApplic
 an if runs the compiled branch its condition selects with the if's time. Failure handling,
 hard interruption and adaptive re-allocation belong to the runtime; this executor lets a
 module's exception propagate.
+
+No placeholders: a call one of whose inputs has no result (its producer registered none) is not
+made, and has no result either, unless its module declares `accepts_missing` (it then gets
+`MISSING` for that input); a best-of's precondition without a value makes its alternative
+inapplicable, and an alternative without a result is not a candidate.
 """
 
 from __future__ import annotations
@@ -26,7 +31,7 @@ from anytime.compiler.evaluate import Evaluator
 from anytime.dsl.graph import InputRef, NodeRef, Source
 from anytime.dsl.program import Literal
 from anytime.errors import AnytimeError
-from anytime.modules import AnytimeModule, Context, Result
+from anytime.modules import MISSING, AnytimeModule, Context, Result
 from anytime.profiles.profile import Array
 
 if TYPE_CHECKING:
@@ -48,9 +53,10 @@ def execute(
     total: float,
     clock: Clock | None = None,
     stop: threading.Event | None = None,
-) -> Result:
+) -> Result | None:
     """Run `compiled` with `total` time; inputs are positional or by name (`Result`s carry
-    their quality, plain values have quality 1). Setting `stop` interrupts every module."""
+    their quality, plain values have quality 1). Setting `stop` interrupts every module. The
+    answer is the output's result, or None when it has none."""
     model = compiled.model
     program = model.program
     values = bind_inputs(program.name, program.inputs, inputs)
@@ -62,26 +68,32 @@ def execute(
     for node in model.nodes:
         if not choices.active(node, results):
             continue
+        answer: Result | None
         if node.role == "best-of":
-            results[node.index] = choices.best(node, values, results)
-            continue
-        if node.role == "if":
+            answer = choices.best(node, values, results)
+        elif node.role == "if":
+            if choices.undecidable(node, results):
+                continue
             plan, branch_inputs, given = choices.branch(node, values, results)
-            results[node.index] = execute(plan.compiled, branch_inputs, given, clock, stop)
+            answer = execute(plan.compiled, branch_inputs, given, clock, stop)
+        elif not_run(compiled, node, values, results):
             continue
-        module, args, kwargs = call_arguments(compiled, node, values, results)
-        if node.kind == "elementary":
-            carrying = {module.parameters.index(name) for name in module.inputs}
-            results[node.index] = _elementary(module, args, kwargs, carrying)
         else:
-            assert node.time_index is not None
-            ctx = Context(
-                allocation=float(choices.allocation[node.time_index]), clock=clock, stop=stop
-            )
-            results[node.index] = _anytime(module, ctx, args, kwargs)
+            module, args, kwargs = call_arguments(compiled, node, values, results)
+            if node.kind == "elementary":
+                carrying = {module.parameters.index(name) for name in module.inputs}
+                answer = _elementary(module, args, kwargs, carrying)
+            else:
+                assert node.time_index is not None
+                ctx = Context(
+                    allocation=float(choices.allocation[node.time_index]), clock=clock, stop=stop
+                )
+                answer = _anytime(module, ctx, args, kwargs)
+        if answer is not None:
+            results[node.index] = answer
     output = model.graph.output
     if isinstance(output, NodeRef):
-        return results[output.index]
+        return results.get(output.index)
     value = values[output.name]
     return value if isinstance(value, Result) else Result(value, 1.0)
 
@@ -136,7 +148,8 @@ class Choices:
     def decided(self, choice: CompileNode, results: Mapping[int, Result]) -> list[bool]:
         """The applicable alternatives of a best-of (its preconditions must have run)."""
         if choice.index not in self.applicable:
-            found = [bool(results[p].value) for p in choice.preconditions]
+            # A precondition that has no value (its input had no result) rules its out.
+            found = [p in results and bool(results[p].value) for p in choice.preconditions]
             self.applicable[choice.index] = found
             self.allocation = resplit(self.compiled, choice, found, self.allocation, self.qualities)
         return self.applicable[choice.index]
@@ -151,6 +164,14 @@ class Choices:
         """
         return _best_of(self.compiled, node, self.decided(node, results), values, results)
 
+    def undecidable(self, node: CompileNode, results: Mapping[int, Result]) -> str | None:
+        """Why an if cannot choose its branch (its condition has no value), or None."""
+        condition = node.condition
+        if isinstance(condition, NodeRef) and condition.index not in results:
+            variable = self.compiled.model.graph.nodes[condition.index].variable
+            return f"not run: its condition '{variable}' has no value"
+        return None
+
     def branch(
         self, node: CompileNode, values: Mapping[str, Any], results: Mapping[int, Result]
     ) -> tuple[Any, dict[str, Any], float]:
@@ -161,10 +182,47 @@ class Choices:
         plan = node.branches[0 if _truth(condition) else 1]
         index_of = {n.variable: i for i, n in enumerate(self.compiled.model.graph.nodes)}
         inputs = {
-            name: values[name] if name not in index_of else results[index_of[name]]
+            name: values[name] if name not in index_of else results.get(index_of[name], MISSING)
             for name in plan.compiled.model.program.inputs
         }
         return plan, inputs, float(self.allocation[node.time_index])
+
+
+def missing_inputs(
+    compiled: CompiledProgram,
+    node: CompileNode,
+    values: Mapping[str, Any],
+    results: Mapping[int, Result],
+) -> list[str]:
+    """The call's arguments that have no result, as a message names them: "from 'f'" for a
+    call of `f` that registered none, "'x'" for an input standing for one (a branch's input,
+    given `MISSING`)."""
+    graph = compiled.model.graph
+    call = graph.nodes[node.index]
+    missing = []
+    for source in [*call.args, *(s for _, s in call.keywords)]:
+        if isinstance(source, NodeRef) and source.index not in results:
+            missing.append(f"from '{graph.nodes[source.index].function}'")
+        elif isinstance(source, InputRef) and values[source.name] is MISSING:
+            missing.append(f"'{source.name}'")
+    return missing
+
+
+def not_run(
+    compiled: CompiledProgram,
+    node: CompileNode,
+    values: Mapping[str, Any],
+    results: Mapping[int, Result],
+) -> str | None:
+    """Why a call is not made (an input has no result and its module does not accept that),
+    or None when it runs."""
+    missing = missing_inputs(compiled, node, values, results)
+    module = node.entry.module if node.entry is not None else None
+    if not missing or (module is not None and module.accepts_missing):
+        return None
+    plural = "s" if len(missing) > 1 else ""
+    names = ", ".join(missing)
+    return f"not run: its input{plural} {names} {'have' if plural else 'has'} no result"
 
 
 def call_arguments(
@@ -189,6 +247,8 @@ def call_arguments(
             value: Any = source.value
         elif isinstance(source, InputRef):
             value = values[source.name]
+        elif source.index not in results:
+            return MISSING  # only for a module that accepts it (see `not_run`)
         else:
             value = results[source.index]
         if carries_quality:
@@ -224,15 +284,21 @@ def _best_of(
     """The result of highest quality among the applicable alternatives (the first on ties)."""
     call = compiled.model.graph.nodes[node.index]
     n = len(call.args) // 2
+    chosen = [source for source, ok in zip(call.args[n:], applicable, strict=True) if ok]
     candidates = [
         source_value(source, values, results)
-        for source, ok in zip(call.args[n:], applicable, strict=True)
-        if ok
+        for source in chosen
+        if not (isinstance(source, NodeRef) and source.index not in results)
     ]
     if not candidates:
+        why = (
+            f"all {n} preconditions are false"
+            if not chosen
+            else "none of the applicable ones has a result"
+        )
         raise NoApplicableAlternative(
             f"schema '{compiled.model.program.name}': no alternative of best-of "
-            f"'{call.variable}' is applicable (all {n} preconditions are false)"
+            f"'{call.variable}' is applicable ({why})"
         )
     wrapped = [c if isinstance(c, Result) else Result(c, 1.0) for c in candidates]
     return max(wrapped, key=lambda r: r.quality)
@@ -321,13 +387,13 @@ def _quality(value: Any) -> float:
 
 def _anytime(
     module: AnytimeModule, ctx: Context, args: list[Any], kwargs: dict[str, Any]
-) -> Result:
+) -> Result | None:
     if module.kind == "contract":
         result = module(ctx, *args, **kwargs)
-        if not isinstance(result, Result):
+        if result is not None and not isinstance(result, Result):
             raise ExecutionError(f"module '{module.name}' returned {result!r}, not a Result")
         return result
-    best = Result(None, 0.0)  # nothing registered yet: no output
+    best: Result | None = None  # nothing registered yet: no output
     generator = module(ctx, *args, **kwargs)
     try:
         for item in generator:

@@ -291,6 +291,9 @@ def _contract(trial: Trial, time: Array, out: Array) -> tuple[Failures, int]:
             failed.append(_failure(exc))
             continue
         used = ctx.elapsed
+        if result is None:  # no result: the row keeps quality 0
+            overruns += used > allocation
+            continue
         if not isinstance(result, Result):
             failed.append((f"returned a {type(result).__name__}, not a Result", ""))
             continue

@@ -212,6 +212,9 @@ def _drive(
         value = module(ctx, *args, **kwargs)
     except Exception as exc:
         return _failure(exc)
+    if value is None:  # a contract's way of saying it has no result
+        late = _late(ctx.elapsed, ctx.allocation)
+        return _Outcome(Status.CONTRACT_EXPIRED if late else Status.COMPLETED)
     if not isinstance(value, Result):
         return _Outcome(Status.FAILED, f"returned {_describe(value)}, not a Result")
     if ctx.stop.is_set() and ctx.elapsed < ctx.allocation:

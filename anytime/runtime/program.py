@@ -28,6 +28,7 @@ from anytime.compiler.execute import (
     NoApplicableAlternative,
     bind_inputs,
     call_arguments,
+    not_run,
 )
 from anytime.compiler.model import CompileNode
 from anytime.dsl.graph import NodeRef
@@ -113,7 +114,23 @@ def run_program(
     for node in model.nodes:
         if not choices.active(node, results):
             continue
-        if node.role == "best-of":
+        skipped = (
+            choices.undecidable(node, results)
+            if node.role == "if"
+            else None
+            if node.role == "best-of"
+            else not_run(compiled, node, values, results)
+        )
+        if skipped is not None:
+            record = RunRecord(
+                module=node.name,
+                status=Status.NO_RESULT,
+                result=None,
+                time_used=0.0,
+                allocation=0.0,
+                error=skipped,
+            )
+        elif node.role == "best-of":
             record = _best_of_record(choices, node, values, results)
         elif node.role == "if":
             plan, branch_inputs, given = choices.branch(node, values, results)
@@ -154,8 +171,9 @@ def run_program(
             else:
                 record = run(module, args, kwargs, clock=clock)
         records[node.index] = record
-        results[node.index] = record.result if record.result is not None else Result(None, 0.0)
-        observed[node.index] = results[node.index].quality
+        if record.result is not None:  # no placeholder for a call that has no result
+            results[node.index] = record.result
+        observed[node.index] = record.quality
     allocation = choices.allocation
     output = model.graph.output
     if isinstance(output, NodeRef):

@@ -188,7 +188,7 @@ def test_a_failing_middle_module_fails_the_program_and_the_rest_still_runs(k: in
     assert [r.status for r in record.records] == [
         Status.INTERRUPTED,
         Status.FAILED,
-        Status.INTERRUPTED,
+        Status.INTERRUPTED if k else Status.NO_RESULT,
     ]
     assert middle_record.error == f"{Boom.__module__}.Boom: middle gave up"
     assert middle_record.traceback is not None and ", in middle" in middle_record.traceback
@@ -199,13 +199,15 @@ def test_a_failing_middle_module_fails_the_program_and_the_rest_still_runs(k: in
             ("middle", k - 1, first_record.result.value), first_record.quality * k / (k + 1)
         )
         assert middle_record.result == best
-    else:
+        assert record.result == last_record.result
+        assert record.result == Result(
+            ("last", best.value), float(scaled(0.1)(allocation[2], best.quality))
+        )
+    else:  # no placeholder: the next module is not called on "no output"
         assert middle_record.result is None
-        best = Result(None, 0.0)  # the next module runs on "no output", of quality 0
-    assert record.result == last_record.result
-    assert record.result == Result(
-        ("last", best.value), float(scaled(0.1)(allocation[2], best.quality))
-    )
+        assert (last_record.result, last_record.time_used) == (None, 0.0)
+        assert last_record.error == "not run: its input from 'middle' has no result"
+        assert record.result is None
 
 
 def test_a_program_whose_output_registers_nothing_has_no_result() -> None:

@@ -280,8 +280,8 @@ class _TaskRun:
             new_known[y0:y1, x0:x1] = np.asarray(domain.value.blocked)[y0:y1, x0:x1]
         return _Planned(
             window=window,
-            plan=result.value,
-            quality=float(result.quality),
+            plan=result.value if result is not None else None,  # None: no plan this frame
+            quality=float(result.quality) if result is not None else 0.0,
             sensing_time=float(allocation[0]),
             sensing_quality=float(domain.quality) if domain is not None else 0.0,
             known=new_known,
