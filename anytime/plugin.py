@@ -33,6 +33,7 @@ from anytime.compiler import NoApplicableAlternative, compile_file, compile_prog
 from anytime.compiler.compile import CompiledProgram, default_time_grid
 from anytime.dsl import SchemaFile, load_schemas, parse_schemas
 from anytime.errors import AnytimeError, ProfileError
+from anytime.files import InputFileError, atomic_path, read_input, write_atomic
 from anytime.library import AnytimeLibrary, CommandGroup, LibraryEntry, Plugin
 from anytime.modules import AnytimeModule, Context, ProfileSource, Result
 from anytime.modules import contract as _contract
@@ -71,6 +72,7 @@ __all__ = [
     "DeadlineValue",
     "EventLog",
     "InputError",
+    "InputFileError",
     "Instance",
     "LibraryEntry",
     "Measurement",
@@ -86,6 +88,7 @@ __all__ = [
     "VisionHyperbola",
     "WallClock",
     "WorkClock",
+    "atomic_path",
     "compile_file",
     "compile_program",
     "contract",
@@ -101,8 +104,10 @@ __all__ = [
     "positive_float",
     "positive_int",
     "proportional_split",
+    "read_input",
     "save_figure",
     "tabulate",
+    "write_atomic",
 ]
 
 

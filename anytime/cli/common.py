@@ -11,6 +11,8 @@ from anytime.errors import AnytimeError
 from anytime.library import AnytimeLibrary
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE = 0, 1, 2
+#: Ctrl-C: the shell's status for a process ended by SIGINT (128 + 2).
+EXIT_INTERRUPTED = 130
 
 
 class InputError(AnytimeError):

@@ -24,6 +24,7 @@ from anytime.cli.common import EXIT_OK, InputError, library_options, open_librar
 from anytime.cli.schemas import check_schema_name, compile_schemas
 from anytime.compiler.compile import ALLOCATOR_NAMES
 from anytime.dsl import load_schemas
+from anytime.files import MAX_PROFILE_BYTES, read_input
 from anytime.plot import (
     MissingMatplotlibError,
     PlotError,
@@ -133,7 +134,7 @@ def _allocation_table(
 ) -> tuple[Sequence[str], Array] | None:
     """A compiled program's `modules` and `allocation` fields, checked against its profile;
     None for a plain profile. (`load_profile` has read and validated the rest of the file.)"""
-    data = yaml.safe_load(Path(filename).read_text(encoding="utf-8-sig"))
+    data = yaml.safe_load(read_input(filename, limit=MAX_PROFILE_BYTES).decode("utf-8-sig"))
     if "allocation" not in data and "modules" not in data:
         return None
     for field in ("modules", "allocation"):

@@ -7,7 +7,6 @@ import argparse
 import json
 import math
 from collections.abc import Sequence
-from pathlib import Path
 
 from anytime.cli.common import (
     EXIT_OK,
@@ -24,6 +23,8 @@ from anytime.compiler import (
 )
 from anytime.compiler.compile import ALLOCATOR_NAMES, DEFAULT_INPUT_QUALITY, default_time_grid
 from anytime.dsl import SchemaFile, format_programs, graph_to_dot, load_schemas, program_to_json
+from anytime.dsl.parser import decode_source
+from anytime.files import MAX_SCHEMA_BYTES, read_input
 from anytime.library import AnytimeLibrary
 
 
@@ -184,7 +185,7 @@ def compile_schemas(
         grid = _parse_time_grid(time_grid)
     else:
         grid = default_time_grid(schemas, library, schema)
-    lines = Path(filename).read_text(encoding="utf-8-sig").split("\n")
+    lines = decode_source(read_input(filename, limit=MAX_SCHEMA_BYTES), filename).split("\n")
     try:
         return compile_file(
             schemas,

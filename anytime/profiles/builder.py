@@ -32,6 +32,7 @@ import difflib
 import importlib
 import math
 import secrets
+import signal
 import time as _time
 from collections.abc import Iterator, Mapping, Sequence
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
@@ -421,17 +422,32 @@ def _tabulate(
     )
 
 
+def _ignore_interrupts() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def _run(chunks: list[Chunk], executor: Executor | None, workers: int) -> Iterator[Done]:
     """Finished chunks as they come back, in any order."""
     if executor is None and workers == 1:
         yield from map(measure_chunk, chunks)
         return
-    pool: Executor = executor if executor is not None else ProcessPoolExecutor(workers)
+    # The workers ignore Ctrl-C (the terminal sends it to them too): the parent stops them.
+    own: ProcessPoolExecutor | None = None
+    pool: Executor
+    if executor is None:
+        pool = own = ProcessPoolExecutor(workers, initializer=_ignore_interrupts)
+    else:
+        pool = executor
     futures: list[Future[Done]] = []
     try:
         futures = [pool.submit(measure_chunk, chunk) for chunk in chunks]
         for future in as_completed(futures):
             yield future.result()
+    except (KeyboardInterrupt, GeneratorExit):
+        if own is not None:  # stop the running chunks now rather than wait for them
+            for process in list((own._processes or {}).values()):
+                process.terminate()
+        raise
     finally:
         for future in futures:  # after an error: drop what has not started
             future.cancel()

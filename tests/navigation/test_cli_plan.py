@@ -265,7 +265,7 @@ def test_malformed_map_and_scenario(cli: Cli, tmp_path: Path) -> None:
 def test_usage_errors(cli: Cli, argv: list[str], message: str) -> None:
     code, out, err = cli("plan", "--map", ARENA, *argv)
     assert (code, out) == (2, "")
-    assert err.startswith("usage: anytime plan")
+    assert err.count("\n") == 1
     assert err.splitlines()[-1].startswith(message)
 
 

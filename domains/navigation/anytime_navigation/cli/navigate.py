@@ -20,6 +20,7 @@ from anytime.plugin import (
     UsageError,
     positive_float,
     positive_int,
+    write_atomic,
 )
 
 from ..frame_program import navigation_program
@@ -190,7 +191,7 @@ def run_navigate(args: argparse.Namespace) -> int:
         out = Path(args.out)
         try:
             out.mkdir(parents=True, exist_ok=True)
-            report.log.write_jsonl(out / "events.jsonl")
+            write_atomic(out / "events.jsonl", report.log.to_jsonl())
         except OSError as error:
             raise InputError(
                 f"anytime navigate: error: cannot write to '{out}': {error.strerror}"
