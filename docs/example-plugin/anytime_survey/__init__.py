@@ -1,14 +1,29 @@
 """Survey a square plot: average a noisy sensor's readings of its area, then take the square
 root of the area with Newton's method. Two interruptible modules, their problem sets (how
-`anytime profile` measures them) and the plugin object the entry point names."""
+`anytime profile` measures them), a subcommand, and the plugin object the entry point names."""
 
+import argparse
 import math
 from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
 
-from anytime.plugin import Context, Instance, Measurement, Plugin, Result, interruptible
+from anytime.plugin import (
+    EXIT_OK,
+    AnytimeLibrary,
+    CommandGroup,
+    Context,
+    Instance,
+    Measurement,
+    Plugin,
+    Result,
+    compile_file,
+    interruptible,
+    load_schemas,
+    positive_float,
+    positive_int,
+)
 
 NOISE = 0.2  # a reading's standard deviation, relative to the true area
 
@@ -87,6 +102,32 @@ class Areas:
         return quality(value, instance.reference)
 
 
+def survey(args: argparse.Namespace) -> int:
+    """`anytime survey`: compile the schema for the time given and run it on one plot."""
+    library = AnytimeLibrary.default()
+    schemas = load_schemas(args.file, library.known_functions())
+    (program,) = compile_file(schemas, library, [0, args.time], schema=args.schema, resolution=1)
+    result = program.run([Plot(args.area)], args.time)
+    split = ", ".join(
+        f"{m} {t:g}" for m, t in zip(program.modules, program.allocation[-1], strict=True)
+    )
+    side = math.sqrt(args.area)
+    print(f"{args.schema} in {args.time} ticks ({split}): side {result.value:.3f},", end=" ")
+    print(f"true {side:.3f}, quality {quality(result.value, side):.3f}", end=" ")
+    print(f"(expected {program.expected[-1]:.3f})")
+    return EXIT_OK
+
+
+def add_commands(commands: CommandGroup) -> None:
+    parser = commands.add_command(
+        "survey", help="survey one plot with a compiled schema", run=survey
+    )
+    parser.add_argument("file", metavar="FILE", help="a schema file (.any)")
+    parser.add_argument("--schema", default="side-length", help="the schema (side-length)")
+    parser.add_argument("--area", type=positive_float, default=400.0, help="true area (400)")
+    parser.add_argument("--time", type=positive_int, default=32, help="total ticks (32)")
+
+
 PLUGIN = Plugin(
     name="survey",
     modules=(measure, square_root),
@@ -96,4 +137,5 @@ PLUGIN = Plugin(
             Areas(), time=range(13), input_grids=[[0, 0.25, 0.5, 0.75, 1]]
         ),
     },
+    add_commands=add_commands,
 )
