@@ -7,7 +7,7 @@ instances at every point of the input-quality grid and time grid, scores each ou
 returns the measured profile: the histogram of scored qualities per cell, with its sample mean,
 standard deviation and sample count.
 
-How time is measured (DESIGN.md section 4): by default with a `WorkClock`, so a profile counts
+How time is measured (see docs/plugins.md): by default with a `WorkClock`, so a profile counts
 the ticks a module reports and does not depend on how busy the machine is.
 
 - An **interruptible** module runs once per instance, up to the largest time on the grid. At

@@ -1,6 +1,6 @@
 """The profile file format, `anytime-profile/1`: reading (validated) and writing (exact).
 
-A profile file is one YAML mapping (DESIGN.md section 5)::
+A profile file is one YAML mapping (docs/profiles.md says more)::
 
     format: anytime-profile/1          # required, the version of this format
     module: find-path                  # default: the file name without its extension
