@@ -24,9 +24,12 @@ from anytime.cli.common import (
     EXIT_USAGE,
     InputError,
     UsageError,
+    float_in_range,
     format_table,
+    int_in_range,
     positive_float,
     positive_int,
+    random_seed,
 )
 from anytime.clocks import Clock, Unit, WallClock, WorkClock
 from anytime.compiler import NoApplicableAlternative, compile_file, compile_program
@@ -96,7 +99,9 @@ __all__ = [
     "deadline_from",
     "default_time_grid",
     "elementary",
+    "float_in_range",
     "format_table",
+    "int_in_range",
     "interruptible",
     "load_schemas",
     "new_figure",
@@ -104,6 +109,7 @@ __all__ = [
     "positive_float",
     "positive_int",
     "proportional_split",
+    "random_seed",
     "read_input",
     "save_figure",
     "tabulate",

@@ -20,7 +20,7 @@ from typing import NoReturn
 import numpy as np
 import yaml
 
-from anytime.cli.common import EXIT_OK, InputError, library_options, open_library
+from anytime.cli.common import EXIT_OK, InputError, library_options, open_library, time_grid
 from anytime.cli.schemas import check_schema_name, compile_schemas
 from anytime.compiler.compile import ALLOCATOR_NAMES
 from anytime.dsl import load_schemas
@@ -66,6 +66,7 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     schema.add_argument(
         "--time-grid",
+        type=time_grid,
         metavar="START:STOP:STEP",
         help="the totals to compile for (default: as for compile)",
     )
@@ -124,7 +125,13 @@ def _plot_schema(args: argparse.Namespace, output: Path) -> None:
         check_schema_name(schemas, args.file, args.schema)
         name = args.schema.lower()
     compiled = compile_schemas(
-        args.file, schemas, library, args.time_grid, schema=name, allocator=args.allocator
+        args.file,
+        schemas,
+        library,
+        args.time_grid,
+        schema=name,
+        allocator=args.allocator,
+        command="plot",
     )
     plot_compiled(next(c for c in compiled if c.name == name), output, title=args.title)
 

@@ -5,14 +5,19 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 from collections.abc import Sequence
 
 from anytime.cli.common import (
     EXIT_OK,
+    MAX_LATTICE_POINTS,
+    MAX_TIME_POINTS,
     InputError,
+    check_lattice,
     library_options,
     open_library,
+    positive_float,
+    quality_list,
+    time_grid,
 )
 from anytime.compiler import (
     CompiledProgram,
@@ -67,21 +72,24 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     compile_.add_argument(
         "--time-grid",
+        type=time_grid,
         metavar="START:STOP:STEP",
         help="the totals to compile for (default: 0 to the sum of the modules' longest "
-        "profiled times, in about 20 steps)",
+        f"profiled times, in about 20 steps; at most {MAX_TIME_POINTS:,} totals)",
     )
     compile_.add_argument(
         "--resolution",
-        type=float,
+        type=positive_float,
         metavar="DT",
-        help="allocations are multiples of DT (default: the time grid's STEP)",
+        help="allocations are multiples of DT (default: the time grid's STEP; at most "
+        f"{MAX_LATTICE_POINTS:,} multiples up to the largest total)",
     )
     compile_.add_argument(
         "--input-quality",
+        type=quality_list,
         metavar="Q,Q,...",
         default=",".join(f"{q:g}" for q in DEFAULT_INPUT_QUALITY),
-        help="the grid of program input qualities (default: 0,0.1,...,1)",
+        help="the grid of program input qualities, each from 0 to 1 (default: 0,0.1,...,1)",
     )
     compile_.add_argument(
         "--time-unit",
@@ -129,7 +137,7 @@ def run_compile(args: argparse.Namespace) -> int:
         args.time_grid,
         schema=args.schema,
         allocator=args.allocator,
-        input_quality=_parse_numbers(args.input_quality, "--input-quality"),
+        input_quality=args.input_quality,
         resolution=args.resolution,
     )
     wanted = [c for c in compiled if args.schema is None or c.name == args.schema.lower()]
@@ -171,20 +179,22 @@ def compile_schemas(
     filename: str,
     schemas: SchemaFile,
     library: AnytimeLibrary,
-    time_grid: str | None,
+    time_grid: Sequence[float] | None,
     *,
     schema: str | None,
     allocator: str,
     input_quality: Sequence[float] = DEFAULT_INPUT_QUALITY,
     resolution: float | None = None,
+    command: str = "compile",
 ) -> list[CompiledProgram]:
-    """`compile_file` as the commands run it: the time grid from its START:STOP:STEP text (or
-    the default), the file's lines for error messages, compile errors as one-line input
-    errors naming the file."""
+    """`compile_file` as the commands run it: the time grid given (by the `time_grid` option
+    type) or the default, a lattice too large refused up front (a usage error), the file's
+    lines for error messages, compile errors as one-line input errors naming the file."""
     if time_grid is not None:
-        grid = _parse_time_grid(time_grid)
+        grid = list(time_grid)
     else:
         grid = default_time_grid(schemas, library, schema)
+    check_lattice(grid, resolution, command)
     lines = decode_source(read_input(filename, limit=MAX_SCHEMA_BYTES), filename).split("\n")
     try:
         return compile_file(
@@ -201,28 +211,3 @@ def compile_schemas(
         message = str(error)
         prefixed = message if ": error: " in message else f"{filename}: error: {message}"
         raise InputError(prefixed) from None
-
-
-def _parse_numbers(text: str, option: str) -> list[float]:
-    try:
-        return [float(part) for part in text.split(",") if part.strip()]
-    except ValueError:
-        raise InputError(
-            f"anytime: error: {option}: expected numbers separated by commas, got {text!r}"
-        ) from None
-
-
-def _parse_time_grid(text: str) -> list[float]:
-    """START:STOP:STEP, both ends included."""
-    parts = text.split(":")
-    try:
-        start, stop, step = (float(p) for p in parts)
-    except ValueError:
-        start = stop = step = math.nan
-    if not (0 <= start <= stop and step > 0) or len(parts) != 3:
-        raise InputError(
-            "anytime: error: --time-grid: expected START:STOP:STEP with 0 <= START <= STOP "
-            f"and STEP > 0, got {text!r}"
-        )
-    count = int(math.floor((stop - start) / step + 1e-9)) + 1
-    return [start + i * step for i in range(count)]

@@ -15,7 +15,9 @@ from anytime_navigation.movingai import MAX_MAP_BYTES, MAX_SCENARIO_BYTES
 from anytime_navigation.resources import data_file
 
 from anytime.files import MAX_PROFILE_BYTES, MAX_SCHEMA_BYTES
-from conftest import Cli
+
+#: The `cli` fixture (tests/conftest.py): runs `anytime` in-process, (exit code, stdout, stderr).
+Cli = Callable[..., tuple[int, str, str]]
 
 ARENA = str(Path(str(data_file("maps"))) / "arena.map")
 

@@ -112,6 +112,8 @@ def _position(text: str) -> Position:
         raise argparse.ArgumentTypeError(
             f"expected X,Y (two whole numbers), got {text!r}"
         ) from None
+    if x < 0 or y < 0:
+        raise argparse.ArgumentTypeError(f"expected X,Y with X, Y >= 0, got {text!r}")
     return x, y
 
 
