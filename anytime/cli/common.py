@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 from collections.abc import Callable, Sequence
+from typing import Any
 
 from anytime.errors import AnytimeError
 from anytime.library import AnytimeLibrary
@@ -204,6 +206,23 @@ def open_library(args: argparse.Namespace) -> AnytimeLibrary:
     for problem in library.problems:
         print(f"anytime: warning: {problem}", file=sys.stderr)
     return library
+
+
+def json_text(data: Any, *, indent: int | None = 2) -> str:
+    """`data` as JSON that any parser reads: JSON has no NaN or Infinity, so a float that is
+    not finite is written as null. Values must be plain (numpy scalars are a bug where they are
+    made, and raise TypeError here)."""
+    return json.dumps(_finite(data), indent=indent, allow_nan=False)
+
+
+def _finite(data: Any) -> Any:
+    if isinstance(data, float):
+        return data if math.isfinite(data) else None
+    if isinstance(data, dict):
+        return {key: _finite(value) for key, value in data.items()}
+    if isinstance(data, list | tuple):
+        return [_finite(value) for value in data]
+    return data
 
 
 def format_table(rows: Sequence[Sequence[str]], indent: int = 0) -> str:

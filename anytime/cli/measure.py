@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from pathlib import Path
@@ -16,6 +15,7 @@ from anytime.cli.common import (
     InputError,
     UsageError,
     float_in_range,
+    json_text,
     library_options,
     open_library,
     random_seed,
@@ -175,17 +175,7 @@ def run_profile(args: argparse.Namespace) -> int:
     except OSError as error:
         raise InputError(f"anytime: error: cannot write '{output}': {error.strerror}") from None
     if args.json:
-        summary = {
-            "module": module.name,
-            "file": str(output),
-            "trials": build.trials,
-            "runs": build.runs,
-            "failures": build.failures,
-            "overruns": build.overruns,
-            "seed": build.seed,
-            "seconds": round(build.seconds, 3),
-        }
-        print(json.dumps(summary, indent=2))
+        print(json_text({"module": module.name, "file": str(output)} | build.to_dict()))
     else:
         print(build.summary())
         print(f"wrote {output}")
@@ -236,7 +226,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
                 f"anytime: error: cannot write '{args.output}': {error.strerror}"
             ) from None
     if args.json:
-        print(json.dumps(calibration.to_dict() | {"file": args.output}, indent=2))
+        print(json_text(calibration.to_dict() | {"file": args.output}))
     else:
         print(calibration.summary())
         if profile is not None:
@@ -266,7 +256,7 @@ def run_check(args: argparse.Namespace) -> int:
     except (BuildError, CatalogueError) as error:
         raise InputError(f"anytime: error: {error}") from None
     if args.json:
-        print(json.dumps(report.to_dict(), indent=2))
+        print(json_text(report.to_dict()))
     else:
         print(report.format())
     if report.passed:

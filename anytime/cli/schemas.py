@@ -4,7 +4,6 @@ profiles out."""
 from __future__ import annotations
 
 import argparse
-import json
 from collections.abc import Sequence
 
 from anytime.cli.common import (
@@ -13,6 +12,7 @@ from anytime.cli.common import (
     MAX_TIME_POINTS,
     InputError,
     check_lattice,
+    json_text,
     library_options,
     open_library,
     positive_float,
@@ -112,7 +112,7 @@ def run_parse(args: argparse.Namespace) -> int:
         check_schema_name(schemas, args.file, args.schema)
         programs = (schemas[args.schema],)
     if args.json:
-        print(json.dumps({"schemas": [program_to_json(p) for p in programs]}, indent=2))
+        print(json_text({"schemas": [program_to_json(p) for p in programs]}))
     elif args.dot:
         print(graph_to_dot(p.graph for p in programs), end="")
     else:
@@ -158,7 +158,7 @@ def run_compile(args: argparse.Namespace) -> int:
             ) from None
     if args.json:
         reports = [compiled_to_dict(c) for c in wanted]
-        print(json.dumps(reports[0] if len(reports) == 1 else {"schemas": reports}, indent=2))
+        print(json_text(reports[0] if len(reports) == 1 else {"schemas": reports}))
     else:
         print("\n".join(format_report(c) for c in wanted), end="")
         if args.output is not None:

@@ -181,6 +181,17 @@ class ProfileBuild:
         total = self.trials * math.prod(self.profile.cell_shape[:-1])
         return total / self.seconds if self.seconds > 0 else math.inf
 
+    def to_dict(self) -> dict[str, Any]:
+        """The counts of the build as plain JSON values (`anytime profile --json`)."""
+        return {
+            "trials": int(self.trials),
+            "runs": int(self.runs),
+            "failures": int(self.failures),
+            "overruns": int(self.overruns),
+            "seed": int(self.seed),
+            "seconds": round(float(self.seconds), 3),
+        }
+
     def summary(self) -> str:
         """A few lines for a terminal: what was measured, and failures if any."""
         cells = "x".join(str(n) for n in self.profile.cell_shape)

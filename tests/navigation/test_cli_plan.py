@@ -140,7 +140,7 @@ def _split_map(tmp_path: Path) -> str:
     ("argv", "message"),
     [
         (["--start", "60,3", "--goal", "1,11"], "--start 60,3 is outside the 49x49 map '{map}'"),
-        (["--start", "1,11", "--goal", "1,-1"], "--goal 1,-1 is outside the 49x49 map '{map}'"),
+        (["--start", "1,11", "--goal", "1,49"], "--goal 1,49 is outside the 49x49 map '{map}'"),
         (["--start", "0,0", "--goal", "1,11"], "--start 0,0 is a blocked cell of '{map}'"),
     ],
     ids=["start-outside", "goal-outside", "start-blocked"],

@@ -4,11 +4,8 @@
 from __future__ import annotations
 
 import argparse
-import json
-import math
 import sys
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -19,6 +16,7 @@ from anytime.plugin import (
     InputError,
     UsageError,
     int_in_range,
+    json_text,
     positive_float,
     random_seed,
     write_atomic,
@@ -213,7 +211,7 @@ def run_navigate(args: argparse.Namespace) -> int:
         else:
             written.extend(write_frames(report, task, out))
     if args.json:
-        print(json.dumps(_plain(report.as_json())))
+        print(json_text(report.as_json(), indent=None))
     else:
         print(_summary(report, comparison), end="")
         if written:
@@ -223,12 +221,6 @@ def run_navigate(args: argparse.Namespace) -> int:
                 f"{Path(args.out)}"
             )
     return EXIT_OK
-
-
-def _plain(record: dict[str, Any]) -> dict[str, Any]:
-    return {
-        k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in record.items()
-    }
 
 
 def _summary(report: TaskReport, comparison: dict[str, TaskReport]) -> str:
