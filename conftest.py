@@ -17,9 +17,9 @@ What each fenced block is, by its info string:
 - ```` ```lisp ````: a schema snippet; it must parse.
 - Anything else (`text`, `yaml`, `toml`, `json` without `file=`) is shown, not run.
 
-Each page gets a fresh temporary working directory holding a copy of the repository's
-`schemas/` and `docs/example-plugin/`, the files the pages name, so that the examples run as
-they would from the root of a checkout and leave nothing behind. Python blocks run there too.
+Each page gets a fresh temporary working directory holding a copy of the repository files the
+pages name (`COPIED`), so that the examples run as they would from the root of a checkout and
+leave nothing behind. Python blocks run there too.
 A block that must not run is preceded by `<!-- skip: next "why" -->`, and the page says why.
 Modules registered by a page's Python blocks are unregistered when the page ends.
 """
@@ -44,7 +44,12 @@ from sybil.parsers.markdown.lexers import RawFencedCodeBlockLexer
 ROOT = Path(__file__).resolve().parent
 
 #: Repository files the pages' examples use, copied into each page's working directory.
-COPIED = ("schemas", "docs/example-plugin")
+COPIED = (
+    "schemas",
+    "docs/example-plugin",
+    "domains/navigation/anytime_navigation/schemas",
+    "domains/navigation/anytime_navigation/maps",
+)
 
 #: The `anytime` command the shell blocks run: the one installed beside this Python.
 BIN = Path(sys.executable).parent
