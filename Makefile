@@ -6,7 +6,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 INSTALLED := $(VENV)/.installed
 
-.PHONY: demo test lint typecheck pytest slow wheel-check clean
+.PHONY: demo test lint typecheck pytest slow wheel-check bench docs clean
 
 # The main job: a robot crosses a 128x128 world it does not know, frame by frame, under the
 # monitor; the frame program is schemas/navigation.any compiled against the measured profiles.
@@ -19,8 +19,8 @@ demo: $(INSTALLED)
 test: lint typecheck pytest
 
 lint: $(INSTALLED)
-	$(BIN)/ruff check anytime domains/navigation tests benchmarks .ci
-	$(BIN)/ruff format --check anytime domains/navigation tests benchmarks .ci
+	$(BIN)/ruff check anytime domains/navigation tests benchmarks docs conftest.py .ci
+	$(BIN)/ruff format --check anytime domains/navigation tests benchmarks docs conftest.py .ci
 
 typecheck: $(INSTALLED)
 	$(BIN)/mypy
@@ -36,6 +36,15 @@ wheel-check: $(INSTALLED)
 # Long checks, kept out of `make test`.
 slow: $(INSTALLED)
 	$(BIN)/pytest -m slow
+
+# Every benchmark of benchmarks/ (quick settings where they exist), their tables written into
+# docs/benchmarks.md; a few minutes, kept out of `make test`.
+bench: $(INSTALLED)
+	$(BIN)/python benchmarks/write_page.py
+
+# The option lists of docs/cli.md, from the command line's own --help (the tests check them).
+docs: $(INSTALLED)
+	$(BIN)/python docs/cli_help.py
 
 $(INSTALLED): pyproject.toml domains/navigation/pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 11))' || \

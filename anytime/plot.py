@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from anytime.errors import AnytimeError
+from anytime.files import atomic_path
 from anytime.profiles.profile import Array, ConditionalPerformanceProfile, point_mass
 
 if TYPE_CHECKING:
@@ -103,7 +104,8 @@ def new_figure(width: float, height: float) -> Figure:
 
 
 def save_figure(figure: Figure, path: str | os.PathLike[str]) -> None:
-    """Write `figure` to `path` in the format its suffix names (PNG when it has none).
+    """Write `figure` to `path` in the format its suffix names (PNG when it has none),
+    atomically (a temporary file renamed over `path`).
 
     Raises:
         PlotError: a suffix that is no image format matplotlib writes.
@@ -116,7 +118,8 @@ def save_figure(figure: Figure, path: str | os.PathLike[str]) -> None:
             f"{os.fspath(path)}: unknown image format '.{suffix}' "
             f"(expected one of {', '.join('.' + f for f in sorted(formats))})"
         )
-    figure.savefig(os.fspath(path), dpi=DPI, format=suffix or "png")
+    with atomic_path(path) as temp:
+        figure.savefig(os.fspath(temp), dpi=DPI, format=suffix or "png")
 
 
 # --- performance profiles (Figures 4, 5, 7, 9) -----------------------------------------------

@@ -24,15 +24,20 @@ from anytime.cli.common import (
     EXIT_USAGE,
     InputError,
     UsageError,
+    float_in_range,
     format_table,
+    int_in_range,
+    json_text,
     positive_float,
     positive_int,
+    random_seed,
 )
 from anytime.clocks import Clock, Unit, WallClock, WorkClock
 from anytime.compiler import NoApplicableAlternative, compile_file, compile_program
 from anytime.compiler.compile import CompiledProgram, default_time_grid
 from anytime.dsl import SchemaFile, load_schemas, parse_schemas
 from anytime.errors import AnytimeError, ProfileError
+from anytime.files import InputFileError, atomic_path, read_input, write_atomic
 from anytime.library import AnytimeLibrary, CommandGroup, LibraryEntry, Plugin
 from anytime.modules import AnytimeModule, Context, ProfileSource, Result
 from anytime.modules import contract as _contract
@@ -71,6 +76,7 @@ __all__ = [
     "DeadlineValue",
     "EventLog",
     "InputError",
+    "InputFileError",
     "Instance",
     "LibraryEntry",
     "Measurement",
@@ -86,6 +92,7 @@ __all__ = [
     "VisionHyperbola",
     "WallClock",
     "WorkClock",
+    "atomic_path",
     "compile_file",
     "compile_program",
     "contract",
@@ -93,16 +100,22 @@ __all__ = [
     "deadline_from",
     "default_time_grid",
     "elementary",
+    "float_in_range",
     "format_table",
+    "int_in_range",
     "interruptible",
+    "json_text",
     "load_schemas",
     "new_figure",
     "parse_schemas",
     "positive_float",
     "positive_int",
     "proportional_split",
+    "random_seed",
+    "read_input",
     "save_figure",
     "tabulate",
+    "write_atomic",
 ]
 
 

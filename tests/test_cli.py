@@ -31,14 +31,22 @@ def test_no_command_is_a_usage_error(cli: Cli) -> None:
 
 
 @pytest.mark.parametrize(
-    "argv",
-    [["parse"], ["parse", "a.any", "--json", "--dot"], ["parse", "a.any", "--bogus"], ["nope"]],
+    ("argv", "message"),
+    [
+        (["parse"], "anytime parse: error: the following arguments are required: FILE\n"),
+        (
+            ["parse", "a.any", "--json", "--dot"],
+            "anytime parse: error: argument --dot: not allowed with argument --json\n",
+        ),
+        (["parse", "a.any", "--bogus"], "anytime: error: unrecognized arguments: --bogus\n"),
+        (["nope"], "anytime: error: argument COMMAND: invalid choice: 'nope' (choose from "),
+    ],
     ids=["missing-file", "json-and-dot", "unknown-option", "unknown-command"],
 )
-def test_usage_errors_exit_2(cli: Cli, argv: list[str]) -> None:
-    code, _, err = cli(*argv)
-    assert code == 2
-    assert "usage:" in err
+def test_usage_errors_exit_2_with_one_line(cli: Cli, argv: list[str], message: str) -> None:
+    code, out, err = cli(*argv)
+    assert (code, out) == (2, "")
+    assert err.startswith(message) and err.count("\n") == 1
 
 
 def test_parse_prints_straight_line_text_that_parses_back(cli: Cli, navigation_any: Path) -> None:

@@ -85,7 +85,7 @@ def test_a_profile_only_module_has_nothing_to_run(cli: Cli, tmp_path: Path) -> N
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
-        (["--trials", "0"], "argument --trials: expected a number >= 1, got 0"),
+        (["--trials", "0"], "argument --trials: expected a whole number from 1 to 100000, got 0"),
         (["--workers", "two"], "argument --workers: expected a whole number, got 'two'"),
         (["--workers", "2", "--scheduler", "tcp://x:1"], "not allowed with argument"),
     ],

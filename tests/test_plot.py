@@ -244,8 +244,6 @@ def test_plot_a_compiled_file_and_a_schema(
         (["{any}"], "anytime: error: {any} defines 2 schemas: say which one to draw with "
          "--schema NAME (one of p, q)"),
         (["{any}", "--schema", "r"], "{any}: error: no schema named 'r' (the file defines: p, q)"),
-        (["{any}", "--schema", "p", "--time-grid", "5:1:1"], "anytime: error: --time-grid: "
-         "expected START:STOP:STEP with 0 <= START <= STOP and STEP > 0, got '5:1:1'"),
         (["{dir}/nothing.yaml"], "{dir}/nothing.yaml: cannot read the file: No such file or "
          "directory"),
         (["{dir}/nothing.any"], "anytime: error: cannot read '{dir}/nothing.any': No such file "
@@ -264,7 +262,6 @@ def test_plot_a_compiled_file_and_a_schema(
     ids=[
         "which-schema",
         "unknown-schema",
-        "bad-time-grid",
         "missing-profile",
         "missing-schema-file",
         "bad-profile",

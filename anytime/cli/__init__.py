@@ -1,7 +1,8 @@
 """The `anytime` command.
 
 Exit codes: 0 success, 1 bad input (a message naming the file and place, never a traceback),
-2 usage errors (argparse's own). Each group of subcommands lives in its own module.
+2 usage errors (one line, argparse's own included), 130 interrupted (Ctrl-C). Each group of
+subcommands lives in its own module.
 
 Plugins add subcommands of their own: a `Plugin` (see `anytime.plugin`) with `add_commands`
 set receives a `CommandGroup` and adds each command with `add_command(name, help=..., run=...)`.
@@ -13,45 +14,109 @@ commands fail to load is warned about on stderr and the other commands still wor
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Callable, Sequence
+from typing import NoReturn
 
 from anytime import __version__
 from anytime.cli import library, measure, plot, schemas
-from anytime.cli.common import EXIT_INPUT, EXIT_OK, EXIT_USAGE, InputError, UsageError
+from anytime.cli.common import (
+    EXIT_INPUT,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    EXIT_USAGE,
+    InputError,
+    UsageError,
+)
 from anytime.errors import AnytimeError
+from anytime.files import InputFileError, OutputFileError
 from anytime.library import LibraryError, load_plugins
 
 __all__ = ["InputError", "UsageError", "build_parser", "main"]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    if args.command is None:
-        parser.print_help(sys.stderr)
-        return EXIT_USAGE
-    run: Callable[[argparse.Namespace], int] = args.run
+    """Run the command `argv` (default: the process's arguments) and return its exit status.
+
+    The one place errors are turned into messages: whatever a command (a plugin's too) raises
+    ends as one line on standard error, never a traceback. Ctrl-C ends any command with
+    `anytime: interrupted` and status 130; the files it writes are written atomically, so it
+    leaves no half-written output. Usage errors (argparse's and `UsageError`) exit 2.
+    """
     try:
-        return run(args)
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        if args.command is None:
+            parser.print_help(sys.stderr)
+            return EXIT_USAGE
+        run: Callable[[argparse.Namespace], int] = args.run
+        code = run(args)
+        sys.stdout.flush()  # an error writing the output is reported here, not at exit
+        return code
+    except KeyboardInterrupt:
+        print("anytime: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
     except UsageError as error:
         print(error, file=sys.stderr)
         return EXIT_USAGE
     except LibraryError as error:
         print(f"anytime: error: {error}", file=sys.stderr)
         return EXIT_INPUT
+    except (InputFileError, OutputFileError) as error:
+        print(f"anytime: error: {error}", file=sys.stderr)
+        return EXIT_INPUT
     except AnytimeError as error:
         print(error, file=sys.stderr)
         return EXIT_INPUT
     except BrokenPipeError:  # the reader went away, e.g. `anytime parse f | head -1`
+        _drop_stdout()
         return EXIT_OK
     except OSError as error:
-        print(f"anytime: error: cannot read '{error.filename}': {error.strerror}", file=sys.stderr)
+        if error.filename is None:  # writing standard output: a full disk, a closed terminal
+            _drop_stdout()
+            message = f"cannot write the output: {error.strerror or error}"
+        else:
+            message = f"cannot read '{error.filename}': {error.strerror or error}"
+        print(f"anytime: error: {message}", file=sys.stderr)
+        return EXIT_INPUT
+    except MemoryError:
+        print("anytime: error: out of memory", file=sys.stderr)
+        return EXIT_INPUT
+    except Exception as error:  # a bug: still one line, unless asked for the traceback
+        if os.environ.get("ANYTIME_TRACEBACK"):
+            raise
+        head = (str(error).splitlines() or [""])[0]
+        print(
+            f"anytime: internal error: {type(error).__name__}: {head} (a bug; please report it;"
+            " ANYTIME_TRACEBACK=1 shows the traceback)",
+            file=sys.stderr,
+        )
         return EXIT_INPUT
 
 
+def _drop_stdout() -> None:
+    """Point standard output at the null device, so that flushing it again when Python exits
+    cannot fail a second time (with 'Exception ignored ... BrokenPipeError')."""
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, OSError, ValueError):  # not a real file (captured in tests)
+        return
+    null = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(null, fd)
+    os.close(null)
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser, whose usage errors are one line: `anytime CMD: error: MESSAGE`,
+    exit status 2 (`anytime CMD --help` has the usage)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser: argparse.ArgumentParser = _Parser(  # its subcommands are _Parsers too
         prog="anytime",
         description="Compose anytime algorithms: write program schemas, compile them into "
         "contract algorithms with optimal time allocation, run them under a monitor.",

@@ -3,14 +3,18 @@
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 from anytime.errors import AnytimeError
 from anytime.library import AnytimeLibrary
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE = 0, 1, 2
+#: Ctrl-C: the shell's status for a process ended by SIGINT (128 + 2).
+EXIT_INTERRUPTED = 130
 
 
 class InputError(AnytimeError):
@@ -38,8 +42,147 @@ def positive_float(text: str) -> float:
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
     if not (value > 0 and math.isfinite(value)):
-        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text}")
+        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text}")
     return value
+
+
+# --- option types with limits: every number checked when it is parsed (argparse's exit 2) ----
+
+#: The largest seed (numpy's generators take any integer >= 0; a 64-bit one is plenty).
+MAX_SEED = 2**64 - 1
+#: The most instances per cell `anytime profile` and `anytime check` run (their tables grow
+#: with it; the defaults are 100 and 20).
+MAX_TRIALS = 100_000
+#: The most local worker processes.
+MAX_WORKERS = 256
+#: The most totals a --time-grid may have (the default grid has about 20).
+MAX_TIME_POINTS = 10_000
+#: The most multiples of the resolution up to the largest total (the lattice allocations are
+#: on; the compiler's tables grow with it: 20,000 points take about 250 MB for navigation.any).
+MAX_LATTICE_POINTS = 20_000
+#: The most program input qualities in --input-quality (a grid for each quality input).
+MAX_QUALITY_POINTS = 101
+
+
+def _whole(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+
+
+def int_in_range(minimum: int, maximum: int) -> Callable[[str], int]:
+    """An option type: a whole number from `minimum` to `maximum` (both included)."""
+
+    def parse(text: str) -> int:
+        value = _whole(text)
+        if not minimum <= value <= maximum:
+            raise argparse.ArgumentTypeError(
+                f"expected a whole number from {minimum} to {maximum}, got {text}"
+            )
+        return value
+
+    parse.__name__ = "whole number"  # argparse's name for the type in its own messages
+    return parse
+
+
+def float_in_range(minimum: float, maximum: float) -> Callable[[str], float]:
+    """An option type: a finite number > `minimum` and <= `maximum`."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+        if not minimum < value <= maximum:
+            raise argparse.ArgumentTypeError(
+                f"expected a number > {minimum:g} and <= {maximum:g}, got {text}"
+            )
+        return value
+
+    parse.__name__ = "number"
+    return parse
+
+
+def random_seed(text: str) -> int:
+    """An option type: a random seed, a whole number from 0 to `MAX_SEED`."""
+    value = _whole(text)
+    if not 0 <= value <= MAX_SEED:
+        raise argparse.ArgumentTypeError(
+            f"expected a whole number >= 0 (at most 2**64 - 1), got {text}"
+        )
+    return value
+
+
+#: Option types: instances per cell, local worker processes.
+trial_count = int_in_range(1, MAX_TRIALS)
+worker_count = int_in_range(1, MAX_WORKERS)
+
+
+def time_grid(text: str) -> tuple[float, ...]:
+    """An option type: START:STOP:STEP, both ends included, at most `MAX_TIME_POINTS` totals."""
+    parts = text.split(":")
+    try:
+        start, stop, step = (float(p) for p in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected START:STOP:STEP (three numbers), got {text!r}"
+        ) from None
+    if not all(math.isfinite(x) for x in (start, stop, step)):
+        raise argparse.ArgumentTypeError(f"expected finite numbers, got {text!r}")
+    if not (0 <= start <= stop and step > 0):
+        raise argparse.ArgumentTypeError(
+            f"expected START:STOP:STEP with 0 <= START <= STOP and STEP > 0, got {text!r}"
+        )
+    ratio = (stop - start) / step + 1e-9  # inf for a step too small to divide by
+    if ratio >= MAX_TIME_POINTS:
+        many = f"{math.floor(ratio) + 1:,}" if math.isfinite(ratio) else "infinitely many"
+        raise argparse.ArgumentTypeError(
+            f"{text!r} has {many} totals, more than the limit of {MAX_TIME_POINTS:,}: give a "
+            "larger STEP"
+        )
+    return tuple(start + i * step for i in range(math.floor(ratio) + 1))
+
+
+def quality_list(text: str) -> tuple[float, ...]:
+    """An option type: Q,Q,... input qualities in [0, 1], at most `MAX_QUALITY_POINTS`."""
+    try:
+        values = tuple(float(part) for part in text.split(",") if part.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected numbers separated by commas, got {text!r}"
+        ) from None
+    if not values:
+        raise argparse.ArgumentTypeError("expected at least one quality")
+    if not all(0 <= q <= 1 for q in values):  # NaN fails too
+        raise argparse.ArgumentTypeError(f"expected qualities from 0 to 1, got {text!r}")
+    if len(values) > MAX_QUALITY_POINTS:
+        raise argparse.ArgumentTypeError(
+            f"{len(values)} qualities, more than the limit of {MAX_QUALITY_POINTS}"
+        )
+    return values
+
+
+def check_lattice(grid: Sequence[float], resolution: float | None, command: str) -> None:
+    """A usage error when the allocations' lattice (the multiples of the resolution up to the
+    largest total) would have more than `MAX_LATTICE_POINTS` points."""
+    if not grid:
+        return
+    steps = [b - a for a, b in zip(grid, grid[1:], strict=False) if b > a]
+    dt = resolution if resolution is not None else (min(steps) if steps else grid[0] or 1.0)
+    points = max(grid) / dt + 1
+    if points > MAX_LATTICE_POINTS:
+        many = f"{points:,.0f}" if points < 1e15 else f"{points:.2g}"
+        many = many if math.isfinite(points) else "infinitely many"
+        if resolution is not None:
+            cause, fix = f"--resolution {resolution:g}", "a larger --resolution"
+        else:
+            cause, fix = f"the time grid's step {dt:g}", "--resolution DT or a coarser --time-grid"
+        raise UsageError(
+            f"anytime {command}: error: {cause}: allocations on its multiples up to"
+            f" {max(grid):g} make a lattice of {many} points, more than the limit of"
+            f" {MAX_LATTICE_POINTS:,}; give {fix}"
+        )
 
 
 def library_options(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
@@ -63,6 +206,23 @@ def open_library(args: argparse.Namespace) -> AnytimeLibrary:
     for problem in library.problems:
         print(f"anytime: warning: {problem}", file=sys.stderr)
     return library
+
+
+def json_text(data: Any, *, indent: int | None = 2) -> str:
+    """`data` as JSON that any parser reads: JSON has no NaN or Infinity, so a float that is
+    not finite is written as null. Values must be plain (numpy scalars are a bug where they are
+    made, and raise TypeError here)."""
+    return json.dumps(_finite(data), indent=indent, allow_nan=False)
+
+
+def _finite(data: Any) -> Any:
+    if isinstance(data, float):
+        return data if math.isfinite(data) else None
+    if isinstance(data, dict):
+        return {key: _finite(value) for key, value in data.items()}
+    if isinstance(data, list | tuple):
+        return [_finite(value) for value in data]
+    return data
 
 
 def format_table(rows: Sequence[Sequence[str]], indent: int = 0) -> str:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from typing import Any
 
@@ -13,6 +12,7 @@ from anytime.cli.common import (
     EXIT_INPUT,
     EXIT_OK,
     format_table,
+    json_text,
     library_options,
     open_library,
 )
@@ -65,7 +65,7 @@ def run_library_list(args: argparse.Namespace) -> int:
         else:
             rows.append(_entry_json(entry, profile))
     if args.json:
-        print(json.dumps(rows, indent=2))
+        print(json_text(rows))
     elif not rows:
         where = ", ".join(source.name for source in library.sources)
         print(f"no modules found (looked in: {where})")
@@ -89,7 +89,7 @@ def run_library_show(args: argparse.Namespace) -> int:
     profile = entry.profile
     if args.json:
         data = _entry_json(entry, profile, full=True)
-        print(json.dumps(data, indent=2))
+        print(json_text(data))
         return EXIT_OK
     kind = entry.kind if entry.module is not None else f"{entry.kind} (profile only)"
     if entry.module is not None:

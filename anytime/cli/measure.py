@@ -3,19 +3,26 @@
 from __future__ import annotations
 
 import argparse
-import json
+import math
 import sys
 from pathlib import Path
 
 from anytime.cli.common import (
     EXIT_INPUT,
     EXIT_OK,
+    MAX_TRIALS,
+    MAX_WORKERS,
     InputError,
+    UsageError,
+    float_in_range,
+    json_text,
     library_options,
     open_library,
-    positive_float,
-    positive_int,
+    random_seed,
+    trial_count,
+    worker_count,
 )
+from anytime.files import format_size
 from anytime.library import AnytimeLibrary
 from anytime.modules import AnytimeModule
 from anytime.profiles.builder import (
@@ -26,6 +33,13 @@ from anytime.profiles.builder import (
 from anytime.profiles.io import load_profile, save_profile
 from anytime.runtime.calibrate import CalibrationError, calibrate, convert_profile
 from anytime.testing import CatalogueError, check_module
+
+#: The largest table of measured qualities `anytime profile` makes (trials x cells x times).
+MAX_TABLE_BYTES = 1 << 30
+#: The most runs `anytime check` makes (each is kept until the checks are done).
+MAX_CHECK_RUNS = 100_000
+#: The longest calibration (seconds).
+MAX_CALIBRATION_SECONDS = 3600
 
 
 def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -39,18 +53,26 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     profile.add_argument("module", metavar="MODULE", help="the module's name")
     profile.add_argument(
-        "--trials", type=positive_int, default=100, metavar="N", help="instances per cell (100)"
+        "--trials",
+        type=trial_count,
+        default=100,
+        metavar="N",
+        help=f"instances per cell (100; at most {MAX_TRIALS})",
     )
     where = profile.add_mutually_exclusive_group()
     where.add_argument(
-        "--workers", type=positive_int, default=1, metavar="N", help="local processes (1)"
+        "--workers",
+        type=worker_count,
+        default=1,
+        metavar="N",
+        help=f"local processes (1; at most {MAX_WORKERS})",
     )
     where.add_argument(
         "--scheduler",
         metavar="ADDRESS",
         help="run the trials on a Dask cluster (needs the 'dask' extra)",
     )
-    profile.add_argument("--seed", type=int, default=0, metavar="S", help="root seed (0)")
+    profile.add_argument("--seed", type=random_seed, default=0, metavar="S", help="root seed (0)")
     profile.add_argument(
         "--clock",
         choices=["work", "wall"],
@@ -76,12 +98,14 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     calibrate_.add_argument("module", metavar="MODULE", help="the module's name")
     calibrate_.add_argument(
         "--seconds",
-        type=positive_float,
+        type=float_in_range(0, MAX_CALIBRATION_SECONDS),
         default=1.0,
         metavar="S",
-        help="wall-time budget of the measurement (1)",
+        help=f"wall-time budget of the measurement (1; at most {MAX_CALIBRATION_SECONDS})",
     )
-    calibrate_.add_argument("--seed", type=int, default=0, metavar="S", help="root seed (0)")
+    calibrate_.add_argument(
+        "--seed", type=random_seed, default=0, metavar="S", help="root seed (0)"
+    )
     calibrate_.add_argument("--profile", metavar="FILE", help="a profile file to convert")
     calibrate_.add_argument(
         "--to",
@@ -107,9 +131,13 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     check.add_argument("module", metavar="MODULE", help="the module's name")
     check.add_argument(
-        "--trials", type=positive_int, default=20, metavar="N", help="instances per cell (20)"
+        "--trials",
+        type=trial_count,
+        default=20,
+        metavar="N",
+        help=f"instances per cell (20; at most {MAX_CHECK_RUNS:,} runs in all)",
     )
-    check.add_argument("--seed", type=int, default=0, metavar="S", help="root seed (0)")
+    check.add_argument("--seed", type=random_seed, default=0, metavar="S", help="root seed (0)")
     check.add_argument("--json", action="store_true", help="print the report as JSON")
     library_options(check)
     check.set_defaults(run=run_check)
@@ -117,6 +145,18 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 def run_profile(args: argparse.Namespace) -> int:
     module, library = _runnable(args)
+    try:
+        grid = library.measurement(module.name).grid
+    except BuildError as error:
+        raise InputError(f"anytime: error: {error}") from None
+    cells = math.prod(grid.cell_shape)
+    size = 8 * args.trials * cells * len(grid.time)  # the builder's table of qualities
+    if size > MAX_TABLE_BYTES:
+        raise UsageError(
+            f"anytime profile: error: --trials {args.trials}: {cells} cells x {len(grid.time)}"
+            f" times make a table of {format_size(size)}, more than the limit of"
+            f" {format_size(MAX_TABLE_BYTES)}; give fewer --trials"
+        )
     request = ProfileRequest(
         trials=args.trials,
         seed=args.seed,
@@ -135,17 +175,7 @@ def run_profile(args: argparse.Namespace) -> int:
     except OSError as error:
         raise InputError(f"anytime: error: cannot write '{output}': {error.strerror}") from None
     if args.json:
-        summary = {
-            "module": module.name,
-            "file": str(output),
-            "trials": build.trials,
-            "runs": build.runs,
-            "failures": build.failures,
-            "overruns": build.overruns,
-            "seed": build.seed,
-            "seconds": round(build.seconds, 3),
-        }
-        print(json.dumps(summary, indent=2))
+        print(json_text({"module": module.name, "file": str(output)} | build.to_dict()))
     else:
         print(build.summary())
         print(f"wrote {output}")
@@ -196,7 +226,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
                 f"anytime: error: cannot write '{args.output}': {error.strerror}"
             ) from None
     if args.json:
-        print(json.dumps(calibration.to_dict() | {"file": args.output}, indent=2))
+        print(json_text(calibration.to_dict() | {"file": args.output}))
     else:
         print(calibration.summary())
         if profile is not None:
@@ -208,6 +238,14 @@ def run_check(args: argparse.Namespace) -> int:
     module, library = _runnable(args)
     try:
         plan = library.measurement(module.name)
+        cells = math.prod(plan.grid.cell_shape)
+        runs = args.trials * cells * (len(plan.grid.time) + 1)  # deadline and interruption runs
+        if runs > MAX_CHECK_RUNS:
+            raise UsageError(
+                f"anytime check: error: --trials {args.trials}: {cells} cells x"
+                f" {len(plan.grid.time) + 1} runs each make {runs:,} runs, more than the limit"
+                f" of {MAX_CHECK_RUNS:,}; give fewer --trials"
+            )
         report = check_module(
             module,
             plan.problems,
@@ -218,7 +256,7 @@ def run_check(args: argparse.Namespace) -> int:
     except (BuildError, CatalogueError) as error:
         raise InputError(f"anytime: error: {error}") from None
     if args.json:
-        print(json.dumps(report.to_dict(), indent=2))
+        print(json_text(report.to_dict()))
     else:
         print(report.format())
     if report.passed:

@@ -20,10 +20,11 @@ from typing import NoReturn
 import numpy as np
 import yaml
 
-from anytime.cli.common import EXIT_OK, InputError, library_options, open_library
+from anytime.cli.common import EXIT_OK, InputError, library_options, open_library, time_grid
 from anytime.cli.schemas import check_schema_name, compile_schemas
 from anytime.compiler.compile import ALLOCATOR_NAMES
 from anytime.dsl import load_schemas
+from anytime.files import MAX_PROFILE_BYTES, read_input
 from anytime.plot import (
     MissingMatplotlibError,
     PlotError,
@@ -65,6 +66,7 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     schema.add_argument(
         "--time-grid",
+        type=time_grid,
         metavar="START:STOP:STEP",
         help="the totals to compile for (default: as for compile)",
     )
@@ -123,7 +125,13 @@ def _plot_schema(args: argparse.Namespace, output: Path) -> None:
         check_schema_name(schemas, args.file, args.schema)
         name = args.schema.lower()
     compiled = compile_schemas(
-        args.file, schemas, library, args.time_grid, schema=name, allocator=args.allocator
+        args.file,
+        schemas,
+        library,
+        args.time_grid,
+        schema=name,
+        allocator=args.allocator,
+        command="plot",
     )
     plot_compiled(next(c for c in compiled if c.name == name), output, title=args.title)
 
@@ -133,7 +141,7 @@ def _allocation_table(
 ) -> tuple[Sequence[str], Array] | None:
     """A compiled program's `modules` and `allocation` fields, checked against its profile;
     None for a plain profile. (`load_profile` has read and validated the rest of the file.)"""
-    data = yaml.safe_load(Path(filename).read_text(encoding="utf-8-sig"))
+    data = yaml.safe_load(read_input(filename, limit=MAX_PROFILE_BYTES).decode("utf-8-sig"))
     if "allocation" not in data and "modules" not in data:
         return None
     for field in ("modules", "allocation"):

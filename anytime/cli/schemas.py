@@ -4,16 +4,20 @@ profiles out."""
 from __future__ import annotations
 
 import argparse
-import json
-import math
 from collections.abc import Sequence
-from pathlib import Path
 
 from anytime.cli.common import (
     EXIT_OK,
+    MAX_LATTICE_POINTS,
+    MAX_TIME_POINTS,
     InputError,
+    check_lattice,
+    json_text,
     library_options,
     open_library,
+    positive_float,
+    quality_list,
+    time_grid,
 )
 from anytime.compiler import (
     CompiledProgram,
@@ -24,6 +28,8 @@ from anytime.compiler import (
 )
 from anytime.compiler.compile import ALLOCATOR_NAMES, DEFAULT_INPUT_QUALITY, default_time_grid
 from anytime.dsl import SchemaFile, format_programs, graph_to_dot, load_schemas, program_to_json
+from anytime.dsl.parser import decode_source
+from anytime.files import MAX_SCHEMA_BYTES, read_input
 from anytime.library import AnytimeLibrary
 
 
@@ -66,21 +72,24 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     compile_.add_argument(
         "--time-grid",
+        type=time_grid,
         metavar="START:STOP:STEP",
         help="the totals to compile for (default: 0 to the sum of the modules' longest "
-        "profiled times, in about 20 steps)",
+        f"profiled times, in about 20 steps; at most {MAX_TIME_POINTS:,} totals)",
     )
     compile_.add_argument(
         "--resolution",
-        type=float,
+        type=positive_float,
         metavar="DT",
-        help="allocations are multiples of DT (default: the time grid's STEP)",
+        help="allocations are multiples of DT (default: the time grid's STEP; at most "
+        f"{MAX_LATTICE_POINTS:,} multiples up to the largest total)",
     )
     compile_.add_argument(
         "--input-quality",
+        type=quality_list,
         metavar="Q,Q,...",
         default=",".join(f"{q:g}" for q in DEFAULT_INPUT_QUALITY),
-        help="the grid of program input qualities (default: 0,0.1,...,1)",
+        help="the grid of program input qualities, each from 0 to 1 (default: 0,0.1,...,1)",
     )
     compile_.add_argument(
         "--time-unit",
@@ -103,7 +112,7 @@ def run_parse(args: argparse.Namespace) -> int:
         check_schema_name(schemas, args.file, args.schema)
         programs = (schemas[args.schema],)
     if args.json:
-        print(json.dumps({"schemas": [program_to_json(p) for p in programs]}, indent=2))
+        print(json_text({"schemas": [program_to_json(p) for p in programs]}))
     elif args.dot:
         print(graph_to_dot(p.graph for p in programs), end="")
     else:
@@ -128,7 +137,7 @@ def run_compile(args: argparse.Namespace) -> int:
         args.time_grid,
         schema=args.schema,
         allocator=args.allocator,
-        input_quality=_parse_numbers(args.input_quality, "--input-quality"),
+        input_quality=args.input_quality,
         resolution=args.resolution,
     )
     wanted = [c for c in compiled if args.schema is None or c.name == args.schema.lower()]
@@ -149,7 +158,7 @@ def run_compile(args: argparse.Namespace) -> int:
             ) from None
     if args.json:
         reports = [compiled_to_dict(c) for c in wanted]
-        print(json.dumps(reports[0] if len(reports) == 1 else {"schemas": reports}, indent=2))
+        print(json_text(reports[0] if len(reports) == 1 else {"schemas": reports}))
     else:
         print("\n".join(format_report(c) for c in wanted), end="")
         if args.output is not None:
@@ -170,21 +179,23 @@ def compile_schemas(
     filename: str,
     schemas: SchemaFile,
     library: AnytimeLibrary,
-    time_grid: str | None,
+    time_grid: Sequence[float] | None,
     *,
     schema: str | None,
     allocator: str,
     input_quality: Sequence[float] = DEFAULT_INPUT_QUALITY,
     resolution: float | None = None,
+    command: str = "compile",
 ) -> list[CompiledProgram]:
-    """`compile_file` as the commands run it: the time grid from its START:STOP:STEP text (or
-    the default), the file's lines for error messages, compile errors as one-line input
-    errors naming the file."""
+    """`compile_file` as the commands run it: the time grid given (by the `time_grid` option
+    type) or the default, a lattice too large refused up front (a usage error), the file's
+    lines for error messages, compile errors as one-line input errors naming the file."""
     if time_grid is not None:
-        grid = _parse_time_grid(time_grid)
+        grid = list(time_grid)
     else:
         grid = default_time_grid(schemas, library, schema)
-    lines = Path(filename).read_text(encoding="utf-8-sig").split("\n")
+    check_lattice(grid, resolution, command)
+    lines = decode_source(read_input(filename, limit=MAX_SCHEMA_BYTES), filename).split("\n")
     try:
         return compile_file(
             schemas,
@@ -200,28 +211,3 @@ def compile_schemas(
         message = str(error)
         prefixed = message if ": error: " in message else f"{filename}: error: {message}"
         raise InputError(prefixed) from None
-
-
-def _parse_numbers(text: str, option: str) -> list[float]:
-    try:
-        return [float(part) for part in text.split(",") if part.strip()]
-    except ValueError:
-        raise InputError(
-            f"anytime: error: {option}: expected numbers separated by commas, got {text!r}"
-        ) from None
-
-
-def _parse_time_grid(text: str) -> list[float]:
-    """START:STOP:STEP, both ends included."""
-    parts = text.split(":")
-    try:
-        start, stop, step = (float(p) for p in parts)
-    except ValueError:
-        start = stop = step = math.nan
-    if not (0 <= start <= stop and step > 0) or len(parts) != 3:
-        raise InputError(
-            "anytime: error: --time-grid: expected START:STOP:STEP with 0 <= START <= STOP "
-            f"and STEP > 0, got {text!r}"
-        )
-    count = int(math.floor((stop - start) / step + 1e-9)) + 1
-    return [start + i * step for i in range(count)]

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import os
-from pathlib import Path
 
 from anytime.dsl.graph import DataflowGraph, Edge, InputRef, Node, NodeRef
 from anytime.dsl.normalize import KnownFunctions, normalize
 from anytime.dsl.parser import MAX_NESTING, decode_source, parse_syntax
 from anytime.dsl.printer import format_program, format_programs, graph_to_dot, program_to_json
 from anytime.dsl.program import Literal, Program, SchemaFile, Step, Var
+from anytime.files import MAX_SCHEMA_BYTES, read_input
 
 __all__ = [
     "MAX_NESTING",
@@ -51,9 +51,11 @@ def load_schemas(
     """Read, parse and check a schema file; errors name the file as it was given.
 
     Raises:
+        InputFileError: the file is not a regular file, or is larger than `MAX_SCHEMA_BYTES`
+            (it is not read).
         OSError: the file cannot be read.
         SchemaError: as `parse_schemas`, or the file is not UTF-8 text.
     """
     filename = os.fspath(path)
-    text = decode_source(Path(path).read_bytes(), filename)
+    text = decode_source(read_input(path, limit=MAX_SCHEMA_BYTES, kind="schema files"), filename)
     return parse_schemas(text, filename, known_functions)

@@ -7,7 +7,7 @@ instances at every point of the input-quality grid and time grid, scores each ou
 returns the measured profile: the histogram of scored qualities per cell, with its sample mean,
 standard deviation and sample count.
 
-How time is measured (DESIGN.md section 4): by default with a `WorkClock`, so a profile counts
+How time is measured (see docs/plugins.md): by default with a `WorkClock`, so a profile counts
 the ticks a module reports and does not depend on how busy the machine is.
 
 - An **interruptible** module runs once per instance, up to the largest time on the grid. At
@@ -32,6 +32,7 @@ import difflib
 import importlib
 import math
 import secrets
+import signal
 import time as _time
 from collections.abc import Iterator, Mapping, Sequence
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
@@ -179,6 +180,17 @@ class ProfileBuild:
         """Trials per second."""
         total = self.trials * math.prod(self.profile.cell_shape[:-1])
         return total / self.seconds if self.seconds > 0 else math.inf
+
+    def to_dict(self) -> dict[str, Any]:
+        """The counts of the build as plain JSON values (`anytime profile --json`)."""
+        return {
+            "trials": int(self.trials),
+            "runs": int(self.runs),
+            "failures": int(self.failures),
+            "overruns": int(self.overruns),
+            "seed": int(self.seed),
+            "seconds": round(float(self.seconds), 3),
+        }
 
     def summary(self) -> str:
         """A few lines for a terminal: what was measured, and failures if any."""
@@ -421,17 +433,32 @@ def _tabulate(
     )
 
 
+def _ignore_interrupts() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def _run(chunks: list[Chunk], executor: Executor | None, workers: int) -> Iterator[Done]:
     """Finished chunks as they come back, in any order."""
     if executor is None and workers == 1:
         yield from map(measure_chunk, chunks)
         return
-    pool: Executor = executor if executor is not None else ProcessPoolExecutor(workers)
+    # The workers ignore Ctrl-C (the terminal sends it to them too): the parent stops them.
+    own: ProcessPoolExecutor | None = None
+    pool: Executor
+    if executor is None:
+        pool = own = ProcessPoolExecutor(workers, initializer=_ignore_interrupts)
+    else:
+        pool = executor
     futures: list[Future[Done]] = []
     try:
         futures = [pool.submit(measure_chunk, chunk) for chunk in chunks]
         for future in as_completed(futures):
             yield future.result()
+    except (KeyboardInterrupt, GeneratorExit):
+        if own is not None:  # stop the running chunks now rather than wait for them
+            for process in list((own._processes or {}).values()):
+                process.terminate()
+        raise
     finally:
         for future in futures:  # after an error: drop what has not started
             future.cancel()

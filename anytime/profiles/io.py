@@ -1,6 +1,6 @@
 """The profile file format, `anytime-profile/1`: reading (validated) and writing (exact).
 
-A profile file is one YAML mapping (DESIGN.md section 5)::
+A profile file is one YAML mapping (docs/profiles.md says more)::
 
     format: anytime-profile/1          # required, the version of this format
     module: find-path                  # default: the file name without its extension
@@ -51,6 +51,7 @@ import yaml
 from numpy.typing import NDArray
 
 from anytime.errors import ProfileError
+from anytime.files import MAX_PROFILE_BYTES, read_input, write_atomic
 from anytime.profiles.profile import (
     Array,
     ConditionalPerformanceProfile,
@@ -101,7 +102,8 @@ def load_profile(path: str | os.PathLike[str]) -> ConditionalPerformanceProfile:
     """Read and validate a profile file; every problem is a `ProfileError` naming the file."""
     filename = os.fspath(path)
     try:
-        text = Path(path).read_text(encoding="utf-8-sig")
+        data = read_input(path, limit=MAX_PROFILE_BYTES, kind="profile files")
+        text = data.decode("utf-8-sig").replace("\r\n", "\n").replace("\r", "\n")
     except UnicodeDecodeError as exc:
         bad = exc.object[exc.start : exc.start + 1].hex()
         raise ProfileError(
@@ -443,7 +445,8 @@ def save_profile(
     path: str | os.PathLike[str],
     extra: Mapping[str, Any] | None = None,
 ) -> None:
-    """Write `profile` to `path` in the `anytime-profile/1` format (OSError if it cannot).
+    """Write `profile` to `path` in the `anytime-profile/1` format, atomically (a temporary
+    file renamed over `path`; OSError if it cannot).
 
     `extra` adds fields a reader of profiles skips (a compiled program's `modules` and
     `allocation`); arrays in it are written like the profile's tables.
@@ -461,7 +464,7 @@ def save_profile(
         allow_unicode=True,
         width=1_000_000,  # one row of a table per line, however many bins
     )
-    Path(path).write_text(text, encoding="utf-8")
+    write_atomic(path, text)
 
 
 def _is_point_mass(profile: ConditionalPerformanceProfile) -> bool:

@@ -297,6 +297,7 @@ def _contract(trial: Trial, time: Array, out: Array) -> tuple[Failures, int]:
         if not isinstance(result, Result):
             failed.append((f"returned a {type(result).__name__}, not a Result", ""))
             continue
-        overruns += used > allocation
+        if used > allocation:  # counted as a plain int (a numpy bool would make it int64)
+            overruns += 1
         out[j] = trial.score(instance, result.value)
     return failed, overruns

@@ -1,6 +1,6 @@
 """Calibration: how many ticks a module reports per second, and profiles converted between units.
 
-Profiles are measured on the work clock, in the ticks a module reports (DESIGN.md section 4):
+Profiles are measured on the work clock, in the ticks a module reports (see docs/plugins.md):
 deterministic and machine-independent. A system that runs on the wall clock needs them in
 seconds, and the factor between the two is a property of the module on this machine.
 `calibrate` measures it: it runs the module on instances of its registered problem set until a

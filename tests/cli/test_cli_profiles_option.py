@@ -1,8 +1,12 @@
 """One spelling of the profile-directory option: `--profiles DIR` (repeatable) on every command
 that reads the library; `--library` is gone, parse's boolean check is `--check-calls`."""
 
+from collections.abc import Callable
+
 import pytest
-from conftest import Cli
+
+#: The `cli` fixture (tests/conftest.py): runs `anytime` in-process, (exit code, stdout, stderr).
+Cli = Callable[..., tuple[int, str, str]]
 
 #: Every command that reads the anytime library, with its positional arguments.
 LIBRARY_COMMANDS = [

@@ -28,8 +28,12 @@ SCHEMAS = """\
 """
 
 BAD_GRID = (
-    "anytime: error: --time-grid: expected START:STOP:STEP with 0 <= START <= STOP and "
-    "STEP > 0, got {!r}\n"
+    "anytime compile: error: argument --time-grid: expected START:STOP:STEP with 0 <= START"
+    " <= STOP and STEP > 0, got {!r}\n"
+)
+NOT_A_GRID = (
+    "anytime compile: error: argument --time-grid: expected START:STOP:STEP (three numbers),"
+    " got {!r}\n"
 )
 
 
@@ -207,12 +211,24 @@ def test_time_grid_option(cli: Cli, setup: tuple[Path, Path]) -> None:
 
 
 @pytest.mark.parametrize(
-    "grid", ["10:0:5", "a:b:c", "0:10:0", "0:10:-5", "-5:10:5", "0:10", "0:10:5:1", ""]
+    ("grid", "message"),
+    [
+        ("10:0:5", BAD_GRID),
+        ("a:b:c", NOT_A_GRID),
+        ("0:10:0", BAD_GRID),
+        ("0:10:-5", BAD_GRID),
+        ("-5:10:5", BAD_GRID),
+        ("0:10", NOT_A_GRID),
+        ("0:10:5:1", NOT_A_GRID),
+        ("", NOT_A_GRID),
+    ],
 )
-def test_bad_time_grids_exit_1_with_one_line(cli: Cli, setup: tuple[Path, Path], grid: str) -> None:
+def test_bad_time_grids_exit_2_with_one_line(
+    cli: Cli, setup: tuple[Path, Path], grid: str, message: str
+) -> None:
     code, out, err = compile_p(cli, setup, f"--time-grid={grid}")
-    assert (code, out) == (1, "")
-    assert err == BAD_GRID.format(grid)
+    assert (code, out) == (2, "")
+    assert err == message.format(grid)
 
 
 def test_unknown_function_names_its_place(cli: Cli, setup: tuple[Path, Path]) -> None:

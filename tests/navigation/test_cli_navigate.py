@@ -45,7 +45,6 @@ def _map(tmp_path, rows):
     "args, words",
     [
         (["--map", "/no/such.map"], "cannot read"),
-        (["--size", "-4"], "power of two"),
     ],
 )
 def test_bad_input_one_line(args, words):

@@ -140,7 +140,7 @@ def _split_map(tmp_path: Path) -> str:
     ("argv", "message"),
     [
         (["--start", "60,3", "--goal", "1,11"], "--start 60,3 is outside the 49x49 map '{map}'"),
-        (["--start", "1,11", "--goal", "1,-1"], "--goal 1,-1 is outside the 49x49 map '{map}'"),
+        (["--start", "1,11", "--goal", "1,49"], "--goal 1,49 is outside the 49x49 map '{map}'"),
         (["--start", "0,0", "--goal", "1,11"], "--start 0,0 is a blocked cell of '{map}'"),
     ],
     ids=["start-outside", "goal-outside", "start-blocked"],
@@ -265,7 +265,7 @@ def test_malformed_map_and_scenario(cli: Cli, tmp_path: Path) -> None:
 def test_usage_errors(cli: Cli, argv: list[str], message: str) -> None:
     code, out, err = cli("plan", "--map", ARENA, *argv)
     assert (code, out) == (2, "")
-    assert err.startswith("usage: anytime plan")
+    assert err.count("\n") == 1
     assert err.splitlines()[-1].startswith(message)
 
 

@@ -28,7 +28,7 @@ from anytime.profiles.io import (
 
 DATA = Path(__file__).parent / "data"
 
-# --- the example of DESIGN.md section 5 ------------------------------------------------------
+# --- an example of the format (docs/profiles.md) ---------------------------------------------
 
 
 def test_design_example_loads() -> None:

@@ -265,7 +265,7 @@ def test_a_profile_of_another_module(cli: Cli, tmp_path: Path) -> None:
     ("argv", "message"),
     [
         (["-o", "out.yaml"], "error: --profile FILE and -o OUT go together"),
-        (["--seconds", "0"], "argument --seconds: expected a number > 0, got 0"),
+        (["--seconds", "0"], "argument --seconds: expected a number > 0 and <= 3600, got 0"),
         (["--to", "minutes"], "argument --to: invalid choice: 'minutes'"),
     ],
     ids=["output-without-profile", "zero-seconds", "unknown-unit"],

@@ -66,7 +66,7 @@ def write_frames(report: TaskReport, task: NavigationTask, out: str | Path) -> l
     from matplotlib.patches import Rectangle
     from PIL import Image
 
-    from anytime.plugin import new_figure, save_figure
+    from anytime.plugin import atomic_path, new_figure, save_figure
 
     from .figures import draw_plan
 
@@ -117,6 +117,9 @@ def write_frames(report: TaskReport, task: NavigationTask, out: str | Path) -> l
     if written:
         images = [Image.open(p).convert("P") for p in written]
         gif = out / "run.gif"
-        images[0].save(gif, save_all=True, append_images=images[1:], duration=700, loop=0)
+        with atomic_path(gif) as temp:
+            images[0].save(
+                temp, format="GIF", save_all=True, append_images=images[1:], duration=700, loop=0
+            )
         written.append(str(gif))
     return written

@@ -21,7 +21,7 @@ import numpy as np
 from attrs import frozen
 from numpy.typing import NDArray
 
-from anytime.plugin import AnytimeError
+from anytime.plugin import AnytimeError, read_input
 
 from .world import BoolGrid, Position
 
@@ -32,6 +32,12 @@ BLOCKED = "@OTW"
 _CODES = np.full(256, 2, dtype=np.uint8)
 _CODES[[ord(c) for c in PASSABLE]] = 0
 _CODES[[ord(c) for c in BLOCKED]] = 1
+
+#: The largest `.map` file read: a map of 8000 x 8000 cells (the largest MovingAI maps are
+#: 1024 x 1024, about 1 MiB).
+MAX_MAP_BYTES = 64 << 20
+#: The largest `.scen` file read (the largest shipped one is under 1 MiB).
+MAX_SCENARIO_BYTES = 64 << 20
 
 _SCEN_FIELDS = (
     "bucket",
@@ -69,11 +75,12 @@ class Scenario:
     optimal: float
 
 
-def _read_lines(path: str | os.PathLike[str]) -> list[str]:
-    # latin-1 decodes every byte, so a stray byte is reported as an unknown character;
-    # universal newlines turn CRLF into LF (str.splitlines would also split at \x85 and others).
-    with open(path, encoding="latin-1") as stream:
-        text = stream.read()
+def _read_lines(path: str | os.PathLike[str], limit: int, kind: str) -> list[str]:
+    # Only a regular file within the limit is read (a FIFO or /dev/zero is refused unread).
+    # latin-1 decodes every byte, so a stray byte is reported as an unknown character; CRLF
+    # and CR become LF as universal newlines would (str.splitlines would also split at \x85).
+    data = read_input(path, limit=limit, kind=kind)
+    text = data.decode("latin-1").replace("\r\n", "\n").replace("\r", "\n")
     lines = text.split("\n")
     if lines[-1] == "":
         lines.pop()
@@ -107,9 +114,14 @@ def load_map(path: str | os.PathLike[str]) -> tuple[BoolGrid, int, int]:
     width and height (the abstraction pyramid needs it); the map occupies the upper-left
     `height x width` corner and the padding, on the right and at the bottom, is blocked.
     Coordinates of the file are therefore unchanged.
+
+    Raises:
+        MapError: the file is malformed.
+        InputFileError: it is not a regular file or is larger than `MAX_MAP_BYTES` (unread).
+        OSError: it cannot be read.
     """
     name = os.fspath(path)
-    lines = _read_lines(path)
+    lines = _read_lines(path, MAX_MAP_BYTES, "map files")
     if not lines or lines[0].split() != ["type", "octile"]:
         found = repr(lines[0]) if lines else "end of file"
         raise MapError(name, 1, f"expected 'type octile', found {found}")
@@ -167,7 +179,7 @@ def load_scenarios(path: str | os.PathLike[str], blocked: BoolGrid | None = None
     grid (from `load_map`) is passed they must also be free cells of it.
     """
     name = os.fspath(path)
-    lines = _read_lines(path)
+    lines = _read_lines(path, MAX_SCENARIO_BYTES, "scenario files")
     first = 0
     if lines and lines[0].split()[:1] == ["version"]:
         parts = lines[0].split()

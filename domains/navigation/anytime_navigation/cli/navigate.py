@@ -4,11 +4,8 @@
 from __future__ import annotations
 
 import argparse
-import json
-import math
 import sys
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -18,8 +15,11 @@ from anytime.plugin import (
     DeadlineValue,
     InputError,
     UsageError,
+    int_in_range,
+    json_text,
     positive_float,
-    positive_int,
+    random_seed,
+    write_atomic,
 )
 
 from ..frame_program import navigation_program
@@ -32,18 +32,21 @@ from ..world import Position, World, is_power_of_two, random_world, reachable
 __all__ = ["add_command", "run_navigate"]
 
 
+#: The largest world side (--size) and sensor radius (--radius).
+MAX_SIDE = 4096
+#: The most moving obstacles.
+MAX_OBSTACLES = 1000
+
+
 def _size(text: str) -> int:
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    return value
-
-
-def _count(text: str) -> int:
-    value = _size(text)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
+    if not (8 <= value <= MAX_SIDE and is_power_of_two(value)):
+        raise argparse.ArgumentTypeError(
+            f"expected a power of two from 8 to {MAX_SIDE}, got {text}"
+        )
     return value
 
 
@@ -54,6 +57,8 @@ def _position(text: str) -> Position:
         raise argparse.ArgumentTypeError(
             f"expected X,Y (two whole numbers), got {text!r}"
         ) from None
+    if x < 0 or y < 0:
+        raise argparse.ArgumentTypeError(f"expected X,Y with X, Y >= 0, got {text!r}")
     return (x, y)
 
 
@@ -68,14 +73,19 @@ def add_command(commands: CommandGroup) -> None:
         "completion time, energy, value and utility, against the utility predicted at the start "
         "and a clairvoyant bound.",
     )
-    navigate.add_argument("--size", type=_size, default=128, help="world side, a power of two")
-    navigate.add_argument("--seed", type=int, default=0, help="world and vision seed")
+    navigate.add_argument(
+        "--size",
+        type=_size,
+        default=128,
+        help=f"world side, a power of two from 8 to {MAX_SIDE} (128)",
+    )
+    navigate.add_argument("--seed", type=random_seed, default=0, help="world and vision seed")
     navigate.add_argument("--map", metavar="FILE.map", help="a MovingAI map instead of a world")
     navigate.add_argument("--start", type=_position, metavar="X,Y", help="start (with --map)")
     navigate.add_argument("--goal", type=_position, metavar="X,Y", help="goal (with --map)")
     navigate.add_argument(
         "--radius",
-        type=positive_int,
+        type=int_in_range(1, MAX_SIDE),
         help="sensor radius in cells (default: a quarter of the side)",
     )
     navigate.add_argument(
@@ -91,7 +101,7 @@ def add_command(commands: CommandGroup) -> None:
     navigate.add_argument("--clock", choices=["work", "wall"], default="work")
     navigate.add_argument(
         "--moving-obstacles",
-        type=_count,
+        type=int_in_range(0, MAX_OBSTACLES),
         default=0,
         metavar="K",
         help="K moving obstacles (from the seed); the robot decides how to overcome each one "
@@ -113,10 +123,6 @@ def _world(args: argparse.Namespace) -> World:
     if args.map is None:
         if args.start is not None or args.goal is not None:
             raise UsageError("anytime navigate: error: --start and --goal need --map")
-        if not (args.size >= 8 and is_power_of_two(args.size)):
-            raise InputError(
-                f"anytime navigate: error: --size must be a power of two >= 8, got {args.size}"
-            )
         return random_world(args.size, seed=args.seed)
     try:
         blocked, width, height = load_map(args.map)
@@ -190,7 +196,7 @@ def run_navigate(args: argparse.Namespace) -> int:
         out = Path(args.out)
         try:
             out.mkdir(parents=True, exist_ok=True)
-            report.log.write_jsonl(out / "events.jsonl")
+            write_atomic(out / "events.jsonl", report.log.to_jsonl())
         except OSError as error:
             raise InputError(
                 f"anytime navigate: error: cannot write to '{out}': {error.strerror}"
@@ -205,7 +211,7 @@ def run_navigate(args: argparse.Namespace) -> int:
         else:
             written.extend(write_frames(report, task, out))
     if args.json:
-        print(json.dumps(_plain(report.as_json())))
+        print(json_text(report.as_json(), indent=None))
     else:
         print(_summary(report, comparison), end="")
         if written:
@@ -215,12 +221,6 @@ def run_navigate(args: argparse.Namespace) -> int:
                 f"{Path(args.out)}"
             )
     return EXIT_OK
-
-
-def _plain(record: dict[str, Any]) -> dict[str, Any]:
-    return {
-        k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in record.items()
-    }
 
 
 def _summary(report: TaskReport, comparison: dict[str, TaskReport]) -> str:

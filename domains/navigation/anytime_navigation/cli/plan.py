@@ -10,7 +10,6 @@ run to completion.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import time
@@ -19,7 +18,15 @@ from typing import Any
 
 from attrs import frozen
 
-from anytime.plugin import EXIT_OK, CommandGroup, Context, InputError, format_table, positive_int
+from anytime.plugin import (
+    EXIT_OK,
+    CommandGroup,
+    Context,
+    InputError,
+    format_table,
+    json_text,
+    positive_int,
+)
 
 from ..abstraction import Pyramid
 from ..execution import execute, plan_quality
@@ -112,6 +119,8 @@ def _position(text: str) -> Position:
         raise argparse.ArgumentTypeError(
             f"expected X,Y (two whole numbers), got {text!r}"
         ) from None
+    if x < 0 or y < 0:
+        raise argparse.ArgumentTypeError(f"expected X,Y with X, Y >= 0, got {text!r}")
     return x, y
 
 
@@ -131,7 +140,7 @@ def run_plan(args: argparse.Namespace) -> int:
     summary = _summary(solutions, args.planner, args.movement, reference)
     if args.json:
         rows = [_solution_json(solution) for solution in solutions]
-        print(json.dumps({"problems": rows, "summary": summary}, indent=2))
+        print(json_text({"problems": rows, "summary": summary}))
     else:
         print(_format(solutions, summary), end="")
     return EXIT_OK

@@ -1,0 +1,166 @@
+"""Run the benchmarks and write their tables into docs/benchmarks.md (what `make bench` runs).
+
+Each benchmark runs as its own process, with its quick settings where it has them, and what it
+prints goes into the page as it is; the page is generated whole, so no table in it is ever
+typed by hand. Run it on a quiet machine: other load skews the numbers.
+
+    .venv/bin/python benchmarks/write_page.py [--only NAME ...] [-o docs/benchmarks.md]
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+from tables import machine
+
+HERE = Path(__file__).resolve().parent
+PAGE = HERE.parent / "docs" / "benchmarks.md"
+
+#: (script, quick arguments, title, what it measures): the order of the page.
+BENCHMARKS = [
+    (
+        "bench_profiles.py",
+        [],
+        "Profile builder and profiles",
+        "Trials per second of the profile builder with one and two worker processes (the"
+        " same profile every time), and evaluations per second of a profile's interpolation"
+        " for a batch of 100,000 points against asking one point at a time.",
+    ),
+    (
+        "bench_compiler.py",
+        ["--quick"],
+        "Compiler",
+        "Compile time of the papers' 2-module chain with each allocator (target: under one"
+        " second); dp against hill-climbing on random 8-module chains and trees; how far"
+        " hill-climbing is from the exhaustive optimum on random programs of 2 to 4 modules."
+        " The full run (without `--quick`) uses more programs and repeats.",
+    ),
+    (
+        "bench_runtime.py",
+        ["--runs", "50", "--repeats", "3"],
+        "Runtime: interruption and overhead",
+        "How late an interrupted module answers on the wall clock (targets: p99 below 2 ms"
+        " for a module yielding every 100 us, below 20 ms for a stuck module under hard"
+        " interruption), and what the executor adds per registered result (target: below 5%).",
+    ),
+    (
+        "bench_runtime_conversion.py",
+        ["--quick"],
+        "Runtime: contract algorithms made interruptible",
+        "Acceleration ratios of the constructed interruptible algorithms (geometric,"
+        " round-robin on m processes, randomised) against theory.",
+    ),
+    (
+        "bench_choices.py",
+        [],
+        "Choices: splitting the time of a best-of",
+        "Expected quality of the best alternative for the same time stock T_d under the"
+        " compiled split, Romanenko's proportional split and an equal split (target: the"
+        " compiled split never worse).",
+    ),
+    (
+        "bench_overcoming.py",
+        [],
+        "Navigation: overcoming moving obstacles",
+        "The same comparison on obstacle situations met in navigation: expected and realised"
+        " quality of the best alternative.",
+    ),
+    (
+        "bench_navigation.py",
+        ["--quick"],
+        "Navigation: the anytime abstract planner against A*",
+        "Plan quality after the first plan and at completion, and time and expansions as"
+        " fractions of A*'s (the papers report 0.93 at 27% of A*'s time; the target is at"
+        " least 0.95 at no more than 15% on 512 x 512 maps). `--quick` solves fewer problems."
+        " Where the ATP falls short: on rooms the abstraction's obstacleness cannot see doors,"
+        " and in mazes corridors one cell wide make every coarse cell part-blocked, so the"
+        " abstract plans mislead the refinement.",
+    ),
+    (
+        "bench_monitor.py",
+        ["--quick"],
+        "Navigation: the monitor",
+        "The navigation task under the monitor against fixed contract times and the papers'"
+        " MIN/MAX policies: mean utility, prediction error and utility against a clairvoyant"
+        " bound (targets: prediction error under 2%, the monitored policy above every fixed"
+        " one). `--quick` uses 64 x 64 worlds instead of 128 x 128.",
+    ),
+]
+
+
+def run(script: str, arguments: list[str]) -> tuple[str, float]:
+    """What the benchmark prints, and how long it took in seconds."""
+    started = time.perf_counter()
+    done = subprocess.run(
+        [sys.executable, str(HERE / script), *arguments],
+        cwd=HERE.parent,
+        stdout=subprocess.PIPE,
+        text=True,
+        check=True,
+    )
+    return done.stdout.strip("\n"), time.perf_counter() - started
+
+
+def _markdown(output: str) -> str:
+    """The benchmark's output as Markdown: a blank line after each table, since a line of text
+    right below one would be read as another row."""
+    lines: list[str] = []
+    for line in output.splitlines():
+        if lines and lines[-1].startswith("|") and line.strip() and not line.startswith("|"):
+            lines.append("")
+        lines.append(line.rstrip())
+    return "\n".join(lines)
+
+
+def section(script: str, arguments: list[str], title: str, about: str) -> str:
+    print(f"running {script} {' '.join(arguments)}".rstrip(), file=sys.stderr, flush=True)
+    output, seconds = run(script, arguments)
+    output = _markdown(output)
+    command = " ".join([".venv/bin/python", f"benchmarks/{script}", *arguments])
+    return (
+        f"## {title}\n\n{_wrap(about)}\n\n`{command}` ({seconds:.0f} s):\n\n"
+        f"<!-- output of {script} -->\n\n{output}\n"
+    )
+
+
+def _wrap(text: str) -> str:
+    return textwrap.fill(text, width=96, break_on_hyphens=False)
+
+
+def page(sections: list[str], started: float) -> str:
+    minutes = (time.perf_counter() - started) / 60
+    intro = _wrap(
+        "Side-by-side measurements, not tests: nothing here is asserted, and `make test` does"
+        " not run them. Ratios, not absolute times, are the point. This page is written whole"
+        " by `make bench`, which runs every benchmark of `benchmarks/` (with its quick"
+        " settings where it has them) and copies what each prints; the tables are never typed"
+        " by hand. `benchmarks/README.md` says what each script compares and how to run the"
+        " full versions."
+    )
+    return (
+        "# Benchmarks\n\n"
+        "<!-- Generated by `make bench` (benchmarks/write_page.py): do not edit by hand. -->\n\n"
+        f"{intro}\n\nMachine: {machine()}.\n\n"
+        f"The whole run took {minutes:.1f} minutes.\n\n" + "\n".join(sections)
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("--only", action="append", metavar="NAME", help="just this script")
+    parser.add_argument("-o", "--output", type=Path, default=PAGE, help="the page to write")
+    args = parser.parse_args()
+    started = time.perf_counter()
+    chosen = [b for b in BENCHMARKS if not args.only or b[0] in args.only]
+    text = page([section(*benchmark) for benchmark in chosen], started)
+    args.output.write_text(text, encoding="utf-8")
+    print(f"wrote {args.output}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()
