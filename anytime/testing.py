@@ -17,9 +17,9 @@ passed, failed or skipped, with a message that says what was seen and where:
   the module registered before the stop, never with none once one was registered, and that
   result's value has not changed since it was registered; a contract module, given a random
   allocation, answers with the result it returned;
-- **profile**: the profile measured with `build_profile` (same seed, `trials` instances per
-  input-quality cell, the declared profile's own bins) agrees with the declared one at every
-  cell: `|measured - declared| <= q * se + tolerance`, where `se` combines the measured standard
+- **profile**: the profile measured with `build_profile` (`trials` fresh instances per
+  input-quality cell, independent of those a profile built with the same seed was measured on,
+  the declared profile's own bins) agrees with the declared one at every cell: `|measured - declared| <= q * se + tolerance`, where `se` combines the measured standard
   error and the declared one (a measured declared profile has one), and `q` is the Student
   t quantile that makes the chance of a false alarm over all cells at most `1 - confidence`
   (Bonferroni). Skipped for a module without a profile or with one in seconds.
@@ -213,13 +213,15 @@ def check_module(
     registered: Grid | None = None,
     tolerance: float = 0.02,
     confidence: float = 0.99,
+    workers: int = 1,
 ) -> CatalogueReport:
     """Run the catalogue on `module` (see the module docstring).
 
     Args:
         trials: instances per input-quality cell, for every check.
-        seed: instance i at cell c is made from `SeedSequence(seed, spawn_key=(c, i))`, as the
-            profile builder makes it; random stop points come from their own streams.
+        seed: the root of the catalogue's own streams: its instances are independent of the
+            ones `build_profile` (and `anytime profile`) makes with the same seed, so that
+            "measured agrees with declared" is tested on instances the profile never saw.
         time: allocations (ticks) to run at (default: the declared profile's grid, else the
             registered one).
         input_grids: one grid of input qualities per quality-carrying input (default: as time).
@@ -227,6 +229,8 @@ def check_module(
             `register_problems`, if any), used when it declares no profile.
         tolerance: the absolute slack of the profile check, on top of sampling error.
         confidence: the profile check's family-wise confidence over all cells.
+        workers: processes for the profile check's measurement (its result does not depend
+            on how many).
 
     Raises:
         CatalogueError: an elementary module, or no grid to run on.
@@ -243,7 +247,8 @@ def check_module(
         raise CatalogueError(f"confidence: expected a number between 0 and 1, got {confidence!r}")
     declared, verdict = _declared(module)
     grid = _grid(module, declared, time, input_grids, registered)
-    session = _Session(module, problems, grid, trials, seed)
+    own = check_seed(seed)
+    session = _Session(module, problems, grid, trials, own)
     checks = [_check_pickle(module, problems)]
     deadline = session.deadline_runs()
     interruption = session.interruption_runs()
@@ -254,7 +259,7 @@ def check_module(
     checks.append(_check_interruption(module, interruption))
     if declared is not None:
         verdict = _check_profile(
-            module, problems, declared, grid, trials, seed, tolerance, confidence
+            module, problems, declared, grid, trials, own, tolerance, confidence, workers
         )
     assert verdict is not None
     checks.append(verdict)
@@ -406,6 +411,17 @@ def _recorded(module: AnytimeModule, log: list[_Yield], snapshots: bool) -> Anyt
 
     function: Callable[..., Any] = call if contract else generator
     return attrs.evolve(module, function=function)
+
+
+def check_seed(seed: int) -> int:
+    """The root seed of the catalogue's streams for user seed `seed`: a different stream from
+    the one `build_profile(seed=seed)` draws its instances from."""
+    state = np.random.SeedSequence([seed, _CATALOGUE_STREAM]).generate_state(4)
+    return int.from_bytes(state.tobytes(), "little")
+
+
+#: Mixed into the catalogue's seeds (the bytes of "check"), so its instances are its own.
+_CATALOGUE_STREAM = 0x636865636B
 
 
 class _Session:
@@ -637,6 +653,7 @@ def _check_profile(
     seed: int,
     tolerance: float,
     confidence: float,
+    workers: int,
 ) -> Check:
     build = build_profile(
         module,
@@ -646,6 +663,7 @@ def _check_profile(
         bins=declared.bins,
         trials=trials,
         seed=seed,
+        workers=workers,
         progress=False,
     )
     measured = build.profile

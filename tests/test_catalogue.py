@@ -15,7 +15,7 @@ import anytime.library
 from anytime import AnytimeLibrary, RegistrySource
 from anytime.modules import AnytimeModule, Context, Registry, Result, contract, interruptible
 from anytime.profiles import tabulate
-from anytime.profiles.builder import Instance, register_problems
+from anytime.profiles.builder import Instance, build_profile, register_problems
 from anytime.profiles.io import save_profile
 from anytime.testing import (
     CHECKS,
@@ -184,7 +184,7 @@ def test_well_behaved_modules_pass_every_check(case: Any) -> None:
             overrun,
             "deadline",
             "used 1001 ticks, 1001 past the allocation; its largest step before the deadline"
-            " was 1 (allocation 0, trial 0 at input qualities [0.5]); 71 of 100 runs missed the"
+            " was 1 (allocation 0, trial 0 at input qualities [0.5]); 70 of 100 runs missed the"
             " deadline",
         ),
         (
@@ -196,21 +196,21 @@ def test_well_behaved_modules_pass_every_check(case: Any) -> None:
         (
             bare,
             "quality",
-            "yielded tuple (80, 0.5), not a Result (allocation 100, trial 0 at input qualities"
-            " [0.5]); 36 of 120 runs broke the Result protocol",
+            "yielded tuple (116, 0.5), not a Result (allocation 150, trial 0 at input qualities"
+            " [0.5]); 38 of 120 runs broke the Result protocol",
         ),
         (
             overjoyed,
             "quality",
             "tried to build a Result of quality outside [0, 1]: ValueError: a Result's quality"
-            " must be in [0, 1], got 1.01 (allocation 100, trial 0 at input qualities [1.0]);"
-            " 18 of 120 runs broke the Result protocol",
+            " must be in [0, 1], got 1.01 (allocation 150, trial 0 at input qualities [1.0]);"
+            " 22 of 120 runs broke the Result protocol",
         ),
         (
             crashing,
             "errors",
-            "RuntimeError: counted past the end (allocation 100, trial 0 at input qualities"
-            " [0.5]); 36 of 120 runs raised",
+            "RuntimeError: counted past the end (allocation 150, trial 0 at input qualities"
+            " [0.5]); 37 of 120 runs raised",
         ),
     ],
     ids=["overrun", "contract-overrun", "not-a-result", "quality-above-1", "raises"],
@@ -228,8 +228,8 @@ def test_a_declared_profile_that_disagrees_with_the_behaviour() -> None:
     assert [c.name for c in report.failed] == ["profile"], report.format()
     assert report["profile"].message == (
         "the measured profile disagrees with the declared one at 4 of 10 cells; worst at input"
-        " qualities [1.0], time 50: measured 0.498 (n=10, se 0.015), declared 0.955, allowed"
-        " 0.093"
+        " qualities [1.0], time 50: measured 0.540 (n=10, se 0.021), declared 0.955, allowed"
+        " 0.121"
     )
 
 
@@ -239,7 +239,7 @@ def test_a_module_that_changes_a_registered_value() -> None:
     report = check_module(rewriter, Counting(), trials=10)
     assert [c.name for c in report.failed] == ["interruption", "profile"], report.format()
     assert report["interruption"].message == (
-        "changed the value of a result after registering it (stopped at tick 66.7149, trial 0"
+        "changed the value of a result after registering it (stopped at tick 102.096, trial 0"
         " at input qualities [0.5]); 13 of 20 runs did not answer with their best registered"
         " result"
     )
@@ -368,3 +368,32 @@ def test_check_a_module_without_a_problem_set(cli: Cli, monkeypatch: pytest.Monk
         "anytime: error: no problem set is registered for module 'catalogue-good'"
         " (registered: none)\n"
     )
+
+
+class Drawn(Counting):
+    """Counting problems that remember every instance's random draw (within one process)."""
+
+    def __init__(self) -> None:
+        self.draws: list[int] = []
+
+    def instance(self, rng: np.random.Generator, input_qualities: tuple[float, ...]) -> Instance:
+        draw = int(rng.integers(1 << 62))
+        self.draws.append(draw)
+        limit = int(LIMITS[draw % len(LIMITS)])
+        return Instance(args=(None, limit), reference=(limit, input_qualities[0]))
+
+
+def test_the_catalogue_checks_on_instances_the_profile_never_saw() -> None:
+    """With the same seed as the profile builder it re-measured the very instances the
+    profile came from, so "measured agrees with declared" could not fail (difference 0.0)."""
+    profiled, checked = Drawn(), Drawn()
+    build_profile(good, profiled, time=TIME, input_grids=[QUALITIES], trials=10, seed=0)
+    check_module(good, checked, trials=10, seed=0)
+    assert profiled.draws and checked.draws
+    assert not set(profiled.draws) & set(checked.draws)
+
+
+def test_the_catalogue_gives_the_same_report_on_two_workers() -> None:
+    one = check_module(good, Counting(), trials=6, seed=3)
+    two = check_module(good, Counting(), trials=6, seed=3, workers=2)
+    assert one.format() == two.format() and one.passed
