@@ -19,7 +19,8 @@ passed, failed or skipped, with a message that says what was seen and where:
   allocation, answers with the result it returned;
 - **profile**: the profile measured with `build_profile` (`trials` fresh instances per
   input-quality cell, independent of those a profile built with the same seed was measured on,
-  the declared profile's own bins) agrees with the declared one at every cell: `|measured - declared| <= q * se + tolerance`, where `se` combines the measured standard
+  the declared profile's own bins) agrees with the declared one at every cell:
+  `|measured - declared| <= q * se + tolerance`, where `se` combines the measured standard
   error and the declared one (a measured declared profile has one), and `q` is the Student
   t quantile that makes the chance of a false alarm over all cells at most `1 - confidence`
   (Bonferroni). Skipped for a module without a profile or with one in seconds.
