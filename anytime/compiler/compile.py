@@ -64,6 +64,9 @@ class CompiledProgram:
             `profile.mean`.
         exhaustive_gap: the largest amount by which the exhaustive optimum beats the table
             (None when the exhaustive search was not computable).
+        warnings: what the table cannot vouch for, one sentence each: a module fed input
+            qualities outside the grid its profile was measured on (its profile is clamped
+            there, and the allocator may exploit it).
     """
 
     name: str
@@ -75,6 +78,7 @@ class CompiledProgram:
     baselines: dict[str, Array]
     exhaustive_gap: float | None
     resolution: float
+    warnings: tuple[str, ...] = ()
 
     @property
     def modules(self) -> tuple[str, ...]:
@@ -193,7 +197,9 @@ def compile_program(
             "evaluation treats them as independent (exact for trees, approximate here)"
         )
     allocation, _ = ALLOCATORS[chosen]().allocate(evaluator, q_rows, u_rows, dt)
-    output = evaluator.evaluate(q_rows, allocation * dt)
+    seen: dict[int, list[Dist]] = {}
+    output = evaluator.evaluate(q_rows, allocation * dt, seen=seen)
+    warnings = _outside_input_grids(model, seen)
     allocation, output, idle = _never_worse_with_more_time(allocation, output, len(time))
     if idle:
         notes.append(
@@ -223,7 +229,32 @@ def compile_program(
         baselines=baselines,
         exhaustive_gap=gap,
         resolution=dt,
+        warnings=warnings,
     )
+
+
+def _outside_input_grids(model: CompileModel, seen: Mapping[int, list[Dist]]) -> tuple[str, ...]:
+    """A warning for every module input that the compiled allocations feed qualities outside
+    the input grid its profile was measured on (where the profile is only clamped)."""
+    warnings = []
+    for node in model.nodes:
+        profile = node.profile
+        if profile is None or node.index not in seen:
+            continue
+        names = profile.inputs or tuple(f"input {i + 1}" for i in range(profile.n_inputs))
+        for name, grid, dist in zip(names, profile.input_grids, seen[node.index], strict=False):
+            reached = dist.values[dist.probs > 1e-9]
+            if not len(reached):
+                continue
+            low, high = float(reached.min()), float(reached.max())
+            if low >= grid[0] - 1e-9 and high <= grid[-1] + 1e-9:
+                continue
+            warnings.append(
+                f"module '{node.name}': input '{name}' receives qualities {low:.3g} to"
+                f" {high:.3g}, but its profile was measured on {grid[0]:g} to {grid[-1]:g}:"
+                " outside that range the profile is clamped to its nearest end"
+            )
+    return tuple(warnings)
 
 
 def compile_file(

@@ -80,6 +80,7 @@ class Evaluator:
         quality: ArrayLike,
         allocation: ArrayLike,
         observed: Mapping[int, float] | None = None,
+        seen: dict[int, list[Dist]] | None = None,
     ) -> Dist:
         """Output distributions for a batch.
 
@@ -88,6 +89,7 @@ class Evaluator:
             allocation: time per anytime module, shape (B, n) in allocation-vector order.
             observed: node index -> the quality its result was seen to have (a node that has
                 already run); its output is that quality, whatever its allocation.
+            seen: filled with node index -> the distributions of its quality-carrying inputs.
         """
         alloc = np.atleast_2d(np.asarray(allocation, dtype=np.float64))
         batch = len(alloc)
@@ -100,6 +102,8 @@ class Evaluator:
                 outputs[node.index] = Dist.point(np.full(batch, observed[node.index]))
                 continue
             inputs = [self._source(slot, outputs, q, batch) for slot in node.slots]
+            if seen is not None:
+                seen[node.index] = inputs
             outputs[node.index] = self._node(node, inputs, alloc, batch)
         return self._source(self.model.output, outputs, q, batch)
 

@@ -28,6 +28,7 @@ def compiled_to_dict(compiled: CompiledProgram) -> dict[str, Any]:
         "baselines": {name: value.tolist() for name, value in compiled.baselines.items()},
         "exhaustive_gap": compiled.exhaustive_gap,
         "method_note": compiled.note,
+        "warnings": list(compiled.warnings),
     }
 
 
@@ -71,4 +72,5 @@ def format_report(compiled: CompiledProgram) -> str:
         + ("not computed (too many modules or allocations)" if gap is None else f"{gap:.2e}")
     )
     lines.append(f"  note: {compiled.note}")
+    lines.extend(f"  warning: {warning}" for warning in compiled.warnings)
     return "\n".join(lines) + "\n"

@@ -115,6 +115,7 @@ def test_json_report_fields_and_shapes(cli: Cli, setup: tuple[Path, Path]) -> No
         "baselines",
         "exhaustive_gap",
         "method_note",
+        "warnings",
     ]
     assert report["schema"] == "p"
     assert report["allocator"] == "dp"
@@ -132,6 +133,7 @@ def test_json_report_fields_and_shapes(cli: Cli, setup: tuple[Path, Path]) -> No
         assert np.array(baseline).shape == (3, 5)
         assert (expected >= np.array(baseline) - 1e-12).all()
     assert report["exhaustive_gap"] == 0
+    assert report["warnings"] == []
     assert report["method_note"] == "dp: local compilation, exact for this tree of monotone modules"
     for i, q in enumerate([0, 0.5, 1]):
         for j, total in enumerate(range(0, 41, 10)):

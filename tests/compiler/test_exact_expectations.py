@@ -58,10 +58,7 @@ def measured(module: AnytimeModule, **grid: Any) -> LibraryEntry:
 
 @pytest.fixture(scope="module")
 def library() -> AnytimeLibrary:
-    library = AnytimeLibrary()
-    library.add(measured(exact))
-    library.add(measured(refine, input_grids=[[0.0, 0.5, 1.0]]))
-    return library
+    return _library()
 
 
 def test_a_measured_module_that_always_reaches_one_compiles_to_exactly_one(
@@ -87,3 +84,30 @@ def test_a_chain_fed_no_result_or_a_perfect_result_expects_exactly_what_runs_giv
         for delay in (5, 10):
             record = compiled.run({"delay": delay}, total, WorkClock())
             assert record.quality == 1.0, (total, delay)
+
+
+def test_qualities_outside_a_profiles_input_grid_are_a_warning() -> None:
+    """A downstream profile measured on input qualities 0.5..1 is clamped below 0.5: the
+    allocator could give the upstream module nothing and count on the clamped value. The
+    compile result says so, as a field (and in the JSON report)."""
+    narrow = build_profile(
+        refine, Problems(), time=TIME, input_grids=[[0.5, 1.0]], trials=4
+    ).profile
+    library = AnytimeLibrary()
+    library.add(measured(exact))
+    library.add(LibraryEntry.of_module(attrs.evolve(refine, profile_source=narrow)))
+    program = parse_schemas("(defschema p (delay) (refine (exact delay)))", "p.any")["p"]
+    compiled = compile_program(program, library, TIME)
+    assert compiled.warnings == (
+        "module 'refine': input 'x' receives qualities 0 to 1, but its profile was measured on"
+        " 0.5 to 1: outside that range the profile is clamped to its nearest end",
+    )
+    within = compile_program(program, _library(), TIME)
+    assert within.warnings == ()
+
+
+def _library() -> AnytimeLibrary:
+    library = AnytimeLibrary()
+    library.add(measured(exact))
+    library.add(measured(refine, input_grids=[[0.0, 0.5, 1.0]]))
+    return library
