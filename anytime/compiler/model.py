@@ -11,6 +11,7 @@ constant (a literal argument has quality 1).
 from __future__ import annotations
 
 import builtins
+import inspect
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, Literal
 
@@ -19,7 +20,7 @@ import numpy as np
 from attrs import frozen
 
 from anytime.dsl.graph import DataflowGraph, InputRef, NodeRef, Source
-from anytime.dsl.normalize import suggest
+from anytime.dsl.normalize import count, suggest
 from anytime.dsl.program import Literal as LiteralArg
 from anytime.dsl.program import Program, Step, Var
 from anytime.errors import AnytimeError, Diagnostic, SchemaError
@@ -183,6 +184,27 @@ def _vector_combine(
     return pointwise, False
 
 
+def _call_mismatch(entry: LibraryEntry, n_args: int, keywords: Sequence[str]) -> str | None:
+    """Why a call does not fit the module's function (its positional arity, then its keyword
+    parameters, as Python would bind them), or None; a call that compiled but could not run
+    failed with a TypeError at run time."""
+    if entry.arity is not None and n_args != entry.arity:
+        return f"function '{entry.name}' takes {count(entry.arity)}, got {n_args}"
+    module = entry.module
+    if module is None:
+        return None
+    try:
+        signature = inspect.signature(module.function)
+    except (TypeError, ValueError):  # a builtin or an object without a readable signature
+        return None
+    context = () if module.kind == "elementary" else (None,)
+    try:
+        signature.bind(*context, *[None] * n_args, **dict.fromkeys(keywords))
+    except TypeError as error:
+        return f"function '{entry.name}': {error}"
+    return None
+
+
 def build_model(
     program: Program,
     library: AnytimeLibrary,
@@ -301,6 +323,10 @@ def build_model(
         if entry is None:
             hint = suggest(node.function, library.names())
             complain(index, f"unknown function '{node.function}'{hint}")
+            continue
+        mismatch = _call_mismatch(entry, len(node.args), [name for name, _ in node.keywords])
+        if mismatch is not None:
+            complain(index, mismatch)
             continue
         sources = _quality_sources(node.args, entry, node_variables(graph, node.args))
         if isinstance(sources, str):

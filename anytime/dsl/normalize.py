@@ -103,7 +103,7 @@ class _Checker:
         if len(step.args) != arity:
             self.error(
                 step.function_span,
-                f"schema '{step.function}' takes {_count(arity)}, got {len(step.args)}",
+                f"schema '{step.function}' takes {count(arity)}, got {len(step.args)}",
             )
         for name, _ in step.keywords:
             self.error(
@@ -122,7 +122,7 @@ class _Checker:
         if arity is not None and len(step.args) != arity:
             self.error(
                 step.function_span,
-                f"function '{step.function}' takes {_count(arity)}, got {len(step.args)}",
+                f"function '{step.function}' takes {count(arity)}, got {len(step.args)}",
             )
 
     def check_recursion(self, programs: tuple[Program, ...]) -> None:
@@ -297,7 +297,7 @@ class _ProgramBuilder:
                 error(
                     form.span,
                     "when takes a precondition and an expression: (when PRECONDITION EXPR), "
-                    f"got {_count(got)}",
+                    f"got {count(got)}",
                 )
             else:
                 forms.append((index, form.args[0], form.args[1]))
@@ -376,7 +376,7 @@ class _ProgramBuilder:
             error(
                 call.span,
                 "if takes a condition, a then expression and an else expression: "
-                f"(if CONDITION THEN ELSE [:p P]), got {_count(len(call.args))}",
+                f"(if CONDITION THEN ELSE [:p P]), got {count(len(call.args))}",
             )
             args: tuple[Arg, ...] = tuple(self.expression(a, None) for a in call.args)
         else:
@@ -435,5 +435,6 @@ def _span_of(expr: Expr) -> Span:
     return expr.span
 
 
-def _count(n: int) -> str:
+def count(n: int) -> str:
+    """The phrase for n arguments: 1 argument, 2 arguments."""
     return f"{n} argument" if n == 1 else f"{n} arguments"
