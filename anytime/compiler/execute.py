@@ -149,7 +149,9 @@ class Choices:
         """The applicable alternatives of a best-of (its preconditions must have run)."""
         if choice.index not in self.applicable:
             # A precondition that has no value (its input had no result) rules its out.
-            found = [p in results and bool(results[p].value) for p in choice.preconditions]
+            found = [
+                p is None or (p in results and bool(results[p].value)) for p in choice.preconditions
+            ]
             self.applicable[choice.index] = found
             self.allocation = resplit(self.compiled, choice, found, self.allocation, self.qualities)
         return self.applicable[choice.index]

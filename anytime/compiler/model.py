@@ -88,7 +88,8 @@ class CompileNode:
             (elementary: its slots are the alternatives, its quality their maximum); "if" for a
             conditional (anytime: its time goes to the branch that runs).
         branch: (choice node index, alternative) for a call inside a best-of alternative.
-        preconditions: for a best-of, the node index of each alternative's precondition.
+        preconditions: for a best-of, the node index of each alternative's precondition (None
+            for an alternative that is always applicable).
         branches: for an if, the then and else branches.
         condition: for an if, where the condition's value comes from.
     """
@@ -105,7 +106,7 @@ class CompileNode:
     entry: LibraryEntry | None = None
     role: Role = "module"
     branch: tuple[int, int] | None = None
-    preconditions: tuple[int, ...] = ()
+    preconditions: tuple[int | None, ...] = ()
     branches: tuple[BranchPlan, ...] = ()
     condition: Source | None = None
 
@@ -272,7 +273,7 @@ def build_model(
             continue
         if node.kind == "best-of":
             n = len(node.args) // 2
-            pre = tuple(s.index for s in node.args[:n] if isinstance(s, NodeRef))
+            pre = tuple(s.index if isinstance(s, NodeRef) else None for s in node.args[:n])
             _, branch = role_and_branch(node.variable)
             nodes.append(
                 CompileNode(

@@ -12,7 +12,7 @@ import difflib
 from collections.abc import Callable, Collection, Iterable, Mapping
 
 from anytime.dsl.nodes import Call, Expr, Number, SchemaDef, Setf, SourceFile, Span, String, Symbol
-from anytime.dsl.program import Arg, Branch, Literal, Program, SchemaFile, Step, Var
+from anytime.dsl.program import ALWAYS, Arg, Branch, Literal, Program, SchemaFile, Step, Var
 from anytime.errors import Diagnostic, SchemaError
 
 #: The special forms: choices among alternatives and conditionals, not functions.
@@ -175,7 +175,9 @@ class _ProgramBuilder:
         }
         self.counter = 0
         self.branch: Branch | None = None  # the alternative or branch being flattened
-        self.undefined = False  # dead-code errors would only repeat an undefined-variable one
+        # Dead-code errors would only repeat an undefined-variable one, or follow from a
+        # malformed alternative whose uses were never read.
+        self.quiet_dead_code = False
 
     def build(self) -> Program:
         schema, error = self.schema, self.checker.error
@@ -203,7 +205,7 @@ class _ProgramBuilder:
                     "this value is never used: assign it with (setf VAR ...) or remove it",
                 )
         output_name = output.name if isinstance(output, Var) else ""
-        if not self.undefined:
+        if not self.quiet_dead_code:
             self.check_all_used(output_name)
         return Program(
             name=schema.name,
@@ -274,8 +276,10 @@ class _ProgramBuilder:
             self.branch = outer
 
     def best_of(self, call: Call, name: str | None) -> Var:
-        """`(best-of (when PRE EXPR) ...)`: every precondition first, then every alternative;
-        the step's arguments are the preconditions' results, then the alternatives' values."""
+        """`(best-of (when PRE EXPR) ... EXPR)`: every precondition first, then every
+        alternative; the step's arguments are the preconditions' results (`ALWAYS` for an
+        alternative written without `when`, which is always applicable), then the
+        alternatives' values."""
         error = self.checker.error
         target = name if name is not None else self.fresh()
         for keyword in call.keywords:
@@ -285,13 +289,10 @@ class _ProgramBuilder:
                 call.span,
                 "best-of needs at least one alternative: (best-of (when PRECONDITION EXPR) ...)",
             )
-        forms: list[tuple[int, Expr, Expr]] = []
+        forms: list[tuple[int, Expr | None, Expr]] = []
         for index, form in enumerate(call.args):
             if not (isinstance(form, Call) and form.function == "when"):
-                error(
-                    _span_of(form),
-                    "an alternative of best-of must be (when PRECONDITION EXPR)",
-                )
+                forms.append((index, None, form))  # unconditional
             elif len(form.args) != 2 or form.keywords:
                 got = len(form.args) + len(form.keywords)
                 error(
@@ -299,9 +300,13 @@ class _ProgramBuilder:
                     "when takes a precondition and an expression: (when PRECONDITION EXPR), "
                     f"got {count(got)}",
                 )
+                self.quiet_dead_code = True  # the uses inside it are not read
             else:
                 forms.append((index, form.args[0], form.args[1]))
-        preconditions = [self.within((target, i), pre, self.precondition) for i, pre, _ in forms]
+        preconditions = [
+            ALWAYS if pre is None else self.within((target, i), pre, self.precondition)
+            for i, pre, _ in forms
+        ]
         alternatives = [
             self.within((target, i), expr, lambda e: self.expression(e, None))
             for i, _, expr in forms
@@ -405,7 +410,7 @@ class _ProgramBuilder:
         if not hint.startswith(";"):
             hint = ""  # listing every variable in scope would be noise
         self.checker.error(symbol.span, f"undefined variable '{symbol.name}'{hint}")
-        self.undefined = True
+        self.quiet_dead_code = True
         self.values[symbol.name] = Var(symbol.name)  # report each undefined name once
         return Var(symbol.name)
 

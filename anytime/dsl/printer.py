@@ -7,7 +7,7 @@ from collections.abc import Iterable, Mapping
 from typing import Any
 
 from anytime.dsl.graph import DataflowGraph, InputRef, Node, NodeRef, Source
-from anytime.dsl.program import Arg, Literal, Program, Step, Var
+from anytime.dsl.program import ALWAYS, Arg, Literal, Program, Step, Var
 
 INDENT = "  "
 
@@ -35,7 +35,8 @@ def format_call(step: Step, inline: Mapping[str, Step] | None = None) -> str:
     if step.kind == "best-of":
         n = len(step.args) // 2
         whens = [
-            f"(when {arg(p)} {arg(e)})" for p, e in zip(step.args[:n], step.args[n:], strict=True)
+            arg(e) if p == ALWAYS else f"(when {arg(p)} {arg(e)})"
+            for p, e in zip(step.args[:n], step.args[n:], strict=True)
         ]
         return "(" + " ".join(["best-of", *whens]) + ")"
     parts = [step.function, *(arg(a) for a in step.args)]
@@ -91,7 +92,7 @@ def step_to_json(step: Step) -> dict[str, Any]:
     if step.kind == "best-of":
         n = len(step.args) // 2
         out["alternatives"] = [
-            {"when": arg_to_json(p), "value": arg_to_json(e)}
+            {"when": None if p == ALWAYS else arg_to_json(p), "value": arg_to_json(e)}
             for p, e in zip(step.args[:n], step.args[n:], strict=True)
         ]
     elif step.kind == "if" and len(step.args) == 3:
@@ -139,7 +140,11 @@ def graph_to_dot(graphs: Iterable[DataflowGraph]) -> str:
         for name in graph.inputs:
             out.append(f"    {ident(InputRef(name))} [shape=ellipse, label={_quote(name)}];")
         for index, node in enumerate(graph.nodes):
-            constants = [f"{slot}={_source_text(s)}" for slot, s in _literals(node.sources())]
+            constants = [
+                f"{slot}={_source_text(s)}"
+                for slot, s in _literals(node.sources())
+                if not (node.kind == "best-of" and s == ALWAYS)  # an unconditional alternative
+            ]
             label = node.function + ("\\n" + ", ".join(constants) if constants else "")
             border = ", peripheries=2" if node.kind == "schema" else ""
             shape = "diamond" if node.kind in ("best-of", "if") else "box"

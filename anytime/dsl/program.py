@@ -35,6 +35,9 @@ class Literal:
 
 Arg = Var | Literal
 
+#: The precondition of a best-of alternative written without `when`: always applicable.
+ALWAYS = Literal(1)
+
 #: What a step does: a library call, a call to another schema, a choice among alternatives
 #: (`(best-of (when PRE EXPR) ...)`), or a conditional (`(if COND THEN ELSE :p P)`).
 STEP_KINDS = ("call", "schema", "best-of", "if")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 
 from anytime.dsl import format_program, parse_schemas, program_to_json
+from anytime.dsl.program import ALWAYS
 from anytime.errors import SchemaError
 
 CHOOSE = """(defschema choose (w)
@@ -65,12 +66,6 @@ ERRORS = {
         18,
         "best-of needs at least one alternative: (best-of (when PRECONDITION EXPR) ...)",
     ),
-    "alternative-not-when": (
-        "(defschema p (x) (best-of (f x)))",
-        1,
-        27,
-        "an alternative of best-of must be (when PRECONDITION EXPR)",
-    ),
     "when-arity": (
         "(defschema p (x) (best-of (when (ok x))))",
         1,
@@ -126,6 +121,38 @@ def test_choice_errors_point_at_the_source(text: str, line: int, column: int, me
         parse_schemas(text, filename="e.any")
     first = raised.value.diagnostics[0]
     assert (first.line, first.column, first.message) == (line, column, message)
+
+
+def test_a_malformed_alternative_is_the_only_error() -> None:
+    """The variables used only inside it were also reported as assigned but never used."""
+    text = "(defschema p (x)\n  (setf m (sense x))\n  (best-of (when (ok? m)) (f x)))"
+    with pytest.raises(SchemaError) as raised:
+        parse_schemas(text, filename="e.any")
+    assert [(d.line, d.column, d.message) for d in raised.value.diagnostics] == [
+        (
+            3,
+            12,
+            "when takes a precondition and an expression: (when PRECONDITION EXPR), got 1 argument",
+        )
+    ]
+
+
+UNCONDITIONAL = """(defschema p (w)
+  (best-of (when (left-clear? w) (detour-left w)) (wait w)))
+"""
+
+
+def test_an_alternative_without_when_is_always_applicable() -> None:
+    program = parse_schemas(UNCONDITIONAL)["p"]
+    best_of = program.steps[-1]
+    assert best_of.kind == "best-of" and best_of.args[1] == ALWAYS
+    assert parse_schemas(format_program(program))["p"] == program
+    assert "(best-of (when (left-clear? w) (detour-left w)) (wait w))" in format_program(program)
+    steps = program_to_json(program)["steps"]
+    assert steps[-1]["alternatives"] == [
+        {"when": "t2", "value": "t3"},
+        {"when": None, "value": "t4"},
+    ]
 
 
 def test_known_functions_do_not_include_the_special_forms() -> None:

@@ -126,3 +126,13 @@ def test_a_precondition_is_never_called_with_a_missing_value() -> None:
     # With a result, the precondition runs and both alternatives are candidates.
     record = run_program(program, {"x": "data"}, 40)
     assert record.result is not None and [c[0] for c in CALLED][:1] == ["usable?"]
+
+
+def test_an_alternative_without_when_is_always_a_candidate() -> None:
+    program = compiled(
+        "(defschema p (x) (setf m (source x)) (best-of (when (usable? m) (after m)) (plan-b x)))"
+    )
+    assert run_program(program, {"x": "nothing"}, 40).result == Result("plan b", 0.5)
+    assert program.run({"x": "nothing"}, 40, WorkClock()) == Result("plan b", 0.5)
+    best = run_program(program, {"x": "data"}, 40).result
+    assert best is not None and best.value == ("after", "data") and best.quality == 1.0
