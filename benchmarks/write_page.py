@@ -56,6 +56,15 @@ BENCHMARKS = [
         " round-robin on m processes, randomised) against theory.",
     ),
     (
+        "bench_promises.py",
+        ["--quick"],
+        "Compiler: promised against delivered",
+        "The shipped navigate schema's compiled expectation at every budget of its table"
+        " against the mean plan quality that runs on fresh worlds deliver, with its standard"
+        " error (target: within two standard errors at every budget, including the smallest;"
+        " no run over its budget on the work clock).",
+    ),
+    (
         "bench_choices.py",
         [],
         "Choices: splitting the time of a best-of",
