@@ -32,6 +32,7 @@ from anytime.dsl import (
     format_program,
     parse_schemas,
 )
+from anytime.dsl.normalize import SPECIAL_FORMS
 from anytime.dsl.parser import decode_source
 from anytime.errors import SchemaError, SchemaSyntaxError
 
@@ -131,7 +132,9 @@ def programs(
     inputs = tuple(variables[:n_inputs])
     targets = variables[n_inputs:]
     program_name = name if name is not None else draw(names)
-    functions = names.filter(lambda f: f != program_name and f not in forbidden_functions)
+    functions = names.filter(
+        lambda f: f != program_name and f not in forbidden_functions and f not in SPECIAL_FORMS
+    )
 
     available: list[str] = []  # targets that later steps may read
     unused: list[str] = []  # targets not read yet
