@@ -47,6 +47,7 @@ from anytime.plot import new_figure, save_figure
 from anytime.profiles import ConditionalPerformanceProfile, VisionHyperbola, tabulate
 from anytime.profiles.builder import Measurement
 from anytime.profiles.profile import Array
+from anytime.profiles.progress import ProgressBar
 from anytime.profiles.trials import Instance, ProblemSet
 from anytime.runtime.deadline import (
     CriticalEvent,
@@ -85,6 +86,7 @@ __all__ = [
     "Plugin",
     "ProblemSet",
     "ProfileError",
+    "ProgressBar",
     "Result",
     "SchemaFile",
     "Unit",
