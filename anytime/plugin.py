@@ -20,6 +20,7 @@ from typing import Any
 
 from anytime.cli.common import (
     EXIT_INPUT,
+    EXIT_INTERRUPTED,
     EXIT_OK,
     EXIT_USAGE,
     InputError,
@@ -60,6 +61,7 @@ from anytime.runtime.monitor import Adjustment, DeadlineValue, EventLog, Monitor
 
 __all__ = [
     "EXIT_INPUT",
+    "EXIT_INTERRUPTED",
     "EXIT_OK",
     "EXIT_USAGE",
     "Adjustment",
