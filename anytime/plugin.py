@@ -20,6 +20,7 @@ from typing import Any
 
 from anytime.cli.common import (
     EXIT_INPUT,
+    EXIT_INTERRUPTED,
     EXIT_OK,
     EXIT_USAGE,
     InputError,
@@ -47,6 +48,7 @@ from anytime.plot import new_figure, save_figure
 from anytime.profiles import ConditionalPerformanceProfile, VisionHyperbola, tabulate
 from anytime.profiles.builder import Measurement
 from anytime.profiles.profile import Array
+from anytime.profiles.progress import ProgressBar
 from anytime.profiles.trials import Instance, ProblemSet
 from anytime.runtime.deadline import (
     CriticalEvent,
@@ -59,6 +61,7 @@ from anytime.runtime.monitor import Adjustment, DeadlineValue, EventLog, Monitor
 
 __all__ = [
     "EXIT_INPUT",
+    "EXIT_INTERRUPTED",
     "EXIT_OK",
     "EXIT_USAGE",
     "Adjustment",
@@ -85,6 +88,7 @@ __all__ = [
     "Plugin",
     "ProblemSet",
     "ProfileError",
+    "ProgressBar",
     "Result",
     "SchemaFile",
     "Unit",

@@ -67,6 +67,7 @@ from anytime.library import AnytimeLibrary, LibraryEntry
 from anytime.modules import AnytimeModule, Context, Result
 from anytime.profiles.builder import BuildError, build_profile, registered_problems
 from anytime.profiles.profile import Array, ConditionalPerformanceProfile
+from anytime.profiles.progress import ProgressBar
 from anytime.profiles.trials import Grid, ProblemSet, Trial
 from anytime.runtime.executor import RunRecord, Status, run
 
@@ -215,6 +216,7 @@ def check_module(
     tolerance: float = 0.02,
     confidence: float = 0.99,
     workers: int = 1,
+    progress: bool | None = False,
 ) -> CatalogueReport:
     """Run the catalogue on `module` (see the module docstring).
 
@@ -232,6 +234,8 @@ def check_module(
         confidence: the profile check's family-wise confidence over all cells.
         workers: processes for the profile check's measurement (its result does not depend
             on how many).
+        progress: draw progress bars on standard error (the runs, then the profile's trials);
+            None: only on a terminal.
 
     Raises:
         CatalogueError: an elementary module, or no grid to run on.
@@ -251,8 +255,11 @@ def check_module(
     own = check_seed(seed)
     session = _Session(module, problems, grid, trials, own)
     checks = [_check_pickle(module, problems)]
-    deadline = session.deadline_runs()
-    interruption = session.interruption_runs()
+    total = len(session.cells) * trials * (len(grid.time) + 1)
+    with ProgressBar(total, label=f"{module.name} checks", unit="runs", enabled=progress) as bar:
+        session.done = bar.update
+        deadline = session.deadline_runs()
+        interruption = session.interruption_runs()
     runs = deadline + interruption
     checks.append(_check_quality(runs))
     checks.append(_check_errors(runs))
@@ -260,7 +267,7 @@ def check_module(
     checks.append(_check_interruption(module, interruption))
     if declared is not None:
         verdict = _check_profile(
-            module, problems, declared, grid, trials, own, tolerance, confidence, workers
+            module, problems, declared, grid, trials, own, tolerance, confidence, workers, progress
         )
     assert verdict is not None
     checks.append(verdict)
@@ -437,6 +444,7 @@ class _Session:
             tuple(float(g[i]) for g, i in zip(grid.input_grids, index, strict=True))
             for index in np.ndindex(*grid.cell_shape)
         ]
+        self.done: Callable[[], object] = lambda: None  # called after every run (progress)
 
     def _instances(self) -> Iterator[tuple[int, int, tuple[float, ...], str]]:
         for cell, qualities in enumerate(self.cells):
@@ -467,6 +475,7 @@ class _Session:
         clock = _ProbeClock(allocation, stop, stop_at)
         recorded = _recorded(self.module, log, snapshots=stop_at < math.inf)
         record = run(recorded, args, allocation=allocation, clock=clock, stop=stop)
+        self.done()
         return _Run(record, tuple(log), where, allocation, clock.largest, clock.negative)
 
     def deadline_runs(self) -> list[_Run]:
@@ -655,6 +664,7 @@ def _check_profile(
     tolerance: float,
     confidence: float,
     workers: int,
+    progress: bool | None = False,
 ) -> Check:
     build = build_profile(
         module,
@@ -665,7 +675,7 @@ def _check_profile(
         trials=trials,
         seed=seed,
         workers=workers,
-        progress=False,
+        progress=progress,
     )
     measured = build.profile
     exact = declared.mean is not None  # else compare what both say with bin representatives

@@ -31,6 +31,7 @@ from anytime.profiles.builder import (
     profile_module,
 )
 from anytime.profiles.io import load_profile, save_profile
+from anytime.profiles.progress import timed_progress
 from anytime.runtime.calibrate import CalibrationError, calibrate, convert_profile
 from anytime.testing import CatalogueError, check_module
 
@@ -117,6 +118,7 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "-o", "--output", metavar="OUT", help="where to write the converted profile"
     )
     calibrate_.add_argument("--json", action="store_true", help="print JSON")
+    calibrate_.add_argument("--quiet", action="store_true", help="no progress bar")
     library_options(calibrate_)
     calibrate_.set_defaults(run=run_calibrate, usage_error=calibrate_.error)
 
@@ -137,8 +139,22 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
         metavar="N",
         help=f"instances per cell (20; at most {MAX_CHECK_RUNS:,} runs in all)",
     )
-    check.add_argument("--seed", type=random_seed, default=0, metavar="S", help="root seed (0)")
+    check.add_argument(
+        "--seed",
+        type=random_seed,
+        default=0,
+        metavar="S",
+        help="root seed (0); the instances are never those `anytime profile` measured with it",
+    )
+    check.add_argument(
+        "--workers",
+        type=worker_count,
+        default=1,
+        metavar="N",
+        help=f"local processes for the profile check (1; at most {MAX_WORKERS})",
+    )
     check.add_argument("--json", action="store_true", help="print the report as JSON")
+    check.add_argument("--quiet", action="store_true", help="no progress bars")
     library_options(check)
     check.set_defaults(run=run_check)
 
@@ -212,9 +228,11 @@ def run_calibrate(args: argparse.Namespace) -> int:
                 f"anytime: error: {args.profile}: module: expected '{module.name}' (the module"
                 f" calibrated), got '{profile.module}'"
             )
+    bar = False if args.quiet else None  # a progress bar on a terminal, unless --quiet
     try:
         plan = library.measurement(module.name)
-        calibration = calibrate(module, args.seconds, measurement=plan, seed=args.seed)
+        with timed_progress(args.seconds, label=f"{module.name} calibration", enabled=bar):
+            calibration = calibrate(module, args.seconds, measurement=plan, seed=args.seed)
     except (BuildError, CalibrationError) as error:
         raise InputError(f"anytime: error: {error}") from None
     if profile is not None:
@@ -252,6 +270,8 @@ def run_check(args: argparse.Namespace) -> int:
             registered=plan.grid,
             trials=args.trials,
             seed=args.seed,
+            workers=args.workers,
+            progress=False if args.quiet else None,  # bars on a terminal, unless --quiet
         )
     except (BuildError, CatalogueError) as error:
         raise InputError(f"anytime: error: {error}") from None

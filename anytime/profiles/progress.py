@@ -1,32 +1,47 @@
-"""A one-line progress bar for long measurements: done / total, rate and time left.
+"""Progress bars for long commands, drawn by tqdm on standard error.
 
-It draws on a terminal only (by default, when the stream is a TTY), redrawing in place at most
-ten times a second, so piping the output to a file or a CI log stays clean.
+A bar draws on a terminal only (by default, when its stream is a TTY) and is silent otherwise,
+so piping the output to a file or a CI log stays clean; `enabled=False` (a command's `--quiet`)
+silences it on a terminal too. `ProgressBar` counts units of work (trials, runs, frames,
+problems; `total=None` when the count is not known in advance); `timed_progress` fills a bar
+over a wall-time budget (a calibration's seconds).
 """
 
 from __future__ import annotations
 
 import sys
+import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import TextIO
 
-_WIDTH = 24  # characters of the bar itself
-_REDRAW = 0.1  # seconds between redraws
+from tqdm import tqdm  # type: ignore[import-untyped]  # (types-tqdm is not a dev dependency)
+
+__all__ = ["ProgressBar", "timed_progress"]
+
+#: Seconds between redraws.
+REDRAW = 0.1
+#: The bars' formats, with the count's unit and the rate always in units per second.
+_COUNTED = "{l_bar}{bar}| {n_fmt}/{total_fmt}{unit} [{elapsed}<{remaining}, {rate_noinv_fmt}]"
+_UNCOUNTED = "{desc}: {n_fmt}{unit} [{elapsed}, {rate_noinv_fmt}]"
 
 
-def _duration(seconds: float) -> str:
-    seconds = max(0, round(seconds))
-    hours, rest = divmod(seconds, 3600)
-    minutes, secs = divmod(rest, 60)
-    return f"{hours}:{minutes:02d}:{secs:02d}" if hours else f"{minutes}:{secs:02d}"
+def on_terminal(stream: TextIO) -> bool:
+    """Whether `stream` is a terminal (where bars are drawn by default)."""
+    isatty = getattr(stream, "isatty", None)
+    try:
+        return bool(isatty is not None and isatty())
+    except ValueError:  # a closed stream
+        return False
 
 
 class ProgressBar:
-    """`label [#####-----] done/total unit  rate/s  ETA m:ss` on `stream`.
+    """`label: 40%|####      | 48/120 [00:02<00:03, 20.1 trials/s]` on `stream`.
 
     Args:
-        total: how many units the whole job has.
-        label: what is being measured (a module's name).
+        total: how many units the whole job has (None: not known; the bar counts up).
+        label: what is being done (a module's name).
         unit: what a unit is called ("trials").
         stream: where to draw (standard error by default).
         enabled: draw or not; by default, only when `stream` is a terminal.
@@ -34,69 +49,88 @@ class ProgressBar:
 
     def __init__(
         self,
-        total: int,
+        total: int | None,
         *,
         label: str = "",
         unit: str = "trials",
         stream: TextIO | None = None,
         enabled: bool | None = None,
     ) -> None:
-        self.total = max(0, total)
-        self.label = label
-        self.unit = unit
+        self.total = None if total is None else max(0, total)
         self.stream = stream if stream is not None else sys.stderr
-        if enabled is None:
-            isatty = getattr(self.stream, "isatty", None)
-            enabled = bool(isatty is not None and isatty())
-        self.enabled = enabled
-        self.done = 0
-        self._start = time.perf_counter()
-        self._drawn = -_REDRAW
-        self._drawn_done = -1
-        self._closed = False
+        self.enabled = on_terminal(self.stream) if enabled is None else enabled
+        self._done = 0
+        self._bar = tqdm(
+            total=self.total,
+            desc=label or None,
+            unit=f" {unit}",
+            bar_format=_COUNTED if self.total is not None else _UNCOUNTED,
+            file=self.stream,
+            disable=not self.enabled,
+            mininterval=REDRAW,
+            dynamic_ncols=True,
+        )
+
+    @property
+    def done(self) -> int:
+        """Units counted so far."""
+        return self._done
 
     def update(self, n: int = 1) -> None:
-        """Count `n` more units done (redraws if enough time has passed)."""
-        self.done += n
-        now = time.perf_counter()
-        if self.enabled and (now - self._drawn >= _REDRAW or self.done >= self.total):
-            self._drawn = now
-            self._draw(now)
+        """Count `n` more units done (redrawn at most every `REDRAW` seconds)."""
+        self._done += n
+        self._bar.update(n)
 
-    def line(self, now: float | None = None) -> str:
-        """The text of the bar as it stands."""
-        elapsed = (time.perf_counter() if now is None else now) - self._start
-        fraction = self.done / self.total if self.total else 1.0
-        filled = min(_WIDTH, int(fraction * _WIDTH))
-        bar = "#" * filled + "-" * (_WIDTH - filled)
-        rate = self.done / elapsed if elapsed > 0 else 0.0
-        if self.done >= self.total:
-            eta = f"in {_duration(elapsed)}"
-        elif rate > 0:
-            eta = f"ETA {_duration((self.total - self.done) / rate)}"
-        else:
-            eta = "ETA ?"
-        head = f"{self.label} " if self.label else ""
-        return f"{head}[{bar}] {self.done}/{self.total} {self.unit}  {rate:.1f}/s  {eta}"
-
-    def _draw(self, now: float) -> None:
-        self._drawn_done = self.done
-        self.stream.write("\r" + self.line(now) + "\x1b[K")
-        self.stream.flush()
+    def set_label(self, label: str) -> None:
+        """Say what is being done now."""
+        self._bar.set_description_str(label)
 
     def close(self) -> None:
         """Draw the final state and end the line (once)."""
-        if self._closed:
-            return
-        self._closed = True
-        if self.enabled:
-            if self._drawn_done != self.done:
-                self._draw(time.perf_counter())
-            self.stream.write("\n")
-            self.stream.flush()
+        self._bar.close()
 
     def __enter__(self) -> ProgressBar:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+@contextmanager
+def timed_progress(
+    seconds: float,
+    *,
+    label: str = "",
+    stream: TextIO | None = None,
+    enabled: bool | None = None,
+) -> Iterator[None]:
+    """A bar filling over `seconds` of wall time while the block runs (drawn by a thread)."""
+    stream = stream if stream is not None else sys.stderr
+    if not (on_terminal(stream) if enabled is None else enabled):
+        yield
+        return
+    bar = tqdm(
+        total=seconds,
+        desc=label or None,
+        file=stream,
+        bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining}",
+        mininterval=REDRAW,
+        dynamic_ncols=True,
+    )
+    stop = threading.Event()
+    start = time.perf_counter()
+
+    def draw() -> None:
+        while not stop.wait(REDRAW):
+            bar.n = min(seconds, time.perf_counter() - start)
+            bar.refresh()
+
+    thread = threading.Thread(target=draw, daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join()
+        bar.n = min(seconds, time.perf_counter() - start)
+        bar.close()

@@ -1,7 +1,6 @@
 """The profile builder: it recovers known profiles, measures time right, survives failing
 modules, and gives the same profile whatever runs the trials."""
 
-import io
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -26,7 +25,6 @@ from anytime.profiles.builder import (
     registered_problems,
 )
 from anytime.profiles.io import save_profile
-from anytime.profiles.progress import ProgressBar
 
 # Toy modules live at the top level of this file: worker processes import them by reference.
 TOYS = Registry()
@@ -415,25 +413,3 @@ def test_registered_problems_are_found_by_module_name(monkeypatch: pytest.Monkey
         "no problem set is registered for module 'aproach' (registered: approach);"
         " did you mean 'approach'?"
     )
-
-
-def test_the_progress_bar_draws_on_a_terminal_only() -> None:
-    class Terminal(io.StringIO):
-        def isatty(self) -> bool:
-            return True
-
-    terminal, pipe = Terminal(), io.StringIO()
-    for stream in (terminal, pipe):
-        with ProgressBar(10, label="approach", stream=stream) as bar:
-            for _ in range(10):
-                bar.update()
-    assert pipe.getvalue() == ""
-    drawn = terminal.getvalue().rstrip("\n").split("\r")
-    last = drawn[-1]
-    assert len(drawn) == 3  # the first update, the last, and nothing more on closing
-    assert last.startswith("approach [########################] 10/10 trials ")
-    assert "/s  in 0:0" in last and terminal.getvalue().endswith("\n")
-    half = ProgressBar(4, stream=io.StringIO(), enabled=True)
-    half.update(2)
-    assert "[############------------] 2/4 trials" in half.line()
-    assert half.line().endswith(" ETA 0:00") or " ETA " in half.line()

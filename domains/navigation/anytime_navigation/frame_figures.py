@@ -6,6 +6,7 @@ frame, and an animated GIF of the run. Needs matplotlib (the `plot` extra), impo
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -57,8 +58,14 @@ def _draw_obstacles(axes: Any, frame: Any) -> None:
         )
 
 
-def write_frames(report: TaskReport, task: NavigationTask, out: str | Path) -> list[str]:
+def write_frames(
+    report: TaskReport,
+    task: NavigationTask,
+    out: str | Path,
+    on_frame: Callable[[int], object] | None = None,
+) -> list[str]:
     """Write `frame-NNN.png` for every frame and `run.gif` into `out`; return the paths.
+    Each file is written atomically; `on_frame(n)`, if given, is called after each picture.
 
     Left, the planning view: the robot's map at planning time (what it had sensed and bumped
     into), the sensor window, and the plan as squares of its abstraction levels
@@ -114,6 +121,8 @@ def write_frames(report: TaskReport, task: NavigationTask, out: str | Path) -> l
         path = out / f"frame-{frame.index:03d}.png"
         save_figure(figure, path)
         written.append(str(path))
+        if on_frame is not None:
+            on_frame(len(written))
     if written:
         images = [Image.open(p).convert("P") for p in written]
         gif = out / "run.gif"

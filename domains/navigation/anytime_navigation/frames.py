@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 import time as _time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -88,8 +88,12 @@ def run_task(
     max_frames: int = 200,
     obstacles: Sequence[MovingObstacle] = (),
     overcome: Any = None,
+    on_frame: Callable[[int], object] | None = None,
 ) -> TaskReport:
     """Run `task` under `policy` (`fixed` needs `contract`) and report what happened.
+
+    `on_frame(n)`, if given, is called after each frame with the number of frames done (for a
+    progress bar).
 
     `compiled` and `trace` come from `navigation_program`. Raises ValueError for an unknown
     policy, a missing contract, or a goal unreachable from the start.
@@ -104,7 +108,7 @@ def run_task(
     intra-frame adjustments), and detours are searched on the true map near the robot.
     """
     run = _TaskRun(task, compiled, trace, policy, contract, clock, obstacles, overcome)
-    return run.run(max_frames)
+    return run.run(max_frames, on_frame)
 
 
 Choices = tuple[tuple[str, tuple[Position, ...]], ...]
@@ -392,7 +396,7 @@ class _TaskRun:
 
     # --- the task ------------------------------------------------------------------------
 
-    def run(self, max_frames: int) -> TaskReport:
+    def run(self, max_frames: int, on_frame: Callable[[int], object] | None = None) -> TaskReport:
         world, truth, counts = self.world, self.truth, self.counts
         known = np.zeros_like(truth)
         position = world.start
@@ -472,6 +476,8 @@ class _TaskRun:
             )
             self.learn(known, position, end, route_length(segment), decision.expected_quality)
             position = end
+            if on_frame is not None:
+                on_frame(len(records))
             if following is None:
                 now = exec_start + done.time
                 break

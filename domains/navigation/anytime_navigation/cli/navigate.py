@@ -14,6 +14,7 @@ from anytime.plugin import (
     CommandGroup,
     DeadlineValue,
     InputError,
+    ProgressBar,
     UsageError,
     int_in_range,
     json_text,
@@ -116,7 +117,14 @@ def add_command(commands: CommandGroup) -> None:
         "profile there replaces the shipped one; repeatable",
     )
     navigate.add_argument("--out", metavar="DIR", help="write frame figures, a GIF, events.jsonl")
+    navigate.add_argument(
+        "--compare",
+        action="store_true",
+        help="also run the task under the fixed policies min and max (the shortest and the "
+        "longest contract; each a whole run more) and report them beside it",
+    )
     navigate.add_argument("--json", action="store_true", help="print the result as JSON")
+    navigate.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
 def _world(args: argparse.Namespace) -> World:
@@ -175,22 +183,27 @@ def run_navigate(args: argparse.Namespace) -> int:
             obstacles = random_obstacles(world, args.moving_obstacles, args.seed)
         except ValueError as error:
             raise InputError(f"anytime navigate: error: --moving-obstacles: {error}") from None
-    report = run_task(
-        task,
-        compiled,
-        trace,
-        policy=args.policy,
-        contract=args.contract,
-        clock=args.clock,
-        obstacles=obstacles,
-    )
+    bars = False if args.quiet else None  # progress on a terminal's stderr, unless --quiet
+
+    def run(policy: str, contract: float | None = None) -> TaskReport:
+        with ProgressBar(None, label=f"navigate ({policy})", unit="frames", enabled=bars) as bar:
+            return run_task(
+                task,
+                compiled,
+                trace,
+                policy=policy,
+                contract=contract,
+                clock=args.clock,
+                obstacles=obstacles,
+                on_frame=lambda _: bar.update(),
+            )
+
+    report = run(args.policy, args.contract)
     comparison: dict[str, TaskReport] = {}
-    if not args.json:
+    if args.compare:
         for policy in ("min", "max"):
             if policy != args.policy:
-                comparison[policy] = run_task(
-                    task, compiled, trace, policy=policy, clock=args.clock, obstacles=obstacles
-                )
+                comparison[policy] = run(policy)
     written: list[str] = []
     if args.out is not None:
         out = Path(args.out)
@@ -209,9 +222,15 @@ def run_navigate(args: argparse.Namespace) -> int:
                 f"anytime: warning: no figures ({error}); install the 'plot' extra", file=sys.stderr
             )
         else:
-            written.extend(write_frames(report, task, out))
+            with ProgressBar(
+                len(report.records), label="navigate figures", unit="frames", enabled=bars
+            ) as bar:
+                written.extend(write_frames(report, task, out, on_frame=lambda _: bar.update()))
     if args.json:
-        print(json_text(report.as_json(), indent=None))
+        result = report.as_json()
+        if comparison:
+            result["comparison"] = {name: other.as_json() for name, other in comparison.items()}
+        print(json_text(result, indent=None))
     else:
         print(_summary(report, comparison), end="")
         if written:

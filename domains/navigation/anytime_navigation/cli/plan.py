@@ -23,6 +23,7 @@ from anytime.plugin import (
     CommandGroup,
     Context,
     InputError,
+    ProgressBar,
     format_table,
     json_text,
     positive_int,
@@ -109,6 +110,7 @@ def add_command(commands: CommandGroup) -> None:
         help="solve the first N problems of the scenario file (10)",
     )
     parser.add_argument("--json", action="store_true", help="print JSON")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def _position(text: str) -> Position:
@@ -135,7 +137,12 @@ def run_plan(args: argparse.Namespace) -> int:
     except MapError as error:
         raise InputError(f"{error.filename}:{error.line}: error: {error.message}") from None
     pyramid = Pyramid.build(blocked) if args.planner == "atp" else None
-    solutions = [_solve(problem, blocked, pyramid, args.movement) for problem in problems]
+    solutions = []
+    enabled = False if args.quiet or len(problems) == 1 else None  # on a terminal's stderr
+    with ProgressBar(len(problems), label="plan", unit="problems", enabled=enabled) as bar:
+        for problem in problems:
+            solutions.append(_solve(problem, blocked, pyramid, args.movement))
+            bar.update()
     reference = "scen" if problems[0].optimal is not None else "astar"
     summary = _summary(solutions, args.planner, args.movement, reference)
     if args.json:

@@ -1,0 +1,131 @@
+"""Ctrl-C ends any command with one line, `anytime: interrupted`, and exit status 130: no
+traceback (the profile builder's workers included), and no half-written output (every file is
+written to a temporary file renamed over it once complete)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+import anytime.files
+import anytime.library
+from anytime.modules import Context, Registry, Result, interruptible
+from anytime.profiles.builder import Instance, register_problems
+
+#: The `cli` fixture (tests/conftest.py): runs `anytime` in-process, (exit code, stdout, stderr).
+Cli = Callable[..., tuple[int, str, str]]
+
+INTERRUPTED = "anytime: interrupted\n"
+
+MODULES = Registry()
+
+
+@interruptible("pressed", inputs=[], registry=MODULES)
+def pressed(ctx: Context, x: float) -> Iterator[Result]:
+    """Ctrl-C pressed while the module runs."""
+    ctx.tick(1)
+    yield Result(x, 0.5)
+    raise KeyboardInterrupt
+
+
+class Problems:
+    def instance(self, rng: np.random.Generator, input_qualities: tuple[float, ...]) -> Instance:
+        return Instance(args=(float(rng.random()),))
+
+    def score(self, instance: Instance, value: Any) -> float:
+        return 0.5
+
+
+register_problems(pressed, Problems(), time=[0, 1, 2])
+
+
+def test_a_module_interrupted_in_process(
+    cli: Cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(anytime.library, "REGISTRY", MODULES)
+    out = tmp_path / "pressed.yaml"
+    out.write_text("old\n")
+    code, stdout, err = cli("profile", "pressed", "--no-plugins", "--quiet", "-o", str(out))
+    assert (code, stdout, err) == (130, "", INTERRUPTED)
+    assert out.read_text() == "old\n" and os.listdir(tmp_path) == ["pressed.yaml"]
+
+
+def test_interrupted_before_the_rename_keeps_the_old_file(
+    cli: Cli, navigation_any: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def replace(*args: object) -> None:
+        raise KeyboardInterrupt
+
+    out = tmp_path / "navigate.yaml"
+    out.write_text("old\n")
+    monkeypatch.setattr(anytime.files.os, "replace", replace)
+    code, stdout, err = cli(
+        "compile", str(navigation_any), "--schema", "navigate", "--time-grid", "0:1000:250",
+        "-o", str(out),
+    )  # fmt: skip
+    assert (code, stdout, err) == (130, "", INTERRUPTED)
+    assert out.read_text() == "old\n" and os.listdir(tmp_path) == ["navigate.yaml"]
+
+
+def test_a_plugin_command_interrupted(
+    cli: Cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import anytime_navigation.cli.navigate as navigate
+
+    def run_task(*args: object, **kwargs: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(navigate, "run_task", run_task)
+    (tmp_path / "events.jsonl").write_text("old\n")
+    code, stdout, err = cli("navigate", "--size", "16", "--out", str(tmp_path))
+    assert (code, stdout, err) == (130, "", INTERRUPTED)
+    assert (tmp_path / "events.jsonl").read_text() == "old\n"
+
+
+def _interrupt(argv: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
+    """Run `anytime ARGV` in a process group of its own, send the group SIGINT once the command
+    runs (as a terminal's Ctrl-C does: worker processes get it too), and wait for the end."""
+    code = (
+        "import sys; from anytime.cli import main; print('ready', flush=True);"
+        f" sys.exit(main({argv!r}))"
+    )
+    process = subprocess.Popen(
+        [sys.executable, "-c", code],
+        cwd=cwd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    assert process.stdout is not None
+    assert process.stdout.readline() == "ready\n"
+    time.sleep(1.0)  # into the command's work (not a timing assertion: any moment will do)
+    os.killpg(process.pid, signal.SIGINT)
+    stdout, stderr = process.communicate(timeout=60)
+    return subprocess.CompletedProcess(argv, process.returncode, stdout, stderr)
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="SIGINT to a process")
+def test_ctrl_c_in_the_profile_builders_worker_pool(tmp_path: Path) -> None:
+    out = tmp_path / "find-path.yaml"
+    out.write_text("old\n")
+    argv = ["profile", "find-path", "--trials", "5000", "--workers", "2", "-o", str(out)]
+    done = _interrupt(argv, tmp_path)
+    assert (done.returncode, done.stdout, done.stderr) == (130, "", INTERRUPTED)
+    assert out.read_text() == "old\n" and os.listdir(tmp_path) == ["find-path.yaml"]
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="SIGINT to a process")
+def test_ctrl_c_in_navigate(tmp_path: Path) -> None:
+    done = _interrupt(["navigate", "--size", "64", "--compare", "--out", str(tmp_path)], tmp_path)
+    assert (done.returncode, done.stdout, done.stderr) == (130, "", INTERRUPTED)
+    assert [p for p in os.listdir(tmp_path) if ".partial" in p] == []
