@@ -108,6 +108,9 @@ def survey(args: argparse.Namespace) -> int:
     schemas = load_schemas(args.file, library.known_functions())
     (program,) = compile_file(schemas, library, [0, args.time], schema=args.schema, resolution=1)
     result = program.run([Plot(args.area)], args.time)
+    if result is None:  # the program registered no result in that time
+        print(f"{args.schema} in {args.time} ticks: no result")
+        return EXIT_OK
     split = ", ".join(
         f"{m} {t:g}" for m, t in zip(program.modules, program.allocation[-1], strict=True)
     )
