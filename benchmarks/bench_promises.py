@@ -7,9 +7,9 @@ against the navigation plugin's measured profiles, on the profiles' own setting 
 128x128 worlds, 4-connected). At each total T of the compiled table, fresh worlds (never those
 the profiles were measured on) are run through `run_program` on the work clock, and the plan
 is scored as the profiles score it: the papers' plan quality on the true map. Columns: the
-compiled expectation, the realised mean and its standard error (floored at 1 / runs, the
-resolution of a mean of that many runs, where every run scored the same), |difference| /
-standard error (within 2 in about 95% of rows when the promise holds), how many runs used more
+compiled expectation, the realised mean and its standard error, |difference| / standard error
+(within 2 in about 95% of rows when the promise holds; where every run scored the same, so the
+standard error is 0, the difference is divided by 1 / runs instead), how many runs used more
 than T, and how many ended without a plan.
 """
 
@@ -64,7 +64,7 @@ def main() -> None:
         se = float(np.std(qualities, ddof=1) / np.sqrt(runs)) if runs > 1 else 0.0
         promised = float(compiled.expected[j])
         gap = abs(mean - promised)
-        ratio = gap / max(se, 1.0 / runs)
+        ratio = gap / (se if se > 0 else 1.0 / runs)
         worst = max(worst, ratio)
         within += ratio <= 2.0
         rows.append(
