@@ -312,8 +312,10 @@ class ProfileDirectory:
         self.name = f"profile directory {self.path}"
 
     def load(self) -> Loaded:
-        if not self.path.is_dir():
+        if not self.path.exists():
             raise LibraryError(f"profile directory '{self.path}' does not exist")
+        if not self.path.is_dir():
+            raise LibraryError(f"profile directory '{self.path}' is not a directory")
         files = sorted(self.path.glob("*.yaml"))
         return Loaded(tuple(LibraryEntry.of_profile(load_profile(f), f) for f in files))
 

@@ -191,10 +191,14 @@ def test_a_profile_directory_gives_profile_only_entries(profiles: Path) -> None:
     assert library.known_functions() == {"find-path": None, "get-domain-description": None}
 
 
-def test_a_missing_profile_directory_is_an_error(tmp_path: Path) -> None:
+def test_a_missing_or_non_directory_profile_directory_is_an_error(tmp_path: Path) -> None:
     with pytest.raises(LibraryError) as caught:
         AnytimeLibrary([ProfileDirectory(tmp_path / "nope")])
     assert str(caught.value) == f"profile directory '{tmp_path / 'nope'}' does not exist"
+    (tmp_path / "file.yaml").write_text("", encoding="utf-8")
+    with pytest.raises(LibraryError) as caught:
+        AnytimeLibrary([ProfileDirectory(tmp_path / "file.yaml")])
+    assert str(caught.value) == f"profile directory '{tmp_path / 'file.yaml'}' is not a directory"
 
 
 def test_a_malformed_file_in_a_profile_directory_names_the_file(profiles: Path) -> None:
