@@ -59,7 +59,6 @@ import attrs
 import numpy as np
 from attrs import frozen
 from numpy.typing import ArrayLike
-from scipy import stats
 
 from anytime.clocks import Unit, WorkClock
 from anytime.errors import AnytimeError, ProfileError
@@ -719,6 +718,10 @@ def _check_profile(
 
 def _quantile(p: float, df: int) -> float:
     """The Student t quantile (the normal one for df < 1)."""
+    # Imported here: scipy.stats takes most of a second to import, which every `anytime`
+    # command would otherwise pay at start-up (the CLI imports this module).
+    from scipy import stats
+
     if df < 1:
         return float(stats.norm.ppf(p))
     return float(stats.t.ppf(p, df))
