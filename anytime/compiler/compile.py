@@ -59,14 +59,21 @@ class CompiledProgram:
             per quality-carrying program input, on `input_quality`, and the time grid.
         allocation: time per anytime module, shape (*input grids, time, n), in the time unit.
         allocator: the allocator that filled the table.
-        note: how it was chosen, and what is approximate (said in every report).
+        requested: the allocator asked for ("auto" by default).
+        dp_obstacle: why dp would not be exact for this program (None when it is).
         baselines: expected quality of the equal, MIN and MAX allocations, each shaped like
             `profile.mean`.
         exhaustive_gap: the largest amount by which the exhaustive optimum beats the table
             (None when the exhaustive search was not computable).
+        approximations: what the evaluation of allocations approximates, one sentence each
+            (a DAG's shared results taken as independent).
+        kept_smaller: the totals of the time grid at which a smaller total's allocation does
+            better and is kept, the rest of the time left unused (for some input quality).
         warnings: what the table cannot vouch for, one sentence each: a module fed input
             qualities outside the grid its profile was measured on (its profile is clamped
             there, and the allocator may exploit it).
+
+    `exact` and `note` are rendered from these fields.
     """
 
     name: str
@@ -74,11 +81,38 @@ class CompiledProgram:
     profile: ConditionalPerformanceProfile
     allocation: Array
     allocator: str
-    note: str
     baselines: dict[str, Array]
     exhaustive_gap: float | None
     resolution: float
+    requested: str = "auto"
+    dp_obstacle: str | None = None
+    approximations: tuple[str, ...] = ()
+    kept_smaller: tuple[float, ...] = ()
     warnings: tuple[str, ...] = ()
+
+    @property
+    def exact(self) -> bool:
+        """Whether the table is the optimum of the program on its time lattice: found by an
+        exact search (dp where dp is exact, or exhaustive) and evaluated without
+        approximation."""
+        optimal = self.allocator == "exhaustive" or (
+            self.allocator == "dp" and self.dp_obstacle is None
+        )
+        return optimal and not self.approximations
+
+    @property
+    def note(self) -> str:
+        """How the allocator was chosen and what is approximate, as every report says it."""
+        return "; ".join([_allocator_note(self), *self.approximations, *self._kept_note()])
+
+    def _kept_note(self) -> list[str]:
+        if not self.kept_smaller:
+            return []
+        return [
+            f"at {len(self.kept_smaller)} of the table's totals a smaller total does better:"
+            " there the program uses that allocation and leaves the rest of the time unused,"
+            " so its quality never falls as the total grows"
+        ]
 
     @property
     def modules(self) -> tuple[str, ...]:
@@ -189,10 +223,10 @@ def compile_program(
     small = len(model.anytime_nodes) <= 4 and Exhaustive.computable(
         u_rows, len(model.anytime_nodes)
     )
-    chosen, note = _choose(model, allocator, small)
-    notes = [note]
+    chosen = _choose(model, allocator, small)
+    approximations = []
     if model.graph.shape == "dag" and not all(n.deterministic for n in model.nodes):
-        notes.append(
+        approximations.append(
             "the program is a DAG: a shared result makes later inputs correlated, and "
             "evaluation treats them as independent (exact for trees, approximate here)"
         )
@@ -200,13 +234,7 @@ def compile_program(
     seen: dict[int, list[Dist]] = {}
     output = evaluator.evaluate(q_rows, allocation * dt, seen=seen)
     warnings = _outside_input_grids(model, seen)
-    allocation, output, idle = _never_worse_with_more_time(allocation, output, len(time))
-    if idle:
-        notes.append(
-            f"at {idle} of the table's totals a smaller total does better: there the program "
-            "uses that allocation and leaves the rest of the time unused, so its quality never "
-            "falls as the total grows"
-        )
+    allocation, output, kept = _never_worse_with_more_time(allocation, output, len(time))
     baselines = {
         name: evaluator.expected(q_rows, split * dt).reshape(cell_shape)
         for name, split in _baselines(model, u_rows, dt).items()
@@ -225,7 +253,10 @@ def compile_program(
         profile=profile,
         allocation=(allocation * dt).reshape(*cell_shape, n),
         allocator=chosen,
-        note="; ".join(notes),
+        requested=allocator,
+        dp_obstacle=dp_obstacle(model),
+        approximations=tuple(approximations),
+        kept_smaller=tuple(float(t) for t in time[kept]),
         baselines=baselines,
         exhaustive_gap=gap,
         resolution=dt,
@@ -307,7 +338,9 @@ def compile_file(
     return compiled
 
 
-def _choose(model: CompileModel, allocator: str, small: bool = False) -> tuple[str, str]:
+def _choose(model: CompileModel, allocator: str, small: bool = False) -> str:
+    """The allocator to run for `allocator` ("auto": dp where it is exact, else exhaustive
+    when affordable, else hill-climbing; dp asked for where it is not exact: hill-climbing)."""
     if allocator not in ALLOCATOR_NAMES:
         raise CompileError(
             f"unknown allocator '{allocator}' (expected one of {', '.join(ALLOCATOR_NAMES)})"
@@ -315,13 +348,22 @@ def _choose(model: CompileModel, allocator: str, small: bool = False) -> tuple[s
     obstacle = dp_obstacle(model)
     if allocator == "auto":
         if obstacle is None:
-            return "dp", "dp: local compilation, exact for this tree of monotone modules"
-        if small:  # hill-climbing can stop at a local maximum; the exact search is affordable
-            return "exhaustive", f"exhaustive, because dp would not be exact: {obstacle}"
-        return "hill-climbing", f"hill-climbing, because dp would not be exact: {obstacle}"
+            return "dp"
+        # hill-climbing can stop at a local maximum; the exact search is affordable
+        return "exhaustive" if small else "hill-climbing"
     if allocator == "dp" and obstacle is not None:
-        return "hill-climbing", f"dp was asked for but {obstacle}: fell back to hill-climbing"
-    notes = {
+        return "hill-climbing"
+    return allocator
+
+
+def _allocator_note(compiled: CompiledProgram) -> str:
+    """Which allocator filled the table and why, from the compile result's fields."""
+    obstacle, chosen = compiled.dp_obstacle, compiled.allocator
+    if compiled.requested == "auto" and obstacle is not None:
+        return f"{chosen}, because dp would not be exact: {obstacle}"
+    if compiled.requested == "dp" and obstacle is not None:
+        return f"dp was asked for but {obstacle}: fell back to hill-climbing"
+    return {
         "dp": "dp: local compilation, exact for this tree of monotone modules",
         "hill-climbing": "hill-climbing as in the papers (may stop at a local maximum)",
         "exhaustive": "exhaustive: every allocation on the time lattice",
@@ -329,8 +371,7 @@ def _choose(model: CompileModel, allocator: str, small: bool = False) -> tuple[s
             "proportional: Romanenko's rule, T_i = T * T_i* / sum T_j*, with T_i* the least "
             "time at which module i's expected quality rises (a baseline, not optimal)"
         ),
-    }
-    return allocator, notes[allocator]
+    }[chosen]
 
 
 def _baselines(model: CompileModel, units: np.ndarray, dt: float) -> dict[str, np.ndarray]:
@@ -361,12 +402,12 @@ def _baselines(model: CompileModel, units: np.ndarray, dt: float) -> dict[str, n
 
 def _never_worse_with_more_time(
     allocation: np.ndarray, output: Dist, n_times: int
-) -> tuple[np.ndarray, Dist, int]:
+) -> tuple[np.ndarray, Dist, np.ndarray]:
     """A contract program may finish early: at a total T where some smaller total of the grid
     gives a higher expected quality (modules whose profiles fall with time can make it so),
     use the best smaller total's allocation and leave the rest unused. Rows are (input
-    quality cell, time) in time-fastest order. Returns the allocation, the output and how many
-    totals changed."""
+    quality cell, time) in time-fastest order. Returns the allocation, the output and which
+    totals of the grid changed (for some input quality)."""
     expected = output.expected().reshape(-1, n_times)
     best_so_far = np.maximum.accumulate(expected, axis=1)
     steps = np.arange(n_times)
@@ -374,9 +415,9 @@ def _never_worse_with_more_time(
     # smaller one is better by more than rounding.
     own = expected >= best_so_far - 1e-12
     best = np.maximum.accumulate(np.where(own, steps, 0), axis=1)
-    changed = int(np.count_nonzero(best != steps))
-    if not changed:
-        return allocation, output, 0
+    changed = np.any(best != steps, axis=0)
+    if not changed.any():
+        return allocation, output, changed
     rows = (np.arange(expected.shape[0])[:, None] * n_times + best).reshape(-1)
     return allocation[rows], Dist(output.values[rows], output.probs[rows]), changed
 

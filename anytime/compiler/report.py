@@ -27,6 +27,10 @@ def compiled_to_dict(compiled: CompiledProgram) -> dict[str, Any]:
         "allocation": compiled.allocation.tolist(),
         "baselines": {name: value.tolist() for name, value in compiled.baselines.items()},
         "exhaustive_gap": compiled.exhaustive_gap,
+        "exact": compiled.exact,
+        "dp_obstacle": compiled.dp_obstacle,
+        "approximations": list(compiled.approximations),
+        "kept_smaller": list(compiled.kept_smaller),
         "method_note": compiled.note,
         "warnings": list(compiled.warnings),
     }

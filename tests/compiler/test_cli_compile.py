@@ -114,6 +114,10 @@ def test_json_report_fields_and_shapes(cli: Cli, setup: tuple[Path, Path]) -> No
         "allocation",
         "baselines",
         "exhaustive_gap",
+        "exact",
+        "dp_obstacle",
+        "approximations",
+        "kept_smaller",
         "method_note",
         "warnings",
     ]
