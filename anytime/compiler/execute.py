@@ -62,6 +62,7 @@ def execute(
     values = bind_inputs(program.name, program.inputs, inputs)
     qualities = [_quality(values[name]) for name in model.quality_inputs]
     clock = clock if clock is not None else WorkClock()
+    start = clock.now()
     results: dict[int, Result] = {}
     choices = Choices(compiled, qualities, compiled.allocation_at(qualities, total))
 
@@ -85,9 +86,8 @@ def execute(
                 answer = _elementary(module, args, kwargs, carrying)
             else:
                 assert node.time_index is not None
-                ctx = Context(
-                    allocation=float(choices.allocation[node.time_index]), clock=clock, stop=stop
-                )
+                given = choices.budget(node, clock.now() - start, total)
+                ctx = Context(allocation=given, clock=clock, stop=stop)
                 answer = _anytime(module, ctx, args, kwargs)
         if answer is not None:
             results[node.index] = answer
@@ -132,6 +132,22 @@ class Choices:
         if not self.active(choice, results):
             return False
         return self.decided(choice, results)[tag[1]]
+
+    def budget(self, node: CompileNode, spent: float, total: float) -> float:
+        """The time an anytime node gets: its planned share, less whatever earlier calls used
+        past theirs (a module may overshoot by its last step), so that the calls still to run
+        keep their planned time and the program keeps its contract."""
+        assert node.time_index is not None
+        later = sum(
+            float(self.allocation[n.time_index])
+            for n in self.compiled.model.anytime_nodes
+            if n.index > node.index and n.time_index is not None and not self.ruled_out(n)
+        )
+        planned = float(self.allocation[node.time_index])
+        left = total - spent - later
+        if left >= planned - 1e-9 * max(1.0, abs(total)):  # nothing overran (up to rounding)
+            return planned
+        return max(0.0, left)
 
     def ruled_out(self, node: CompileNode) -> bool:
         """Whether `node` is known not to run: it is inside an alternative found inapplicable

@@ -164,7 +164,8 @@ def run_program(
                     choices.allocation = _reallocate(
                         compiled, evaluator, qualities, observed, choices.allocation, left
                     )
-                given = float(choices.allocation[node.time_index])
+                given = choices.budget(node, clock.now() - start, total)
+                choices.allocation[node.time_index] = given  # what it was given, as recorded
                 record = run(
                     module, args, kwargs, allocation=given, clock=clock, stop=stop, hard=hard
                 )

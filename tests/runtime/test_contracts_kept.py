@@ -1,0 +1,78 @@
+"""A compiled program keeps its contract on the work clock when a module overshoots: a module
+may pass its allocation by its last step, and the calls after it then get that much less (the
+calls after it ran on their full shares, and the program overran)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+
+from anytime.clocks import WorkClock
+from anytime.compiler import compile_program
+from anytime.dsl import parse_schemas
+from anytime.library import AnytimeLibrary
+from anytime.modules import Context, Registry, Result, interruptible
+from anytime.profiles import tabulate
+from anytime.runtime import Status, run_program
+
+MODULES = Registry()
+TIME = np.arange(0.0, 61.0, 10.0)
+
+
+def _rising(t: object) -> object:
+    return np.minimum(1.0, np.asarray(t, dtype=np.float64) / 30)
+
+
+@interruptible("coarse-steps", inputs=[], profile=tabulate(_rising, TIME), registry=MODULES)
+def coarse_steps(ctx: Context, x: object) -> Iterator[Result]:
+    """Works in steps of 7 ticks, so it passes its allocation by up to 6."""
+    done = 0
+    while not ctx.expired:
+        ctx.tick(7)
+        done += 7
+        yield Result(x, float(_rising(done)))
+
+
+@interruptible(
+    "fine-steps",
+    inputs=["m"],
+    profile=tabulate(lambda t, q: np.asarray(q) * _rising(t), TIME, input_grids=[[0.0, 1.0]]),
+    registry=MODULES,
+)
+def fine_steps(ctx: Context, m: Result) -> Iterator[Result]:
+    """Works one tick at a time: it never passes its allocation."""
+    done = 0
+    while True:
+        yield Result(m.value, m.quality * float(_rising(done)))
+        if ctx.remaining <= 0:
+            return
+        ctx.tick(1)
+        done += 1
+
+
+@pytest.fixture(scope="module")
+def program() -> object:
+    schema = parse_schemas("(defschema p (x) (fine-steps (coarse-steps x)))", "p.any")["p"]
+    return compile_program(schema, AnytimeLibrary.default(registry=MODULES, plugins=False), TIME)
+
+
+@pytest.mark.parametrize("total", [10.0, 20.0, 30.0, 40.0, 50.0, 60.0])
+def test_an_overshoot_is_taken_from_the_calls_after_it(program: object, total: float) -> None:
+    """What the first module uses past its share comes off the second's, so the program keeps
+    its total whenever the second's share can absorb it; what no later call can absorb (the
+    last module's own overshoot) is still a contract-expired run, which reserving each
+    module's measured step will remove."""
+    planned = program.allocation_at([], total)
+    record = run_program(program, {"x": "data"}, total)
+    first, second = record.records
+    overshoot = first.time_used - first.allocation
+    assert 0 <= overshoot <= 6
+    assert second.allocation == min(planned[1], max(0.0, total - first.time_used))
+    if planned[1] >= overshoot:
+        assert record.time_used <= total
+        assert record.status == Status.COMPLETED
+        clock = WorkClock()
+        program.run({"x": "data"}, total, clock)
+        assert clock.now() <= total
