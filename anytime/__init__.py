@@ -4,47 +4,53 @@ Write a program schema in the DSL, describe its modules by conditional performan
 compile it into a contract algorithm with optimal time allocation, and run it under a monitor.
 """
 
-from anytime.clocks import WallClock, WorkClock
-from anytime.compiler import CompiledProgram, compile_file, compile_program
-from anytime.dsl import (
-    DataflowGraph,
-    Program,
-    SchemaFile,
-    Step,
-    format_program,
-    load_schemas,
-    parse_schemas,
-)
-from anytime.errors import (
-    AnytimeError,
-    Diagnostic,
-    ProfileError,
-    SchemaError,
-    SchemaSyntaxError,
-)
-from anytime.library import (
-    AnytimeLibrary,
-    LibraryEntry,
-    LibraryError,
-    PluginSource,
-    ProfileDirectory,
-    RegistrySource,
-    UnknownModuleError,
-)
-from anytime.modules import (
-    REGISTRY,
-    AnytimeModule,
-    Context,
-    ModuleError,
-    RegistrationError,
-    Registry,
-    Result,
-    contract,
-    elementary,
-    interruptible,
-)
-from anytime.profiles import ConditionalPerformanceProfile, PerformanceProfile
-from anytime.profiles.io import load_profile, save_profile
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from anytime.clocks import WallClock, WorkClock
+    from anytime.compiler import CompiledProgram, compile_file, compile_program
+    from anytime.dsl import (
+        DataflowGraph,
+        Program,
+        SchemaFile,
+        Step,
+        format_program,
+        load_schemas,
+        parse_schemas,
+    )
+    from anytime.errors import (
+        AnytimeError,
+        Diagnostic,
+        ProfileError,
+        SchemaError,
+        SchemaSyntaxError,
+    )
+    from anytime.library import (
+        AnytimeLibrary,
+        LibraryEntry,
+        LibraryError,
+        PluginSource,
+        ProfileDirectory,
+        RegistrySource,
+        UnknownModuleError,
+    )
+    from anytime.modules import (
+        REGISTRY,
+        AnytimeModule,
+        Context,
+        ModuleError,
+        RegistrationError,
+        Registry,
+        Result,
+        contract,
+        elementary,
+        interruptible,
+    )
+    from anytime.profiles import ConditionalPerformanceProfile, PerformanceProfile
+    from anytime.profiles.io import load_profile, save_profile
 
 __version__ = "0.1.0"
 
@@ -89,3 +95,59 @@ __all__ = [
     "parse_schemas",
     "save_profile",
 ]
+
+#: Where each public name is defined: `import anytime` imports none of them until one is used
+#: (PEP 562), so that the command line starts fast and a Ctrl-C during start-up is caught.
+_WHERE = {
+    "WallClock": "anytime.clocks",
+    "WorkClock": "anytime.clocks",
+    "CompiledProgram": "anytime.compiler",
+    "compile_file": "anytime.compiler",
+    "compile_program": "anytime.compiler",
+    "DataflowGraph": "anytime.dsl",
+    "Program": "anytime.dsl",
+    "SchemaFile": "anytime.dsl",
+    "Step": "anytime.dsl",
+    "format_program": "anytime.dsl",
+    "load_schemas": "anytime.dsl",
+    "parse_schemas": "anytime.dsl",
+    "AnytimeError": "anytime.errors",
+    "Diagnostic": "anytime.errors",
+    "ProfileError": "anytime.errors",
+    "SchemaError": "anytime.errors",
+    "SchemaSyntaxError": "anytime.errors",
+    "AnytimeLibrary": "anytime.library",
+    "LibraryEntry": "anytime.library",
+    "LibraryError": "anytime.library",
+    "PluginSource": "anytime.library",
+    "ProfileDirectory": "anytime.library",
+    "RegistrySource": "anytime.library",
+    "UnknownModuleError": "anytime.library",
+    "REGISTRY": "anytime.modules",
+    "AnytimeModule": "anytime.modules",
+    "Context": "anytime.modules",
+    "ModuleError": "anytime.modules",
+    "RegistrationError": "anytime.modules",
+    "Registry": "anytime.modules",
+    "Result": "anytime.modules",
+    "contract": "anytime.modules",
+    "elementary": "anytime.modules",
+    "interruptible": "anytime.modules",
+    "ConditionalPerformanceProfile": "anytime.profiles",
+    "PerformanceProfile": "anytime.profiles",
+    "load_profile": "anytime.profiles.io",
+    "save_profile": "anytime.profiles.io",
+}
+
+
+def __getattr__(name: str) -> Any:
+    where = _WHERE.get(name)
+    if where is None:
+        raise AttributeError(f"module 'anytime' has no attribute {name!r}")
+    value = getattr(importlib.import_module(where), name)
+    globals()[name] = value  # found once, then an ordinary attribute
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

@@ -2,6 +2,6 @@
 
 import sys
 
-from anytime.cli import main
+from anytime.launch import main
 
 sys.exit(main())

@@ -10,11 +10,10 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 from anytime.errors import AnytimeError
+from anytime.launch import EXIT_INTERRUPTED as EXIT_INTERRUPTED  # re-exported
 from anytime.library import AnytimeLibrary
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE = 0, 1, 2
-#: Ctrl-C: the shell's status for a process ended by SIGINT (128 + 2).
-EXIT_INTERRUPTED = 130
 
 
 class InputError(AnytimeError):

@@ -129,3 +129,26 @@ def test_ctrl_c_in_navigate(tmp_path: Path) -> None:
     done = _interrupt(["navigate", "--size", "64", "--compare", "--out", str(tmp_path)], tmp_path)
     assert (done.returncode, done.stdout, done.stderr) == (130, "", INTERRUPTED)
     assert [p for p in os.listdir(tmp_path) if ".partial" in p] == []
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="SIGINT to a process")
+@pytest.mark.parametrize("after", [0.3, 0.8])
+def test_ctrl_c_while_the_command_starts(tmp_path: Path, after: float) -> None:
+    """The installed `anytime` command, interrupted while it is still importing the framework
+    and its plugins (or, on a fast machine, just after): one line and 130 either way, where it
+    printed a traceback from the imports. (Within the interpreter's own first tens of
+    milliseconds, before any of the command's code runs, Python itself reports the interrupt.)"""
+    command = Path(sys.executable).parent / "anytime"
+    process = subprocess.Popen(
+        [str(command), "profile", "find-path", "--trials", "5000", "-o", "find-path.yaml"],
+        cwd=tmp_path,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    time.sleep(after)  # some moment of the start-up (not a timing assertion: any will do)
+    os.killpg(process.pid, signal.SIGINT)
+    stdout, stderr = process.communicate(timeout=60)
+    assert (process.returncode, stdout, stderr) == (130, "", INTERRUPTED)
+    assert os.listdir(tmp_path) == []
