@@ -37,6 +37,10 @@ from anytime.errors import AnytimeError
 from anytime.profiles.profile import ConditionalPerformanceProfile
 
 ModuleKind = Literal["interruptible", "contract", "elementary"]
+#: What a module's `Result.quality` is: its true quality (as its problem set scores it), its own
+#: estimate of it (not calibrated), or nothing to go by.
+QualityReport = Literal["true", "estimate", "none"]
+QUALITY_REPORTS: tuple[QualityReport, ...] = ("true", "estimate", "none")
 ProfileSource = ConditionalPerformanceProfile | str | os.PathLike[str] | None
 
 
@@ -151,6 +155,11 @@ class AnytimeModule:
         origin: where it was defined, for messages ("python module x.y", "plugin nav", ...).
         accepts_missing: whether it is called when an input has no result (with `MISSING` for
             it); otherwise it is not called, and its step has no result either.
+        reports: what its `Result.quality` is: "true" (its true quality, the one its profile
+            was measured in), "estimate" (its own estimate) or "none". For a module that does
+            not report its true quality the runtime decides by its profile instead: it keeps
+            the latest result (not the one with the highest self-report), and a best-of's
+            choice and adaptive re-allocation use the profile's prediction for the time used.
     """
 
     name: str
@@ -163,6 +172,7 @@ class AnytimeModule:
     origin: str = ""
     probability: float | None = None  # an elementary test's chance of being true (for `if`)
     accepts_missing: bool = False  # called with `MISSING` for an input that has no result
+    reports: QualityReport = "true"
 
     @property
     def arity(self) -> int:
@@ -252,6 +262,7 @@ def _declare(
     register: bool = True,
     probability: float | None = None,
     accepts_missing: bool = False,
+    reports: QualityReport = "true",
 ) -> AnytimeModule:
     module_name = (name or function.__name__.replace("_", "-")).lower()
     where = f"module '{module_name}' ({_qualified(function)})"
@@ -261,6 +272,10 @@ def _declare(
         for p in signature.parameters.values()
         if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)
     ]
+    if reports not in QUALITY_REPORTS:
+        raise ModuleError(
+            f"{where}: reports must be one of {', '.join(QUALITY_REPORTS)}, got {reports!r}"
+        )
     if kind == "interruptible" and not inspect.isgeneratorfunction(function):
         raise ModuleError(f"{where}: an interruptible module must be a generator (use yield)")
     if kind != "interruptible" and inspect.isgeneratorfunction(function):
@@ -291,6 +306,7 @@ def _declare(
         origin=f"python module {function.__module__}",
         probability=probability,
         accepts_missing=accepts_missing,
+        reports=reports,
     )
     if not register:
         return module
@@ -319,6 +335,7 @@ def interruptible(
     registry: Registry | None = None,
     register: bool = True,
     accepts_missing: bool = False,
+    reports: QualityReport = "true",
 ) -> Callable[[Callable[..., Iterator[Result]]], AnytimeModule]:
     """Register a generator `f(ctx, *args)` that yields successively better `Result`s.
 
@@ -332,6 +349,8 @@ def interruptible(
             modules are registered by its `Plugin` object).
         accepts_missing: call it even when an input has no result, with `MISSING` for it
             (default: it is not called, and has no result either).
+        reports: what its `Result.quality` is: "true" (default), "estimate" or "none" (see
+            `AnytimeModule`).
     """
 
     def decorate(function: Callable[..., Iterator[Result]]) -> AnytimeModule:
@@ -344,6 +363,7 @@ def interruptible(
             registry=registry,
             register=register,
             accepts_missing=accepts_missing,
+            reports=reports,
         )
 
     return decorate
@@ -357,6 +377,7 @@ def contract(
     registry: Registry | None = None,
     register: bool = True,
     accepts_missing: bool = False,
+    reports: QualityReport = "true",
 ) -> Callable[[Callable[..., Result | None]], AnytimeModule]:
     """Register a function `f(ctx, *args) -> Result` that uses `ctx.allocation` up front (it
     returns None when it has no result).
@@ -374,6 +395,7 @@ def contract(
             registry=registry,
             register=register,
             accepts_missing=accepts_missing,
+            reports=reports,
         )
 
     return decorate

@@ -40,7 +40,7 @@ from anytime.dsl import SchemaFile, load_schemas, parse_schemas
 from anytime.errors import AnytimeError, ProfileError
 from anytime.files import InputFileError, atomic_path, read_input, write_atomic
 from anytime.library import AnytimeLibrary, CommandGroup, LibraryEntry, Plugin
-from anytime.modules import AnytimeModule, Context, ProfileSource, Result
+from anytime.modules import MISSING, AnytimeModule, Context, ProfileSource, QualityReport, Result
 from anytime.modules import contract as _contract
 from anytime.modules import elementary as _elementary
 from anytime.modules import interruptible as _interruptible
@@ -82,12 +82,14 @@ __all__ = [
     "InputFileError",
     "Instance",
     "LibraryEntry",
+    "MISSING",
     "Measurement",
     "Monitor",
     "NoApplicableAlternative",
     "Plugin",
     "ProblemSet",
     "ProfileError",
+    "QualityReport",
     "ProgressBar",
     "Result",
     "SchemaFile",
@@ -128,13 +130,22 @@ def interruptible(
     *,
     inputs: Sequence[str] | None = None,
     profile: ProfileSource = None,
+    accepts_missing: bool = False,
+    reports: QualityReport = "true",
 ) -> Callable[[Callable[..., Iterator[Result]]], AnytimeModule]:
     """Declare a generator `f(ctx, *args)` that yields successively better `Result`s.
 
     As `anytime.interruptible`, but registers nothing: list the module in your `Plugin`.
     A relative `profile` path is a file of the defining module's package.
     """
-    return _interruptible(name, inputs=inputs, profile=profile, register=False)
+    return _interruptible(
+        name,
+        inputs=inputs,
+        profile=profile,
+        register=False,
+        accepts_missing=accepts_missing,
+        reports=reports,
+    )
 
 
 def contract(
@@ -142,12 +153,22 @@ def contract(
     *,
     inputs: Sequence[str] | None = None,
     profile: ProfileSource = None,
-) -> Callable[[Callable[..., Result]], AnytimeModule]:
-    """Declare a function `f(ctx, *args) -> Result` that reads `ctx.allocation` up front.
+    accepts_missing: bool = False,
+    reports: QualityReport = "true",
+) -> Callable[[Callable[..., Result | None]], AnytimeModule]:
+    """Declare a function `f(ctx, *args) -> Result` that reads `ctx.allocation` up front (it
+    returns None when it has no result).
 
     As `anytime.contract`, but registers nothing: list the module in your `Plugin`.
     """
-    return _contract(name, inputs=inputs, profile=profile, register=False)
+    return _contract(
+        name,
+        inputs=inputs,
+        profile=profile,
+        register=False,
+        accepts_missing=accepts_missing,
+        reports=reports,
+    )
 
 
 def elementary(

@@ -64,14 +64,16 @@ def execute(
     clock = clock if clock is not None else WorkClock()
     start = clock.now()
     results: dict[int, Result] = {}
+    judged: dict[int, float] = {}  # the qualities decisions go by (see `decision_quality`)
     choices = Choices(compiled, qualities, compiled.allocation_at(qualities, total))
 
     for node in model.nodes:
         if not choices.active(node, results):
             continue
         answer: Result | None
+        used = 0.0
         if node.role == "best-of":
-            answer = choices.best(node, values, results)
+            answer = choices.best(node, values, results, judged)
         elif node.role == "if":
             if choices.undecidable(node, results):
                 continue
@@ -89,8 +91,10 @@ def execute(
                 given = choices.budget(node, clock.now() - start, total)
                 ctx = Context(allocation=given, clock=clock, stop=stop)
                 answer = _anytime(module, ctx, args, kwargs)
+                used = ctx.elapsed
         if answer is not None:
             results[node.index] = answer
+            judged[node.index] = judge(node, answer, used, judged, results, qualities)
     output = model.graph.output
     if isinstance(output, NodeRef):
         return results.get(output.index)
@@ -173,14 +177,20 @@ class Choices:
         return self.applicable[choice.index]
 
     def best(
-        self, node: CompileNode, values: Mapping[str, Any], results: Mapping[int, Result]
+        self,
+        node: CompileNode,
+        values: Mapping[str, Any],
+        results: Mapping[int, Result],
+        judged: Mapping[int, float] | None = None,
     ) -> Result:
-        """A best-of's answer: its best applicable alternative's result.
+        """A best-of's answer: its best applicable alternative's result, by the qualities
+        `judged` (`decision_quality`) where given, else by the results' own.
 
         Raises:
             NoApplicableAlternative: every precondition was false.
         """
-        return _best_of(self.compiled, node, self.decided(node, results), values, results)
+        applicable = self.decided(node, results)
+        return _best_of(self.compiled, node, applicable, values, results, judged or {})
 
     def undecidable(self, node: CompileNode, results: Mapping[int, Result]) -> str | None:
         """Why an if cannot choose its branch (its condition has no value), or None."""
@@ -298,16 +308,15 @@ def _best_of(
     applicable: Sequence[bool],
     values: Mapping[str, Any],
     results: Mapping[int, Result],
+    judged: Mapping[int, float],
 ) -> Result:
-    """The result of highest quality among the applicable alternatives (the first on ties)."""
+    """The result of highest quality among the applicable alternatives (the first on ties),
+    each judged by `judged` where it has an entry (see `decision_quality`)."""
     call = compiled.model.graph.nodes[node.index]
     n = len(call.args) // 2
     chosen = [source for source, ok in zip(call.args[n:], applicable, strict=True) if ok]
-    candidates = [
-        source_value(source, values, results)
-        for source in chosen
-        if not (isinstance(source, NodeRef) and source.index not in results)
-    ]
+    present = [s for s in chosen if not (isinstance(s, NodeRef) and s.index not in results)]
+    candidates = [source_value(source, values, results) for source in present]
     if not candidates:
         why = (
             f"all {n} preconditions are false"
@@ -319,7 +328,53 @@ def _best_of(
             f"'{call.variable}' is applicable ({why})"
         )
     wrapped = [c if isinstance(c, Result) else Result(c, 1.0) for c in candidates]
-    return max(wrapped, key=lambda r: r.quality)
+    scores = [
+        judged.get(s.index, r.quality) if isinstance(s, NodeRef) else r.quality
+        for s, r in zip(present, wrapped, strict=True)
+    ]
+    return wrapped[max(range(len(wrapped)), key=lambda i: (scores[i], -i))]
+
+
+def judge(
+    node: CompileNode,
+    answer: Result,
+    used: float,
+    judged: Mapping[int, float],
+    results: Mapping[int, Result],
+    qualities: Sequence[float],
+) -> float:
+    """The quality decisions go by for a node's answer: a best-of's is its chosen
+    alternative's, a call's its `decision_quality`."""
+    if node.role == "best-of":
+        chosen = (judged[i] for i, r in results.items() if r is answer and i in judged)
+        return next(chosen, answer.quality)
+    return decision_quality(node, answer, used, judged, qualities)
+
+
+def decision_quality(
+    node: CompileNode,
+    result: Result,
+    used: float,
+    judged: Mapping[int, float],
+    qualities: Sequence[float],
+) -> float:
+    """The quality the runtime decides by for a call's result: the result's own where its
+    module reports its true quality (`AnytimeModule.reports`); else what the module's profile
+    predicts at the qualities its inputs were judged to have and the time it used (a
+    self-estimate is not what the profile, and so the compiler, measured)."""
+    module = node.entry.module if node.entry is not None else None
+    if module is None or module.reports == "true" or node.profile is None:
+        return result.quality
+    inputs = [
+        judged.get(slot.index, 0.0)
+        if slot.kind == "node"
+        else qualities[slot.index]
+        if slot.kind == "input"
+        else slot.value
+        for slot in node.slots
+    ]
+    q = np.asarray(inputs, dtype=np.float64).reshape(1, -1)
+    return float(node.profile.expected(q, np.asarray([used]))[0])
 
 
 class _Restricted:

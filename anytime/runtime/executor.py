@@ -50,7 +50,8 @@ class RunRecord:
     Attributes:
         module: the module's name.
         status: how the run ended.
-        result: the best `Result` registered in time (highest quality; the later one on ties),
+        result: the best `Result` registered in time (highest quality, the later one on ties;
+            the latest for an interruptible module that does not report its true quality),
             or None when there is none.
         time_used: time on the run's clock from start to the answer.
         allocation: the time the run was given.
@@ -79,8 +80,9 @@ class _Slot:
 
     The lock is only taken when the module runs on another thread (hard interruption)."""
 
-    def __init__(self, threaded: bool) -> None:
+    def __init__(self, threaded: bool, latest: bool = False) -> None:
         self.threaded = threaded
+        self.latest = latest  # keep the latest result, not the highest self-reported
         self._lock = threading.Lock() if threaded else None
         self.best: Result | None = None
         self.count = 0
@@ -98,7 +100,7 @@ class _Slot:
             return
         self.count += 1
         best = self.best
-        if best is None or result.quality >= best.quality:
+        if self.latest or best is None or result.quality >= best.quality:
             self.best = result
 
     def close(self) -> tuple[Result | None, int]:
@@ -144,14 +146,14 @@ def run(
     caller_stop = stop if stop is not None else threading.Event()
     if not hard:
         ctx = Context(allocation=allocation, clock=clock, stop=caller_stop)
-        slot = _Slot(threaded=False)
+        slot = _Slot(threaded=False, latest=_keeps_latest(module))
         outcome = _drive(module, ctx, args, kwargs or {}, slot)
         return _record(module, ctx, slot, outcome)
     # At the deadline the module's `ctx.expired` turns true by itself (its clock has reached
     # the allocation), so the caller's stop event is never set here: one run's deadline must
     # not stop what the caller runs next.
     ctx = Context(allocation=allocation, clock=clock, stop=caller_stop)
-    slot = _Slot(threaded=True)
+    slot = _Slot(threaded=True, latest=_keeps_latest(module))
     finished = threading.Event()
     box: list[_Outcome] = []
 
@@ -248,6 +250,7 @@ def _interruptible(
     allocation = ctx.allocation
     limit = allocation + 1e-9 * max(1.0, abs(allocation))  # past it, a result is late
     publish = slot.offer if slot.threaded else None
+    latest = slot.latest
     best: Result | None = None
     count = 0
     try:
@@ -273,7 +276,7 @@ def _interruptible(
                 publish(item)
             else:
                 count += 1
-                if best is None or item.quality >= best.quality:
+                if latest or best is None or item.quality >= best.quality:
                     best = item
             if elapsed >= allocation:
                 return _Outcome(Status.INTERRUPTED)
@@ -283,6 +286,13 @@ def _interruptible(
         # The outcome is decided; a module that fails while being closed changes nothing.
         with suppress(Exception):
             generator.close()
+
+
+def _keeps_latest(module: AnytimeModule) -> bool:
+    """An interruptible module whose self-reports are not its true quality: its latest result
+    is its best as far as its profile knows (the quality of an anytime algorithm's answer
+    grows with time), whatever it says of itself."""
+    return module.kind == "interruptible" and module.reports != "true"
 
 
 def _quality_of(arg: Any) -> float:

@@ -28,6 +28,7 @@ from anytime.compiler.execute import (
     NoApplicableAlternative,
     bind_inputs,
     call_arguments,
+    judge,
     not_run,
 )
 from anytime.compiler.model import CompileNode
@@ -131,7 +132,7 @@ def run_program(
                 error=skipped,
             )
         elif node.role == "best-of":
-            record = _best_of_record(choices, node, values, results)
+            record = _best_of_record(choices, node, values, results, observed)
         elif node.role == "if":
             plan, branch_inputs, given = choices.branch(node, values, results)
             sub = run_program(
@@ -174,7 +175,11 @@ def run_program(
         records[node.index] = record
         if record.result is not None:  # no placeholder for a call that has no result
             results[node.index] = record.result
-        observed[node.index] = record.quality
+        observed[node.index] = (
+            0.0
+            if record.result is None
+            else judge(node, record.result, record.time_used, observed, results, qualities)
+        )
     allocation = choices.allocation
     output = model.graph.output
     if isinstance(output, NodeRef):
@@ -201,11 +206,15 @@ def run_program(
 
 
 def _best_of_record(
-    choices: Choices, node: CompileNode, values: Mapping[str, Any], results: Mapping[int, Result]
+    choices: Choices,
+    node: CompileNode,
+    values: Mapping[str, Any],
+    results: Mapping[int, Result],
+    judged: Mapping[int, float],
 ) -> RunRecord:
     """A best-of's answer as a run record: none applicable is a status, not an exception."""
     try:
-        best = choices.best(node, values, results)
+        best = choices.best(node, values, results, judged)
     except NoApplicableAlternative as error:
         return RunRecord(
             module="best-of",

@@ -96,7 +96,9 @@ def get_domain_description(ctx: Context, sensor: Sensor) -> Result:
     return Result(DomainDescription(blocked, sensor.movement), quality)
 
 
-@interruptible("find-path", inputs=["domain"], profile="profiles/find-path.yaml")
+@interruptible(
+    "find-path", inputs=["domain"], profile="profiles/find-path.yaml", reports="estimate"
+)
 def find_path(ctx: Context, start: Position, goal: Position, domain: Result) -> Iterator[Result]:
     """The anytime abstract planner on the map `domain` describes: a `MultiPath` after the first
     plan and after every refinement, with the ATP's quality estimate. The robot knows the cells

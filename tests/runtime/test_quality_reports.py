@@ -1,0 +1,87 @@
+"""Which quality drives decisions is declared: a module says whether its `Result.quality` is its
+true quality (the default), an estimate or nothing; where it is not the true one, the runtime
+keeps the module's latest result and judges it by its profile's prediction, as the compiler
+does, not by what the module says of itself."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+
+from anytime.clocks import WorkClock
+from anytime.compiler import compile_program
+from anytime.dsl import parse_schemas
+from anytime.library import AnytimeLibrary
+from anytime.modules import Context, ModuleError, Registry, Result, interruptible
+from anytime.profiles import tabulate
+from anytime.runtime import run, run_program
+
+TIME = np.arange(0.0, 41.0, 10.0)
+
+
+def _modest(t: Any) -> Any:
+    return np.minimum(0.3, np.asarray(t, dtype=np.float64) / 40)
+
+
+def _better(t: Any) -> Any:
+    return np.minimum(0.6, np.asarray(t, dtype=np.float64) / 20)
+
+
+def boaster(reports: str, registry: Registry) -> Any:
+    """Improves with time (its profile, what it was measured to reach: at most 0.3), and says
+    of itself 0.9 at first, less later."""
+
+    @interruptible("boaster", inputs=[], profile=tabulate(_modest, TIME), registry=registry,
+                   reports=reports)  # fmt: skip
+    def body(ctx: Context, x: Any) -> Iterator[Result]:
+        for step in range(100):
+            yield Result(("boaster", step), max(0.0, 0.9 - 0.1 * step))
+            ctx.tick(5)
+
+    return body
+
+
+def honest(registry: Registry) -> Any:
+    @interruptible("honest", inputs=[], profile=tabulate(_better, TIME), registry=registry)
+    def body(ctx: Context, x: Any) -> Iterator[Result]:
+        for step in range(1, 100):
+            ctx.tick(5)
+            yield Result(("honest", step), float(_better(5 * step)))
+
+    return body
+
+
+@pytest.mark.parametrize(("reports", "kept"), [("true", 0), ("estimate", 4), ("none", 4)])
+def test_an_interruptible_that_does_not_report_its_true_quality_keeps_its_latest_result(
+    reports: str, kept: int
+) -> None:
+    module = boaster(reports, Registry())
+    record = run(module, ("x",), allocation=20)
+    assert record.result is not None and record.result.value == ("boaster", kept)
+
+
+@pytest.mark.parametrize(("reports", "winner"), [("true", "boaster"), ("estimate", "honest")])
+def test_a_best_of_chooses_by_the_profile_where_self_reports_are_estimates(
+    reports: str, winner: str
+) -> None:
+    """The boaster answers at once and says 0.9 of itself; its profile says 0 for no time and
+    at most 0.3 for any. The honest alternative reports its true quality."""
+    registry = Registry()
+    boaster(reports, registry)
+    honest(registry)
+    schema = parse_schemas("(defschema p (x) (best-of (boaster x) (honest x)))", "p.any")["p"]
+    library = AnytimeLibrary.default(registry=registry, plugins=False)
+    program = compile_program(schema, library, TIME)
+    record = run_program(program, {"x": "data"}, 20)
+    assert record.result is not None and record.result.value[0] == winner
+    result = program.run({"x": "data"}, 20, WorkClock())
+    assert result is not None and result.value[0] == winner
+
+
+def test_what_a_module_reports_is_checked() -> None:
+    with pytest.raises(ModuleError) as raised:
+        boaster("maybe", Registry())
+    assert str(raised.value).endswith("reports must be one of true, estimate, none, got 'maybe'")
