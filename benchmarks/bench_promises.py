@@ -1,6 +1,11 @@
 """What the compiler promises against what runs deliver, at every budget of the table.
 
-    .venv/bin/python benchmarks/bench_promises.py [--runs 30] [--quick]
+    .venv/bin/python benchmarks/bench_promises.py [--runs 100] [--quick]
+
+Two programs: the navigation plugin's `navigate` and the example plugin's `side-length`
+(docs/example-plugin, a plugin that is not the framework's: measure a plot's area with a noisy
+sensor, then take its square root, `schemas/side-length.any`, each plot scored against its true
+side).
 
 The shipped `navigate` schema (sense with anytime vision, then plan with the ATP) compiled
 against the navigation plugin's measured profiles, on the profiles' own setting (random
@@ -16,7 +21,11 @@ than T, and how many ended without a plan.
 from __future__ import annotations
 
 import argparse
+import math
+import sys
 import time
+from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 from anytime_navigation.execution import execute, optimal_length, plan_quality
@@ -25,41 +34,58 @@ from anytime_navigation.vision import Sensor
 from anytime_navigation.world import random_world
 from tables import machine, table
 
-from anytime import AnytimeLibrary, WorkClock, compile_file
+from anytime import AnytimeLibrary, CompiledProgram, LibraryEntry, WorkClock, compile_file
+from anytime import load_schemas as load_schema_path
 from anytime.runtime import run_program
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "docs" / "example-plugin"))  # the example plugin, as it ships
+
+from anytime_survey import PLUGIN as SURVEY  # noqa: E402
+from anytime_survey import Plot, quality  # noqa: E402
 
 SIZE = 128
 SEED_BASE = 10_000  # worlds apart from the profile builder's (which draws from SeedSequence)
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--runs", type=int, default=100, help="worlds per budget")
-    parser.add_argument("--quick", action="store_true", help="30 worlds per budget")
-    args = parser.parse_args()
-    runs = 30 if args.quick else args.runs
-    started = time.perf_counter()
-    schemas = load_schema_file("navigation.any")
-    library = AnytimeLibrary.default()
-    grid = np.arange(0.0, 3001.0, 250.0)
-    (compiled,) = [c for c in compile_file(schemas, library, grid, schema="navigate")]
+#: One run: (compiled program, budget index, run index, total) -> (quality, time used, ran out).
+Trial = Callable[[CompiledProgram, int, int, float], tuple[float, float, bool]]
+
+
+def navigate_trial(
+    compiled: CompiledProgram, j: int, i: int, total: float
+) -> tuple[float, float, bool]:
+    world = random_world(SIZE, seed=SEED_BASE + 1000 * j + i, movement=4)
+    sensor = Sensor(world.blocked, seed=SEED_BASE + 1000 * j + i, movement=4)
+    record = run_program(compiled, [world.start, world.goal, sensor], total, clock=WorkClock())
+    if record.result is None or record.result.value is None:
+        return 0.0, record.time_used, True
+    executed = execute(record.result.value, world.blocked, movement=4)
+    optimal = optimal_length(world.blocked, world.start, world.goal, movement=4)
+    return plan_quality(executed.length, optimal), record.time_used, False
+
+
+def survey_trial(
+    compiled: CompiledProgram, j: int, i: int, total: float
+) -> tuple[float, float, bool]:
+    rng = np.random.default_rng(SEED_BASE + 1000 * j + i)
+    area = float(rng.uniform(10, 1000))
+    plot = Plot(area, seed=SEED_BASE + 1000 * j + i)
+    record = run_program(compiled, [plot], total, clock=WorkClock())
+    value = record.result.value if record.result is not None else None
+    return quality(value, math.sqrt(area)), record.time_used, value is None
+
+
+def promise_table(compiled: CompiledProgram, trial: Trial, runs: int) -> tuple[str, str]:
     rows = []
     worst, within = 0.0, 0
     for j, total in enumerate(compiled.profile.time):
         qualities, over, empty = [], 0, 0
         for i in range(runs):
-            world = random_world(SIZE, seed=SEED_BASE + 1000 * j + i, movement=4)
-            sensor = Sensor(world.blocked, seed=SEED_BASE + 1000 * j + i, movement=4)
-            clock = WorkClock()
-            record = run_program(compiled, [world.start, world.goal, sensor], total, clock=clock)
-            over += record.time_used > total + 1e-9
-            if record.result is None or record.result.value is None:
-                empty += 1
-                qualities.append(0.0)
-                continue
-            executed = execute(record.result.value, world.blocked, movement=4)
-            optimal = optimal_length(world.blocked, world.start, world.goal, movement=4)
-            qualities.append(plan_quality(executed.length, optimal))
+            q, used, missing = trial(compiled, j, i, float(total))
+            qualities.append(q)
+            over += used > total + 1e-9
+            empty += missing
         mean = float(np.mean(qualities))
         se = float(np.std(qualities, ddof=1) / np.sqrt(runs)) if runs > 1 else 0.0
         promised = float(compiled.expected[j])
@@ -78,19 +104,49 @@ def main() -> None:
                 f"{empty}/{runs}",
             ]
         )
-    print(machine())
-    print(
-        f"navigate compiled for T = 0..3000 ticks, {runs} fresh worlds per budget,"
-        f" {time.perf_counter() - started:.0f} s"
-    )
-    print()
-    header = ["T (ticks)", "compiled", "realised", "se", "|diff| / se", "over T", "no plan"]
-    print(table(header, rows))
-    print()
-    print(
+    header = ["T (ticks)", "compiled", "realised", "se", "|diff| / se", "over T", "no result"]
+    summary = (
         f"within 2 standard errors at {within} of {len(rows)} budgets; largest |diff| / se:"
         f" {worst:.2f}"
     )
+    return table(header, rows), summary
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=100, help="instances per budget")
+    parser.add_argument("--quick", action="store_true", help="30 instances per budget")
+    args = parser.parse_args()
+    runs = 30 if args.quick else args.runs
+    print(machine())
+    navigation = AnytimeLibrary.default()
+    (navigate,) = compile_file(
+        load_schema_file("navigation.any"),
+        navigation,
+        np.arange(0.0, 3001.0, 250.0),
+        schema="navigate",
+    )
+    survey = AnytimeLibrary()
+    for module in SURVEY.modules:
+        survey.add(LibraryEntry.of_module(module))
+    (side_length,) = compile_file(
+        load_schema_path(ROOT / "schemas" / "side-length.any"),
+        survey,
+        range(0, 65, 8),
+        resolution=2,
+    )
+    for title, compiled, trial in (
+        ("navigate (navigation plugin), fresh 128x128 worlds", navigate, navigate_trial),
+        ("side-length (example plugin), fresh plots", side_length, survey_trial),
+    ):
+        started = time.perf_counter()
+        rows, summary = promise_table(compiled, trial, runs)
+        print()
+        print(f"{title}, {runs} per budget, {time.perf_counter() - started:.0f} s")
+        print()
+        print(rows)
+        print()
+        print(summary)
 
 
 if __name__ == "__main__":
