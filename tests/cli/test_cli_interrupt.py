@@ -132,7 +132,7 @@ def test_ctrl_c_in_navigate(tmp_path: Path) -> None:
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="SIGINT to a process")
-@pytest.mark.parametrize("after", [0.3, 0.8])
+@pytest.mark.parametrize("after", [0.5, 1.0])
 def test_ctrl_c_while_the_command_starts(tmp_path: Path, after: float) -> None:
     """The installed `anytime` command, interrupted while it is still importing the framework
     and its plugins (or, on a fast machine, just after): one line and 130 either way, where it
