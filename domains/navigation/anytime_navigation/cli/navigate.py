@@ -28,7 +28,8 @@ from ..frames import run_task
 from ..movingai import MapError, load_map
 from ..obstacles import MovingObstacle, random_obstacles
 from ..task import POLICIES, NavigationTask, TaskReport
-from ..world import Position, World, is_power_of_two, random_world, reachable
+from ..world import World, is_power_of_two, random_world, reachable
+from .plan import position
 
 __all__ = ["add_command", "run_navigate"]
 
@@ -51,18 +52,6 @@ def _size(text: str) -> int:
     return value
 
 
-def _position(text: str) -> Position:
-    try:
-        x, y = (int(part) for part in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected X,Y (two whole numbers), got {text!r}"
-        ) from None
-    if x < 0 or y < 0:
-        raise argparse.ArgumentTypeError(f"expected X,Y with X, Y >= 0, got {text!r}")
-    return (x, y)
-
-
 def add_command(commands: CommandGroup) -> None:
     navigate = commands.add_command(
         "navigate",
@@ -82,8 +71,8 @@ def add_command(commands: CommandGroup) -> None:
     )
     navigate.add_argument("--seed", type=random_seed, default=0, help="world and vision seed")
     navigate.add_argument("--map", metavar="FILE.map", help="a MovingAI map instead of a world")
-    navigate.add_argument("--start", type=_position, metavar="X,Y", help="start (with --map)")
-    navigate.add_argument("--goal", type=_position, metavar="X,Y", help="goal (with --map)")
+    navigate.add_argument("--start", type=position, metavar="X,Y", help="start (with --map)")
+    navigate.add_argument("--goal", type=position, metavar="X,Y", help="goal (with --map)")
     navigate.add_argument(
         "--radius",
         type=int_in_range(1, MAX_SIDE),

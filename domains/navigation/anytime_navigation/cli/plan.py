@@ -86,8 +86,8 @@ def add_command(commands: CommandGroup) -> None:
     parser.add_argument(
         "--scen", metavar="FILE.scen", help="the scenario file (default: FILE.map.scen)"
     )
-    parser.add_argument("--start", type=_position, metavar="X,Y", help="one problem's start")
-    parser.add_argument("--goal", type=_position, metavar="X,Y", help="one problem's goal")
+    parser.add_argument("--start", type=position, metavar="X,Y", help="one problem's start")
+    parser.add_argument("--goal", type=position, metavar="X,Y", help="one problem's goal")
     parser.add_argument(
         "--planner",
         choices=["astar", "atp"],
@@ -113,17 +113,17 @@ def add_command(commands: CommandGroup) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
-def _position(text: str) -> Position:
-    parts = text.split(",")
+def position(text: str) -> Position:
+    """An X,Y option (column, row from the upper-left corner, as in .scen files)."""
     try:
-        x, y = (int(part) for part in parts)
+        x, y = (int(part) for part in text.split(","))
     except ValueError:
         raise argparse.ArgumentTypeError(
             f"expected X,Y (two whole numbers), got {text!r}"
         ) from None
     if x < 0 or y < 0:
         raise argparse.ArgumentTypeError(f"expected X,Y with X, Y >= 0, got {text!r}")
-    return x, y
+    return (x, y)
 
 
 def run_plan(args: argparse.Namespace) -> int:
