@@ -14,7 +14,8 @@ passed, failed or skipped, with a message that says what was seen and where:
   allocation and uses at most one of its own steps (the largest single `ctx.tick(n)` it began
   before the deadline) past it; a contract module does not overrun its contract at all;
 - **interruption**: stopped from outside at a random tick, a run answers with the best result
-  the module registered before the stop, never with none once one was registered, and that
+  the module registered before the stop (its latest, for a module that does not report its
+  true quality), never with none once one was registered, and that
   result's value has not changed since it was registered; a contract module, given a random
   allocation, answers with the result it returned;
 - **profile**: the profile measured with `build_profile` (`trials` fresh instances per
@@ -625,6 +626,9 @@ def _numbers(runs: list[_Run]) -> str:
 
 
 def _check_interruption(module: AnytimeModule, runs: list[_Run]) -> Check:
+    # A module that does not report its true quality answers with its latest result (the
+    # executor cannot rank its results by what it says of them).
+    latest = module.kind == "interruptible" and module.reports != "true"
     bad: list[tuple[_Run, str]] = []
     for r in runs:
         result = r.record.result
@@ -637,19 +641,22 @@ def _check_interruption(module: AnytimeModule, runs: list[_Run]) -> Check:
         if not mine:
             bad.append((r, f"answered with a result it had not registered: {result!r}"))
             continue
-        best = max(y.item.quality for y in registered)
-        if result.quality < best:
+        if latest and registered[-1].item is not result:
+            bad.append((r, "answered with an earlier result than the latest it registered"))
+        elif not latest and result.quality < (best := max(y.item.quality for y in registered)):
             bad.append((r, f"answered with quality {result.quality:g}, having registered {best:g}"))
         elif mine[-1].snapshot is not None and _snapshot(result.value) != mine[-1].snapshot:
             bad.append((r, "changed the value of a result after registering it"))
     if bad:
-        what = "did not answer with their best registered result"
+        which = "latest" if latest else "best"
+        what = f"did not answer with their {which} registered result"
         return Check("interruption", False, _first(bad, len(runs), what))
     how = "given random allocations" if module.kind == "contract" else "stopped at random ticks"
+    which = "latest" if latest else "best"
     return Check(
         "interruption",
         True,
-        f"{len(runs)} runs {how} all answered with the best result registered before",
+        f"{len(runs)} runs {how} all answered with the {which} result registered before",
     )
 
 

@@ -397,3 +397,23 @@ def test_the_catalogue_gives_the_same_report_on_two_workers() -> None:
     one = check_module(good, Counting(), trials=6, seed=3)
     two = check_module(good, Counting(), trials=6, seed=3, workers=2)
     assert one.format() == two.format() and one.passed
+
+
+@interruptible(
+    "catalogue-modest", inputs=["data"], profile=COUNTING, registry=GOOD, reports="estimate"
+)
+def modest(ctx: Context, data: Result, limit: int) -> Iterator[Result]:
+    """Counts as `good` does, but its self-estimate falls as it goes (it is not its quality)."""
+    for done in range(1, limit + 1):
+        ctx.tick()
+        yield Result(done, 1.0 / done)
+
+
+def test_a_module_whose_quality_is_an_estimate_answers_with_its_latest_result() -> None:
+    """The executor keeps its latest result, not the one it rates highest, and the catalogue
+    checks exactly that."""
+    report = check_module(modest, Counting(), trials=5)
+    assert report.passed, report.format()
+    assert report["interruption"].message.endswith(
+        "all answered with the latest result registered before"
+    )
