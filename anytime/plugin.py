@@ -44,7 +44,7 @@ from anytime.modules import MISSING, AnytimeModule, Context, ProfileSource, Qual
 from anytime.modules import contract as _contract
 from anytime.modules import elementary as _elementary
 from anytime.modules import interruptible as _interruptible
-from anytime.plot import new_figure, save_figure
+from anytime.plot import new_figure, require_matplotlib, save_figure
 from anytime.profiles import ConditionalPerformanceProfile, VisionHyperbola, tabulate
 from anytime.profiles.builder import Measurement
 from anytime.profiles.profile import Array
@@ -117,6 +117,7 @@ __all__ = [
     "positive_float",
     "positive_int",
     "proportional_split",
+    "require_matplotlib",
     "random_seed",
     "read_input",
     "save_figure",

@@ -6,8 +6,12 @@ import json
 import math
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
+from conftest import Cli
+
+from anytime.plot import MISSING_MATPLOTLIB
 
 
 def navigate(*args: str) -> subprocess.CompletedProcess[str]:
@@ -78,3 +82,15 @@ def test_bad_maps(tmp_path):
         done = navigate(*args)
         assert done.returncode == 1, (args, done.stderr)
         assert words in done.stderr and "Traceback" not in done.stderr
+
+
+def test_navigate_out_without_matplotlib_says_so_before_the_run(
+    cli: Cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Installed without the plot extra, `--out` is one line naming the extra (it was an
+    internal error after the whole run)."""
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib -> ImportError
+    code, out, err = cli("navigate", "--size", "32", "--quiet", "--out", str(tmp_path / "o"))
+    assert (code, out) == (1, "")
+    assert err == f"{MISSING_MATPLOTLIB}\n"
+    assert not (tmp_path / "o").exists()

@@ -20,6 +20,7 @@ from anytime.plugin import (
     json_text,
     positive_float,
     random_seed,
+    require_matplotlib,
     write_atomic,
 )
 
@@ -153,6 +154,8 @@ def _world(args: argparse.Namespace) -> World:
 def run_navigate(args: argparse.Namespace) -> int:
     if args.policy == "fixed" and args.contract is None:
         raise UsageError("anytime navigate: error: --policy fixed needs --contract TICKS")
+    if args.out is not None:
+        require_matplotlib()  # the figures need the plot extra: say so before the run, not after
     world = _world(args)
     side = world.blocked.shape[0]
     deadline = args.deadline if args.deadline is not None else 6000.0 * side / 128
