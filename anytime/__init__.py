@@ -51,6 +51,14 @@ if TYPE_CHECKING:
     )
     from anytime.profiles import ConditionalPerformanceProfile, PerformanceProfile
     from anytime.profiles.io import load_profile, save_profile
+    from anytime.runtime import (
+        ProgramRecord,
+        RunRecord,
+        Status,
+        program_module,
+        run,
+        run_program,
+    )
 
 __version__ = "0.1.0"
 
@@ -71,14 +79,17 @@ __all__ = [
     "ProfileDirectory",
     "ProfileError",
     "Program",
+    "ProgramRecord",
     "REGISTRY",
     "RegistrationError",
     "Registry",
     "RegistrySource",
     "Result",
+    "RunRecord",
     "SchemaError",
     "SchemaFile",
     "SchemaSyntaxError",
+    "Status",
     "Step",
     "UnknownModuleError",
     "WallClock",
@@ -93,6 +104,9 @@ __all__ = [
     "load_profile",
     "load_schemas",
     "parse_schemas",
+    "program_module",
+    "run",
+    "run_program",
     "save_profile",
 ]
 
@@ -135,6 +149,12 @@ _WHERE = {
     "interruptible": "anytime.modules",
     "ConditionalPerformanceProfile": "anytime.profiles",
     "PerformanceProfile": "anytime.profiles",
+    "ProgramRecord": "anytime.runtime",
+    "RunRecord": "anytime.runtime",
+    "Status": "anytime.runtime",
+    "program_module": "anytime.runtime",
+    "run": "anytime.runtime",
+    "run_program": "anytime.runtime",
     "load_profile": "anytime.profiles.io",
     "save_profile": "anytime.profiles.io",
 }

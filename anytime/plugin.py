@@ -34,7 +34,7 @@ from anytime.cli.common import (
     random_seed,
 )
 from anytime.clocks import Clock, Unit, WallClock, WorkClock
-from anytime.compiler import NoApplicableAlternative, compile_file, compile_program
+from anytime.compiler import compile_file, compile_program
 from anytime.compiler.compile import CompiledProgram, default_time_grid
 from anytime.dsl import SchemaFile, load_schemas, parse_schemas
 from anytime.errors import AnytimeError, ProfileError
@@ -57,7 +57,9 @@ from anytime.runtime.deadline import (
     proportional_split,
 )
 from anytime.runtime.deadline import critical_event as _critical_event
+from anytime.runtime.executor import RunRecord, Status, run
 from anytime.runtime.monitor import Adjustment, DeadlineValue, EventLog, Monitor
+from anytime.runtime.program import ProgramRecord, program_module, run_program
 
 __all__ = [
     "EXIT_INPUT",
@@ -85,14 +87,16 @@ __all__ = [
     "MISSING",
     "Measurement",
     "Monitor",
-    "NoApplicableAlternative",
+    "ProgramRecord",
     "Plugin",
     "ProblemSet",
     "ProfileError",
     "QualityReport",
     "ProgressBar",
     "Result",
+    "RunRecord",
     "SchemaFile",
+    "Status",
     "Unit",
     "UsageError",
     "VisionHyperbola",
@@ -116,10 +120,13 @@ __all__ = [
     "parse_schemas",
     "positive_float",
     "positive_int",
+    "program_module",
     "proportional_split",
     "require_matplotlib",
     "random_seed",
     "read_input",
+    "run",
+    "run_program",
     "save_figure",
     "tabulate",
     "write_atomic",

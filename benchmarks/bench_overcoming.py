@@ -9,7 +9,7 @@ time, three splits of T among the applicable alternatives (the preconditions of
 `schemas/obstacles.any`):
 
 - compiled: the compiled `overcome-obstacle` (auto) with its run-time re-split among the
-  applicable alternatives (`execute.resplit`), as `CompiledProgram.run` does;
+  applicable alternatives (`resplit`), as `run_program` does;
 - proportional: Romanenko's T_i = T * T_i* / sum T_j* over the applicable ones, T_i* the least
   time with positive expected quality in the profile (the `proportional` allocator's rule);
 - equal: T / (number applicable) each.
@@ -47,8 +47,9 @@ from tables import table  # noqa: E402
 
 from anytime.clocks import WorkClock  # noqa: E402
 from anytime.compiler.allocators import least_useful_time  # noqa: E402
-from anytime.compiler.execute import resplit  # noqa: E402
+from anytime.compiler.model import ChoiceNode  # noqa: E402
 from anytime.modules import Context  # noqa: E402
+from anytime.runtime.program import resplit  # noqa: E402
 
 NAMES = ("detour-left", "detour-right", "wait")
 SPEEDS = (0.05, 0.1, 0.15, 0.2)
@@ -93,7 +94,7 @@ def splits(applicable: Sequence[bool], total: float) -> dict[str, dict[str, floa
     names = [n for n, ok in zip(NAMES, applicable, strict=True) if ok]
     base = program.allocation_at([], total)
     order = list(program.modules)
-    choice = next(n for n in program.model.nodes if n.role == "best-of")
+    choice = next(n for n in program.model.nodes if isinstance(n, ChoiceNode))
     compiled = resplit(program, choice, list(applicable), base, [])
     profiles = {n.name: n.profile for n in program.model.anytime_nodes}
     star = np.array([least_useful_time(profiles[n]) for n in names], dtype=np.float64)

@@ -10,7 +10,6 @@ from anytime.compiler.allocators import (
 )
 from anytime.compiler.compile import CompiledProgram, compile_file, compile_program
 from anytime.compiler.evaluate import Dist, Evaluator
-from anytime.compiler.execute import ExecutionError, NoApplicableAlternative, execute
 from anytime.compiler.model import CompileError, CompileModel, build_model
 from anytime.compiler.report import compiled_to_dict, format_report
 
@@ -22,16 +21,13 @@ __all__ = [
     "Dist",
     "DynamicProgramming",
     "Evaluator",
-    "ExecutionError",
     "Exhaustive",
     "HillClimbing",
-    "NoApplicableAlternative",
     "Proportional",
     "build_model",
     "compile_file",
     "compile_program",
     "compiled_to_dict",
     "dp_obstacle",
-    "execute",
     "format_report",
 ]

@@ -28,6 +28,7 @@ Each works on a batch of cells at once: rows of program input qualities `q (C, m
 from __future__ import annotations
 
 import itertools
+from collections.abc import Mapping, Sequence
 from math import comb
 from typing import Protocol
 
@@ -35,7 +36,15 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from anytime.compiler.evaluate import Evaluator
-from anytime.compiler.model import CompileError, CompileModel, CompileNode
+from anytime.compiler.model import (
+    ChoiceNode,
+    CompileError,
+    CompileModel,
+    ElementaryNode,
+    IfNode,
+    ModuleNode,
+    TestNode,
+)
 from anytime.profiles.profile import Array, ConditionalPerformanceProfile
 
 IMPROVEMENT = 1e-12  # a trade must raise E[Q_out] by more than this to count
@@ -207,7 +216,7 @@ class Proportional:
         nodes = evaluator.model.anytime_nodes
         if not nodes:
             return nothing_to_allocate(evaluator, quality, units)
-        star = np.array([least_useful_time(n.profile) for n in nodes if n.profile is not None])
+        star = np.array([least_useful_time(n.profile) for n in nodes])
         allocation = proportional_split(units, star)
         return allocation, evaluator.expected(quality, allocation * dt)
 
@@ -221,18 +230,18 @@ def dp_obstacle(model: CompileModel) -> str | None:
             "only for chains and trees"
         )
     for node in model.nodes:
-        if node.role == "precondition":
-            continue  # its quality flows nowhere
-        if node.role == "if":
-            return "an if's output is a mixture of its branches, not a function of its time"
-        if node.kind == "elementary":
-            if not node.monotone_combine:
+        match node:
+            case TestNode() | ChoiceNode():
+                continue  # a test's quality flows nowhere; a best-of's is the max of its inputs
+            case IfNode():
+                return "an if's output is a mixture of its branches, not a function of its time"
+            case ElementaryNode(monotone=False):
                 return (
                     f"the quality combination of '{node.name}' is not known to be monotone "
                     "(only min and max are)"
                 )
-            continue
-        assert node.profile is not None
+            case ElementaryNode():
+                continue
         if not node.deterministic:
             return (
                 f"module '{node.name}' has a stochastic profile; local compilation is exact "
@@ -270,6 +279,8 @@ class DynamicProgramming:
         root = model.output.index if model.output.kind == "node" else -1
         totals = np.unique(units)
         for node in model.nodes:
+            if isinstance(node, TestNode | IfNode):
+                continue  # a test's quality flows nowhere; an if is an obstacle to dp
             # Inner subtrees may get any budget; the root only the totals asked for.
             budgets = totals if node.index == root else None
             best[node.index], choice[node.index], splits[node.index] = self._node(
@@ -289,8 +300,7 @@ class DynamicProgramming:
                 continue
             split = splits[node.index][choice[node.index][inverse, budget[node.index]]]
             column = 0
-            if node.kind == "anytime":
-                assert node.time_index is not None
+            if isinstance(node, ModuleNode):
                 allocation[:, node.time_index] = split[:, 0]
                 column = 1
             for slot in node.slots:
@@ -301,7 +311,7 @@ class DynamicProgramming:
 
     @staticmethod
     def _node(
-        node: CompileNode,
+        node: ModuleNode | ElementaryNode | ChoiceNode,
         best: dict[int, Array],
         cells: Array,
         top: int,
@@ -309,7 +319,7 @@ class DynamicProgramming:
         budgets: np.ndarray | None,
     ) -> tuple[Array, np.ndarray, np.ndarray]:
         children = [s.index for s in node.slots if s.kind == "node"]
-        parts = (1 if node.kind == "anytime" else 0) + len(children)
+        parts = (1 if isinstance(node, ModuleNode) else 0) + len(children)
         # Every split of every budget up to `top` (or of `budgets` only): the own time first,
         # then each child's.
         with_slack = compositions(top, parts + 1)
@@ -320,7 +330,7 @@ class DynamicProgramming:
             candidates, spent = candidates[keep], spent[keep]
         n_cells, n_rows = len(cells), len(candidates)
         qualities = []
-        column = 1 if node.kind == "anytime" else 0
+        column = 1 if isinstance(node, ModuleNode) else 0
         for slot in node.slots:
             if slot.kind == "node":
                 qualities.append(best[slot.index][:, candidates[:, column]])
@@ -333,8 +343,7 @@ class DynamicProgramming:
         # A subtree cannot spend a budget it has no use for (no anytime module): -inf there.
         infeasible = np.isneginf(q).any(axis=-1)
         q = np.where(np.isneginf(q), 0.0, q)
-        if node.kind == "anytime":
-            assert node.profile is not None
+        if isinstance(node, ModuleNode):
             t = np.broadcast_to(candidates[:, 0] * dt, (n_cells, n_rows))
             step = max(1, CHUNK // max(n_cells, 1))  # bounds the interpolation's memory
             value = (
@@ -348,9 +357,10 @@ class DynamicProgramming:
                 if n_rows
                 else np.zeros((n_cells, 0))
             )
-        else:
-            assert node.combine is not None
+        elif isinstance(node, ElementaryNode):
             value = node.combine(np.moveaxis(q, -1, 0)) if qualities else np.ones((n_cells, n_rows))
+        else:  # a best-of: the best of its alternatives
+            value = np.max(q, axis=-1) if qualities else np.ones((n_cells, n_rows))
         value = np.where(infeasible, -np.inf, value)
         # The best split for each budget: candidates that spend exactly that budget.
         table = np.full((n_cells, top + 1), -np.inf)
@@ -365,6 +375,61 @@ class DynamicProgramming:
             table[:, budget] = value[np.arange(n_cells), members[pick]]
             index[:, budget] = members[pick]
         return table, index, candidates
+
+
+class _Restricted:
+    """A program's evaluator with the allocation fixed except at the positions `free`, and
+    some nodes' qualities fixed (`observed`)."""
+
+    def __init__(
+        self,
+        evaluator: Evaluator,
+        base: Array,
+        free: Sequence[int],
+        observed: Mapping[int, float],
+    ) -> None:
+        self.evaluator, self.base, self.free, self.observed = evaluator, base, list(free), observed
+
+    @property
+    def n_modules(self) -> int:
+        return len(self.free)
+
+    def expected(self, quality: ArrayLike, allocation: ArrayLike) -> Array:
+        part = np.atleast_2d(np.asarray(allocation, dtype=np.float64))
+        full = np.tile(self.base, (len(part), 1))
+        full[:, self.free] = part
+        return self.evaluator.expected(quality, full, dict(self.observed))
+
+
+def reallocate(
+    model: CompileModel,
+    resolution: float,
+    qualities: Sequence[float],
+    allocation: Array,
+    free: Sequence[int],
+    budget: float,
+    observed: Mapping[int, float],
+) -> Array:
+    """The best split of `budget` among the allocation positions `free` during a run, the
+    others kept as in `allocation` and the nodes in `observed` at the qualities seen: the
+    compiler's own search on its lattice (exhaustive where affordable, else hill-climbing),
+    whatever the lattice cannot hold going to the first free position. Used by the runtime to
+    re-split a best-of's time among its applicable alternatives and to re-plan adaptively."""
+    new = np.array(allocation, dtype=np.float64)
+    free = list(free)
+    if not free:
+        return new
+    new[free] = 0.0
+    if budget <= 0:
+        return new
+    units = np.array([int(np.floor(budget / resolution + 1e-9))])
+    restricted = _Restricted(Evaluator(model), new, free, observed)
+    q = np.asarray(qualities, dtype=np.float64).reshape(1, -1)
+    search = Exhaustive() if Exhaustive.computable(units, len(free)) else HillClimbing()
+    split, _ = search.allocate(restricted, q, units, resolution)
+    new[free] = split[0] * resolution
+    new[free[0]] += budget - units[0] * resolution
+    return new
 
 
 ALLOCATORS: dict[

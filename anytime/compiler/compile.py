@@ -3,9 +3,10 @@
 `compile_program` fills the papers' table: for every program input quality and every total time
 T on the grid, the allocation of T among the anytime modules that maximises expected output
 quality, the output-quality distribution it gives and its expectation. The result, a
-`CompiledProgram`, is a contract algorithm with an ordinary conditional performance profile, so it
-registers in the library as a module and schemas compose hierarchically (`compile_file` compiles
-callees first). Every compilation also reports the baselines of the papers' Figures 8/10 (equal
+`CompiledProgram`, is a contract algorithm with an ordinary conditional performance profile, so
+schemas compose hierarchically (`compile_file` compiles callees first). A `CompiledProgram` is
+data; the runtime runs it (`anytime.runtime.run_program`, `program_module`).
+Every compilation also reports the baselines of the papers' Figures 8/10 (equal
 split, MIN and MAX for the first module) and, where it is computable, the gap to the exhaustive
 optimum.
 """
@@ -14,13 +15,11 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping, Sequence
-from typing import Any
 
 import numpy as np
 from attrs import frozen
 from numpy.typing import ArrayLike
 
-from anytime.clocks import Clock
 from anytime.compiler.allocators import (
     ALLOCATORS,
     Exhaustive,
@@ -28,11 +27,9 @@ from anytime.compiler.allocators import (
     equal_split,
 )
 from anytime.compiler.evaluate import Dist, Evaluator
-from anytime.compiler.execute import execute
-from anytime.compiler.model import CompileError, CompileModel, build_model
-from anytime.dsl.program import Program, SchemaFile
-from anytime.library import AnytimeLibrary, LibraryEntry
-from anytime.modules import AnytimeModule, Context, Result
+from anytime.compiler.model import CompileError, CompileModel, IfNode, ModuleNode, build_model
+from anytime.dsl.program import Call, Program, SchemaCall, SchemaFile
+from anytime.library import AnytimeLibrary
 from anytime.profiles.io import save_profile
 from anytime.profiles.profile import (
     Array,
@@ -123,34 +120,6 @@ class CompiledProgram:
         assert self.profile.mean is not None
         return self.profile.mean
 
-    def run(
-        self,
-        inputs: Sequence[Any] | Mapping[str, Any],
-        total: float,
-        clock: Clock | None = None,
-    ) -> Result | None:
-        """Run the program as a contract algorithm with `total` time (see `execute`): the
-        output's result, or None when it has none."""
-        return execute(self, inputs, total, clock)
-
-    def as_module(self, origin: str | None = None) -> AnytimeModule:
-        """This program as a contract module of the library, with its compiled profile."""
-        program = self.model.program
-
-        def run_contract(ctx: Context, *args: Any) -> Result | None:
-            return execute(self, args, ctx.allocation, ctx.clock, ctx.stop)
-
-        run_contract.__qualname__ = run_contract.__name__ = program.name.replace("-", "_")
-        return AnytimeModule(
-            name=program.name,
-            kind="contract",
-            function=run_contract,
-            parameters=program.inputs,
-            inputs=self.model.quality_inputs,
-            profile_source=self.profile,
-            origin=origin or f"compiled schema '{program.name}'",
-        )
-
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write the compiled profile with its allocation table (OSError if it cannot)."""
         save_profile(
@@ -180,8 +149,10 @@ def compile_program(
     resolution: float | None = None,
     filename: str = "<schema>",
     source_lines: Sequence[str] = (),
+    callees: Mapping[str, CompiledProgram] | None = None,
 ) -> CompiledProgram:
-    """Compile one program (its callee schemas must already be in the library).
+    """Compile one program; the schemas it calls must be compiled already (`callees`, by
+    name), or be modules of the library.
 
     Args:
         time_grid: the totals T to fill the table for (increasing, >= 0).
@@ -207,9 +178,10 @@ def compile_program(
             resolution=dt,
             filename=filename,
             source_lines=source_lines,
+            callees=callees,
         )
 
-    model = build_model(program, library, filename, source_lines, compile_branch)
+    model = build_model(program, library, filename, source_lines, compile_branch, callees)
     m = len(model.quality_inputs)
     cell_shape = (len(q_grid),) * m + (len(time),)
     if m:
@@ -225,7 +197,10 @@ def compile_program(
     )
     chosen = _choose(model, allocator, small)
     approximations = []
-    if model.graph.shape == "dag" and not all(n.deterministic for n in model.nodes):
+    stochastic = [
+        n for n in model.anytime_nodes if not isinstance(n, ModuleNode) or not n.deterministic
+    ]
+    if model.graph.shape == "dag" and stochastic:
         approximations.append(
             "the program is a DAG: a shared result makes later inputs correlated, and "
             "evaluation treats them as independent (exact for trees, approximate here)"
@@ -268,9 +243,9 @@ def _outside_input_grids(model: CompileModel, seen: Mapping[int, list[Dist]]) ->
     """A warning for every module input that the compiled allocations feed qualities outside
     the input grid its profile was measured on (where the profile is only clamped)."""
     warnings = []
-    for node in model.nodes:
+    for node in model.anytime_nodes:
         profile = node.profile
-        if profile is None or node.index not in seen:
+        if node.index not in seen:
             continue
         names = profile.inputs or tuple(f"input {i + 1}" for i in range(profile.n_inputs))
         for name, grid, dist in zip(names, profile.input_grids, seen[node.index], strict=False):
@@ -299,8 +274,8 @@ def compile_file(
     resolution: float | None = None,
     source_lines: Sequence[str] = (),
 ) -> list[CompiledProgram]:
-    """Compile the schemas of a file bottom-up (callees first), registering each compiled schema
-    in `library` as a contract module, so that its callers use its compiled profile.
+    """Compile the schemas of a file bottom-up (callees first), so that a call of a schema
+    uses the callee's compiled profile (and, at run time, runs the callee's program).
 
     Only `schema` and the schemas it calls are compiled when it is given. A callee is compiled
     on every multiple of the resolution up to the largest total, so its callers can give it any
@@ -318,7 +293,7 @@ def compile_file(
     time = _check_time_grid(time_grid, schemas.filename)
     dt = _resolution(time, resolution, schemas.filename)
     lattice = np.arange(int(np.rint(time[-1] / dt)) + 1) * dt
-    compiled: list[CompiledProgram] = []
+    compiled: dict[str, CompiledProgram] = {}
     for program in schemas.dependency_order():
         if program.name not in needed:
             continue
@@ -331,11 +306,10 @@ def compile_file(
             resolution=dt,
             filename=schemas.filename,
             source_lines=source_lines,
+            callees=compiled,
         )
-        origin = f"compiled schema '{program.name}' ({schemas.filename})"
-        library.add(LibraryEntry.of_module(result.as_module(origin)), replace=True)
-        compiled.append(result)
-    return compiled
+        compiled[program.name] = result
+    return list(compiled.values())
 
 
 def _choose(model: CompileModel, allocator: str, small: bool = False) -> str:
@@ -429,8 +403,8 @@ def _compiled_profile(
     the exact expected quality kept as the profile's mean."""
     bins = default_bins()
     if model.output.kind == "node":
-        node = next(n for n in model.nodes if n.index == model.output.index)
-        if node.profile is not None:
+        node = model.node(model.output.index)
+        if isinstance(node, ModuleNode | IfNode):
             bins = node.profile.bins
     k = np.clip(np.searchsorted(bins, output.values, side="right") - 1, 0, len(bins) - 2)
     probability = np.zeros((len(output.values), len(bins) - 1))
@@ -510,11 +484,13 @@ def default_time_grid(
     total = 0.0
     while programs:
         program = programs.pop()
-        for call in program.steps:
-            if call.kind == "schema":
-                if call.function not in seen:
-                    seen.add(call.function)
-                    programs.append(schemas[call.function])
+        for call in program.walk():
+            if isinstance(call, SchemaCall):
+                if call.schema not in seen:
+                    seen.add(call.schema)
+                    programs.append(schemas[call.schema])
+                continue
+            if not isinstance(call, Call):
                 continue
             entry = library.get(call.function)
             profile = entry.profile if entry is not None and entry.kind != "elementary" else None

@@ -29,7 +29,16 @@ import numpy as np
 from attrs import frozen
 from numpy.typing import ArrayLike
 
-from anytime.compiler.model import CompileModel, CompileNode, Slot
+from anytime.compiler.model import (
+    ChoiceNode,
+    CompileModel,
+    CompileNode,
+    ElementaryNode,
+    IfNode,
+    ModuleNode,
+    Slot,
+    TestNode,
+)
 from anytime.profiles.profile import Array, ConditionalPerformanceProfile
 
 MAX_SUPPORT = 64
@@ -126,24 +135,27 @@ class Evaluator:
 
     @staticmethod
     def _node(node: CompileNode, inputs: list[Dist], alloc: Array, batch: int) -> Dist:
-        if node.role == "if":
+        if isinstance(node, IfNode):
             return _mixture(node, inputs, alloc, batch)
+        if isinstance(node, TestNode):  # its quality flows nowhere
+            return Dist.point(np.ones(batch))
         q, p = _combinations(inputs, batch)  # (B, C1..Cm, m), (B, C1..Cm)
-        if node.kind == "elementary":
-            assert node.combine is not None
-            values = node.combine(np.moveaxis(q, -1, 0)) if inputs else np.ones(p.shape)
-            out = Dist(values.reshape(batch, -1), p.reshape(batch, -1))
-        else:
-            profile = node.profile
-            assert profile is not None and node.time_index is not None
-            t = np.broadcast_to(
-                alloc[:, node.time_index].reshape((batch,) + (1,) * (p.ndim - 1)), p.shape
-            )
-            if node.deterministic:
-                values = profile.expected(q, t)
+        match node:
+            case ElementaryNode(combine=combine):
+                values = combine(np.moveaxis(q, -1, 0)) if inputs else np.ones(p.shape)
                 out = Dist(values.reshape(batch, -1), p.reshape(batch, -1))
-            else:
-                out = _binned(profile, q, t, p, batch)
+            case ChoiceNode():
+                values = np.max(q, axis=-1)
+                out = Dist(values.reshape(batch, -1), p.reshape(batch, -1))
+            case ModuleNode(profile=profile, time_index=time_index):
+                t = np.broadcast_to(
+                    alloc[:, time_index].reshape((batch,) + (1,) * (p.ndim - 1)), p.shape
+                )
+                if node.deterministic:
+                    values = profile.expected(q, t)
+                    out = Dist(values.reshape(batch, -1), p.reshape(batch, -1))
+                else:
+                    out = _binned(profile, q, t, p, batch)
         return fold(out) if out.values.shape[1] > MAX_SUPPORT else out
 
 
@@ -166,10 +178,9 @@ def _binned(
     return Dist(np.clip(values, 0.0, 1.0), probs)
 
 
-def _mixture(node: CompileNode, inputs: list[Dist], alloc: Array, batch: int) -> Dist:
+def _mixture(node: IfNode, inputs: list[Dist], alloc: Array, batch: int) -> Dist:
     """An if: each branch's output distribution (its compiled profile at the if's time),
     weighted by the branch's probability; the supports are concatenated (a mixture)."""
-    assert node.time_index is not None
     values, probs = [], []
     for plan in node.branches:
         profile = plan.compiled.profile

@@ -1,11 +1,12 @@
 """What the compiler needs of a program: its calls, their profiles, and where qualities flow.
 
-A `CompileModel` resolves every node of a program's dataflow graph against the anytime library:
-an *anytime* node (interruptible, contract, or a compiled schema) gets a share of the time and
-is described by its conditional performance profile; an *elementary* node takes no time and
-combines its inputs' qualities (min by default). For each quality-carrying input of a node, a
-`Slot` says where its quality comes from: another node, a quality-carrying program input, or a
-constant (a literal argument has quality 1).
+A `CompileModel` resolves every node of a program's dataflow graph against the anytime library,
+one class per kind of node: a `ModuleNode` (an interruptible or contract module, or a compiled
+schema) gets a share of the time and is described by its conditional performance profile; an
+`ElementaryNode` takes no time and combines its inputs' qualities (min by default); a `TestNode`
+is a best-of's precondition, a `ChoiceNode` the best-of itself, an `IfNode` a conditional. For
+each quality-carrying input of a node, a `Slot` says where its quality comes from: another node,
+a quality-carrying program input, or a constant (a literal argument has quality 1).
 """
 
 from __future__ import annotations
@@ -21,8 +22,8 @@ from attrs import frozen
 
 from anytime.dsl.graph import DataflowGraph, InputRef, NodeRef, Source
 from anytime.dsl.normalize import count, suggest
+from anytime.dsl.program import BestOf, Call, If, Program, SchemaCall, Step, Var, variables, walk
 from anytime.dsl.program import Literal as LiteralArg
-from anytime.dsl.program import Program, Step, Var
 from anytime.errors import AnytimeError, Diagnostic, SchemaError
 from anytime.library import AnytimeLibrary, LibraryEntry
 from anytime.profiles.profile import (
@@ -46,7 +47,13 @@ class Slot:
     value: float = 1.0  # for a constant
 
 
-Role = Literal["module", "precondition", "best-of", "if"]
+@frozen
+class Within:
+    """Where a node sits: inside alternative `alternative` (0-based) of the best-of node
+    `choice` (through nested choices, the innermost)."""
+
+    choice: int
+    alternative: int
 
 
 @frozen(eq=False)
@@ -69,46 +76,92 @@ class BranchPlan:
 
 
 @frozen(eq=False)
-class CompileNode:
-    """One call of the program as the compiler sees it.
+class ModuleNode:
+    """A call that gets time: an interruptible or contract module, or a compiled schema.
 
     Attributes:
         index: the node's index in the dataflow graph (topological).
-        name: the function called.
-        kind: "anytime" (gets time) or "elementary" (takes none).
+        name: the module or schema called.
         slots: the sources of its quality-carrying inputs, in profile-axis order.
-        profile: the conditional performance profile (anytime nodes).
+        profile: its conditional performance profile.
         deterministic: every cell of the profile is a point mass at its mean quality.
-        combine: how an elementary node combines input qualities, on arrays along axis 0.
-        monotone_combine: the combination is known to be non-decreasing in every input.
-        time_index: the node's position in an allocation vector (anytime nodes).
-        entry: the library entry (None for elementary functions unknown to the library).
-        role: "module" for an ordinary call; "precondition" for the test of a best-of
-            alternative (elementary, its quality flows nowhere); "best-of" for the choice
-            (elementary: its slots are the alternatives, its quality their maximum); "if" for a
-            conditional (anytime: its time goes to the branch that runs).
-        branch: (choice node index, alternative) for a call inside a best-of alternative.
-        preconditions: for a best-of, the node index of each alternative's precondition (None
-            for an alternative that is always applicable).
-        branches: for an if, the then and else branches.
-        condition: for an if, where the condition's value comes from.
+        time_index: its position in an allocation vector.
+        entry: the library entry (None for a schema call).
+        callee: for a schema call, the callee compiled (a `CompiledProgram`).
+        within: the alternative it is inside, if any.
     """
 
     index: int
     name: str
-    kind: Literal["anytime", "elementary"]
     slots: tuple[Slot, ...]
-    profile: ConditionalPerformanceProfile | None = None
-    deterministic: bool = False
-    combine: Callable[[np.ndarray[Any, Any]], np.ndarray[Any, Any]] | None = None
-    monotone_combine: bool = True
-    time_index: int | None = None
+    profile: ConditionalPerformanceProfile
+    deterministic: bool
+    time_index: int
     entry: LibraryEntry | None = None
-    role: Role = "module"
-    branch: tuple[int, int] | None = None
-    preconditions: tuple[int | None, ...] = ()
-    branches: tuple[BranchPlan, ...] = ()
-    condition: Source | None = None
+    callee: Any = None
+    within: Within | None = None
+
+
+@frozen(eq=False)
+class ElementaryNode:
+    """A call of an elementary function: it takes no time and combines its inputs' qualities
+    (`combine`, on arrays along axis 0; `monotone`: known to be non-decreasing in each)."""
+
+    index: int
+    name: str
+    slots: tuple[Slot, ...]
+    combine: Callable[[np.ndarray[Any, Any]], np.ndarray[Any, Any]]
+    monotone: bool
+    entry: LibraryEntry | None = None
+    within: Within | None = None
+
+
+@frozen(eq=False)
+class TestNode:
+    """The precondition of a best-of alternative: an elementary call whose value decides
+    whether the alternative is applicable; its quality flows nowhere. `within` is its
+    alternative."""
+
+    index: int
+    name: str
+    slots: tuple[Slot, ...]
+    entry: LibraryEntry
+    within: Within
+
+
+@frozen(eq=False)
+class ChoiceNode:
+    """A best-of: its quality is the best of its alternatives' (`slots`, one per alternative,
+    `values` where each comes from); `preconditions` gives each alternative's test node
+    (None: always applicable)."""
+
+    index: int
+    slots: tuple[Slot, ...]
+    values: tuple[Source, ...]
+    preconditions: tuple[int | None, ...]
+    within: Within | None = None
+    name: str = "best-of"
+
+
+@frozen(eq=False)
+class IfNode:
+    """An if: one node that gets time, which goes to the branch its condition selects; its
+    profile is the mixture of the branches' compiled profiles."""
+
+    index: int
+    slots: tuple[Slot, ...]
+    profile: ConditionalPerformanceProfile
+    time_index: int
+    branches: tuple[BranchPlan, ...]
+    condition: Source
+    within: Within | None = None
+    name: str = "if"
+
+
+CompileNode = ModuleNode | ElementaryNode | TestNode | ChoiceNode | IfNode
+
+#: The kinds of node that get a share of the time.
+Timed = ModuleNode | IfNode
 
 
 @frozen(eq=False)
@@ -123,9 +176,9 @@ class CompileModel:
     time_unit: str
 
     @property
-    def anytime_nodes(self) -> tuple[CompileNode, ...]:
+    def anytime_nodes(self) -> tuple[ModuleNode | IfNode, ...]:
         """The nodes that get time, in allocation-vector order."""
-        return tuple(n for n in self.nodes if n.kind == "anytime")
+        return tuple(n for n in self.nodes if isinstance(n, Timed))
 
     @property
     def module_names(self) -> tuple[str, ...]:
@@ -136,20 +189,18 @@ class CompileModel:
         return next(n for n in self.nodes if n.index == index)
 
     def alternative_modules(self, choice: int, alternative: int) -> tuple[int, ...]:
-        """The allocation-vector positions of the anytime modules inside one alternative of a
-        best-of (through nested choices too)."""
+        """The allocation-vector positions of the nodes that get time inside one alternative
+        of a best-of (through nested choices too)."""
         return tuple(
-            n.time_index
-            for n in self.anytime_nodes
-            if n.time_index is not None and self.inside(n, (choice, alternative))
+            n.time_index for n in self.anytime_nodes if self.inside(n, Within(choice, alternative))
         )
 
-    def inside(self, node: CompileNode, branch: tuple[int, int]) -> bool:
-        tag = node.branch
+    def inside(self, node: CompileNode, within: Within) -> bool:
+        tag = node.within
         while tag is not None:
-            if tag == branch:
+            if tag == within:
                 return True
-            tag = self.node(tag[0]).branch
+            tag = self.node(tag.choice).within
         return False
 
 
@@ -212,12 +263,14 @@ def build_model(
     filename: str = "<schema>",
     source_lines: Sequence[str] = (),
     compile_branch: Callable[[Program], Any] | None = None,
+    callees: Mapping[str, Any] | None = None,
 ) -> CompileModel:
-    """Resolve `program` against `library`.
+    """Resolve `program` against `library` (and its schema calls against `callees`, the
+    compiled schemas of its file, by name).
 
-    A best-of becomes an elementary node taking the maximum of its alternatives' qualities
-    (they run side by side, sharing the time); an if becomes one anytime node whose branches
-    are compiled as programs of their own by `compile_branch` (the calls inside them are not
+    A best-of becomes a node whose quality is the maximum of its alternatives' (they run side
+    by side, sharing the time); an if becomes one node that gets time, whose branches are
+    compiled as programs of their own by `compile_branch` (the calls inside them are not
     nodes of this model), its profile the mixture of theirs.
 
     Raises:
@@ -225,198 +278,219 @@ def build_model(
             quality-carrying arguments cannot be told apart; each names its place.
         CompileError: profiles in different time units.
     """
-    graph = program.graph
-    diagnostics: list[Diagnostic] = []
-    quality_inputs: dict[str, int] = {}
-    nodes: list[CompileNode] = []
-    spans = {step.target: step.function_span for step in program.steps}
+    resolver = _Resolver(program, library, filename, source_lines, compile_branch, callees or {})
+    return resolver.model()
 
-    def complain(node_index: int, message: str) -> None:
-        span = spans.get(graph.nodes[node_index].variable)
+
+class _Resolver:
+    """Resolves each node of a program's dataflow graph, one method per kind of step."""
+
+    def __init__(
+        self,
+        program: Program,
+        library: AnytimeLibrary,
+        filename: str,
+        source_lines: Sequence[str],
+        compile_branch: Callable[[Program], Any] | None,
+        callees: Mapping[str, Any],
+    ) -> None:
+        self.program, self.library, self.filename = program, library, filename
+        self.source_lines, self.compile_branch, self.callees = source_lines, compile_branch, callees
+        self.graph = program.graph
+        self.diagnostics: list[Diagnostic] = []
+        self.quality_inputs: dict[str, int] = {}
+        self.time_index = 0
+        self.within: dict[str, Within | None] = {}
+        self.in_if: set[str] = set()
+        self.tests: set[str] = set()
+        self.place(program.steps, None, inside_if=False)
+
+    def place(self, steps: Sequence[Step], within: Within | None, inside_if: bool) -> None:
+        """Record where each step sits: the alternative it is inside, whether it is inside an
+        if's branch (compiled with the branch), whether it is a precondition."""
+        for step in steps:
+            self.within[step.target] = within
+            if inside_if:
+                self.in_if.add(step.target)
+            match step:
+                case BestOf(target=target, alternatives=alternatives):
+                    choice = self.graph.index_of(target)
+                    for i, alternative in enumerate(alternatives):
+                        test = alternative.precondition
+                        if test is not None:
+                            self.tests.add(test.target)
+                            self.place((test,), Within(choice, i), inside_if)
+                        self.place(alternative.steps, Within(choice, i), inside_if)
+                case If(then=then, else_=other):
+                    self.place((*then.steps, *other.steps), within, inside_if=True)
+                case _:
+                    pass
+
+    def complain(self, index: int, message: str) -> None:
+        step = self.graph.nodes[index].step
+        span = step.function_span if step is not None else None
         line, column = (span.line, span.column) if span else (1, 1)
-        text = source_lines[line - 1] if 0 < line <= len(source_lines) else ""
+        lines = self.source_lines
+        text = lines[line - 1] if 0 < line <= len(lines) else ""
         width = span.end_column - span.column if span and span.end_line == span.line else 1
-        diagnostics.append(Diagnostic(filename, line, column, message, text, width))
+        self.diagnostics.append(Diagnostic(self.filename, line, column, message, text, width))
 
-    def slot(source: Source) -> Slot:
+    def slot(self, source: Source) -> Slot:
         if isinstance(source, NodeRef):
             return Slot("node", source.index)
         if isinstance(source, InputRef):
-            index = quality_inputs.setdefault(source.name, len(quality_inputs))
+            index = self.quality_inputs.setdefault(source.name, len(self.quality_inputs))
             return Slot("input", index)
         return Slot("constant", value=1.0)
 
-    step_of = {step.target: step for step in program.steps}
-    index_of = {node.variable: i for i, node in enumerate(graph.nodes)}
+    def timed(self) -> int:
+        self.time_index += 1
+        return self.time_index - 1
 
-    def in_if(variable: str) -> bool:
-        tag = step_of[variable].branch
-        while tag is not None:
-            if step_of[tag[0]].kind == "if":
-                return True
-            tag = step_of[tag[0]].branch
-        return False
-
-    def role_and_branch(variable: str) -> tuple[Role, tuple[int, int] | None]:
-        tag = step_of[variable].branch
-        if tag is None:
-            return "module", None
-        choice = step_of[tag[0]]
-        n = len(choice.args) // 2
-        is_test = choice.kind == "best-of" and Var(variable) in choice.args[:n]
-        role: Role = "precondition" if is_test else "module"
-        return role, (index_of[tag[0]], tag[1])
-
-    time_index = 0
-    for index, node in enumerate(graph.nodes):
-        if in_if(node.variable):
-            continue
-        if node.kind == "best-of":
-            n = len(node.args) // 2
-            pre = tuple(s.index if isinstance(s, NodeRef) else None for s in node.args[:n])
-            _, branch = role_and_branch(node.variable)
-            nodes.append(
-                CompileNode(
-                    index,
-                    "best-of",
-                    "elementary",
-                    tuple(slot(s) for s in node.args[n:]),
-                    None,
-                    True,
-                    _COMBINATIONS[builtins.max],
-                    True,
-                    role="best-of",
-                    branch=branch,
-                    preconditions=pre,
-                )
-            )
-            continue
-        if node.kind == "if":
-            built = _if_node(program, graph, step_of[node.variable], index, library, compile_branch)
-            if isinstance(built, str):
-                complain(index, built)
+    def model(self) -> CompileModel:
+        graph, program = self.graph, self.program
+        nodes: list[CompileNode] = []
+        for index, node in enumerate(graph.nodes):
+            if node.variable in self.in_if:
                 continue
-            plans, names = built
-            _, branch = role_and_branch(node.variable)
-            reads: list[Source] = [
-                InputRef(v) if v not in index_of else NodeRef(index_of[v]) for v in names
-            ]
-            mixture = _mixture(plans, names, f"{program.name}/{node.variable}")
-            nodes.append(
-                CompileNode(
-                    index,
-                    "if",
-                    "anytime",
-                    tuple(slot(s) for s in reads),
-                    mixture,
-                    False,
-                    time_index=time_index,
-                    role="if",
-                    branch=branch,
-                    branches=plans,
-                    condition=node.args[0],
-                )
+            built: CompileNode | str
+            match node.step:
+                case Call() as call:
+                    built = self.call(index, call)
+                case SchemaCall() as call:
+                    built = self.schema_call(index, call)
+                case BestOf() as choice:
+                    built = self.best_of(index, choice)
+                case If() as conditional:
+                    built = self.conditional(index, conditional)
+                case _:
+                    raise AssertionError(node)
+            if isinstance(built, str):
+                self.complain(index, built)
+            else:
+                nodes.append(built)
+        if self.diagnostics:
+            raise SchemaError(self.diagnostics)
+        profiles = [n for n in nodes if isinstance(n, Timed)]
+        units = {n.profile.time_unit for n in profiles}
+        if len(units) > 1:
+            detail = ", ".join(f"{n.name}: {n.profile.time_unit}" for n in profiles)
+            raise CompileError(
+                f"{self.filename}: schema '{program.name}': its modules' profiles are in "
+                f"different time units ({detail}); measure them with one clock"
             )
-            time_index += 1
-            continue
-        role, branch = role_and_branch(node.variable)
-        entry = library.get(node.function)
+        # Program inputs only count when some quality slot reads them (or when one is the
+        # output); number them in the program's input order.
+        quality_inputs = self.quality_inputs
+        if isinstance(graph.output, InputRef):
+            quality_inputs.setdefault(graph.output.name, len(quality_inputs))
+        order = [name for name in program.inputs if name in quality_inputs]
+        renumber = {quality_inputs[name]: i for i, name in enumerate(order)}
+        nodes = [_renumbered(n, renumber) for n in nodes]
+        if isinstance(graph.output, InputRef):
+            output = Slot("input", order.index(graph.output.name))
+        else:
+            output = Slot("node", graph.output.index)
+        return CompileModel(
+            program=program,
+            graph=graph,
+            nodes=tuple(nodes),
+            quality_inputs=tuple(order),
+            output=output,
+            time_unit=units.pop() if units else "ticks",
+        )
+
+    def call(self, index: int, call: Call) -> CompileNode | str:
+        node = self.graph.nodes[index]
+        entry = self.library.get(call.function)
         if entry is None:
-            hint = suggest(node.function, library.names())
-            complain(index, f"unknown function '{node.function}'{hint}")
-            continue
+            return (
+                f"unknown function '{call.function}'{suggest(call.function, self.library.names())}"
+            )
         mismatch = _call_mismatch(entry, len(node.args), [name for name, _ in node.keywords])
         if mismatch is not None:
-            complain(index, mismatch)
-            continue
-        sources = _quality_sources(node.args, entry, node_variables(graph, node.args))
+            return mismatch
+        sources = _quality_sources(node.args, entry, node_variables(self.graph, node.args))
         if isinstance(sources, str):
-            complain(index, sources)
-            continue
-        slots = tuple(slot(s) for s in sources)
-        if role == "precondition" and entry.kind != "elementary":
-            complain(
-                index,
-                f"the precondition '{entry.name}' must be an elementary function (it takes no "
-                f"time), but it is {'an' if entry.kind == 'interruptible' else 'a'} "
-                f"{entry.kind} module",
-            )
-            continue
+            return sources
+        slots = tuple(self.slot(s) for s in sources)
+        within = self.within[call.target]
+        if call.target in self.tests:
+            if entry.kind != "elementary":
+                article = "an" if entry.kind == "interruptible" else "a"
+                return (
+                    f"the precondition '{entry.name}' must be an elementary function (it takes "
+                    f"no time), but it is {article} {entry.kind} module"
+                )
+            assert within is not None
+            return TestNode(index, entry.name, slots, entry, within)
         if entry.kind == "elementary":
             assert entry.module is not None
             combine, monotone = _vector_combine(entry.module.combine)
-            nodes.append(
-                CompileNode(
-                    index,
-                    entry.name,
-                    "elementary",
-                    slots,
-                    None,
-                    True,
-                    combine,
-                    monotone,
-                    entry=entry,
-                    role=role,
-                    branch=branch,
-                )
-            )
-            continue
+            return ElementaryNode(index, entry.name, slots, combine, monotone, entry, within)
         try:
             profile = entry.profile
         except AnytimeError as error:
-            complain(index, f"the profile of '{entry.name}' cannot be read: {error}")
-            continue
+            return f"the profile of '{entry.name}' cannot be read: {error}"
         if profile is None:
-            complain(
-                index,
+            return (
                 f"module '{entry.name}' has no performance profile ({entry.origin}): "
-                "the compiler cannot allocate time to it",
+                "the compiler cannot allocate time to it"
             )
-            continue
-        nodes.append(
-            CompileNode(
-                index,
-                entry.name,
-                "anytime",
-                slots,
-                profile,
-                is_deterministic(profile),
-                time_index=time_index,
-                entry=entry,
-                branch=branch,
-            )
+        deterministic = is_deterministic(profile)
+        return ModuleNode(
+            index, entry.name, slots, profile, deterministic, self.timed(), entry, within=within
         )
-        time_index += 1
-    if diagnostics:
-        raise SchemaError(diagnostics)
-    units = {n.profile.time_unit for n in nodes if n.profile is not None}
-    if len(units) > 1:
-        detail = ", ".join(
-            f"{n.name}: {n.profile.time_unit}" for n in nodes if n.profile is not None
+
+    def schema_call(self, index: int, call: SchemaCall) -> CompileNode | str:
+        callee = self.callees.get(call.schema)
+        if callee is None:  # a schema compiled elsewhere, registered as a module
+            return self.call(index, Call(call.target, call.schema, call.args))
+        node = self.graph.nodes[index]
+        inputs = callee.model.program.inputs
+        sources = [node.args[inputs.index(name)] for name in callee.model.quality_inputs]
+        profile = callee.profile
+        return ModuleNode(
+            index,
+            call.schema,
+            tuple(self.slot(s) for s in sources),
+            profile,
+            is_deterministic(profile),
+            self.timed(),
+            callee=callee,
+            within=self.within[call.target],
         )
-        raise CompileError(
-            f"{filename}: schema '{program.name}': its modules' profiles are in different time "
-            f"units ({detail}); measure them with one clock"
+
+    def best_of(self, index: int, choice: BestOf) -> CompileNode:
+        graph = self.graph
+        values = tuple(graph.source(a.value) for a in choice.alternatives)
+        tests = tuple(
+            None if a.precondition is None else graph.index_of(a.precondition.target)
+            for a in choice.alternatives
         )
-    # Program inputs only count when some quality slot reads them (or when one is the output);
-    # number them in the program's input order.
-    if isinstance(graph.output, InputRef):
-        quality_inputs.setdefault(graph.output.name, len(quality_inputs))
-    order = [name for name in program.inputs if name in quality_inputs]
-    renumber = {quality_inputs[name]: i for i, name in enumerate(order)}
-    nodes = [_renumbered(n, renumber) for n in nodes]
-    if isinstance(graph.output, InputRef):
-        output = Slot("input", order.index(graph.output.name))
-    else:
-        output = Slot("node", graph.output.index)
-    return CompileModel(
-        program=program,
-        graph=graph,
-        nodes=tuple(nodes),
-        quality_inputs=tuple(order),
-        output=output,
-        time_unit=units.pop() if units else "ticks",
-    )
+        slots = tuple(self.slot(s) for s in values)
+        return ChoiceNode(index, slots, values, tests, self.within[choice.target])
+
+    def conditional(self, index: int, step: If) -> CompileNode | str:
+        graph = self.graph
+        built = _if_branches(self.program, graph, step, self.library, self.compile_branch)
+        if isinstance(built, str):
+            return built
+        plans, names = built
+        index_of = {n.variable: i for i, n in enumerate(graph.nodes)}
+        reads: list[Source] = [
+            InputRef(v) if v not in index_of else NodeRef(index_of[v]) for v in names
+        ]
+        mixture = _mixture(plans, names, f"{self.program.name}/{step.target}")
+        return IfNode(
+            index,
+            tuple(self.slot(s) for s in reads),
+            mixture,
+            self.timed(),
+            plans,
+            graph.source(step.condition),
+            self.within[step.target],
+        )
 
 
 def node_variables(graph: DataflowGraph, args: Sequence[Source]) -> list[str | None]:
@@ -456,46 +530,37 @@ def _renumbered(node: CompileNode, renumber: Mapping[int, int]) -> CompileNode:
     return attrs.evolve(node, slots=slots)
 
 
-def branch_program(program: Program, choice: Step, branch: int) -> Program | str:
+def branch_program(program: Program, choice: If, branch: int) -> Program | str:
     """One branch of an `if` as a program of its own: its inputs are the variables it reads
     from outside (program inputs or earlier results), in order of first use."""
-    tag = (choice.target, branch)
-    steps = [
-        attrs.evolve(s, branch=None) if s.branch == tag else s
-        for s in program.steps
-        if program.inside(s, tag)
-    ]
-    output = choice.args[1 + branch]
+    part = (choice.then, choice.else_)[branch]
     word = ("then", "else")[branch]
-    if not isinstance(output, Var):
+    if not isinstance(part.value, Var):
         return f"the {word} branch of 'if' is a constant: give a variable or a call"
+    steps = tuple(walk(part.steps))
     produced = {s.target for s in steps}
-    reads = [v for s in steps for v in s.variables() if v not in produced]
-    if output.name not in produced:
-        reads.append(output.name)
+    reads = [v for s in steps for v in variables(s) if v not in produced]
+    if part.value.name not in produced:
+        reads.append(part.value.name)
     return Program(
         name=f"{program.name}/{choice.target}/{word}",
         inputs=tuple(dict.fromkeys(reads)),
-        steps=tuple(steps),
-        output=output.name,
+        steps=part.steps,
+        output=part.value.name,
     )
 
 
-def _if_node(
+def _if_branches(
     program: Program,
     graph: DataflowGraph,
-    step: Step,
-    index: int,
+    step: If,
     library: AnytimeLibrary,
     compile_branch: Callable[[Program], Any] | None,
 ) -> tuple[tuple[BranchPlan, ...], list[str]] | str:
     """The branches of an if, compiled, and the names of the quality inputs they read."""
-    keywords = dict(step.keywords)
-    p: float | None = None
-    if "p" in keywords and isinstance(keywords["p"], LiteralArg):
-        p = float(keywords["p"].value)
-    else:
-        condition = graph.nodes[index].args[0]
+    p = step.p
+    if p is None:
+        condition = graph.source(step.condition)
         function = graph.nodes[condition.index].function if isinstance(condition, NodeRef) else None
         entry = library.get(function) if function is not None else None
         declared = getattr(entry.module, "probability", None) if entry and entry.module else None
@@ -516,11 +581,7 @@ def _if_node(
         compiled.append(compile_branch(sub))
     names = list(dict.fromkeys(n for c in compiled for n in c.model.quality_inputs))
     plans = tuple(
-        BranchPlan(
-            prob,
-            c,
-            tuple(names.index(n) for n in c.model.quality_inputs),
-        )
+        BranchPlan(prob, c, tuple(names.index(n) for n in c.model.quality_inputs))
         for prob, c in zip((p, 1.0 - p), compiled, strict=True)
     )
     return plans, names

@@ -8,11 +8,29 @@ from anytime.dsl.graph import DataflowGraph, Edge, InputRef, Node, NodeRef
 from anytime.dsl.normalize import KnownFunctions, normalize
 from anytime.dsl.parser import MAX_NESTING, decode_source, parse_syntax
 from anytime.dsl.printer import format_program, format_programs, graph_to_dot, program_to_json
-from anytime.dsl.program import Literal, Program, SchemaFile, Step, Var
+from anytime.dsl.program import (
+    Alternative,
+    BestOf,
+    Branch,
+    Call,
+    If,
+    Literal,
+    Program,
+    SchemaCall,
+    SchemaFile,
+    Step,
+    Var,
+)
 from anytime.files import MAX_SCHEMA_BYTES, read_input
 
 __all__ = [
     "MAX_NESTING",
+    "Alternative",
+    "BestOf",
+    "Branch",
+    "Call",
+    "If",
+    "SchemaCall",
     "DataflowGraph",
     "Edge",
     "InputRef",

@@ -18,9 +18,21 @@ from collections import Counter
 from collections.abc import Iterator
 from typing import Literal as Choice
 
+import attrs
 from attrs import field, frozen
 
-from anytime.dsl.program import Literal, Program, Var
+from anytime.dsl.program import (
+    Arg,
+    BestOf,
+    Call,
+    If,
+    Literal,
+    Program,
+    SchemaCall,
+    Step,
+    Var,
+    variables,
+)
 
 
 @frozen
@@ -44,13 +56,20 @@ Shape = Choice["chain", "tree", "dag"]
 
 @frozen
 class Node:
-    """One call. `variable` names its result in the program (not part of equality)."""
+    """One step, as dataflow: what it is (`function`: the function or schema called, or
+    "best-of" or "if"), where its arguments come from, and the typed `step` it stands for.
+
+    A call's sources are its positional `args` and its `keywords`; a choice's are labelled
+    keywords: a best-of's ("when 1", ...) for its preconditions' results and ("alternative 1",
+    ...) for its alternatives' values, an if's "condition", "then" and "else". `variable`
+    names the result in the program; neither it nor `step` takes part in equality.
+    """
 
     function: str
-    kind: str
     args: tuple[Source, ...]
     keywords: tuple[tuple[str, Source], ...] = ()
     variable: str = field(default="", eq=False)
+    step: Step | None = field(default=None, eq=False, repr=False)
 
     def sources(self) -> Iterator[tuple[int | str, Source]]:
         """(slot, source) for every argument: slots are positions, then keyword names."""
@@ -79,7 +98,7 @@ class DataflowGraph:
 
     @classmethod
     def from_program(cls, program: Program) -> DataflowGraph:
-        producer = {step.target: step for step in program.steps}
+        producer = {step.target: step for step in program.walk()}
         index: dict[str, int] = {}
         # Iterative post-order depth-first search: a long chain must not hit the recursion limit.
         stack = [(program.output, False)]
@@ -91,10 +110,10 @@ class DataflowGraph:
                 index[variable] = len(index)
                 continue
             stack.append((variable, True))
-            needs = [v for v in producer[variable].variables() if v not in index]
+            needs = [v for v in variables(producer[variable]) if v not in index]
             stack.extend((v, False) for v in reversed(needs))
 
-        def source(arg: Var | Literal) -> Source:
+        def source(arg: Arg) -> Source:
             if isinstance(arg, Literal):
                 return arg
             if arg.name in index:
@@ -104,18 +123,49 @@ class DataflowGraph:
         nodes = []
         for variable in sorted(index, key=index.__getitem__):
             step = producer[variable]
-            nodes.append(
-                Node(
-                    function=step.function,
-                    kind=step.kind,
-                    args=tuple(source(a) for a in step.args),
-                    keywords=tuple((k, source(v)) for k, v in step.keywords),
-                    variable=variable,
-                )
-            )
+            match step:
+                case Call(function=function, args=args, keywords=keywords):
+                    node = Node(
+                        function,
+                        tuple(source(a) for a in args),
+                        tuple((k, source(v)) for k, v in keywords),
+                    )
+                case SchemaCall(schema=schema, args=args):
+                    node = Node(schema, tuple(source(a) for a in args))
+                case BestOf(alternatives=alternatives):
+                    labelled = [
+                        (f"when {i}", source(Var(a.precondition.target)))
+                        for i, a in enumerate(alternatives, 1)
+                        if a.precondition is not None
+                    ]
+                    labelled += [
+                        (f"alternative {i}", source(a.value)) for i, a in enumerate(alternatives, 1)
+                    ]
+                    node = Node("best-of", (), tuple(labelled))
+                case If(condition=condition, then=then, else_=other):
+                    parts = zip(
+                        ("condition", "then", "else"),
+                        (condition, then.value, other.value),
+                        strict=True,
+                    )
+                    node = Node("if", (), tuple((k, source(v)) for k, v in parts))
+            nodes.append(attrs.evolve(node, variable=variable, step=step))
         output = source(Var(program.output))
         assert not isinstance(output, Literal)
         return cls(inputs=program.inputs, nodes=tuple(nodes), output=output, name=program.name)
+
+    def source(self, arg: Arg) -> Source:
+        """Where an argument's value comes from: a literal, a program input or a node."""
+        if isinstance(arg, Literal):
+            return arg
+        for i, node in enumerate(self.nodes):
+            if node.variable == arg.name:
+                return NodeRef(i)
+        return InputRef(arg.name)
+
+    def index_of(self, variable: str) -> int:
+        """The index of the node whose result is `variable`."""
+        return next(i for i, node in enumerate(self.nodes) if node.variable == variable)
 
     def variable(self, ref: InputRef | NodeRef) -> str:
         return ref.name if isinstance(ref, InputRef) else self.nodes[ref.index].variable

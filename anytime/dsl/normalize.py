@@ -9,10 +9,26 @@ place, and all of them are raised together in one `SchemaError`.
 from __future__ import annotations
 
 import difflib
+import functools
 from collections.abc import Callable, Collection, Iterable, Mapping
 
 from anytime.dsl.nodes import Call, Expr, Number, SchemaDef, Setf, SourceFile, Span, String, Symbol
-from anytime.dsl.program import ALWAYS, Arg, Branch, Literal, Program, SchemaFile, Step, Var
+from anytime.dsl.program import (
+    Alternative,
+    Arg,
+    BestOf,
+    Branch,
+    If,
+    Literal,
+    Program,
+    SchemaCall,
+    SchemaFile,
+    Step,
+    Var,
+    variables,
+    walk,
+)
+from anytime.dsl.program import Call as CallStep
 from anytime.errors import Diagnostic, SchemaError
 
 #: The special forms: choices among alternatives and conditionals, not functions.
@@ -93,26 +109,22 @@ class _Checker:
         known_functions: KnownFunctions | None,
     ) -> None:
         for program in programs:
-            for step in program.steps:
-                if step.kind == "schema":
-                    self.check_schema_call(step, schema_arity[step.function])
-                elif step.kind == "call" and known_functions is not None:
-                    self.check_library_call(step, known_functions, schema_arity)
+            for step in program.walk():
+                match step:
+                    case SchemaCall():
+                        self.check_schema_call(step, schema_arity[step.schema])
+                    case CallStep() if known_functions is not None:
+                        self.check_library_call(step, known_functions, schema_arity)
 
-    def check_schema_call(self, step: Step, arity: int) -> None:
+    def check_schema_call(self, step: SchemaCall, arity: int) -> None:
         if len(step.args) != arity:
             self.error(
                 step.function_span,
-                f"schema '{step.function}' takes {count(arity)}, got {len(step.args)}",
-            )
-        for name, _ in step.keywords:
-            self.error(
-                step.function_span,
-                f"schema '{step.function}' takes no keyword arguments (got :{name})",
+                f"schema '{step.schema}' takes {count(arity)}, got {len(step.args)}",
             )
 
     def check_library_call(
-        self, step: Step, known: KnownFunctions, schema_arity: Mapping[str, int]
+        self, step: CallStep, known: KnownFunctions, schema_arity: Mapping[str, int]
     ) -> None:
         if step.function not in known:
             hint = suggest(step.function, [*known, *schema_arity])
@@ -134,7 +146,9 @@ class _Checker:
             if path is None or program.name in reported:
                 continue
             reported.update(path)
-            step = next(s for s in program.steps if s.kind == "schema" and s.function == path[1])
+            step = next(
+                s for s in program.walk() if isinstance(s, SchemaCall) and s.schema == path[1]
+            )
             if len(path) == 2:
                 self.error(step.function_span, f"schema '{program.name}' calls itself")
             else:
@@ -174,7 +188,6 @@ class _ProgramBuilder:
             form.target for form in schema.body if isinstance(form, Setf)
         }
         self.counter = 0
-        self.branch: Branch | None = None  # the alternative or branch being flattened
         # Dead-code errors would only repeat an undefined-variable one, or follow from a
         # malformed alternative whose uses were never read.
         self.quiet_dead_code = False
@@ -250,36 +263,34 @@ class _ProgramBuilder:
                 "(best-of (when PRECONDITION EXPR) ...)",
             )
         args = tuple(self.expression(arg, None) for arg in call.args)
-        keywords = tuple((k.name, self.expression(k.value, None)) for k in call.keywords)
         target = name if name is not None else self.fresh()
-        kind = "schema" if call.function in self.schemas else "call"
-        self.steps.append(
-            Step(
-                target,
-                call.function,
-                args,
-                keywords,
-                kind,
-                call.span,
-                call.function_span,
-                self.branch,
-            )
-        )
+        step: Step
+        if call.function in self.schemas:
+            for keyword in call.keywords:
+                self.expression(keyword.value, None)
+                self.checker.error(
+                    call.function_span,
+                    f"schema '{call.function}' takes no keyword arguments (got :{keyword.name})",
+                )
+            step = SchemaCall(target, call.function, args, call.span, call.function_span)
+        else:
+            keywords = tuple((k.name, self.expression(k.value, None)) for k in call.keywords)
+            step = CallStep(target, call.function, args, keywords, call.span, call.function_span)
+        self.steps.append(step)
         return Var(target)
 
-    def within(self, branch: Branch, expr: Expr, flatten: Callable[[Expr], Arg]) -> Arg:
-        """Flatten `expr` with its steps tagged as inside `branch`."""
-        outer, self.branch = self.branch, branch
+    def nested(self, flatten: Callable[[], Arg]) -> tuple[tuple[Step, ...], Arg]:
+        """Flatten an alternative's or a branch's expression into steps of its own."""
+        outer, self.steps = self.steps, []
         try:
-            return flatten(expr)
+            value = flatten()
+            return tuple(self.steps), value
         finally:
-            self.branch = outer
+            self.steps = outer
 
     def best_of(self, call: Call, name: str | None) -> Var:
-        """`(best-of (when PRE EXPR) ... EXPR)`: every precondition first, then every
-        alternative; the step's arguments are the preconditions' results (`ALWAYS` for an
-        alternative written without `when`, which is always applicable), then the
-        alternatives' values."""
+        """`(best-of (when PRE EXPR) ... EXPR)`: an alternative written without `when` is
+        always applicable."""
         error = self.checker.error
         target = name if name is not None else self.fresh()
         for keyword in call.keywords:
@@ -289,10 +300,10 @@ class _ProgramBuilder:
                 call.span,
                 "best-of needs at least one alternative: (best-of (when PRECONDITION EXPR) ...)",
             )
-        forms: list[tuple[int, Expr | None, Expr]] = []
-        for index, form in enumerate(call.args):
+        forms: list[tuple[Expr | None, Expr]] = []
+        for form in call.args:
             if not (isinstance(form, Call) and form.function == "when"):
-                forms.append((index, None, form))  # unconditional
+                forms.append((None, form))  # unconditional
             elif len(form.args) != 2 or form.keywords:
                 got = len(form.args) + len(form.keywords)
                 error(
@@ -302,30 +313,16 @@ class _ProgramBuilder:
                 )
                 self.quiet_dead_code = True  # the uses inside it are not read
             else:
-                forms.append((index, form.args[0], form.args[1]))
-        preconditions = [
-            ALWAYS if pre is None else self.within((target, i), pre, self.precondition)
-            for i, pre, _ in forms
-        ]
-        alternatives = [
-            self.within((target, i), expr, lambda e: self.expression(e, None))
-            for i, _, expr in forms
-        ]
-        self.steps.append(
-            Step(
-                target,
-                "best-of",
-                (*preconditions, *alternatives),
-                (),
-                "best-of",
-                call.span,
-                call.function_span,
-                self.branch,
-            )
-        )
+                forms.append((form.args[0], form.args[1]))
+        preconditions = [None if pre is None else self.precondition(pre) for pre, _ in forms]
+        alternatives = []
+        for test, (_, expr) in zip(preconditions, forms, strict=True):
+            steps, value = self.nested(functools.partial(self.expression, expr, None))
+            alternatives.append(Alternative(test, steps, value))
+        self.steps.append(BestOf(target, tuple(alternatives), call.span, call.function_span))
         return Var(target)
 
-    def precondition(self, expr: Expr) -> Arg:
+    def precondition(self, expr: Expr) -> CallStep | None:
         """A precondition is one call of an elementary function of variables and constants
         (whether the function is elementary is checked against the library by the compiler)."""
         error = self.checker.error
@@ -335,13 +332,17 @@ class _ProgramBuilder:
                 expr.span,
                 f"the precondition of 'when' must be a call of an elementary function, not {what}",
             )
-            return self.expression(expr, None)
+            self.expression(expr, None)
+            return None
         if expr.function in SPECIAL_FORMS or expr.function in self.schemas:
             error(
                 expr.function_span,
                 "the precondition of 'when' must be a call of an elementary function, "
                 f"not of '{expr.function}'",
             )
+            self.quiet_dead_code = True
+            self.nested(lambda: self.expression(expr, None))
+            return None
         for arg in expr.args:
             if isinstance(arg, Call):
                 error(
@@ -349,14 +350,19 @@ class _ProgramBuilder:
                     "the arguments of a precondition must be variables or constants "
                     "(a precondition is one cheap, elementary test)",
                 )
-        return self.call(expr, None)
+        steps, value = self.nested(lambda: self.call(expr, None))
+        assert isinstance(value, Var)
+        *outside, test = steps  # nested calls (already reported) run before the test
+        self.steps.extend(outside)
+        assert isinstance(test, CallStep)
+        return test
 
     def conditional(self, call: Call, name: str | None) -> Var:
         """`(if CONDITION THEN ELSE [:p P])`: the condition always runs; each branch's steps
-        are tagged with its index (0: then, 1: else)."""
+        are nested in it."""
         error = self.checker.error
         target = name if name is not None else self.fresh()
-        keywords: list[tuple[str, Arg]] = []
+        p: float | None = None
         for keyword in call.keywords:
             if keyword.name != "p":
                 error(
@@ -376,31 +382,21 @@ class _ProgramBuilder:
                     f"condition holds), got {got}",
                 )
             else:
-                keywords.append(("p", Literal(keyword.value.value)))
+                p = float(keyword.value.value)
         if len(call.args) != 3:
             error(
                 call.span,
                 "if takes a condition, a then expression and an else expression: "
                 f"(if CONDITION THEN ELSE [:p P]), got {count(len(call.args))}",
             )
-            args: tuple[Arg, ...] = tuple(self.expression(a, None) for a in call.args)
-        else:
-            condition = self.expression(call.args[0], None)
-            then = self.within((target, 0), call.args[1], lambda e: self.expression(e, None))
-            other = self.within((target, 1), call.args[2], lambda e: self.expression(e, None))
-            args = (condition, then, other)
-        self.steps.append(
-            Step(
-                target,
-                "if",
-                args,
-                tuple(keywords),
-                "if",
-                call.span,
-                call.function_span,
-                self.branch,
-            )
-        )
+            self.quiet_dead_code = True  # the uses inside it are not read
+            for arg in call.args:
+                self.expression(arg, None)
+            return Var(target)
+        condition = self.expression(call.args[0], None)
+        then = Branch(*self.nested(lambda: self.expression(call.args[1], None)))
+        other = Branch(*self.nested(lambda: self.expression(call.args[2], None)))
+        self.steps.append(If(target, condition, then, other, p, call.span, call.function_span))
         return Var(target)
 
     def lookup(self, symbol: Symbol) -> Arg:
@@ -424,20 +420,17 @@ class _ProgramBuilder:
 
     def check_all_used(self, output: str) -> None:
         """A step whose result never reaches the output is dead code: almost always a mistake."""
+        steps = list(walk(tuple(self.steps)))
         needed = {output}
-        for step in reversed(self.steps):
+        for step in reversed(steps):
             if step.target in needed:
-                needed.update(step.variables())
-        for step in self.steps:
+                needed.update(variables(step))
+        for step in steps:
             if step.target not in needed and step.target in self.assigned_at:
                 self.checker.error(
                     self.assigned_at[step.target],
                     f"variable '{step.target}' is assigned but never used",
                 )
-
-
-def _span_of(expr: Expr) -> Span:
-    return expr.span
 
 
 def count(n: int) -> str:

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import re
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable
 from typing import Any
 
 from anytime.dsl.graph import DataflowGraph, InputRef, Node, NodeRef, Source
-from anytime.dsl.program import ALWAYS, Arg, Literal, Program, Step, Var
+from anytime.dsl.program import Arg, BestOf, Call, If, Literal, Program, SchemaCall, Step, Var
 
 INDENT = "  "
 
@@ -22,40 +22,57 @@ def format_arg(arg: Arg) -> str:
     return arg.name if isinstance(arg, Var) else format_literal(arg.value)
 
 
-def format_call(step: Step, inline: Mapping[str, Step] | None = None) -> str:
-    """A step as a call; a `best-of` or `if` step with its alternatives or branches written
-    back as nested expressions (the steps in `inline`, those inside choices)."""
-    inline = inline or {}
-
-    def arg(a: Arg) -> str:
-        if isinstance(a, Var) and a.name in inline:
-            return format_call(inline[a.name], inline)
-        return format_arg(a)
-
-    if step.kind == "best-of":
-        n = len(step.args) // 2
-        whens = [
-            arg(e) if p == ALWAYS else f"(when {arg(p)} {arg(e)})"
-            for p, e in zip(step.args[:n], step.args[n:], strict=True)
-        ]
-        return "(" + " ".join(["best-of", *whens]) + ")"
-    parts = [step.function, *(arg(a) for a in step.args)]
-    parts += [f":{name} {arg(value)}" for name, value in step.keywords]
+def format_step(step: Step) -> str:
+    """A step's right-hand side as an expression; the steps nested in a choice's alternatives
+    or branches written back inside it."""
+    match step:
+        case Call(function=function, args=args, keywords=keywords):
+            parts = [function, *(format_arg(a) for a in args)]
+            parts += [f":{name} {format_arg(value)}" for name, value in keywords]
+        case SchemaCall(schema=schema, args=args):
+            parts = [schema, *(format_arg(a) for a in args)]
+        case BestOf(alternatives=alternatives):
+            parts = ["best-of"]
+            for alternative in alternatives:
+                value = _nested(alternative.steps, alternative.value)
+                test = alternative.precondition
+                parts.append(value if test is None else f"(when {format_step(test)} {value})")
+        case If(condition=condition, then=then, else_=other, p=p):
+            parts = ["if", format_arg(condition)]
+            parts += [_nested(then.steps, then.value), _nested(other.steps, other.value)]
+            if p is not None:
+                parts.append(f":p {format_literal(p)}")
     return "(" + " ".join(parts) + ")"
+
+
+def _nested(steps: tuple[Step, ...], value: Arg) -> str:
+    """The expression that computes `value` from nested steps (each used once, in place)."""
+    by_target = {s.target: s for s in steps}
+
+    def expression(arg: Arg) -> str:
+        if not (isinstance(arg, Var) and arg.name in by_target):
+            return format_arg(arg)
+        step = by_target[arg.name]
+        match step:
+            case Call(function=function, args=args, keywords=keywords):
+                parts = [function, *(expression(a) for a in args)]
+                parts += [f":{name} {expression(v)}" for name, v in keywords]
+                return "(" + " ".join(parts) + ")"
+            case SchemaCall(schema=schema, args=args):
+                return "(" + " ".join([schema, *(expression(a) for a in args)]) + ")"
+            case _:
+                return format_step(step)
+
+    return expression(value)
 
 
 def format_program(program: Program) -> str:
     """The program as a straight-line `defschema`; parsing it gives back an equal program.
     Steps inside a choice's alternatives or branches are written nested in the choice."""
-    inline = {s.target: s for s in program.steps if s.branch is not None}
     lines = [f"(defschema {program.name} ({' '.join(program.inputs)})"]
     if program.doc is not None:
         lines.append(INDENT + format_literal(program.doc))
-    lines += [
-        f"{INDENT}(setf {s.target} {format_call(s, inline)})"
-        for s in program.steps
-        if s.branch is None
-    ]
+    lines += [f"{INDENT}(setf {s.target} {format_step(s)})" for s in program.steps]
     lines.append(f"{INDENT}{program.output})")
     return "\n".join(lines)
 
@@ -65,7 +82,7 @@ def format_programs(programs: Iterable[Program]) -> str:
     blocks = []
     for program in programs:
         graph = program.graph
-        steps = len(program.steps)
+        steps = sum(1 for _ in program.walk())
         comment = f"; {program.name}: {graph.shape}, {steps} step{'s' * (steps != 1)}"
         blocks.append(comment + "\n" + format_program(program))
     return "\n\n".join(blocks) + "\n"
@@ -80,28 +97,43 @@ def arg_to_json(arg: Arg) -> Any:
 
 
 def step_to_json(step: Step) -> dict[str, Any]:
-    """A step; a step inside a choice adds `branch`, and the choices name their parts:
-    best-of `alternatives` [{"when", "value"}], if `condition`, `then`, `else`, `p`."""
-    out: dict[str, Any] = {
-        "target": step.target,
-        "function": step.function,
-        "kind": step.kind,
-        "args": [arg_to_json(a) for a in step.args],
-        "keywords": {name: arg_to_json(value) for name, value in step.keywords},
-    }
-    if step.kind == "best-of":
-        n = len(step.args) // 2
-        out["alternatives"] = [
-            {"when": None if p == ALWAYS else arg_to_json(p), "value": arg_to_json(e)}
-            for p, e in zip(step.args[:n], step.args[n:], strict=True)
-        ]
-    elif step.kind == "if" and len(step.args) == 3:
-        p = dict(step.keywords).get("p")
-        out["condition"], out["then"], out["else"] = (arg_to_json(a) for a in step.args)
-        out["p"] = p.value if isinstance(p, Literal) else None
-    if step.branch is not None:
-        out["branch"] = {"choice": step.branch[0], "alternative": step.branch[1]}
+    """A step by its kind: a call's `function`, `args` and `keywords`; a schema call's
+    `schema` and `args`; a best-of's `alternatives` [{"when", "steps", "value"}]; an if's
+    `condition`, `then` and `else` ({"steps", "value"}) and `p`."""
+    out: dict[str, Any] = {"target": step.target}
+    match step:
+        case Call(function=function, args=args, keywords=keywords):
+            out |= {
+                "kind": "call",
+                "function": function,
+                "args": [arg_to_json(a) for a in args],
+                "keywords": {name: arg_to_json(value) for name, value in keywords},
+            }
+        case SchemaCall(schema=schema, args=args):
+            out |= {"kind": "schema", "schema": schema, "args": [arg_to_json(a) for a in args]}
+        case BestOf(alternatives=alternatives):
+            out["kind"] = "best-of"
+            out["alternatives"] = [
+                {
+                    "when": None if a.precondition is None else step_to_json(a.precondition),
+                    "steps": [step_to_json(s) for s in a.steps],
+                    "value": arg_to_json(a.value),
+                }
+                for a in alternatives
+            ]
+        case If(condition=condition, then=then, else_=other, p=p):
+            out |= {
+                "kind": "if",
+                "condition": arg_to_json(condition),
+                "then": _branch_to_json(then.steps, then.value),
+                "else": _branch_to_json(other.steps, other.value),
+                "p": p,
+            }
     return out
+
+
+def _branch_to_json(steps: tuple[Step, ...], value: Arg) -> dict[str, Any]:
+    return {"steps": [step_to_json(s) for s in steps], "value": arg_to_json(value)}
 
 
 def program_to_json(program: Program) -> dict[str, Any]:
@@ -140,14 +172,10 @@ def graph_to_dot(graphs: Iterable[DataflowGraph]) -> str:
         for name in graph.inputs:
             out.append(f"    {ident(InputRef(name))} [shape=ellipse, label={_quote(name)}];")
         for index, node in enumerate(graph.nodes):
-            constants = [
-                f"{slot}={_source_text(s)}"
-                for slot, s in _literals(node.sources())
-                if not (node.kind == "best-of" and s == ALWAYS)  # an unconditional alternative
-            ]
+            constants = [f"{slot}={_source_text(s)}" for slot, s in _literals(node.sources())]
             label = node.function + ("\\n" + ", ".join(constants) if constants else "")
-            border = ", peripheries=2" if node.kind == "schema" else ""
-            shape = "diamond" if node.kind in ("best-of", "if") else "box"
+            border = ", peripheries=2" if isinstance(node.step, SchemaCall) else ""
+            shape = "diamond" if isinstance(node.step, BestOf | If) else "box"
             out.append(f'    {ident(NodeRef(index))} [shape={shape}{border}, label="{label}"];')
         for edge in graph.edges:
             role = _edge_role(graph.nodes[edge.target], edge.slot)
@@ -163,15 +191,10 @@ def graph_to_dot(graphs: Iterable[DataflowGraph]) -> str:
 
 
 def _edge_role(target: Node, slot: int | str) -> str | None:
-    """What an argument of a choice is: a best-of's preconditions come first, then its
-    alternatives (as many); an if's are its condition, then and else."""
-    if not isinstance(slot, int):
-        return None
-    if target.kind == "best-of":
-        n = len(target.args) // 2
-        return f"when {slot + 1}" if slot < n else f"alternative {slot - n + 1}"
-    if target.kind == "if":
-        return ("condition", "then", "else")[slot] if slot < 3 else None
+    """What an argument of a choice is: its label ("when 1", "alternative 1"; "condition",
+    "then", "else"); a call's arguments are labelled by the variable alone."""
+    if isinstance(target.step, BestOf | If) and isinstance(slot, str):
+        return slot
     return None
 
 

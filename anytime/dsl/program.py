@@ -1,9 +1,14 @@
-"""The straight-line normal form of a schema: a `Program` of steps `(setf u (f v1 ... vn))`.
+"""The straight-line normal form of a schema: a `Program` of typed steps.
 
 Zilberstein & Russell compile straight-line programs, "a sequence of expressions of the form
 (setf u (f v1 ... vn)) where u is a new variable and v1 ... vn are program arguments or existing
 variables"; nested calls map one-to-one onto such code. Every schema is normalised into this form
 (see `normalize`), so the compiler and the runtime see one shape only.
+
+A step is one of four kinds, one class each, matched structurally (`match step:`) by every pass:
+a `Call` of a function of the anytime library, a `SchemaCall` of another schema of the file, a
+`BestOf` choice among alternatives, and an `If`. The steps of an alternative or a branch are
+nested inside it, so which choice a step belongs to is where it is, never a tag to decode.
 """
 
 from __future__ import annotations
@@ -35,57 +40,127 @@ class Literal:
 
 Arg = Var | Literal
 
-#: The precondition of a best-of alternative written without `when`: always applicable.
-ALWAYS = Literal(1)
-
-#: What a step does: a library call, a call to another schema, a choice among alternatives
-#: (`(best-of (when PRE EXPR) ...)`), or a conditional (`(if COND THEN ELSE :p P)`).
-STEP_KINDS = ("call", "schema", "best-of", "if")
-
-#: Which choice a step belongs to: (the choice step's target, the alternative's index). For
-#: `best-of`, the precondition and the steps of alternative i carry index i; for `if`, the
-#: steps of the then branch carry 0 and those of the else branch 1.
-Branch = tuple[str, int]
-
 
 @frozen
-class Step:
-    """`(setf target (function args... :keyword value...))`.
-
-    `kind` is "call" for a function of the anytime library and "schema" for a call to another
-    schema of the same file (hierarchical composition: that schema is compiled first).
-
-    A `best-of` step has function "best-of", the n preconditions' results then the n
-    alternatives' values as arguments; an `if` step has function "if", arguments (condition,
-    then, else) and possibly the keyword `p`. `branch` says which alternative or branch of
-    which choice a step is inside (None: it always runs).
-    """
+class Call:
+    """`(setf target (function args... :keyword value...))`: a call of a library function."""
 
     target: str
     function: str
     args: tuple[Arg, ...]
     keywords: tuple[tuple[str, Arg], ...] = ()
-    kind: str = "call"
     span: Span | None = field(default=None, eq=False, repr=False)
     function_span: Span | None = field(default=None, eq=False, repr=False)
-    branch: Branch | None = None
 
-    def inputs(self) -> Iterator[Arg]:
-        """Every argument, positional first, then keyword values."""
-        yield from self.args
-        for _, value in self.keywords:
-            yield value
 
-    def variables(self) -> Iterator[str]:
-        """Names of the variables this step reads, in argument order."""
-        for arg in self.inputs():
-            if isinstance(arg, Var):
-                yield arg.name
+@frozen
+class SchemaCall:
+    """`(setf target (schema args...))`: a call of another schema of the same file
+    (hierarchical composition: that schema is compiled first)."""
+
+    target: str
+    schema: str
+    args: tuple[Arg, ...]
+    span: Span | None = field(default=None, eq=False, repr=False)
+    function_span: Span | None = field(default=None, eq=False, repr=False)
+
+
+@frozen
+class Alternative:
+    """One alternative of a best-of: `(when PRECONDITION EXPR)`, or `EXPR` alone, which is
+    always applicable (precondition None). Its steps compute `value`."""
+
+    precondition: Call | None
+    steps: tuple[Step, ...]
+    value: Arg
+
+
+@frozen
+class BestOf:
+    """`(best-of ALTERNATIVE...)`: every precondition first, then every applicable
+    alternative, sharing the time; the answer is the best of their results."""
+
+    target: str
+    alternatives: tuple[Alternative, ...]
+    span: Span | None = field(default=None, eq=False, repr=False)
+    function_span: Span | None = field(default=None, eq=False, repr=False)
+
+
+@frozen
+class Branch:
+    """The then or else part of an if: the steps that compute `value`."""
+
+    steps: tuple[Step, ...]
+    value: Arg
+
+
+@frozen
+class If:
+    """`(if CONDITION THEN ELSE [:p P])`: the condition is computed outside (it always runs);
+    `p` is the probability that it holds, when written."""
+
+    target: str
+    condition: Arg
+    then: Branch
+    else_: Branch
+    p: float | None = None
+    span: Span | None = field(default=None, eq=False, repr=False)
+    function_span: Span | None = field(default=None, eq=False, repr=False)
+
+
+Step = Call | SchemaCall | BestOf | If
+
+
+def reads(step: Step) -> tuple[Arg, ...]:
+    """What a step itself reads, in evaluation order: a call's arguments (positional, then
+    keyword values); a best-of's preconditions' results, then its alternatives' values; an
+    if's condition, then and else values."""
+    match step:
+        case Call(args=args, keywords=keywords):
+            return (*args, *(value for _, value in keywords))
+        case SchemaCall(args=args):
+            return args
+        case BestOf(alternatives=alternatives):
+            tests = [Var(a.precondition.target) for a in alternatives if a.precondition]
+            return (*tests, *(a.value for a in alternatives))
+        case If(condition=condition, then=then, else_=other):
+            return (condition, then.value, other.value)
+
+
+def variables(step: Step) -> Iterator[str]:
+    """Names of the variables a step reads, in order."""
+    for arg in reads(step):
+        if isinstance(arg, Var):
+            yield arg.name
+
+
+def inner_steps(step: Step) -> Iterator[Step]:
+    """The steps nested directly inside a choice, in execution order: a best-of's
+    preconditions, then each alternative's steps; an if's then steps, then its else steps."""
+    match step:
+        case BestOf(alternatives=alternatives):
+            yield from (a.precondition for a in alternatives if a.precondition is not None)
+            for alternative in alternatives:
+                yield from alternative.steps
+        case If(then=then, else_=other):
+            yield from then.steps
+            yield from other.steps
+        case _:
+            return
+
+
+def walk(steps: tuple[Step, ...]) -> Iterator[Step]:
+    """Every step, nested ones before the choice that holds them: execution order."""
+    for step in steps:
+        for inner in inner_steps(step):
+            yield from walk((inner,))
+        yield step
 
 
 @frozen
 class Program:
-    """A schema in straight-line form: inputs, steps in execution order, one output variable."""
+    """A schema in straight-line form: inputs, steps in execution order (the steps of a
+    choice nested inside it), one output variable."""
 
     name: str
     inputs: tuple[str, ...]
@@ -100,25 +175,20 @@ class Program:
 
         return DataflowGraph.from_program(self)
 
+    def walk(self) -> Iterator[Step]:
+        """Every step of the program, nested ones included, in execution order."""
+        return walk(self.steps)
+
     def step(self, target: str) -> Step:
-        """The step that assigns `target`."""
-        for step in self.steps:
+        """The step that assigns `target` (nested or not)."""
+        for step in self.walk():
             if step.target == target:
                 return step
         raise KeyError(target)
 
-    def inside(self, step: Step, branch: Branch) -> bool:
-        """Whether `step` is inside `branch`, directly or through nested choices."""
-        tag = step.branch
-        while tag is not None:
-            if tag == branch:
-                return True
-            tag = self.step(tag[0]).branch
-        return False
-
     def callees(self) -> tuple[str, ...]:
         """Names of the schemas this program calls, in order of first call."""
-        return tuple(dict.fromkeys(s.function for s in self.steps if s.kind == "schema"))
+        return tuple(dict.fromkeys(s.schema for s in self.walk() if isinstance(s, SchemaCall)))
 
 
 @frozen

@@ -21,7 +21,7 @@ from anytime.runtime.monitor import (
     MonitorEvent,
     ValueModel,
 )
-from anytime.runtime.program import ProgramRecord, run_program
+from anytime.runtime.program import ExecutionError, ProgramRecord, program_module, run_program
 
 __all__ = [
     "Adjustment",
@@ -32,6 +32,7 @@ __all__ = [
     "Deadline",
     "DeadlineValue",
     "EventLog",
+    "ExecutionError",
     "Monitor",
     "MonitorError",
     "MonitorEvent",
@@ -41,6 +42,7 @@ __all__ = [
     "ValueModel",
     "critical_event",
     "deadline_from",
+    "program_module",
     "proportional_split",
     "run",
     "run_program",

@@ -32,6 +32,7 @@ from anytime.profiles.profile import (
     new_profile,
     point_mass,
 )
+from anytime.runtime.program import program_module, run_program
 from anytime.runtime.schedules import (
     Schedule,
     geometric,
@@ -183,7 +184,7 @@ def make_interruptible(
         The module, with `profile_source` the analytic profile (`interruptible_profile`) when
         the contract has a profile.
     """
-    module = contract.as_module() if isinstance(contract, CompiledProgram) else contract
+    module = program_module(contract) if isinstance(contract, CompiledProgram) else contract
     if module.kind != "contract":
         raise ConversionError(
             f"module '{module.name}' is {module.kind}, not a contract module: only a contract "
@@ -328,7 +329,7 @@ def _run_contract(
     if time.monotonic() + length > deadline:
         return None
     if isinstance(target, CompiledProgram):
-        return target.run(args, length, WallClock())
+        return run_program(target, args, length, clock=WallClock()).result
     result: Result = target(Context(allocation=length, clock=WallClock()), *args, **kwargs)
     return result
 

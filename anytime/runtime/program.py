@@ -1,12 +1,26 @@
-"""Running a compiled program through the executor, with a fixed or an adaptive allocation.
+"""Running a compiled program: the one executor, with a fixed or an adaptive allocation.
 
 The calls run in topological order on one clock, each through `run` (so each answers with a run
 record and never loses its best result), with its share of the total from the compiled
-allocation table. In **adaptive** mode, each time a module finishes the time that is left is
-re-allocated among the modules still to run, given the quality its result was *observed* to
-have: the compiled profiles are conditional, so the best split of the rest depends on it
-(Zilberstein & Russell). The re-allocation searches the lattice of the compiled resolution,
-exhaustively when that is small, else by hill-climbing.
+allocation table (`CompiledProgram.allocation_at`). A call to another schema runs that schema's
+compiled program the same way with the call's share; a best-of evaluates its preconditions,
+re-splits its alternatives' time among the applicable ones and answers with the best of their
+results; an if runs the compiled branch its condition selects with the if's time.
+
+In **adaptive** mode, each time a module finishes the time that is left is re-allocated among
+the modules still to run, given the quality its result was *observed* to have: the compiled
+profiles are conditional, so the best split of the rest depends on it (Zilberstein & Russell).
+Both re-splits are the compiler's `reallocate`.
+
+No placeholders: a call one of whose inputs has no result (its producer registered none) is not
+made, and has no result either (its record says why), unless its module declares
+`accepts_missing` (it then gets `MISSING` for that input); a best-of's precondition without a
+value makes its alternative inapplicable, and an alternative without a result is not a
+candidate.
+
+The qualities decisions go by (keeping a best-of's winner, re-allocating) are each result's own
+where its module reports its true quality, else what the module's profile predicts for the time
+it used (`decision_quality`): a self-estimate is not what the compiler measured.
 """
 
 from __future__ import annotations
@@ -17,25 +31,29 @@ from typing import Any
 
 import numpy as np
 from attrs import frozen
-from numpy.typing import ArrayLike
 
 from anytime.clocks import Clock, WorkClock
-from anytime.compiler.allocators import Exhaustive, HillClimbing
+from anytime.compiler.allocators import reallocate
 from anytime.compiler.compile import CompiledProgram
-from anytime.compiler.evaluate import Evaluator
-from anytime.compiler.execute import (
-    Choices,
-    NoApplicableAlternative,
-    bind_inputs,
-    call_arguments,
-    judge,
-    not_run,
+from anytime.compiler.model import (
+    ChoiceNode,
+    CompileNode,
+    ElementaryNode,
+    IfNode,
+    ModuleNode,
+    TestNode,
+    Within,
 )
-from anytime.compiler.model import CompileNode
-from anytime.dsl.graph import NodeRef
-from anytime.modules import Result
+from anytime.dsl.graph import InputRef, NodeRef, Source
+from anytime.dsl.program import Literal
+from anytime.errors import AnytimeError
+from anytime.modules import MISSING, AnytimeModule, Context, Result
 from anytime.profiles.profile import Array
 from anytime.runtime.executor import RunRecord, Status, run
+
+
+class ExecutionError(AnytimeError, RuntimeError):
+    """A compiled program cannot run: missing inputs, or a module known only by its profile."""
 
 
 @frozen
@@ -46,8 +64,9 @@ class ProgramRecord:
         result: the output's best result (None when the output module registered none).
         status: "failed" if any call failed, "no-result" without an output result,
             "contract-expired" if the run used more than its total, else "completed".
-        records: one run record per call, in execution order.
-        allocations: the time each anytime module was given, in allocation-vector order.
+        records: one run record per call, in execution order (the calls of a called schema
+            or of an if's branch after the call's own record).
+        allocations: the time each module was given, in allocation-vector order.
         time_used: time on the run's clock from start to the answer.
     """
 
@@ -62,27 +81,6 @@ class ProgramRecord:
         return self.result.quality if self.result is not None else 0.0
 
 
-class _Conditioned:
-    """The program's evaluator with some results observed, over the modules still to run."""
-
-    def __init__(
-        self, evaluator: Evaluator, observed: Mapping[int, float], free: Sequence[int]
-    ) -> None:
-        self.evaluator = evaluator
-        self.observed = dict(observed)
-        self.free = list(free)
-
-    @property
-    def n_modules(self) -> int:
-        return len(self.free)
-
-    def expected(self, quality: ArrayLike, allocation: ArrayLike) -> Array:
-        part = np.atleast_2d(np.asarray(allocation, dtype=np.float64))
-        full = np.zeros((len(part), self.evaluator.n_modules))
-        full[:, self.free] = part
-        return self.evaluator.expected(quality, full, self.observed)
-
-
 def run_program(
     compiled: CompiledProgram,
     inputs: Sequence[Any] | Mapping[str, Any],
@@ -94,172 +92,442 @@ def run_program(
     stop: threading.Event | None = None,
 ) -> ProgramRecord:
     """Run `compiled` with `total` time (inputs positional or by name; `Result`s carry their
-    quality, plain values have quality 1)."""
-    model = compiled.model
-    values = bind_inputs(model.program.name, model.program.inputs, inputs)
-    qualities = [
-        values[name].quality if isinstance(values[name], Result) else 1.0
-        for name in model.quality_inputs
-    ]
-    clock = clock if clock is not None else WorkClock()
-    start = clock.now()
-    choices = Choices(
-        compiled, qualities, np.array(compiled.allocation_at(qualities, total), dtype=np.float64)
-    )
-    evaluator = Evaluator(model)
-    results: dict[int, Result] = {}
-    records: dict[int, RunRecord] = {}
-    inner: list[RunRecord] = []  # the calls of the branches that ifs ran
-    observed: dict[int, float] = {}
+    quality, plain values have quality 1). Setting `stop` interrupts every module.
 
-    for node in model.nodes:
-        if not choices.active(node, results):
-            continue
-        skipped = (
-            choices.undecidable(node, results)
-            if node.role == "if"
-            else None
-            if node.role == "best-of"
-            else not_run(compiled, node, values, results)
+    Raises:
+        ExecutionError: the inputs do not match the program's, or a module has no code.
+    """
+    execution = _Execution(compiled, inputs, total, clock or WorkClock(), adaptive, hard, stop)
+    return execution.run()
+
+
+def program_module(compiled: CompiledProgram, origin: str | None = None) -> AnytimeModule:
+    """A compiled program as a contract module with its compiled profile: it runs the program
+    with its allocation, on its context's clock."""
+    program = compiled.model.program
+    return AnytimeModule(
+        name=program.name,
+        kind="contract",
+        function=_CompiledContract(compiled),
+        parameters=program.inputs,
+        inputs=compiled.model.quality_inputs,
+        profile_source=compiled.profile,
+        origin=origin or f"compiled schema '{program.name}'",
+    )
+
+
+class _CompiledContract:
+    """The function of `program_module` (a class, so that it pickles with its program)."""
+
+    def __init__(self, compiled: CompiledProgram) -> None:
+        self.compiled = compiled
+        self.__name__ = self.__qualname__ = compiled.name.replace("-", "_")
+
+    def __call__(self, ctx: Context, *args: Any) -> Result | None:
+        record = run_program(self.compiled, args, ctx.allocation, clock=ctx.clock, stop=ctx.stop)
+        return record.result
+
+
+class _Execution:
+    """One run of a compiled program: the state its calls share."""
+
+    def __init__(
+        self,
+        compiled: CompiledProgram,
+        inputs: Sequence[Any] | Mapping[str, Any],
+        total: float,
+        clock: Clock,
+        adaptive: bool,
+        hard: bool,
+        stop: threading.Event | None,
+    ) -> None:
+        self.compiled, self.model = compiled, compiled.model
+        self.total, self.clock, self.adaptive, self.hard, self.stop = (
+            total,
+            clock,
+            adaptive,
+            hard,
+            stop,
         )
+        program = self.model.program
+        self.values = bind_inputs(program.name, program.inputs, inputs)
+        self.qualities = [_quality(self.values[name]) for name in self.model.quality_inputs]
+        self.start = clock.now()
+        self.allocation = np.array(compiled.allocation_at(self.qualities, total), dtype=float)
+        self.results: dict[int, Result] = {}
+        self.records: dict[int, RunRecord] = {}
+        self.inner: list[RunRecord] = []  # the calls of called schemas and of ifs' branches
+        self.judged: dict[int, float] = {}  # the qualities decisions go by
+        self.applicable: dict[int, list[bool]] = {}  # each best-of's, once decided
+
+    def run(self) -> ProgramRecord:
+        for node in self.model.nodes:
+            if not self.active(node):
+                continue
+            record = self.step(node)
+            self.records[node.index] = record
+            if record.result is not None:
+                self.results[node.index] = record.result
+                self.judged[node.index] = self.judge(node, record)
+            else:
+                self.judged[node.index] = 0.0
+        output = self.model.graph.output
+        if isinstance(output, NodeRef):
+            last = self.records.get(output.index)
+            final = last.result if last is not None else None
+        else:
+            final = _wrapped(self.values[output.name])
+        used = self.clock.now() - self.start
+        every = [*self.records.values(), *self.inner]
+        if any(r.status == Status.FAILED for r in every):
+            status = Status.FAILED
+        elif final is None:
+            status = Status.NO_RESULT
+        elif used > self.total + 1e-9:
+            status = Status.CONTRACT_EXPIRED
+        else:
+            status = Status.COMPLETED
+        return ProgramRecord(
+            result=final,
+            status=status,
+            records=tuple(every),
+            allocations=tuple(float(a) for a in self.allocation),
+            time_used=used,
+        )
+
+    # --- one handler per kind of node ------------------------------------------------------
+
+    def step(self, node: CompileNode) -> RunRecord:
+        match node:
+            case ChoiceNode():
+                return self.best_of(node)
+            case IfNode():
+                return self.conditional(node)
+        skipped = self.not_run(node)
         if skipped is not None:
-            record = RunRecord(
-                module=node.name,
-                status=Status.NO_RESULT,
-                result=None,
-                time_used=0.0,
-                allocation=0.0,
-                error=skipped,
+            return _no_result(node.name, skipped)
+        match node:
+            case ElementaryNode() | TestNode():
+                module, args, kwargs = self.arguments(node)
+                return run(module, args, kwargs, clock=self.clock)
+            case ModuleNode(callee=None):
+                module, args, kwargs = self.arguments(node)
+                given = self.budget(node)
+                return run(
+                    module,
+                    args,
+                    kwargs,
+                    allocation=given,
+                    clock=self.clock,
+                    stop=self.stop,
+                    hard=self.hard,
+                )
+            case ModuleNode(callee=callee):
+                _, args, _ = self.arguments(node, callee.model.program.inputs)
+                return self.subprogram(callee, args, self.budget(node), node.name)
+        raise AssertionError(node)
+
+    def best_of(self, node: ChoiceNode) -> RunRecord:
+        """The best applicable alternative's result (by the judged qualities, the first on
+        ties); none applicable, or none with a result, is a no-result, not an exception."""
+        applicable = self.decided(node)
+        chosen = [s for s, ok in zip(node.values, applicable, strict=True) if ok]
+        present = [s for s in chosen if self.value(s) is not MISSING]
+        if not present:
+            why = (
+                f"all {len(node.values)} preconditions are false"
+                if not chosen
+                else "none of the applicable ones has a result"
             )
-        elif node.role == "best-of":
-            record = _best_of_record(choices, node, values, results, observed)
-        elif node.role == "if":
-            plan, branch_inputs, given = choices.branch(node, values, results)
-            sub = run_program(
-                plan.compiled,
-                branch_inputs,
-                given,
-                clock=clock,
-                adaptive=adaptive,
-                hard=hard,
-                stop=stop,
+            variable = self.model.graph.nodes[node.index].variable
+            return _no_result(
+                "best-of",
+                f"schema '{self.model.program.name}': no alternative of best-of '{variable}' "
+                f"is applicable ({why})",
             )
-            inner.extend(sub.records)
-            record = RunRecord(
-                module=f"if -> {plan.compiled.name}",
-                status=sub.status,
-                result=sub.result,
-                time_used=sub.time_used,
-                allocation=given,
-                registered=int(sub.result is not None),
+        candidates = [_wrapped(self.value(s)) for s in present]
+        scores = [
+            self.judged.get(s.index, r.quality) if isinstance(s, NodeRef) else r.quality
+            for s, r in zip(present, candidates, strict=True)
+        ]
+        best = candidates[max(range(len(candidates)), key=lambda i: (scores[i], -i))]
+        return RunRecord("best-of", Status.COMPLETED, best, 0.0, 0.0, registered=1)
+
+    def conditional(self, node: IfNode) -> RunRecord:
+        """The branch the condition selects, run with the if's time."""
+        condition = node.condition
+        if isinstance(condition, NodeRef) and condition.index not in self.results:
+            variable = self.model.graph.nodes[condition.index].variable
+            return _no_result("if", f"not run: its condition '{variable}' has no value")
+        plan = node.branches[0 if _truth(self.value(condition)) else 1]
+        index_of = {n.variable: i for i, n in enumerate(self.model.graph.nodes)}
+        inputs = {
+            name: self.values[name]
+            if name not in index_of
+            else self.results.get(index_of[name], MISSING)
+            for name in plan.compiled.model.program.inputs
+        }
+        given = self.budget(node)
+        return self.subprogram(plan.compiled, inputs, given, f"if -> {plan.compiled.name}")
+
+    def subprogram(
+        self,
+        compiled: CompiledProgram,
+        inputs: Sequence[Any] | Mapping[str, Any],
+        given: float,
+        name: str,
+    ) -> RunRecord:
+        """A called schema or an if's branch, run on this run's clock: one record for the
+        call, its own calls' records kept after it."""
+        sub = _Execution(
+            compiled, inputs, given, self.clock, self.adaptive, self.hard, self.stop
+        ).run()
+        self.inner.extend(sub.records)
+        return RunRecord(
+            module=name,
+            status=sub.status,
+            result=sub.result,
+            time_used=sub.time_used,
+            allocation=given,
+            registered=int(sub.result is not None),
+        )
+
+    # --- time --------------------------------------------------------------------------------
+
+    def budget(self, node: ModuleNode | IfNode) -> float:
+        """The time a node gets: its planned share (re-planned first in adaptive mode), less
+        whatever earlier calls used past theirs (a module may overshoot by its last step), so
+        that the calls still to run keep their planned time and the program its contract."""
+        if self.adaptive and self.judged:
+            self.replan()
+        spent = self.clock.now() - self.start
+        later = sum(
+            float(self.allocation[n.time_index])
+            for n in self.model.anytime_nodes
+            if n.index > node.index and not self.ruled_out(n)
+        )
+        planned = float(self.allocation[node.time_index])
+        left = self.total - spent - later
+        given = planned if left >= planned - 1e-9 * max(1.0, abs(self.total)) else max(0.0, left)
+        self.allocation[node.time_index] = given  # what it was given, as recorded
+        return given
+
+    def replan(self) -> None:
+        """Adaptive mode: the best split of the time left among the nodes still to run, given
+        the qualities judged so far (the alternatives ruled out count as quality 0)."""
+        observed = dict(self.judged)
+        for other in self.model.anytime_nodes:
+            if other.index not in observed and self.ruled_out(other):
+                observed[other.index] = 0.0
+        free = [n.time_index for n in self.model.anytime_nodes if n.index not in observed]
+        left = max(0.0, self.total - (self.clock.now() - self.start))
+        self.allocation = reallocate(
+            self.model,
+            self.compiled.resolution,
+            self.qualities,
+            self.allocation,
+            free,
+            left,
+            observed,
+        )
+
+    # --- choices -----------------------------------------------------------------------------
+
+    def active(self, node: CompileNode) -> bool:
+        """Whether `node` runs: every alternative it is inside is applicable (a precondition
+        runs when its best-of does)."""
+        tag = node.within
+        if tag is None:
+            return True
+        choice = self.model.node(tag.choice)
+        if not self.active(choice):
+            return False
+        if isinstance(node, TestNode):
+            return True
+        assert isinstance(choice, ChoiceNode)
+        return self.decided(choice)[tag.alternative]
+
+    def decided(self, choice: ChoiceNode) -> list[bool]:
+        """The applicable alternatives of a best-of (its preconditions have run); the first
+        time, the compiled time of its alternatives is re-split among the applicable ones."""
+        if choice.index not in self.applicable:
+            # A precondition that has no value (its input had no result) rules its out.
+            found = [
+                p is None or (p in self.results and bool(self.results[p].value))
+                for p in choice.preconditions
+            ]
+            self.applicable[choice.index] = found
+            if not all(found):
+                self.allocation = resplit(
+                    self.compiled, choice, found, self.allocation, self.qualities
+                )
+        return self.applicable[choice.index]
+
+    def ruled_out(self, node: CompileNode) -> bool:
+        """Whether `node` is known not to run: it is inside an alternative found inapplicable
+        (looks only at choices already decided)."""
+        tag: Within | None = node.within
+        if tag is None:
+            return False
+        if self.ruled_out(self.model.node(tag.choice)):
+            return True
+        decided = self.applicable.get(tag.choice)
+        return decided is not None and not decided[tag.alternative]
+
+    # --- arguments and qualities -------------------------------------------------------------
+
+    def value(self, source: Source) -> Any:
+        """What an argument stands for: a literal's value, an input's value, or a call's
+        Result (`MISSING` for a call that has none)."""
+        if isinstance(source, Literal):
+            return source.value
+        if isinstance(source, InputRef):
+            return self.values[source.name]
+        return self.results.get(source.index, MISSING)
+
+    def not_run(self, node: ModuleNode | ElementaryNode | TestNode) -> str | None:
+        """Why a call is not made (an input has no result and its module does not accept
+        that), or None when it runs."""
+        graph = self.model.graph
+        call = graph.nodes[node.index]
+        missing = []
+        for source in [*call.args, *(s for _, s in call.keywords)]:
+            if isinstance(source, NodeRef) and source.index not in self.results:
+                missing.append(f"from '{graph.nodes[source.index].function}'")
+            elif isinstance(source, InputRef) and self.values[source.name] is MISSING:
+                missing.append(f"'{source.name}'")
+        module = node.entry.module if node.entry is not None else None
+        if not missing or (module is not None and module.accepts_missing):
+            return None
+        plural = "s" if len(missing) > 1 else ""
+        names = ", ".join(missing)
+        return f"not run: its input{plural} {names} {'have' if plural else 'has'} no result"
+
+    def arguments(
+        self, node: ModuleNode | ElementaryNode | TestNode, carrying: Sequence[str] = ()
+    ) -> tuple[AnytimeModule, list[Any], dict[str, Any]]:
+        """The module a node calls and its arguments: `Result`s where the module takes
+        quality-carrying inputs (for a called schema: its parameters `carrying`), else plain
+        values."""
+        module = node.entry.module if node.entry is not None else None
+        call = self.model.graph.nodes[node.index]
+        if isinstance(node, ModuleNode) and node.callee is not None:
+            quality = set(node.callee.model.quality_inputs)
+            positions = {i for i, name in enumerate(carrying) if name in quality}
+        elif module is None:
+            raise ExecutionError(
+                f"schema '{self.model.program.name}': '{node.name}' is known only by its "
+                "profile (no code to run)"
             )
         else:
-            module, args, kwargs = call_arguments(compiled, node, values, results)
-            if node.kind == "anytime":
-                assert node.time_index is not None
-                if adaptive and observed:
-                    for other in model.anytime_nodes:  # alternatives that will not run
-                        if other.index not in observed and choices.ruled_out(other):
-                            observed[other.index] = 0.0
-                    left = max(0.0, total - (clock.now() - start))
-                    choices.allocation = _reallocate(
-                        compiled, evaluator, qualities, observed, choices.allocation, left
-                    )
-                given = choices.budget(node, clock.now() - start, total)
-                choices.allocation[node.time_index] = given  # what it was given, as recorded
-                record = run(
-                    module, args, kwargs, allocation=given, clock=clock, stop=stop, hard=hard
-                )
-            else:
-                record = run(module, args, kwargs, clock=clock)
-        records[node.index] = record
-        if record.result is not None:  # no placeholder for a call that has no result
-            results[node.index] = record.result
-        observed[node.index] = (
-            0.0
-            if record.result is None
-            else judge(node, record.result, record.time_used, observed, results, qualities)
-        )
-    allocation = choices.allocation
-    output = model.graph.output
-    if isinstance(output, NodeRef):
-        final = records[output.index].result
-    else:
-        value = values[output.name]
-        final = value if isinstance(value, Result) else Result(value, 1.0)
-    used = clock.now() - start
-    if any(r.status == Status.FAILED for r in [*records.values(), *inner]):
-        status = Status.FAILED
-    elif final is None:
-        status = Status.NO_RESULT
-    elif used > total + 1e-9:
-        status = Status.CONTRACT_EXPIRED
-    else:
-        status = Status.COMPLETED
-    return ProgramRecord(
-        result=final,
-        status=status,
-        records=(*records.values(), *inner),
-        allocations=tuple(float(a) for a in allocation),
-        time_used=used,
-    )
+            positions = {module.parameters.index(name) for name in module.inputs}
+
+        def argument(source: Source, carries_quality: bool) -> Any:
+            value = self.value(source)
+            if value is MISSING:
+                return MISSING  # only for a module that accepts it (see `not_run`)
+            if carries_quality:
+                return _wrapped(value)
+            return value.value if isinstance(value, Result) else value
+
+        args = [argument(source, i in positions) for i, source in enumerate(call.args)]
+        kwargs = {name: argument(source, False) for name, source in call.keywords}
+        return module, args, kwargs  # type: ignore[return-value]
+
+    def judge(self, node: CompileNode, record: RunRecord) -> float:
+        """The quality decisions go by for a node's answer: a best-of's is its chosen
+        alternative's, a call's its `decision_quality`."""
+        result = record.result
+        assert result is not None
+        if isinstance(node, ChoiceNode):
+            chosen = (
+                self.judged[i] for i, r in self.results.items() if r is result and i in self.judged
+            )
+            return next(chosen, result.quality)
+        return decision_quality(node, result, record.time_used, self.judged, self.qualities)
 
 
-def _best_of_record(
-    choices: Choices,
-    node: CompileNode,
-    values: Mapping[str, Any],
-    results: Mapping[int, Result],
-    judged: Mapping[int, float],
-) -> RunRecord:
-    """A best-of's answer as a run record: none applicable is a status, not an exception."""
-    try:
-        best = choices.best(node, values, results, judged)
-    except NoApplicableAlternative as error:
-        return RunRecord(
-            module="best-of",
-            status=Status.NO_RESULT,
-            result=None,
-            time_used=0.0,
-            allocation=0.0,
-            error=str(error),
-        )
-    return RunRecord(
-        module="best-of",
-        status=Status.COMPLETED,
-        result=best,
-        time_used=0.0,
-        allocation=0.0,
-        registered=1,
-    )
-
-
-def _reallocate(
+def resplit(
     compiled: CompiledProgram,
-    evaluator: Evaluator,
-    qualities: Sequence[float],
-    observed: Mapping[int, float],
+    choice: ChoiceNode,
+    applicable: Sequence[bool],
     allocation: Array,
-    left: float,
+    qualities: Sequence[float],
 ) -> Array:
-    """The best split of the time `left` among the anytime modules not yet run, given the
-    qualities observed so far (on the compiled lattice; whatever the lattice cannot hold goes
-    to the first of them)."""
+    """The time `allocation` gives a best-of's alternatives, re-split among the applicable
+    ones (the compiler's `reallocate`, the others' qualities 0)."""
     model = compiled.model
-    free = [
-        n.time_index
-        for n in model.anytime_nodes
-        if n.index not in observed and n.time_index is not None
+    groups = [model.alternative_modules(choice.index, i) for i in range(len(choice.values))]
+    everything = sorted({m for g in groups for m in g})
+    free = sorted({m for g, ok in zip(groups, applicable, strict=True) if ok for m in g})
+    budget = float(allocation[everything].sum())
+    observed = {
+        slot.index: 0.0
+        for slot, ok in zip(choice.slots, applicable, strict=True)
+        if not ok and slot.kind == "node"
+    }
+    base = np.array(allocation, dtype=np.float64)
+    base[everything] = 0.0
+    return reallocate(model, compiled.resolution, qualities, base, free, budget, observed)
+
+
+def decision_quality(
+    node: CompileNode,
+    result: Result,
+    used: float,
+    judged: Mapping[int, float],
+    qualities: Sequence[float],
+) -> float:
+    """The quality the runtime decides by for a call's result: the result's own where its
+    module reports its true quality (`AnytimeModule.reports`); else what the module's profile
+    predicts at the qualities its inputs were judged to have and the time it used (a
+    self-estimate is not what the profile, and so the compiler, measured)."""
+    if not isinstance(node, ModuleNode) or node.entry is None or node.entry.module is None:
+        return result.quality
+    if node.entry.module.reports == "true":
+        return result.quality
+    inputs = [
+        judged.get(slot.index, 0.0)
+        if slot.kind == "node"
+        else qualities[slot.index]
+        if slot.kind == "input"
+        else slot.value
+        for slot in node.slots
     ]
-    if not free:
-        return allocation
-    dt = compiled.resolution
-    units = np.array([int(np.floor(left / dt + 1e-9))])
-    conditioned = _Conditioned(evaluator, observed, free)
-    q = np.asarray(qualities, dtype=np.float64).reshape(1, -1)
-    allocator = Exhaustive() if Exhaustive.computable(units, len(free)) else HillClimbing()
-    split, _ = allocator.allocate(conditioned, q, units, dt)
-    new = allocation.copy()
-    new[free] = split[0] * dt
-    new[free[0]] += left - units[0] * dt
-    return new
+    q = np.asarray(inputs, dtype=np.float64).reshape(1, -1)
+    return float(node.profile.expected(q, np.asarray([used]))[0])
+
+
+def bind_inputs(
+    name: str, parameters: Sequence[str], inputs: Sequence[Any] | Mapping[str, Any]
+) -> dict[str, Any]:
+    """The program's inputs by name, from positional or named values."""
+    if isinstance(inputs, Mapping):
+        values = {str(k).lower(): v for k, v in inputs.items()}
+    else:
+        if len(inputs) != len(parameters):
+            raise ExecutionError(
+                f"schema '{name}' takes {len(parameters)} input{'s' * (len(parameters) != 1)} "
+                f"({', '.join(parameters)}), got {len(inputs)}"
+            )
+        values = dict(zip(parameters, inputs, strict=True))
+    missing = [p for p in parameters if p not in values]
+    if missing:
+        raise ExecutionError(f"schema '{name}': missing inputs: {', '.join(missing)}")
+    return values
+
+
+def _no_result(name: str, why: str) -> RunRecord:
+    return RunRecord(name, Status.NO_RESULT, None, 0.0, 0.0, error=why)
+
+
+def _quality(value: Any) -> float:
+    return value.quality if isinstance(value, Result) else 1.0
+
+
+def _wrapped(value: Any) -> Result:
+    return value if isinstance(value, Result) else Result(value, 1.0)
+
+
+def _truth(value: Any) -> bool:
+    return bool(value.value if isinstance(value, Result) else value)

@@ -15,6 +15,7 @@ from anytime.errors import SchemaError
 from anytime.library import AnytimeLibrary
 from anytime.modules import Context, Registry, Result, interruptible
 from anytime.profiles import tabulate
+from anytime.runtime import run_program
 
 MODULES = Registry()
 PROFILE = tabulate(
@@ -59,4 +60,8 @@ def test_a_call_that_does_not_fit_its_module_is_an_error_at_its_place(
 
 def test_a_call_with_a_keyword_the_module_takes_compiles() -> None:
     compiled = compile_text("(defschema p (x g) (plan x g :levels 3))")
-    assert compiled.run({"x": Result("map", 1.0), "g": "goal"}, 10).value == ("map", "goal", 3)
+    assert run_program(compiled, {"x": Result("map", 1.0), "g": "goal"}, 10).result.value == (
+        "map",
+        "goal",
+        3,
+    )

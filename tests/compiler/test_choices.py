@@ -10,7 +10,6 @@ from choice_modules import BEST_OF, MID, TIME, compiled, gamble, library, steady
 
 from anytime.compiler import (
     Evaluator,
-    NoApplicableAlternative,
     compile_program,
 )
 from anytime.dsl import parse_schemas
@@ -19,6 +18,7 @@ from anytime.library import AnytimeLibrary, RegistrySource
 from anytime.modules import Context, Registry, Result, contract, elementary
 from anytime.profiles import DiscreteVariants
 from anytime.profiles.profile import ConditionalPerformanceProfile
+from anytime.runtime import Status, run_program
 
 
 def cdf(profile: ConditionalPerformanceProfile, t: float) -> np.ndarray:
@@ -73,19 +73,21 @@ def test_diversifying_beats_giving_one_alternative_everything() -> None:
 
 def test_run_returns_the_best_applicable_result_with_the_time_resplit() -> None:
     result = compiled(BEST_OF, lib=library(steady=0.6, gamble=0.9))
-    both = result.run(["left right"], 6)
+    both = run_program(result, ["left right"], 6).result
     assert both.quality == 0.9 and both.value[0] == "gamble"
-    left = result.run(["left"], 6)  # gamble is not applicable: steady gets the whole time
+    left = run_program(
+        result, ["left"], 6
+    ).result  # gamble is not applicable: steady gets the whole time
     assert left.value == ("steady", 6.0) and left.quality == 0.6
-    right = result.run(["right"], 6)
+    right = run_program(result, ["right"], 6).result
     assert right.value == ("gamble", 6.0)
 
 
 def test_no_applicable_alternative_is_a_clear_status() -> None:
     result = compiled(BEST_OF)
-    with pytest.raises(NoApplicableAlternative) as raised:
-        result.run(["nowhere"], 6)
-    assert str(raised.value) == (
+    record = run_program(result, ["nowhere"], 6)
+    assert (record.status, record.result) == (Status.NO_RESULT, None)
+    assert record.records[-1].error == (
         "schema 'choose': no alternative of best-of 't1' is applicable "
         "(all 2 preconditions are false)"
     )
@@ -125,8 +127,8 @@ def test_if_runs_the_branch_its_condition_selects() -> None:
     result = compiled(
         "(defschema c (w) (if (sunny? w) (steady) (gamble)))", library(steady=0.6, gamble=0.9)
     )
-    assert result.run(["sun"], 5).value == ("steady", 5.0)
-    assert result.run(["rain"], 5).value == ("gamble", 5.0)
+    assert run_program(result, ["sun"], 5).result.value == ("steady", 5.0)
+    assert run_program(result, ["rain"], 5).result.value == ("gamble", 5.0)
 
 
 def test_if_without_a_probability_is_a_compile_error() -> None:

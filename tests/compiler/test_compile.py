@@ -31,16 +31,17 @@ from anytime.compiler import (
     CompiledProgram,
     CompileError,
     Evaluator,
-    ExecutionError,
     compile_file,
     compile_program,
 )
+from anytime.compiler.model import ModuleNode
 from anytime.dsl import parse_schemas
 from anytime.errors import SchemaError
 from anytime.library import AnytimeLibrary, LibraryEntry, RegistrySource
 from anytime.modules import Context, Registry, Result, contract, elementary, interruptible
 from anytime.profiles import ConditionalPerformanceProfile, tabulate
 from anytime.profiles.io import load_profile
+from anytime.runtime import ExecutionError, program_module, run_program
 
 
 def _one(ctx: Context, a: Any) -> Iterator[Result]:
@@ -193,7 +194,9 @@ def test_a_hierarchical_schema_compiles_like_its_flattened_program(
     )
     assert (sub.name, top.name) == ("sub", "top")
     np.testing.assert_array_equal(sub.profile.time, TIME)
-    assert lib["sub"].kind == "contract" and lib["sub"].profile is sub.profile
+    (call,) = [n for n in top.model.anytime_nodes if n.name == "sub"]
+    assert isinstance(call, ModuleNode) and call.callee is sub and call.profile is sub.profile
+    assert "sub" not in lib  # compiling a file leaves the library as it was
     assert top.allocator == "dp" and top.modules == ("sub", "m3")
     flat = compile_program(
         program(FLAT, "flat"), library(**profiles), coarse, quality, allocator="dp", resolution=5.0
@@ -227,16 +230,16 @@ def test_a_compiled_program_runs_to_its_expected_quality(toy: CompiledProgram) -
     for i, q in enumerate(QUALITY):
         for j, total in enumerate(TIME):
             clock = WorkClock()
-            result = toy.run({"x": Result("map", q)}, total, clock)
+            result = run_program(toy, {"x": Result("map", q)}, total, clock=clock).result
             assert result.quality == pytest.approx(toy.expected[i, j], abs=1e-12), (q, total)
             assert result.value[0] == "plan"
             assert clock.now() == total  # the modules spent exactly the contract's time
-            positional = toy.run([Result("map", q)], total)
+            positional = run_program(toy, [Result("map", q)], total).result
             assert positional.quality == result.quality
 
 
-def test_a_compiled_program_registers_as_a_contract_module(toy: CompiledProgram) -> None:
-    module = toy.as_module()
+def test_a_compiled_program_runs_as_a_contract_module(toy: CompiledProgram) -> None:
+    module = program_module(toy)
     assert (module.name, module.kind, module.parameters, module.inputs) == (
         "p",
         "contract",
@@ -283,7 +286,7 @@ def test_allocation_at_keeps_a_smaller_totals_split() -> None:
     for total in (20.0, 30.0, 40.0, 50.0, 60.0, 90.0):
         np.testing.assert_array_equal(program.allocation_at([], total), [20.0])
     clock = WorkClock()
-    assert program.run({"x": "data"}, 60.0, clock).quality == 1.0
+    assert run_program(program, {"x": "data"}, 60.0, clock=clock).result.quality == 1.0
     assert clock.now() == 20.0
 
 
@@ -298,7 +301,7 @@ def test_a_hierarchical_program_runs_to_its_expected_quality() -> None:
     for i, q in enumerate(QUALITY):
         for j, total in enumerate(TIME):
             clock = WorkClock()
-            result = top.run({"x": Result("map", q)}, total, clock)
+            result = run_program(top, {"x": Result("map", q)}, total, clock=clock).result
             assert result.quality == pytest.approx(top.expected[i, j], abs=1e-12), (q, total)
             assert clock.now() == total
 
@@ -311,9 +314,9 @@ def test_allocation_at_grid_points_is_the_table(toy: CompiledProgram) -> None:
 
 def test_running_needs_every_input_and_code_for_every_module(toy: CompiledProgram) -> None:
     with pytest.raises(ExecutionError, match=r"^schema 'p': missing inputs: x$"):
-        toy.run({"y": Result("map", 1.0)}, 10)
+        run_program(toy, {"y": Result("map", 1.0)}, 10)
     with pytest.raises(ExecutionError, match=r"^schema 'p' takes 1 input \(x\), got 2$"):
-        toy.run([Result("map", 1.0), Result("map", 1.0)], 10)
+        run_program(toy, [Result("map", 1.0), Result("map", 1.0)], 10)
     lib = AnytimeLibrary()
     chain = exponential_chain(0.1, 0.1)
     for name in ("m1", "m2"):
@@ -321,7 +324,7 @@ def test_running_needs_every_input_and_code_for_every_module(toy: CompiledProgra
         lib.add(LibraryEntry.of_profile(profile, Path(f"profiles/{name}.yaml")))
     profile_only = compile_program(program(CHAIN), lib, TIME)
     with pytest.raises(ExecutionError) as raised:
-        profile_only.run([Result("map", 1.0)], 10)
+        run_program(profile_only, [Result("map", 1.0)], 10)
     assert str(raised.value) == ("schema 'p': 'm1' is known only by its profile (no code to run)")
 
 

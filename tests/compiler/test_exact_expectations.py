@@ -19,6 +19,7 @@ from anytime.library import AnytimeLibrary, LibraryEntry
 from anytime.modules import AnytimeModule, Context, Registry, Result, interruptible
 from anytime.profiles.builder import build_profile
 from anytime.profiles.trials import Instance
+from anytime.runtime import run_program
 
 MODULES = Registry()
 TIME = [0.0, 5.0, 10.0, 20.0]
@@ -82,7 +83,7 @@ def test_a_chain_fed_no_result_or_a_perfect_result_expects_exactly_what_runs_giv
     np.testing.assert_array_equal(compiled.expected, [0.0, 1.0, 1.0, 1.0])
     for total in (10.0, 15.0, 20.0):
         for delay in (5, 10):
-            record = compiled.run({"delay": delay}, total, WorkClock())
+            record = run_program(compiled, {"delay": delay}, total, clock=WorkClock()).result
             assert record.quality == 1.0, (total, delay)
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from anytime.dsl import format_program, parse_schemas, program_to_json
-from anytime.dsl.program import ALWAYS
+from anytime.dsl.program import Alternative, BestOf, Branch, Call, If, Var
 from anytime.errors import SchemaError
 
 CHOOSE = """(defschema choose (w)
@@ -16,20 +16,36 @@ CHOOSE = """(defschema choose (w)
 """
 
 
-def test_choices_flatten_with_their_branches() -> None:
+def test_choices_hold_their_alternatives_and_branches() -> None:
     program = parse_schemas(CHOOSE)["choose"]
-    steps = {s.target: s for s in program.steps}
-    assert steps["plan"].kind == "best-of"
-    assert [a.name for a in steps["plan"].args] == ["t1", "t2", "t4", "t5"]  # tests, then values
-    assert [steps[v].branch for v in ("t1", "t3", "t4", "t2", "t5")] == [
-        ("plan", 0),
-        ("plan", 0),
-        ("plan", 0),
-        ("plan", 1),
-        ("plan", 1),
+    plan, condition, out = program.steps  # the steps of a choice are nested inside it
+    assert isinstance(plan, BestOf) and isinstance(condition, Call) and isinstance(out, If)
+    first, second = plan.alternatives
+    assert first == Alternative(
+        Call("t1", "left-clear?", (Var("w"),)),
+        (Call("t3", "sense", (Var("w"),)), Call("t4", "detour-left", (Var("t3"),))),
+        Var("t4"),
+    )
+    assert second == Alternative(
+        Call("t2", "right-clear?", (Var("w"),)),
+        (Call("t5", "detour-right", (Var("w"),)),),
+        Var("t5"),
+    )
+    assert condition == Call("t6", "lucky?", (Var("plan"),))  # the condition always runs
+    assert out == If(
+        "out",
+        Var("t6"),
+        Branch((Call("t7", "refine", (Var("plan"),)),), Var("t7")),
+        Branch(
+            (Call("t8", "refine", (Var("plan"),)), Call("t9", "refine2", (Var("t8"),))),
+            Var("t9"),
+        ),
+        0.7,
+    )
+    assert [s.target for s in program.walk()] == [
+        *("t1", "t2", "t3", "t4", "t5", "plan"),
+        *("t6", "t7", "t8", "t9", "out"),
     ]
-    assert steps["out"].kind == "if" and steps["t6"].branch is None  # the condition always runs
-    assert [steps[v].branch for v in ("t7", "t8", "t9")] == [("out", 0), ("out", 1), ("out", 1)]
 
 
 def test_print_parses_back_to_the_same_program() -> None:
@@ -40,16 +56,15 @@ def test_print_parses_back_to_the_same_program() -> None:
 def test_json_names_the_parts_of_each_choice() -> None:
     steps = program_to_json(parse_schemas(CHOOSE)["choose"])["steps"]
     best_of = next(s for s in steps if s["kind"] == "best-of")
-    assert best_of["alternatives"] == [{"when": "t1", "value": "t4"}, {"when": "t2", "value": "t5"}]
+    assert [(a["when"]["function"], a["value"]) for a in best_of["alternatives"]] == [
+        ("left-clear?", "t4"),
+        ("right-clear?", "t5"),
+    ]
+    assert [s["function"] for s in best_of["alternatives"][0]["steps"]] == ["sense", "detour-left"]
     conditional = next(s for s in steps if s["kind"] == "if")
-    assert (conditional["condition"], conditional["then"], conditional["else"]) == (
-        "t6",
-        "t7",
-        "t9",
-    )
-    assert conditional["p"] == 0.7 and conditional["keywords"] == {"p": {"literal": 0.7}}
-    assert steps[0]["branch"] == {"choice": "plan", "alternative": 0}
-    assert "branch" not in conditional
+    assert (conditional["condition"], conditional["then"]["value"]) == ("t6", "t7")
+    assert [s["target"] for s in conditional["else"]["steps"]] == ["t8", "t9"]
+    assert conditional["p"] == 0.7
 
 
 ERRORS = {
@@ -144,21 +159,21 @@ UNCONDITIONAL = """(defschema p (w)
 
 def test_an_alternative_without_when_is_always_applicable() -> None:
     program = parse_schemas(UNCONDITIONAL)["p"]
-    best_of = program.steps[-1]
-    assert best_of.kind == "best-of" and best_of.args[1] == ALWAYS
+    (best_of,) = program.steps
+    assert isinstance(best_of, BestOf) and best_of.alternatives[1].precondition is None
     assert parse_schemas(format_program(program))["p"] == program
     assert "(best-of (when (left-clear? w) (detour-left w)) (wait w))" in format_program(program)
     steps = program_to_json(program)["steps"]
-    assert steps[-1]["alternatives"] == [
-        {"when": "t2", "value": "t3"},
-        {"when": None, "value": "t4"},
+    assert [a["when"] for a in steps[-1]["alternatives"]] == [
+        {"target": "t2", "kind": "call", "function": "left-clear?", "args": ["w"], "keywords": {}},
+        None,
     ]
 
 
 def test_known_functions_do_not_include_the_special_forms() -> None:
     text = "(defschema p (x) (best-of (when (ok x) (f x))))"
     program = parse_schemas(text, known_functions={"ok": 1, "f": 1})["p"]
-    assert program.steps[-1].kind == "best-of"
+    assert isinstance(program.steps[-1], BestOf)
 
 
 def test_dot_draws_choices_as_diamonds_with_labelled_arguments() -> None:

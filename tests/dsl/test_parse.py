@@ -5,12 +5,13 @@ from pathlib import Path
 import pytest
 
 from anytime.dsl import (
+    Call,
     DataflowGraph,
     InputRef,
     Literal,
     Node,
     NodeRef,
-    Step,
+    SchemaCall,
     Var,
     format_programs,
     graph_to_dot,
@@ -30,8 +31,8 @@ def test_the_papers_program_in_both_forms_gives_one_graph(navigation_any: Path) 
     straight, nested = schemas["navigate"], schemas["navigate-nested"]
     assert straight.graph == nested.graph
     assert straight.graph.nodes == (
-        Node("get-domain-description", "call", (InputRef("sensor"),)),
-        Node("find-path", "call", (InputRef("start"), InputRef("goal"), NodeRef(0))),
+        Node("get-domain-description", (InputRef("sensor"),)),
+        Node("find-path", (InputRef("start"), InputRef("goal"), NodeRef(0))),
     )
     assert straight.graph.output == NodeRef(1)
     # The programs themselves differ only in the names of the intermediate variables.
@@ -44,7 +45,7 @@ def test_nesting_and_setf_give_the_same_graph() -> None:
     straight = one("(defschema p (x) (setf a (g x)) (setf b (f a)) b)")
     assert nested.graph == straight.graph
     assert nested != straight
-    assert nested.steps == (Step("t1", "g", (Var("x"),)), Step("t2", "f", (Var("t1"),)))
+    assert nested.steps == (Call("t1", "g", (Var("x"),)), Call("t2", "f", (Var("t1"),)))
     assert nested.output == "t2"
 
 
@@ -128,7 +129,7 @@ def test_literals_keywords_and_escapes() -> None:
 
 def test_names_for_values_are_substituted() -> None:
     program = one("(defschema p (x) (setf level 4) (setf y x) (setf z (f y :level level)) z)")
-    assert program.steps == (Step("z", "f", (Var("x"),), (("level", Literal(4)),)),)
+    assert program.steps == (Call("z", "f", (Var("x"),), (("level", Literal(4)),)),)
 
 
 def test_a_final_setf_is_the_output_and_an_input_can_be_the_output() -> None:
@@ -148,7 +149,7 @@ def test_comments_crlf_and_byte_order_mark(tmp_path: Path) -> None:
     path = tmp_path / "p.any"
     path.write_bytes(b"\xef\xbb\xbf; comment\r\n(defschema p (x) ; why\r\n  (f x)) ; done\r\n")
     (program,) = load_schemas(path).programs
-    assert program.steps == (Step("t1", "f", (Var("x"),)),)
+    assert program.steps == (Call("t1", "f", (Var("x"),)),)
 
 
 @pytest.mark.parametrize(
@@ -187,7 +188,10 @@ def test_schema_calls_and_bottom_up_order() -> None:
         "(defschema top (x) (mid (low x)))\n(defschema mid (y) (f y))\n(defschema low (z) (g z))\n"
     )
     top = schemas["top"]
-    assert [(s.function, s.kind) for s in top.steps] == [("low", "schema"), ("mid", "schema")]
+    assert top.steps == (
+        SchemaCall("t1", "low", (Var("x"),)),
+        SchemaCall("t2", "mid", (Var("t1"),)),
+    )
     assert top.callees() == ("low", "mid")
     assert [p.name for p in schemas.dependency_order()] == ["low", "mid", "top"]
 

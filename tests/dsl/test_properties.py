@@ -22,10 +22,12 @@ from hypothesis import strategies as st
 import anytime.dsl
 from anytime.dsl import (
     MAX_NESTING,
+    Call,
     DataflowGraph,
     Literal,
     NodeRef,
     Program,
+    SchemaCall,
     SchemaFile,
     Step,
     Var,
@@ -34,6 +36,7 @@ from anytime.dsl import (
 )
 from anytime.dsl.normalize import SPECIAL_FORMS
 from anytime.dsl.parser import decode_source
+from anytime.dsl.program import variables
 from anytime.errors import SchemaError, SchemaSyntaxError
 
 # --- names and literals --------------------------------------------------------------------
@@ -103,7 +106,7 @@ def prune(steps: Sequence[Step], output: str) -> tuple[Step, ...]:
     for step in reversed(steps):
         if step.target in needed:
             kept.append(step)
-            needed.update(step.variables())
+            needed.update(variables(step))
     return tuple(reversed(kept))
 
 
@@ -162,7 +165,7 @@ def programs(
         if callees and draw(st.booleans()):
             callee = draw(st.sampled_from(list(callees)))
             args = tuple(arg() for _ in callee.inputs)
-            steps.append(Step(target, callee.name, args, (), "schema"))
+            steps.append(SchemaCall(target, callee.name, args))
         else:
             function = draw(functions)
             args = tuple(arg() for _ in range(draw(st.integers(0, 4))))
@@ -176,7 +179,7 @@ def programs(
                 st.lists(names | st.sampled_from(sorted(RESERVED)), unique=True, max_size=3)
             )
             keywords = tuple((k, arg()) for k in keyword_names)
-            steps.append(Step(target, function, args, keywords, "call"))
+            steps.append(Call(target, function, args, keywords))
         available.append(target)
         unused.append(target)
 
@@ -252,16 +255,15 @@ def rename(program: Program, mapping: dict[str, str]) -> Program:
     def arg(a: Literal | Var) -> Literal | Var:
         return Var(mapping.get(a.name, a.name)) if isinstance(a, Var) else a
 
-    steps = tuple(
-        Step(
-            mapping[s.target],
-            s.function,
-            tuple(arg(a) for a in s.args),
-            tuple((k, arg(v)) for k, v in s.keywords),
-            s.kind,
-        )
-        for s in program.steps
-    )
+    def renamed(s: Step) -> Step:
+        args = tuple(arg(a) for a in s.args)
+        if isinstance(s, SchemaCall):
+            return SchemaCall(mapping[s.target], s.schema, args)
+        assert isinstance(s, Call)
+        keywords = tuple((k, arg(v)) for k, v in s.keywords)
+        return Call(mapping[s.target], s.function, args, keywords)
+
+    steps = tuple(renamed(s) for s in program.steps)
     return Program(
         program.name,
         program.inputs,
@@ -278,9 +280,7 @@ def topological_reorder(data: st.DataObject, steps: Sequence[Step]) -> tuple[Ste
     placed: set[str] = set()
     order: list[Step] = []
     while remaining:
-        ready = [
-            s for s in remaining if all(v in placed or v not in targets for v in s.variables())
-        ]
+        ready = [s for s in remaining if all(v in placed or v not in targets for v in variables(s))]
         step = data.draw(st.sampled_from(ready))
         remaining.remove(step)
         placed.add(step.target)
@@ -297,7 +297,7 @@ def format_literal(value: int | float | str) -> str:
 def nested_expression(program: Program) -> str:
     """A tree-shaped program (every step result read once) as one nested s-expression."""
     producer = {s.target: s for s in program.steps}
-    reads = Counter(v for s in program.steps for v in s.variables() if v in producer)
+    reads = Counter(v for s in program.steps for v in variables(s) if v in producer)
     assert all(count == 1 for count in reads.values()), "not a tree"
 
     def expr(a: Literal | Var) -> str:
@@ -306,8 +306,11 @@ def nested_expression(program: Program) -> str:
         step = producer.get(a.name)
         if step is None:
             return a.name
-        parts = [step.function, *(expr(x) for x in step.args)]
-        parts += [f":{k} {expr(v)}" for k, v in step.keywords]
+        assert isinstance(step, Call | SchemaCall)
+        name = step.function if isinstance(step, Call) else step.schema
+        parts = [name, *(expr(x) for x in step.args)]
+        if isinstance(step, Call):
+            parts += [f":{k} {expr(v)}" for k, v in step.keywords]
         return "(" + " ".join(parts) + ")"
 
     return expr(Var(program.output))

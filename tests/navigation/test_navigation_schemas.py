@@ -13,6 +13,7 @@ from anytime_navigation.vision import Sensor
 from anytime_navigation.world import random_world
 
 from anytime import AnytimeLibrary, compile_file, load_schemas
+from anytime.runtime import run_program
 
 SCHEMAS = Path(str(data_file("schemas", "navigation.any")))
 GRID = np.arange(0.0, 2001.0, 250.0)
@@ -44,7 +45,7 @@ def test_sense_plan_act_plans_then_walks_to_the_goal() -> None:
     )
     world = random_world(64, seed=5)
     sensor = Sensor(world.blocked, seed=5)
-    result = act.run([world.start, world.goal, sensor], 1000)
+    result = run_program(act, [world.start, world.goal, sensor], 1000).result
     walked = result.value
     assert isinstance(walked, Execution)
     assert walked.reached and walked.route[0] == world.start and walked.route[-1] == world.goal

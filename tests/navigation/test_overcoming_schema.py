@@ -21,17 +21,19 @@ from anytime_navigation.overcoming_modules import (
 from anytime_navigation.world import World
 
 from anytime.clocks import WorkClock
-from anytime.dsl import load_schemas
+from anytime.dsl import BestOf, Var, load_schemas
 from anytime.runtime.deadline import deadline_from
 
 
 def test_the_schema_parses() -> None:
     program = load_schemas(SCHEMA_FILE)["overcome-obstacle"]
     assert program.inputs == ("situation",)
-    assert [step.function for step in program.steps] == [
-        "left-clear?", "right-clear?", "can-wait?", "detour-left", "detour-right", "wait",
-        "best-of",
+    (choice,) = program.steps
+    assert isinstance(choice, BestOf)
+    assert [(a.precondition and a.precondition.function, a.value) for a in choice.alternatives] == [
+        ("left-clear?", Var("t5")), ("right-clear?", Var("t6")), ("can-wait?", Var("t7")),
     ]  # fmt: skip
+    assert [s.target for s in program.walk()] == ["t2", "t3", "t4", "t5", "t6", "t7", "t1"]
 
 
 def test_it_compiles_and_the_compiled_split_is_never_worse_than_proportional() -> None:

@@ -74,5 +74,5 @@ def test_an_overshoot_is_taken_from_the_calls_after_it(program: object, total: f
         assert record.time_used <= total
         assert record.status == Status.COMPLETED
         clock = WorkClock()
-        program.run({"x": "data"}, total, clock)
+        run_program(program, {"x": "data"}, total, clock=clock)
         assert clock.now() <= total

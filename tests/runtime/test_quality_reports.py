@@ -77,7 +77,7 @@ def test_a_best_of_chooses_by_the_profile_where_self_reports_are_estimates(
     program = compile_program(schema, library, TIME)
     record = run_program(program, {"x": "data"}, 20)
     assert record.result is not None and record.result.value[0] == winner
-    result = program.run({"x": "data"}, 20, WorkClock())
+    result = run_program(program, {"x": "data"}, 20, clock=WorkClock()).result
     assert result is not None and result.value[0] == winner
 
 

@@ -23,6 +23,7 @@ from anytime.plugin import (
     load_schemas,
     positive_float,
     positive_int,
+    run_program,
 )
 
 NOISE = 0.2  # a reading's standard deviation, relative to the true area
@@ -107,7 +108,7 @@ def survey(args: argparse.Namespace) -> int:
     library = AnytimeLibrary.default()
     schemas = load_schemas(args.file, library.known_functions())
     (program,) = compile_file(schemas, library, [0, args.time], schema=args.schema, resolution=1)
-    result = program.run([Plot(args.area)], args.time)
+    result = run_program(program, [Plot(args.area)], args.time).result
     if result is None:  # the program registered no result in that time
         print(f"{args.schema} in {args.time} ticks: no result")
         return EXIT_OK

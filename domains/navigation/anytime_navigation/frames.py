@@ -15,7 +15,16 @@ import numpy as np
 from attrs import define, frozen
 from attrs import evolve as replace
 
-from anytime.plugin import Adjustment, Clock, CompiledProgram, EventLog, Monitor, Unit, WorkClock
+from anytime.plugin import (
+    Adjustment,
+    Clock,
+    CompiledProgram,
+    EventLog,
+    Monitor,
+    Unit,
+    WorkClock,
+    run_program,
+)
 
 from .execution import execute, optimal_length, route_length
 from .frame_program import PlanTrace
@@ -274,7 +283,8 @@ class _TaskRun:
         )
         started = self.run_clock.now()
         self.trace.reset(started)
-        result = self.compiled.run([position, world.goal, sensor], contract, self.run_clock)
+        inputs = [position, world.goal, sensor]
+        result = run_program(self.compiled, inputs, contract, clock=self.run_clock).result
         spent = self.run_clock.now() - started
         allocation = self.compiled.allocation_at(list(self.input_quality or ()), contract)
         domain = self.trace.domain[0] if self.trace.domain else None
@@ -574,6 +584,6 @@ def _make_clock(kind: str, compiled: CompiledProgram, task: NavigationTask) -> C
     work = WorkClock()
     started = _time.perf_counter()
     total = float(compiled.profile.time[-1])
-    compiled.run([task.world.start, task.world.goal, sensor], total, work)
+    run_program(compiled, [task.world.start, task.world.goal, sensor], total, clock=work)
     seconds = max(_time.perf_counter() - started, 1e-6)
     return WallTicks(work.now() / seconds)

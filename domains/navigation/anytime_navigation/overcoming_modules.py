@@ -55,13 +55,13 @@ from anytime.plugin import (
     Instance,
     LibraryEntry,
     Measurement,
-    NoApplicableAlternative,
     Result,
     WorkClock,
     compile_program,
     contract,
     deadline_from,
     elementary,
+    run_program,
 )
 
 from .obstacles import Plan, Traffic, random_obstacles
@@ -320,10 +320,7 @@ def schema_decider(compiled: CompiledProgram | None = None) -> Decide:
         if left < 1:  # no time to deliberate: no decision (the robot keeps its plan)
             return Decision(deadline.computed_at, deadline.t_d, taken, None)
         applicable = [left_clear(encounter), right_clear(encounter), can_wait(encounter)]
-        try:
-            result: Result | None = program.run([encounter], float(left), clock)
-        except NoApplicableAlternative:
-            result = None
+        result = run_program(program, [encounter], float(left), clock=clock).result
         ran = {o.name: o for o in encounter.outcomes}
         outcomes = tuple(
             ran.get(a.name, Outcome(a.name, ok))
