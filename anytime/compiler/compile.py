@@ -304,8 +304,10 @@ def compile_file(
 
     Only `schema` and the schemas it calls are compiled when it is given. A callee is compiled
     on every multiple of the resolution up to the largest total, so its callers can give it any
-    share of their time on the lattice. Returns the compiled programs, callees first.
+    share of their time on the lattice. Returns the compiled programs, callees first. Errors
+    show the lines of the file's own source (`schemas.source`) unless `source_lines` is given.
     """
+    source_lines = source_lines or schemas.source.lines
     wanted = [schemas[schema]] if schema is not None else list(schemas.programs)
     needed: set[str] = set()
     stack = [p.name for p in wanted]
@@ -455,14 +457,16 @@ def _check_time_grid(grid: ArrayLike, filename: str) -> Array:
     time = np.asarray(grid, dtype=np.float64)
     if time.ndim != 1 or len(time) == 0:
         raise CompileError(
-            f"{filename}: error: time grid: expected at least one total time, got none"
+            "time grid: expected at least one total time, got none",
+            where=filename,
         )
     if not np.all(np.isfinite(time)) or np.any(time < 0):
         raise CompileError(
-            f"{filename}: error: time grid: expected times >= 0, got {time[~(time >= 0)][0]:g}"
+            f"time grid: expected times >= 0, got {time[~(time >= 0)][0]:g}",
+            where=filename,
         )
     if np.any(np.diff(time) <= 0):
-        raise CompileError(f"{filename}: error: time grid: expected increasing times")
+        raise CompileError("time grid: expected increasing times", where=filename)
     return time
 
 
@@ -472,14 +476,16 @@ def _resolution(time: Array, resolution: float | None, filename: str) -> float:
         resolution = float(steps.min()) if len(steps) else float(time[0]) or 1.0
     if not resolution > 0:
         raise CompileError(
-            f"{filename}: error: time resolution: expected a number > 0, got {resolution:g}"
+            f"time resolution: expected a number > 0, got {resolution:g}",
+            where=filename,
         )
     off = np.abs(time / resolution - np.rint(time / resolution)) > 1e-9
     if np.any(off):
         raise CompileError(
-            f"{filename}: error: time grid: every total must be a multiple of the resolution "
+            f"time grid: every total must be a multiple of the resolution "
             f"{resolution:g} "
-            f"(allocations are whole multiples of it), got {time[off][0]:g}"
+            f"(allocations are whole multiples of it), got {time[off][0]:g}",
+            where=filename,
         )
     return resolution
 
@@ -488,15 +494,17 @@ def _check_quality_grid(grid: ArrayLike, filename: str) -> Array:
     q = np.asarray(grid, dtype=np.float64)
     if q.ndim != 1 or len(q) == 0:
         raise CompileError(
-            f"{filename}: error: input quality: expected at least one quality, got none"
+            "input quality: expected at least one quality, got none",
+            where=filename,
         )
     if not np.all((q >= 0) & (q <= 1)):
         bad = q[~((q >= 0) & (q <= 1))][0]
         raise CompileError(
-            f"{filename}: error: input quality: expected qualities in [0, 1], got {bad:g}"
+            f"input quality: expected qualities in [0, 1], got {bad:g}",
+            where=filename,
         )
     if np.any(np.diff(q) <= 0):
-        raise CompileError(f"{filename}: error: input quality: expected increasing qualities")
+        raise CompileError("input quality: expected increasing qualities", where=filename)
     return q
 
 
