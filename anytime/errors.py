@@ -3,7 +3,8 @@
 Every error the framework raises on bad input derives from `AnytimeError` and from the builtin it
 resembles, so callers can catch either. Errors about a place in a source file carry
 `Diagnostic`s that print as `FILE:LINE:COL: error: MESSAGE`, the source line and a caret. No
-other message carries an `error:` prefix: the command line adds it, in one place (`main`).
+other message carries a prefix saying it is an error: the command line adds one, in one place
+(`anytime.cli.describe`, used by `main`).
 
 This module imports nothing of the framework (every layer imports it).
 """
@@ -20,8 +21,7 @@ class AnytimeError(Exception):
 
     Attributes:
         where: the file (or `FILE:LINE`) the error is about when the message does not name it,
-            or None; the command line prints `WHERE: error: MESSAGE`, else
-            `anytime: error: MESSAGE`.
+            or None; the command line puts it before the message (`anytime.cli.describe`).
     """
 
     where: str | None = None

@@ -7,8 +7,9 @@ subcommands lives in its own module.
 Plugins add subcommands of their own: a `Plugin` (see `anytime.plugin`) with `add_commands`
 set receives a `CommandGroup` and adds each command with `add_command(name, help=..., run=...)`.
 Their errors are handled like the framework's: an `AnytimeError` (`InputError` for what the
-command checks itself) is a one-line message and exit 1, a `UsageError` exit 2. A plugin whose
-commands fail to load is warned about on stderr and the other commands still work.
+command checks itself) is a one-line message and exit 1, a `UsageError` exit 2; the message is
+given without a prefix, which `describe` adds. A plugin whose commands fail to load is warned
+about on stderr and the other commands still work.
 """
 
 from __future__ import annotations

@@ -18,14 +18,12 @@ EXIT_OK, EXIT_INPUT, EXIT_USAGE = 0, 1, 2
 
 class InputError(AnytimeError):
     """Bad input found by the command itself. The message says what is wrong, without a
-    prefix: the command line prints `anytime: error: MESSAGE`, or `WHERE: error: MESSAGE`
-    when `where` names the file it is about."""
+    prefix: `main` adds one (`describe`), naming the file when `where` is given."""
 
 
 class UsageError(InputError):
     """Options that do not go together, found after parsing (argparse cannot check them):
-    printed as `anytime COMMAND: error: MESSAGE`, exit status 2, like argparse's own usage
-    errors."""
+    exit status 2, and the prefix names the command, like argparse's own usage errors."""
 
 
 def positive_int(text: str) -> int:
