@@ -2,7 +2,11 @@
 
 Every error the framework raises on bad input derives from `AnytimeError` and from the builtin it
 resembles, so callers can catch either. Errors about a place in a source file carry
-`Diagnostic`s that print as `FILE:LINE:COL: error: MESSAGE`, the source line and a caret.
+`Diagnostic`s that print as `FILE:LINE:COL: error: MESSAGE`, the source line and a caret. No
+other message carries a prefix saying it is an error: the command line adds one, in one place
+(`anytime.cli.describe`, used by `main`).
+
+This module imports nothing of the framework (every layer imports it).
 """
 
 from __future__ import annotations
@@ -13,7 +17,19 @@ from attrs import frozen
 
 
 class AnytimeError(Exception):
-    """Root of every error anytime-compose raises on bad input."""
+    """Root of every error anytime-compose raises on bad input.
+
+    Attributes:
+        where: the file (or `FILE:LINE`) the error is about when the message does not name it,
+            or None; the command line puts it before the message (`anytime.cli.describe`).
+    """
+
+    where: str | None = None
+
+    def __init__(self, *args: object, where: str | None = None) -> None:
+        super().__init__(*args)
+        if where is not None:
+            self.where = where
 
 
 @frozen

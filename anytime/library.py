@@ -30,12 +30,12 @@ from typing import Any, Protocol
 
 from attrs import field, frozen
 
-from anytime.dsl.normalize import suggest
 from anytime.errors import AnytimeError, ProfileError
 from anytime.modules import REGISTRY, AnytimeModule, Registry
 from anytime.profiles.builder import Measurement, registered_measurements, registered_problems
 from anytime.profiles.io import load_profile
 from anytime.profiles.profile import ConditionalPerformanceProfile
+from anytime.text import suggest
 
 #: The entry-point group installed plugins register under.
 PLUGIN_GROUP = "anytime.plugins"

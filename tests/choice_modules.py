@@ -85,7 +85,7 @@ BEST_OF = """(defschema choose (w)
 
 
 def compiled(text: str, lib: AnytimeLibrary | None = None, **options: Any) -> CompiledProgram:
-    program = parse_schemas(text).programs[0]
+    schemas = parse_schemas(text)
     return compile_program(
-        program, lib or library(), TIME, source_lines=text.split("\n"), **options
+        schemas.programs[0], lib or library(), TIME, source=schemas.source, **options
     )

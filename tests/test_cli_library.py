@@ -212,7 +212,8 @@ def test_library_errors_are_one_line_with_exit_1(cli: Cli, registry: Registry) -
     assert cli("library", "show", "x", "--profiles", "profiles") == (
         1,
         "",
-        "profiles/bad.yaml: time: missing field (expected a list of times, got nothing)\n",
+        "anytime: error: profiles/bad.yaml: time: missing field (expected a list of times, got"
+        " nothing)\n",
     )
 
 
@@ -231,14 +232,14 @@ def test_library_list_reports_an_unreadable_profile_and_lists_the_rest(
         f"sense       interruptible  -       unreadable (error below)                    {HERE}",
     ]
     missing = Path("missing.yaml").resolve()
-    assert err == (
-        f"{missing}: no such profile file (the profile of module 'sense', from {HERE})\n"
-    )
+    problem = f"{missing}: no such profile file (the profile of module 'sense', from {HERE})"
+    assert err == f"anytime: error: {problem}\n"
     code, out, err = cli("library", "list", "--json")
     assert code == 1
     row = json.loads(out)[1]
     assert (row["name"], row["profile"]) == ("sense", None)
-    assert row["profile_error"] == err.rstrip("\n")
+    assert row["profile_error"] == problem  # the error itself, without the command's prefix
+    assert err == f"anytime: error: {problem}\n"
 
 
 def test_library_needs_a_subcommand(cli: Cli) -> None:

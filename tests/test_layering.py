@@ -76,6 +76,15 @@ def test_layering_rule(rule: str, package: str, forbidden: tuple[str, ...]) -> N
     assert offenders(files, FRAMEWORK, forbidden) == []
 
 
+#: The lowest modules, which every layer imports: they import nothing of the framework.
+LOWEST = ("errors.py", "text.py", "clocks.py")
+
+
+@pytest.mark.parametrize("name", LOWEST)
+def test_the_lowest_modules_import_nothing_of_the_framework(name: str) -> None:
+    assert offenders([FRAMEWORK / name], FRAMEWORK, ("anytime",)) == []
+
+
 def test_the_example_plugin_imports_only_the_public_api() -> None:
     root = ROOT / "docs" / "example-plugin" / "anytime_survey"
     files = sorted(root.rglob("*.py"))

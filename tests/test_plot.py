@@ -244,14 +244,14 @@ def test_plot_a_compiled_file_and_a_schema(
         (["{any}"], "anytime: error: {any} defines 2 schemas: say which one to draw with "
          "--schema NAME (one of p, q)"),
         (["{any}", "--schema", "r"], "{any}: error: no schema named 'r' (the file defines: p, q)"),
-        (["{dir}/nothing.yaml"], "{dir}/nothing.yaml: cannot read the file: No such file or "
-         "directory"),
+        (["{dir}/nothing.yaml"], "anytime: error: {dir}/nothing.yaml: cannot read the file: "
+         "No such file or directory"),
         (["{dir}/nothing.any"], "anytime: error: cannot read '{dir}/nothing.any': No such file "
          "or directory"),
-        (["{dir}/bad.yaml"], "{dir}/bad.yaml: time: missing field (expected a list of times, "
-         "got nothing)"),
-        (["{dir}/lopsided.yaml"], "{dir}/lopsided.yaml: allocation: expected a table of shape "
-         "[9, 2] (input grids, time, one per module), got [9, 3]"),
+        (["{dir}/bad.yaml"], "anytime: error: {dir}/bad.yaml: time: missing field (expected a "
+         "list of times, got nothing)"),
+        (["{dir}/lopsided.yaml"], "anytime: error: {dir}/lopsided.yaml: allocation: expected a "
+         "table of shape [9, 2] (input grids, time, one per module), got [9, 3]"),
         (["{dir}/lib/plan.yaml", "--schema", "p"], "anytime: error: --schema is for schema files "
          "(.any), and {dir}/lib/plan.yaml is read as a profile file"),
         (["{dir}/lib/plan.yaml", "-o", "{dir}/no/such/dir/x.png"], "anytime: error: cannot "

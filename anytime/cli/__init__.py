@@ -7,8 +7,9 @@ subcommands lives in its own module.
 Plugins add subcommands of their own: a `Plugin` (see `anytime.plugin`) with `add_commands`
 set receives a `CommandGroup` and adds each command with `add_command(name, help=..., run=...)`.
 Their errors are handled like the framework's: an `AnytimeError` (`InputError` for what the
-command checks itself) is a one-line message and exit 1, a `UsageError` exit 2. A plugin whose
-commands fail to load is warned about on stderr and the other commands still work.
+command checks itself) is a one-line message and exit 1, a `UsageError` exit 2; the message is
+given without a prefix, which `describe` adds. A plugin whose commands fail to load is warned
+about on stderr and the other commands still work.
 """
 
 from __future__ import annotations
@@ -29,25 +30,27 @@ from anytime.cli.common import (
     InputError,
     UsageError,
 )
-from anytime.errors import AnytimeError
-from anytime.files import InputFileError, OutputFileError
-from anytime.library import LibraryError, load_plugins
+from anytime.errors import AnytimeError, SchemaError
+from anytime.library import load_plugins
 
-__all__ = ["InputError", "UsageError", "build_parser", "main"]
+__all__ = ["InputError", "UsageError", "build_parser", "describe", "main"]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command `argv` (default: the process's arguments) and return its exit status.
 
-    The one place errors are turned into messages: whatever a command (a plugin's too) raises
-    ends as one line on standard error, never a traceback. Ctrl-C ends any command with
-    `anytime: interrupted` and status 130; the files it writes are written atomically, so it
-    leaves no half-written output. Usage errors (argparse's and `UsageError`) exit 2.
+    The one place errors are turned into messages (`describe`): whatever a command (a plugin's
+    too) raises ends as one line on standard error (a schema error adds its source line and a
+    caret), never a traceback. Ctrl-C ends any command with `anytime: interrupted` and status
+    130; the files it writes are written atomically, so it leaves no half-written output. Usage
+    errors (argparse's and `UsageError`) exit 2.
     """
+    command: str | None = None
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
-        if args.command is None:
+        command = args.command
+        if command is None:
             parser.print_help(sys.stderr)
             return EXIT_USAGE
         run: Callable[[argparse.Namespace], int] = args.run
@@ -57,42 +60,47 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("anytime: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
-    except UsageError as error:
-        print(error, file=sys.stderr)
-        return EXIT_USAGE
-    except LibraryError as error:
-        print(f"anytime: error: {error}", file=sys.stderr)
-        return EXIT_INPUT
-    except (InputFileError, OutputFileError) as error:
-        print(f"anytime: error: {error}", file=sys.stderr)
-        return EXIT_INPUT
-    except AnytimeError as error:
-        print(error, file=sys.stderr)
-        return EXIT_INPUT
     except BrokenPipeError:  # the reader went away, e.g. `anytime parse f | head -1`
         _drop_stdout()
         return EXIT_OK
-    except OSError as error:
-        if error.filename is None:  # writing standard output: a full disk, a closed terminal
-            _drop_stdout()
-            message = f"cannot write the output: {error.strerror or error}"
-        else:
-            message = f"cannot read '{error.filename}': {error.strerror or error}"
-        print(f"anytime: error: {message}", file=sys.stderr)
-        return EXIT_INPUT
-    except MemoryError:
-        print("anytime: error: out of memory", file=sys.stderr)
-        return EXIT_INPUT
-    except Exception as error:  # a bug: still one line, unless asked for the traceback
-        if os.environ.get("ANYTIME_TRACEBACK"):
+    except Exception as error:
+        internal = not isinstance(error, AnytimeError | OSError | MemoryError)
+        if internal and os.environ.get("ANYTIME_TRACEBACK"):
             raise
-        head = (str(error).splitlines() or [""])[0]
-        print(
-            f"anytime: internal error: {type(error).__name__}: {head} (a bug; please report it;"
-            " ANYTIME_TRACEBACK=1 shows the traceback)",
-            file=sys.stderr,
-        )
-        return EXIT_INPUT
+        if isinstance(error, OSError) and error.filename is None:
+            _drop_stdout()  # writing standard output failed: a full disk, a closed terminal
+        print(describe(error, command), file=sys.stderr)
+        return EXIT_USAGE if isinstance(error, UsageError) else EXIT_INPUT
+
+
+def describe(error: Exception, command: str | None = None) -> str:
+    """The message `main` prints for `error`, raised by the command `command`:
+
+    - a schema error: its diagnostics, `FILE:LINE:COL: error: MESSAGE` with the source line
+      and a caret under the place;
+    - a usage error: `anytime COMMAND: error: MESSAGE`, as argparse's own;
+    - an error about a file (`AnytimeError.where`): `WHERE: error: MESSAGE`;
+    - any other error of the tree, or a file that cannot be read or written:
+      `anytime: error: MESSAGE`;
+    - anything else is a bug: `anytime: internal error: TYPE: FIRST LINE (...)`.
+    """
+    if isinstance(error, SchemaError):
+        return str(error)
+    if isinstance(error, UsageError):
+        return f"anytime{f' {command}' if command else ''}: error: {error}"
+    if isinstance(error, AnytimeError):
+        return f"{error.where or 'anytime'}: error: {error}"
+    if isinstance(error, OSError):
+        if error.filename is None:
+            return f"anytime: error: cannot write the output: {error.strerror or error}"
+        return f"anytime: error: cannot read '{error.filename}': {error.strerror or error}"
+    if isinstance(error, MemoryError):
+        return "anytime: error: out of memory"
+    head = (str(error).splitlines() or [""])[0]
+    return (
+        f"anytime: internal error: {type(error).__name__}: {head} (a bug; please report it;"
+        " ANYTIME_TRACEBACK=1 shows the traceback)"
+    )
 
 
 def _drop_stdout() -> None:

@@ -17,12 +17,13 @@ EXIT_OK, EXIT_INPUT, EXIT_USAGE = 0, 1, 2
 
 
 class InputError(AnytimeError):
-    """Bad input found by the command itself; the message is printed as it is."""
+    """Bad input found by the command itself. The message says what is wrong, without a
+    prefix: `main` adds one (`describe`), naming the file when `where` is given."""
 
 
 class UsageError(InputError):
     """Options that do not go together, found after parsing (argparse cannot check them):
-    printed as it is, exit status 2 like argparse's own usage errors."""
+    exit status 2, and the prefix names the command, like argparse's own usage errors."""
 
 
 def positive_int(text: str) -> int:
@@ -162,7 +163,7 @@ def quality_list(text: str) -> tuple[float, ...]:
     return values
 
 
-def check_lattice(grid: Sequence[float], resolution: float | None, command: str) -> None:
+def check_lattice(grid: Sequence[float], resolution: float | None) -> None:
     """A usage error when the allocations' lattice (the multiples of the resolution up to the
     largest total) would have more than `MAX_LATTICE_POINTS` points."""
     if not grid:
@@ -178,7 +179,7 @@ def check_lattice(grid: Sequence[float], resolution: float | None, command: str)
         else:
             cause, fix = f"the time grid's step {dt:g}", "--resolution DT or a coarser --time-grid"
         raise UsageError(
-            f"anytime {command}: error: {cause}: allocations on its multiples up to"
+            f"{cause}: allocations on its multiples up to"
             f" {max(grid):g} make a lattice of {many} points, more than the limit of"
             f" {MAX_LATTICE_POINTS:,}; give {fix}"
         )

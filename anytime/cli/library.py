@@ -54,14 +54,14 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 def run_library_list(args: argparse.Namespace) -> int:
     library = open_library(args)
-    errors: list[str] = []
+    errors: list[ProfileError] = []
     rows: list[dict[str, Any]] = []
     for entry in library:
         try:
             profile = entry.profile
         except ProfileError as error:
-            errors.append(str(error))
-            rows.append(_entry_json(entry, None) | {"profile_error": errors[-1]})
+            errors.append(error)
+            rows.append(_entry_json(entry, None) | {"profile_error": str(error)})
         else:
             rows.append(_entry_json(entry, profile))
     if args.json:
@@ -79,8 +79,10 @@ def run_library_list(args: argparse.Namespace) -> int:
             inputs = ", ".join(row["inputs"]) or "-"
             table.append([row["name"], row["kind"], inputs, summary, row["origin"]])
         print(format_table(table), end="")
-    for message in errors:
-        print(message, file=sys.stderr)
+    from anytime.cli import describe  # the one place errors become messages (cli/__init__)
+
+    for unreadable in errors:  # every unreadable profile, after the listing
+        print(describe(unreadable), file=sys.stderr)
     return EXIT_INPUT if errors else EXIT_OK
 
 

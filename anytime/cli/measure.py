@@ -4,11 +4,9 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 from pathlib import Path
 
 from anytime.cli.common import (
-    EXIT_INPUT,
     EXIT_OK,
     MAX_TRIALS,
     MAX_WORKERS,
@@ -26,14 +24,13 @@ from anytime.files import format_size
 from anytime.library import AnytimeLibrary
 from anytime.modules import AnytimeModule
 from anytime.profiles.builder import (
-    BuildError,
     ProfileRequest,
     profile_module,
 )
 from anytime.profiles.io import load_profile, save_profile
 from anytime.profiles.progress import timed_progress
-from anytime.runtime.calibrate import CalibrationError, calibrate, convert_profile
-from anytime.testing import CatalogueError, check_module
+from anytime.runtime.calibrate import calibrate, convert_profile
+from anytime.testing import check_module
 
 #: The largest table of measured qualities `anytime profile` makes (trials x cells x times).
 MAX_TABLE_BYTES = 1 << 30
@@ -161,15 +158,12 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 def run_profile(args: argparse.Namespace) -> int:
     module, library = _runnable(args)
-    try:
-        grid = library.measurement(module.name).grid
-    except BuildError as error:
-        raise InputError(f"anytime: error: {error}") from None
+    grid = library.measurement(module.name).grid
     cells = math.prod(grid.cell_shape)
     size = 8 * args.trials * cells * len(grid.time)  # the builder's table of qualities
     if size > MAX_TABLE_BYTES:
         raise UsageError(
-            f"anytime profile: error: --trials {args.trials}: {cells} cells x {len(grid.time)}"
+            f"--trials {args.trials}: {cells} cells x {len(grid.time)}"
             f" times make a table of {format_size(size)}, more than the limit of"
             f" {format_size(MAX_TABLE_BYTES)}; give fewer --trials"
         )
@@ -181,15 +175,12 @@ def run_profile(args: argparse.Namespace) -> int:
         clock=args.clock,
         quiet=args.quiet,
     )
-    try:
-        build = profile_module(module, request, measurement=library.measurement(module.name))
-    except BuildError as error:
-        raise InputError(f"anytime: error: {error}") from None
+    build = profile_module(module, request, measurement=library.measurement(module.name))
     output = Path(args.output if args.output is not None else f"{module.name}.yaml")
     try:
         save_profile(build.profile, output)
     except OSError as error:
-        raise InputError(f"anytime: error: cannot write '{output}': {error.strerror}") from None
+        raise InputError(f"cannot write '{output}': {error.strerror}") from None
     if args.json:
         print(json_text({"module": module.name, "file": str(output)} | build.to_dict()))
     else:
@@ -204,8 +195,7 @@ def _runnable(args: argparse.Namespace) -> tuple[AnytimeModule, AnytimeLibrary]:
     entry = library[args.module]
     if entry.module is None:
         raise InputError(
-            f"anytime: error: module '{entry.name}' has no code to run: it is only a profile "
-            f"({entry.origin})"
+            f"module '{entry.name}' has no code to run: it is only a profile ({entry.origin})"
         )
     return entry.module, library
 
@@ -220,29 +210,24 @@ def run_calibrate(args: argparse.Namespace) -> int:
         if profile.time_unit == args.to:
             other = "ticks" if args.to == "seconds" else "seconds"
             raise InputError(
-                f"anytime: error: {args.profile}: time_unit: the profile is already in {args.to}"
+                f"{args.profile}: time_unit: the profile is already in {args.to}"
                 f" (give --to {other} to convert it to {other})"
             )
         if profile.module.lower() != module.name:
             raise InputError(
-                f"anytime: error: {args.profile}: module: expected '{module.name}' (the module"
+                f"{args.profile}: module: expected '{module.name}' (the module"
                 f" calibrated), got '{profile.module}'"
             )
     bar = False if args.quiet else None  # a progress bar on a terminal, unless --quiet
-    try:
-        plan = library.measurement(module.name)
-        with timed_progress(args.seconds, label=f"{module.name} calibration", enabled=bar):
-            calibration = calibrate(module, args.seconds, measurement=plan, seed=args.seed)
-    except (BuildError, CalibrationError) as error:
-        raise InputError(f"anytime: error: {error}") from None
+    plan = library.measurement(module.name)
+    with timed_progress(args.seconds, label=f"{module.name} calibration", enabled=bar):
+        calibration = calibrate(module, args.seconds, measurement=plan, seed=args.seed)
     if profile is not None:
         converted = convert_profile(profile, calibration.ticks_per_second, to=args.to)
         try:
             save_profile(converted, args.output)
         except OSError as error:
-            raise InputError(
-                f"anytime: error: cannot write '{args.output}': {error.strerror}"
-            ) from None
+            raise InputError(f"cannot write '{args.output}': {error.strerror}") from None
     if args.json:
         print(json_text(calibration.to_dict() | {"file": args.output}))
     else:
@@ -254,27 +239,24 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
 def run_check(args: argparse.Namespace) -> int:
     module, library = _runnable(args)
-    try:
-        plan = library.measurement(module.name)
-        cells = math.prod(plan.grid.cell_shape)
-        runs = args.trials * cells * (len(plan.grid.time) + 1)  # deadline and interruption runs
-        if runs > MAX_CHECK_RUNS:
-            raise UsageError(
-                f"anytime check: error: --trials {args.trials}: {cells} cells x"
-                f" {len(plan.grid.time) + 1} runs each make {runs:,} runs, more than the limit"
-                f" of {MAX_CHECK_RUNS:,}; give fewer --trials"
-            )
-        report = check_module(
-            module,
-            plan.problems,
-            registered=plan.grid,
-            trials=args.trials,
-            seed=args.seed,
-            workers=args.workers,
-            progress=False if args.quiet else None,  # bars on a terminal, unless --quiet
+    plan = library.measurement(module.name)
+    cells = math.prod(plan.grid.cell_shape)
+    runs = args.trials * cells * (len(plan.grid.time) + 1)  # deadline and interruption runs
+    if runs > MAX_CHECK_RUNS:
+        raise UsageError(
+            f"--trials {args.trials}: {cells} cells x"
+            f" {len(plan.grid.time) + 1} runs each make {runs:,} runs, more than the limit"
+            f" of {MAX_CHECK_RUNS:,}; give fewer --trials"
         )
-    except (BuildError, CatalogueError) as error:
-        raise InputError(f"anytime: error: {error}") from None
+    report = check_module(
+        module,
+        plan.problems,
+        registered=plan.grid,
+        trials=args.trials,
+        seed=args.seed,
+        workers=args.workers,
+        progress=False if args.quiet else None,  # bars on a terminal, unless --quiet
+    )
     if args.json:
         print(json_text(report.to_dict()))
     else:
@@ -282,9 +264,7 @@ def run_check(args: argparse.Namespace) -> int:
     if report.passed:
         return EXIT_OK
     names = ", ".join(check.name for check in report.failed)
-    print(
-        f"anytime: error: module '{report.module}' fails {len(report.failed)} of"
-        f" {len(report.checks)} checks: {names}",
-        file=sys.stderr,
+    raise InputError(
+        f"module '{report.module}' fails {len(report.failed)} of {len(report.checks)} checks:"
+        f" {names}"
     )
-    return EXIT_INPUT

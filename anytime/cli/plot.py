@@ -85,17 +85,15 @@ def run_plot(args: argparse.Namespace) -> int:
                 if getattr(args, option) is not None:
                     flag = "--" + option.replace("_", "-")
                     raise InputError(
-                        f"anytime: error: {flag} is for schema files ({SCHEMA_SUFFIX}), and "
+                        f"{flag} is for schema files ({SCHEMA_SUFFIX}), and "
                         f"{args.file} is read as a profile file"
                     )
             _plot_profile_file(args.file, output, args.title)
     except (MissingMatplotlibError, PlotError) as error:
-        raise InputError(f"anytime: error: {error}") from None
+        raise InputError(str(error)) from None
     except OSError as error:
         if Path(error.filename or "") == output or error.filename is None:
-            raise InputError(
-                f"anytime: error: cannot write '{output}': {error.strerror or error}"
-            ) from None
+            raise InputError(f"cannot write '{output}': {error.strerror or error}") from None
         raise
     print(f"wrote {output}")
     return EXIT_OK
@@ -117,21 +115,15 @@ def _plot_schema(args: argparse.Namespace, output: Path) -> None:
     if args.schema is None:
         if len(schemas) > 1:
             raise InputError(
-                f"anytime: error: {args.file} defines {len(schemas)} schemas: say which one "
+                f"{args.file} defines {len(schemas)} schemas: say which one "
                 f"to draw with --schema NAME (one of {', '.join(schemas.names)})"
             )
         name = schemas.names[0]
     else:
-        check_schema_name(schemas, args.file, args.schema)
+        check_schema_name(schemas, args.schema)
         name = args.schema.lower()
     compiled = compile_schemas(
-        args.file,
-        schemas,
-        library,
-        args.time_grid,
-        schema=name,
-        allocator=args.allocator,
-        command="plot",
+        schemas, library, args.time_grid, schema=name, allocator=args.allocator
     )
     plot_compiled(next(c for c in compiled if c.name == name), output, title=args.title)
 

@@ -28,8 +28,6 @@ from anytime.compiler import (
 )
 from anytime.compiler.compile import ALLOCATOR_NAMES, DEFAULT_INPUT_QUALITY, default_time_grid
 from anytime.dsl import SchemaFile, format_programs, graph_to_dot, load_schemas, program_to_json
-from anytime.dsl.parser import decode_source
-from anytime.files import MAX_SCHEMA_BYTES, read_input
 from anytime.library import AnytimeLibrary
 
 
@@ -109,7 +107,7 @@ def run_parse(args: argparse.Namespace) -> int:
     schemas = load_schemas(args.file, known)
     programs = schemas.programs
     if args.schema is not None:
-        check_schema_name(schemas, args.file, args.schema)
+        check_schema_name(schemas, args.schema)
         programs = (schemas[args.schema],)
     if args.json:
         print(json_text({"schemas": [program_to_json(p) for p in programs]}))
@@ -124,14 +122,12 @@ def run_compile(args: argparse.Namespace) -> int:
     library = open_library(args)
     # Calls are checked against the library for the compiled schemas only (by the compiler).
     schemas = load_schemas(args.file)
-    check_schema_name(schemas, args.file, args.schema)
+    check_schema_name(schemas, args.schema)
     if args.output is not None and args.schema is None and len(schemas) > 1:
         raise InputError(
-            f"anytime: error: {args.file} defines {len(schemas)} schemas: say which one to "
-            "write with --schema NAME"
+            f"{args.file} defines {len(schemas)} schemas: say which one to write with --schema NAME"
         )
     compiled = compile_schemas(
-        args.file,
         schemas,
         library,
         args.time_grid,
@@ -145,17 +141,16 @@ def run_compile(args: argparse.Namespace) -> int:
         for result in wanted:
             if result.profile.time_unit != args.time_unit:
                 raise InputError(
-                    f"{args.file}: error: schema '{result.name}': the time grid is in "
+                    f"schema '{result.name}': the time grid is in "
                     f"{args.time_unit} but its modules' profiles are in "
-                    f"{result.profile.time_unit}"
+                    f"{result.profile.time_unit}",
+                    where=args.file,
                 )
     if args.output is not None:
         try:
             wanted[0].save(args.output)
         except OSError as error:
-            raise InputError(
-                f"anytime: error: cannot write '{args.output}': {error.strerror}"
-            ) from None
+            raise InputError(f"cannot write '{args.output}': {error.strerror}") from None
     if args.json:
         reports = [compiled_to_dict(c) for c in wanted]
         print(json_text(reports[0] if len(reports) == 1 else {"schemas": reports}))
@@ -166,17 +161,16 @@ def run_compile(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def check_schema_name(schemas: SchemaFile, filename: str, name: str | None) -> None:
+def check_schema_name(schemas: SchemaFile, name: str | None) -> None:
     """A schema name given on the command line must be one the file defines."""
     if name is not None and name not in schemas:
         defined = ", ".join(schemas.names)
         raise InputError(
-            f"{filename}: error: no schema named '{name}' (the file defines: {defined})"
+            f"no schema named '{name}' (the file defines: {defined})", where=schemas.filename
         )
 
 
 def compile_schemas(
-    filename: str,
     schemas: SchemaFile,
     library: AnytimeLibrary,
     time_grid: Sequence[float] | None,
@@ -185,17 +179,16 @@ def compile_schemas(
     allocator: str,
     input_quality: Sequence[float] = DEFAULT_INPUT_QUALITY,
     resolution: float | None = None,
-    command: str = "compile",
 ) -> list[CompiledProgram]:
     """`compile_file` as the commands run it: the time grid given (by the `time_grid` option
-    type) or the default, a lattice too large refused up front (a usage error), the file's
-    lines for error messages, compile errors as one-line input errors naming the file."""
+    type) or the default, a lattice too large refused up front (a usage error), compile errors
+    as input errors naming the file. Errors at a place show the line from the file's source
+    (`schemas.source`, kept since it was read: the file is not read again)."""
     if time_grid is not None:
         grid = list(time_grid)
     else:
         grid = default_time_grid(schemas, library, schema)
-    check_lattice(grid, resolution, command)
-    lines = decode_source(read_input(filename, limit=MAX_SCHEMA_BYTES), filename).split("\n")
+    check_lattice(grid, resolution)
     try:
         return compile_file(
             schemas,
@@ -205,9 +198,6 @@ def compile_schemas(
             schema=schema,
             allocator=allocator,
             resolution=resolution,
-            source_lines=lines,
         )
     except CompileError as error:
-        message = str(error)
-        prefixed = message if ": error: " in message else f"{filename}: error: {message}"
-        raise InputError(prefixed) from None
+        raise InputError(str(error), where=error.where or schemas.filename) from None

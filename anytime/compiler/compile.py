@@ -29,6 +29,7 @@ from anytime.compiler.allocators import (
 from anytime.compiler.evaluate import Dist, Evaluator
 from anytime.compiler.model import CompileError, CompileModel, IfNode, ModuleNode, build_model
 from anytime.dsl.program import Call, Program, SchemaCall, SchemaFile
+from anytime.dsl.source import Source
 from anytime.library import AnytimeLibrary
 from anytime.profiles.io import save_profile
 from anytime.profiles.profile import (
@@ -147,12 +148,12 @@ def compile_program(
     *,
     allocator: str = "auto",
     resolution: float | None = None,
-    filename: str = "<schema>",
-    source_lines: Sequence[str] = (),
+    source: Source | None = None,
     callees: Mapping[str, CompiledProgram] | None = None,
 ) -> CompiledProgram:
     """Compile one program; the schemas it calls must be compiled already (`callees`, by
-    name), or be modules of the library.
+    name), or be modules of the library. Errors are placed in `source`, the program's file
+    (`SchemaFile.source`).
 
     Args:
         time_grid: the totals T to fill the table for (increasing, >= 0).
@@ -161,6 +162,7 @@ def compile_program(
         resolution: the time unit allocations are multiples of (default: the grid's step);
             every T must be a multiple of it.
     """
+    filename = source.filename if source is not None else "<schema>"
     time = _check_time_grid(time_grid, filename)
     dt = _resolution(time, resolution, filename)
     units = np.rint(time / dt).astype(np.int64)
@@ -176,12 +178,11 @@ def compile_program(
             q_grid,
             allocator=allocator,
             resolution=dt,
-            filename=filename,
-            source_lines=source_lines,
+            source=source,
             callees=callees,
         )
 
-    model = build_model(program, library, filename, source_lines, compile_branch, callees)
+    model = build_model(program, library, source, compile_branch, callees)
     m = len(model.quality_inputs)
     cell_shape = (len(q_grid),) * m + (len(time),)
     if m:
@@ -272,14 +273,14 @@ def compile_file(
     schema: str | None = None,
     allocator: str = "auto",
     resolution: float | None = None,
-    source_lines: Sequence[str] = (),
 ) -> list[CompiledProgram]:
     """Compile the schemas of a file bottom-up (callees first), so that a call of a schema
     uses the callee's compiled profile (and, at run time, runs the callee's program).
 
     Only `schema` and the schemas it calls are compiled when it is given. A callee is compiled
     on every multiple of the resolution up to the largest total, so its callers can give it any
-    share of their time on the lattice. Returns the compiled programs, callees first.
+    share of their time on the lattice. Returns the compiled programs, callees first. Errors
+    are placed in the file's own source (`schemas.source`).
     """
     wanted = [schemas[schema]] if schema is not None else list(schemas.programs)
     needed: set[str] = set()
@@ -304,8 +305,7 @@ def compile_file(
             input_quality,
             allocator=allocator,
             resolution=dt,
-            filename=schemas.filename,
-            source_lines=source_lines,
+            source=schemas.source,
             callees=compiled,
         )
         compiled[program.name] = result
@@ -429,14 +429,16 @@ def _check_time_grid(grid: ArrayLike, filename: str) -> Array:
     time = np.asarray(grid, dtype=np.float64)
     if time.ndim != 1 or len(time) == 0:
         raise CompileError(
-            f"{filename}: error: time grid: expected at least one total time, got none"
+            "time grid: expected at least one total time, got none",
+            where=filename,
         )
     if not np.all(np.isfinite(time)) or np.any(time < 0):
         raise CompileError(
-            f"{filename}: error: time grid: expected times >= 0, got {time[~(time >= 0)][0]:g}"
+            f"time grid: expected times >= 0, got {time[~(time >= 0)][0]:g}",
+            where=filename,
         )
     if np.any(np.diff(time) <= 0):
-        raise CompileError(f"{filename}: error: time grid: expected increasing times")
+        raise CompileError("time grid: expected increasing times", where=filename)
     return time
 
 
@@ -446,14 +448,16 @@ def _resolution(time: Array, resolution: float | None, filename: str) -> float:
         resolution = float(steps.min()) if len(steps) else float(time[0]) or 1.0
     if not resolution > 0:
         raise CompileError(
-            f"{filename}: error: time resolution: expected a number > 0, got {resolution:g}"
+            f"time resolution: expected a number > 0, got {resolution:g}",
+            where=filename,
         )
     off = np.abs(time / resolution - np.rint(time / resolution)) > 1e-9
     if np.any(off):
         raise CompileError(
-            f"{filename}: error: time grid: every total must be a multiple of the resolution "
+            f"time grid: every total must be a multiple of the resolution "
             f"{resolution:g} "
-            f"(allocations are whole multiples of it), got {time[off][0]:g}"
+            f"(allocations are whole multiples of it), got {time[off][0]:g}",
+            where=filename,
         )
     return resolution
 
@@ -462,15 +466,17 @@ def _check_quality_grid(grid: ArrayLike, filename: str) -> Array:
     q = np.asarray(grid, dtype=np.float64)
     if q.ndim != 1 or len(q) == 0:
         raise CompileError(
-            f"{filename}: error: input quality: expected at least one quality, got none"
+            "input quality: expected at least one quality, got none",
+            where=filename,
         )
     if not np.all((q >= 0) & (q <= 1)):
         bad = q[~((q >= 0) & (q <= 1))][0]
         raise CompileError(
-            f"{filename}: error: input quality: expected qualities in [0, 1], got {bad:g}"
+            f"input quality: expected qualities in [0, 1], got {bad:g}",
+            where=filename,
         )
     if np.any(np.diff(q) <= 0):
-        raise CompileError(f"{filename}: error: input quality: expected increasing qualities")
+        raise CompileError("input quality: expected increasing qualities", where=filename)
     return q
 
 

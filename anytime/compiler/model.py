@@ -21,9 +21,10 @@ import numpy as np
 from attrs import frozen
 
 from anytime.dsl.graph import DataflowGraph, InputRef, NodeRef, Source
-from anytime.dsl.normalize import count, suggest
+from anytime.dsl.normalize import count
 from anytime.dsl.program import BestOf, Call, If, Program, SchemaCall, Step, Var, variables, walk
 from anytime.dsl.program import Literal as LiteralArg
+from anytime.dsl.source import Source as SourceText
 from anytime.errors import AnytimeError, Diagnostic, SchemaError
 from anytime.library import AnytimeLibrary, LibraryEntry
 from anytime.profiles.profile import (
@@ -32,6 +33,7 @@ from anytime.profiles.profile import (
     new_profile,
     point_mass,
 )
+from anytime.text import suggest
 
 
 class CompileError(AnytimeError, ValueError):
@@ -260,13 +262,12 @@ def _call_mismatch(entry: LibraryEntry, n_args: int, keywords: Sequence[str]) ->
 def build_model(
     program: Program,
     library: AnytimeLibrary,
-    filename: str = "<schema>",
-    source_lines: Sequence[str] = (),
+    source: SourceText | None = None,
     compile_branch: Callable[[Program], Any] | None = None,
     callees: Mapping[str, Any] | None = None,
 ) -> CompileModel:
     """Resolve `program` against `library` (and its schema calls against `callees`, the
-    compiled schemas of its file, by name).
+    compiled schemas of its file, by name); errors are placed in `source`, the program's file.
 
     A best-of becomes a node whose quality is the maximum of its alternatives' (they run side
     by side, sharing the time); an if becomes one node that gets time, whose branches are
@@ -278,7 +279,8 @@ def build_model(
             quality-carrying arguments cannot be told apart; each names its place.
         CompileError: profiles in different time units.
     """
-    resolver = _Resolver(program, library, filename, source_lines, compile_branch, callees or {})
+    source = source if source is not None else SourceText("<schema>", "")
+    resolver = _Resolver(program, library, source, compile_branch, callees or {})
     return resolver.model()
 
 
@@ -289,13 +291,12 @@ class _Resolver:
         self,
         program: Program,
         library: AnytimeLibrary,
-        filename: str,
-        source_lines: Sequence[str],
+        source: SourceText,
         compile_branch: Callable[[Program], Any] | None,
         callees: Mapping[str, Any],
     ) -> None:
-        self.program, self.library, self.filename = program, library, filename
-        self.source_lines, self.compile_branch, self.callees = source_lines, compile_branch, callees
+        self.program, self.library, self.source = program, library, source
+        self.compile_branch, self.callees = compile_branch, callees
         self.graph = program.graph
         self.diagnostics: list[Diagnostic] = []
         self.quality_inputs: dict[str, int] = {}
@@ -329,11 +330,7 @@ class _Resolver:
     def complain(self, index: int, message: str) -> None:
         step = self.graph.nodes[index].step
         span = step.function_span if step is not None else None
-        line, column = (span.line, span.column) if span else (1, 1)
-        lines = self.source_lines
-        text = lines[line - 1] if 0 < line <= len(lines) else ""
-        width = span.end_column - span.column if span and span.end_line == span.line else 1
-        self.diagnostics.append(Diagnostic(self.filename, line, column, message, text, width))
+        self.diagnostics.append(self.source.diagnostic(message, span))
 
     def slot(self, source: Source) -> Slot:
         if isinstance(source, NodeRef):
@@ -376,8 +373,9 @@ class _Resolver:
         if len(units) > 1:
             detail = ", ".join(f"{n.name}: {n.profile.time_unit}" for n in profiles)
             raise CompileError(
-                f"{self.filename}: schema '{program.name}': its modules' profiles are in "
-                f"different time units ({detail}); measure them with one clock"
+                f"schema '{program.name}': its modules' profiles are in different time units "
+                f"({detail}); measure them with one clock",
+                where=self.source.filename,
             )
         # Program inputs only count when some quality slot reads them (or when one is the
         # output); number them in the program's input order.

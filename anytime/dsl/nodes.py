@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from attrs import field, frozen
 
+from anytime.dsl.source import Source
+
 
 @frozen
 class Span:
@@ -80,6 +82,15 @@ class SchemaDef:
 
 @frozen
 class SourceFile:
-    filename: str
+    """A parsed file: its schemas, and the source they were parsed from."""
+
     schemas: tuple[SchemaDef, ...]
-    text: str = field(eq=False, repr=False)
+    source: Source = field(eq=False, repr=False)
+
+    @property
+    def filename(self) -> str:
+        return self.source.filename
+
+    @property
+    def text(self) -> str:
+        return self.source.text

@@ -8,7 +8,6 @@ place, and all of them are raised together in one `SchemaError`.
 
 from __future__ import annotations
 
-import difflib
 import functools
 from collections.abc import Callable, Collection, Iterable, Mapping
 
@@ -30,6 +29,7 @@ from anytime.dsl.program import (
 )
 from anytime.dsl.program import Call as CallStep
 from anytime.errors import Diagnostic, SchemaError
+from anytime.text import suggest as suggest  # re-exported: the compiler imports it from here
 
 #: The special forms: choices among alternatives and conditionals, not functions.
 SPECIAL_FORMS = ("best-of", "if", "when")
@@ -54,35 +54,16 @@ def normalize(source: SourceFile, known_functions: KnownFunctions | None = None)
     programs = checker.programs(known_functions)
     if checker.diagnostics:
         raise SchemaError(sorted(checker.diagnostics, key=lambda d: (d.line, d.column)))
-    return SchemaFile(source.filename, programs)
-
-
-def suggest(name: str, known: Iterable[str]) -> str:
-    """A 'did you mean' hint naming the closest known name, or listing the known ones."""
-    known = sorted(set(known))
-    close = difflib.get_close_matches(name, known, n=1, cutoff=0.6)
-    if close:
-        return f"; did you mean '{close[0]}'?"
-    if not known:
-        return ""
-    shown = ", ".join(known[:12]) + (", ..." if len(known) > 12 else "")
-    return f" (known: {shown})"
+    return SchemaFile(source.filename, programs, source=source.source)
 
 
 class _Checker:
     def __init__(self, source: SourceFile) -> None:
         self.source = source
-        self.lines = source.text.split("\n")  # lines as the parser counts them
         self.diagnostics: list[Diagnostic] = []
 
     def error(self, span: Span | None, message: str) -> None:
-        if span is None:
-            span = Span(1, 1, 1, 2)
-        line = self.lines[span.line - 1] if 0 < span.line <= len(self.lines) else ""
-        width = span.end_column - span.column if span.end_line == span.line else 1
-        self.diagnostics.append(
-            Diagnostic(self.source.filename, span.line, span.column, message, line, width)
-        )
+        self.diagnostics.append(self.source.source.diagnostic(message, span or Span(1, 1, 1, 2)))
 
     def programs(self, known_functions: KnownFunctions | None) -> tuple[Program, ...]:
         first_place: dict[str, Span] = {}

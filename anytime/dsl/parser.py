@@ -37,6 +37,7 @@ from anytime.dsl.nodes import (
     String,
     Symbol,
 )
+from anytime.dsl.source import Source
 from anytime.errors import Diagnostic, SchemaSyntaxError
 
 #: Deeper nesting than this is refused with a clear error (real schemas nest a few levels).
@@ -145,18 +146,19 @@ def parse_syntax(text: str, filename: str = "<string>") -> SourceFile:
     Raises:
         SchemaSyntaxError: the text does not follow the grammar; the error names the place.
     """
-    _check_parentheses(text, filename)
+    source = Source(filename, text)
+    _check_parentheses(source)
     try:
         tree = _lark().parse(text)
     except UnexpectedInput as error:
-        raise _translate(error, text, filename) from None
+        raise _translate(error, source) from None
     try:
-        schemas: tuple[SchemaDef, ...] = _ToNodes(text, filename).transform(tree)
+        schemas: tuple[SchemaDef, ...] = _ToNodes(source).transform(tree)
     except VisitError as error:
         if isinstance(error.orig_exc, SchemaSyntaxError):
             raise error.orig_exc from None
         raise
-    return SourceFile(filename=filename, schemas=schemas, text=text)
+    return SourceFile(schemas=schemas, source=source)
 
 
 def decode_source(data: bytes, filename: str) -> str:
@@ -178,7 +180,8 @@ def decode_source(data: bytes, filename: str) -> str:
 _PAREN_SCAN = re.compile(r'"(?:[^"\\]|\\.)*("?)|;[^\n]*|[()]|\n[ \t]*(?=[^ \t\r\n;])', re.DOTALL)
 
 
-def _check_parentheses(text: str, filename: str) -> None:
+def _check_parentheses(source: Source) -> None:
+    text = source.text
     opened: list[tuple[int, int]] = []  # (offset, column) of each open '('
     line_start = 0
     suspect: int | None = None  # the first '(' that a later line is not indented inside
@@ -188,14 +191,13 @@ def _check_parentheses(text: str, filename: str) -> None:
             opened.append((match.start(), match.start() - line_start))
             if len(opened) > MAX_NESTING:
                 raise _error_at(
-                    text,
-                    filename,
+                    source,
                     match.start(),
                     f"nested too deeply: more than {MAX_NESTING} levels of parentheses",
                 )
         elif piece == ")":
             if not opened:
-                raise _error_at(text, filename, match.start(), "unmatched ')': no '(' is open here")
+                raise _error_at(source, match.start(), "unmatched ')': no '(' is open here")
             opened.pop()
         elif piece.startswith("\n"):
             line_start = match.start() + 1
@@ -204,22 +206,21 @@ def _check_parentheses(text: str, filename: str) -> None:
                 outdented = [offset for offset, column in opened if column >= indent]
                 suspect = outdented[0] if outdented else None
         elif piece.startswith('"') and not match.group(1):
-            raise _error_at(text, filename, match.start(), "unterminated string: no closing '\"'")
+            raise _error_at(source, match.start(), "unterminated string: no closing '\"'")
     if opened and suspect is not None:
         message = "unbalanced parentheses: ')' missing for this '(' (a later line is outdented)"
-        raise _error_at(text, filename, suspect, message)
+        raise _error_at(source, suspect, message)
     if opened:
         # The innermost unclosed '(' is where a ')' is most likely missing.
-        raise _error_at(
-            text, filename, opened[-1][0], "unbalanced parentheses: this '(' is never closed"
-        )
+        raise _error_at(source, opened[-1][0], "unbalanced parentheses: this '(' is never closed")
 
 
 # --- pass 2: the grammar --------------------------------------------------------------------
 
 
-def _translate(error: UnexpectedInput, text: str, filename: str) -> SchemaSyntaxError:
+def _translate(error: UnexpectedInput, source: Source) -> SchemaSyntaxError:
     """Turn one of lark's exceptions into the project's error, in plain words."""
+    text = source.text
     if isinstance(error, UnexpectedCharacters):
         pos = error.pos_in_stream or 0
         char = text[pos] if pos < len(text) else ""
@@ -228,14 +229,14 @@ def _translate(error: UnexpectedInput, text: str, filename: str) -> SchemaSyntax
             message = f"invalid number '{token.group() if token else char}'"
         else:
             message = f"unexpected character {char!r}"
-        return _error_at(text, filename, pos, message)
+        return _error_at(source, pos, message)
 
     message = error.match_examples(
         _lark().parse, SYNTAX_EXAMPLES, token_type_match_fallback=True, use_accepts=True
     ) or _generic_message(error)
     if isinstance(error, UnexpectedToken) and error.token.type != "$END":
-        return _error_at(text, filename, error.token.start_pos or 0, message)
-    return _error_at(text, filename, len(text), message)
+        return _error_at(source, error.token.start_pos or 0, message)
+    return _error_at(source, len(text), message)
 
 
 _TOKEN_WORDS = {
@@ -264,55 +265,29 @@ def _generic_message(error: UnexpectedInput) -> str:
     return f"unexpected {found}: expected {' or '.join(words)}"
 
 
-def _error_at(text: str, filename: str, offset: int, message: str) -> SchemaSyntaxError:
-    line = text.count("\n", 0, offset) + 1
-    line_start = text.rfind("\n", 0, offset) + 1
-    line_end = text.find("\n", offset)
-    source_line = text[line_start : line_end if line_end >= 0 else len(text)]
-    return SchemaSyntaxError(
-        [Diagnostic(filename, line, offset - line_start + 1, message, source_line)]
-    )
+def _error_at(source: Source, offset: int, message: str) -> SchemaSyntaxError:
+    return SchemaSyntaxError([source.at_offset(offset, message)])
 
 
 def _span(meta: Meta | Token) -> Span:
     return Span(meta.line or 0, meta.column or 0, meta.end_line or 0, meta.end_column or 0)
 
 
-def source_line(text: str, line: int) -> str:
-    """The text of a 1-based line number (empty past the end)."""
-    lines = text.split("\n")  # lines as the parser counts them, not str.splitlines
-    return lines[line - 1] if 0 < line <= len(lines) else ""
-
-
 @v_args(meta=True)
 class _ToNodes(Transformer[Token, tuple[SchemaDef, ...]]):
     """One method per grammar rule, each building the frozen node of the same name."""
 
-    def __init__(self, text: str, filename: str) -> None:
+    def __init__(self, source: Source) -> None:
         super().__init__()
-        self._text = text
-        self._filename = filename
+        self._source = source
 
     def _fail(self, span: Span, message: str) -> SchemaSyntaxError:
-        line = source_line(self._text, span.line)
-        width = span.end_column - span.column if span.end_line == span.line else 1
-        return SchemaSyntaxError(
-            [Diagnostic(self._filename, span.line, span.column, message, line, width)]
-        )
+        return SchemaSyntaxError([self._source.diagnostic(message, span)])
 
     def start(self, meta: Meta, schemas: list[SchemaDef]) -> tuple[SchemaDef, ...]:
         if not schemas:
-            raise SchemaSyntaxError(
-                [
-                    Diagnostic(
-                        self._filename,
-                        1,
-                        1,
-                        "the file holds no schema: expected (defschema NAME (PARAMS...) BODY...)",
-                        source_line(self._text, 1),
-                    )
-                ]
-            )
+            message = "the file holds no schema: expected (defschema NAME (PARAMS...) BODY...)"
+            raise SchemaSyntaxError([self._source.diagnostic(message, line=1, column=1)])
         return tuple(schemas)
 
     def schema(self, meta: Meta, children: list[Any]) -> SchemaDef:

@@ -16,9 +16,10 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import TYPE_CHECKING
 
-from attrs import field, frozen
+from attrs import Factory, field, frozen
 
 from anytime.dsl.nodes import Span
+from anytime.dsl.source import Source
 
 if TYPE_CHECKING:
     from anytime.dsl.graph import DataflowGraph
@@ -197,6 +198,14 @@ class SchemaFile:
 
     filename: str
     programs: tuple[Program, ...]
+    #: The file's name and text, for diagnostics about it (`normalize` sets it; without it,
+    #: diagnostics name the file but show no source line).
+    source: Source = field(
+        default=Factory(lambda self: Source(self.filename, ""), takes_self=True),
+        eq=False,
+        repr=False,
+        kw_only=True,
+    )
 
     @property
     def names(self) -> tuple[str, ...]:

@@ -28,7 +28,6 @@ therefore identical for any number of workers, any chunk size and any executor.
 
 from __future__ import annotations
 
-import difflib
 import importlib
 import math
 import secrets
@@ -63,6 +62,7 @@ from anytime.profiles.trials import (
     ProblemSet,
     measure_chunk,
 )
+from anytime.text import did_you_mean
 
 __all__ = [
     "BuildError",
@@ -142,8 +142,7 @@ def registered_problems(
     if found is not None:
         return found
     known = sorted(source)
-    close = difflib.get_close_matches(name.lower(), known, n=1)
-    hint = f"; did you mean '{close[0]}'?" if close else ""
+    hint = did_you_mean(name.lower(), known)
     listed = ", ".join(known) if known else "none"
     raise BuildError(
         f"no problem set is registered for module '{name}' (registered: {listed}){hint}"

@@ -39,7 +39,6 @@ as a `PerformanceProfile`.
 
 from __future__ import annotations
 
-import difflib
 import os
 import re
 from collections.abc import Mapping, Sequence
@@ -60,6 +59,7 @@ from anytime.profiles.profile import (
     new_profile,
     point_mass,
 )
+from anytime.text import did_you_mean
 
 FORMAT = "anytime-profile/1"
 
@@ -188,8 +188,7 @@ class _Reader:
             )
         for key in data:
             if key not in FIELDS:
-                close = difflib.get_close_matches(str(key), FIELDS, n=1)
-                hint = f", did you mean {close[0]!r}?" if close else ""
+                hint = did_you_mean(str(key), FIELDS, separator=", ")
                 self.fail(
                     str(key),
                     f"unknown field{hint} (expected one of {', '.join(FIELDS)};"

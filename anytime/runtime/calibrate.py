@@ -46,7 +46,8 @@ _DIGITS, _ULPS = 12, 4
 
 
 class CalibrationError(AnytimeError, ValueError):
-    """A module cannot be calibrated: it reports no ticks, or it fails while running."""
+    """A module cannot be calibrated (it reports no ticks, or it fails while running), or a
+    calibration or conversion is asked for with a bad budget, rate or unit."""
 
 
 @frozen
@@ -151,7 +152,8 @@ def calibrate(
 
     Raises:
         BuildError: no problem set is registered for the module.
-        CalibrationError: the module is elementary, fails on an instance, or reports no ticks.
+        CalibrationError: the module is elementary, fails on an instance, or reports no ticks;
+            or `seconds` is not a positive budget.
     """
     if module.kind not in ("interruptible", "contract"):
         raise CalibrationError(
@@ -159,7 +161,7 @@ def calibrate(
             " report ticks to calibrate"
         )
     if not seconds > 0:
-        raise ValueError(f"seconds: expected a positive budget, got {seconds!r}")
+        raise CalibrationError(f"seconds: expected a positive budget, got {seconds!r}")
     plan = measurement if measurement is not None else registered_problems(module.name)
     grid = plan.grid
     cells = [
@@ -218,13 +220,15 @@ def convert_profile(
 
     Raises:
         ProfileError: the profile is already in `to`.
-        ValueError: the rate is not a positive finite number, or `to` is not a unit.
+        CalibrationError: the rate is not a positive finite number, or `to` is not a unit.
     """
     if to not in ("seconds", "ticks"):
-        raise ValueError(f"to: expected 'seconds' or 'ticks', got {to!r}")
+        raise CalibrationError(f"to: expected 'seconds' or 'ticks', got {to!r}")
     rate = float(ticks_per_second)
     if not (math.isfinite(rate) and rate > 0):
-        raise ValueError(f"ticks_per_second: expected a positive number, got {ticks_per_second!r}")
+        raise CalibrationError(
+            f"ticks_per_second: expected a positive number, got {ticks_per_second!r}"
+        )
     if profile.time_unit == to:
         raise ProfileError(
             f"{profile.module or 'profile'}: time_unit: the profile is already in {to}"

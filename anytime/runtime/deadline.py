@@ -50,7 +50,9 @@ __all__ = [
     "CostBoundError",
     "CriticalEvent",
     "Deadline",
+    "DeadlineError",
     "Estimate",
+    "UnknownEventError",
     "critical_event",
     "deadline_from",
     "proportional_split",
@@ -63,10 +65,22 @@ class CostBoundError(AnytimeError, RuntimeError):
     """A critical-event estimator did more work than its declared cost bound."""
 
 
+class DeadlineError(AnytimeError, ValueError):
+    """A time stock cannot be computed or split as asked: a cost bound, margin, time stock or
+    lower bound that is negative or not finite, or an estimator that returned no time."""
+
+
+class UnknownEventError(DeadlineError, KeyError):
+    """No critical event is registered under the name asked for; the message lists the known."""
+
+    def __str__(self) -> str:  # KeyError would quote the message
+        return str(self.args[0])
+
+
 def _cost_bound(value: float) -> float:
     bound = float(value)
     if not 0.0 <= bound < math.inf:
-        raise ValueError(f"a cost bound must be finite and >= 0, got {value!r}")
+        raise DeadlineError(f"a cost bound must be finite and >= 0, got {value!r}")
     return bound
 
 
@@ -178,7 +192,7 @@ def _resolve(estimator: CriticalEvent | str, registry: Registry) -> CriticalEven
     found = registry.get(estimator)
     if not isinstance(found, CriticalEvent):
         known = ", ".join(sorted(m.name for m in registry)) or "none"
-        raise KeyError(f"unknown critical event '{estimator}' (known: {known})")
+        raise UnknownEventError(f"unknown critical event '{estimator}' (known: {known})")
     return found
 
 
@@ -203,11 +217,12 @@ def deadline_from(
 
     Raises:
         CostBoundError: with `strict`, an estimator cost more than its bound.
-        ValueError: a negative margin, or an estimator returned NaN or a negative time.
+        UnknownEventError: an estimator's name is not registered in `registry`.
+        DeadlineError: a negative margin, or an estimator returned NaN or a negative time.
     """
     margin = float(margin)
     if not 0.0 <= margin < math.inf:
-        raise ValueError(f"margin must be finite and >= 0, got {margin!r}")
+        raise DeadlineError(f"margin must be finite and >= 0, got {margin!r}")
     source = registry if registry is not None else EVENTS
     estimates: list[Estimate] = []
     for estimator in estimators:
@@ -222,7 +237,7 @@ def deadline_from(
             cost_bound=event.cost_bound,
         )
         if estimate.time_until is not None and not estimate.time_until >= 0.0:
-            raise ValueError(
+            raise DeadlineError(
                 f"critical event '{event.name}' ({event.origin}) returned {value!r}; "
                 "expected a time >= 0 or None"
             )
@@ -249,16 +264,16 @@ def proportional_split(t_d: float, lower_bounds: Sequence[float]) -> tuple[float
     T_d < sum T_j*): the caller decides whether an alternative is then worth starting.
 
     Raises:
-        ValueError: T_d negative or infinite, no bounds, or a bound negative or infinite.
+        DeadlineError: T_d negative or infinite, no bounds, or a bound negative or infinite.
     """
     total_time = float(t_d)
     if not 0.0 <= total_time < math.inf:
-        raise ValueError(f"the time stock must be finite and >= 0, got {t_d!r}")
+        raise DeadlineError(f"the time stock must be finite and >= 0, got {t_d!r}")
     bounds = np.asarray(lower_bounds, dtype=np.float64)
     if bounds.ndim != 1 or bounds.size == 0:
-        raise ValueError(f"expected a non-empty list of lower bounds, got {lower_bounds!r}")
+        raise DeadlineError(f"expected a non-empty list of lower bounds, got {lower_bounds!r}")
     if not (np.isfinite(bounds).all() and (bounds >= 0.0).all()):
-        raise ValueError(f"lower bounds must be finite and >= 0, got {lower_bounds!r}")
+        raise DeadlineError(f"lower bounds must be finite and >= 0, got {lower_bounds!r}")
     total = float(bounds.sum())
     weights = bounds / total if total > 0.0 else np.full(bounds.size, 1.0 / bounds.size)
     return tuple(float(share) for share in total_time * weights)

@@ -107,7 +107,7 @@ def test_profile_files(cli: Cli, tmp_path: Path, make: Maker, problem: str) -> N
     path = make(tmp_path, "bad.yaml")
     code, out, err = cli("plot", str(path), "-o", str(tmp_path / "out.png"))
     assert (code, out) == (1, "")
-    assert err == f"{path}: cannot read the file: {problem}\n"
+    assert err == f"anytime: error: {path}: cannot read the file: {problem}\n"
     assert not (tmp_path / "out.png").exists()
 
 
@@ -119,7 +119,7 @@ def test_map_files(cli: Cli, tmp_path: Path, make: Maker, problem: str) -> None:
     assert err == f"anytime: error: cannot read '{path}': {problem}\n"
     code, out, err = cli("navigate", "--map", str(path))
     assert (code, out) == (1, "")
-    assert err == f"anytime navigate: error: cannot read '{path}': {problem}\n"
+    assert err == f"anytime: error: cannot read '{path}': {problem}\n"
 
 
 @pytest.mark.parametrize(

@@ -32,11 +32,9 @@ def plan(ctx: Context, x: Result, goal: object, levels: int = 2) -> Iterator[Res
 
 
 def compile_text(text: str) -> object:
-    program = parse_schemas(text, "calls.any")["p"]
+    schemas = parse_schemas(text, "calls.any")
     library = AnytimeLibrary.default(registry=MODULES, plugins=False)
-    return compile_program(
-        program, library, [0, 10], filename="calls.any", source_lines=text.splitlines()
-    )
+    return compile_program(schemas["p"], library, [0, 10], source=schemas.source)
 
 
 @pytest.mark.parametrize(

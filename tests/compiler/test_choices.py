@@ -98,7 +98,7 @@ def test_a_precondition_must_be_elementary() -> None:
     with pytest.raises(SchemaError) as raised:
         compiled(text)
     assert str(raised.value).splitlines()[0] == (
-        "<schema>:2:19: error: the precondition 'slow-test' must be an elementary function "
+        "<string>:2:19: error: the precondition 'slow-test' must be an elementary function "
         "(it takes no time), but it is an interruptible module"
     )
 
@@ -136,7 +136,7 @@ def test_if_without_a_probability_is_a_compile_error() -> None:
     with pytest.raises(SchemaError) as raised:
         compiled(text)
     assert str(raised.value).splitlines()[0] == (
-        "<schema>:2:4: error: the probability of the condition of 'if' is unknown: 'cloudy?' "
+        "<string>:2:4: error: the probability of the condition of 'if' is unknown: 'cloudy?' "
         "declares no probability; give it as (if CONDITION THEN ELSE :p P)"
     )
 

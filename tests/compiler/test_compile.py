@@ -36,6 +36,7 @@ from anytime.compiler import (
 )
 from anytime.compiler.model import ModuleNode
 from anytime.dsl import parse_schemas
+from anytime.dsl.source import Source
 from anytime.errors import SchemaError
 from anytime.library import AnytimeLibrary, LibraryEntry, RegistrySource
 from anytime.modules import Context, Registry, Result, contract, elementary, interruptible
@@ -65,6 +66,10 @@ def library(**profiles: ConditionalPerformanceProfile) -> AnytimeLibrary:
 
 def program(text: str, name: str = "p", filename: str = "p.any") -> Any:
     return parse_schemas(text, filename)[name]
+
+
+def source(text: str, filename: str = "p.any") -> Source:
+    return parse_schemas(text, filename).source
 
 
 # --- (a) an analytic optimum ---------------------------------------------------------------
@@ -398,7 +403,7 @@ def compile_error(
     text: str, lib: AnytimeLibrary, time: Any = TIME, quality: Any = QUALITY, **options: Any
 ) -> str:
     with pytest.raises((SchemaError, CompileError)) as raised:
-        compile_program(program(text), lib, time, quality, source_lines=text.split("\n"), **options)
+        compile_program(program(text), lib, time, quality, source=source(text), **options)
     return str(raised.value)
 
 
@@ -406,7 +411,7 @@ def test_an_unknown_function_is_named_with_a_suggestion_where_it_is_called() -> 
     lib = exponential_chain(0.1, 0.1)
     text = "(defschema p (x)\n  (m2 (mm1 x)))"
     with pytest.raises(SchemaError) as raised:
-        compile_program(program(text), lib, TIME, source_lines=text.split("\n"), filename="p.any")
+        compile_program(program(text), lib, TIME, source=source(text))
     assert (raised.value.filename, raised.value.line, raised.value.column) == ("p.any", 2, 8)
     assert str(raised.value) == (
         "p.any:2:8: error: unknown function 'mm1'; did you mean 'm1'?\n"
@@ -418,7 +423,7 @@ def test_an_unknown_function_is_named_with_a_suggestion_where_it_is_called() -> 
 def test_an_unknown_function_far_from_any_known_one_lists_the_library() -> None:
     message = compile_error("(defschema p (x) (m2 (zzz x)))", exponential_chain(0.1, 0.1))
     assert message.splitlines()[0] == (
-        "<schema>:1:23: error: unknown function 'zzz' (known: hi, m1, m2)"
+        "p.any:1:23: error: unknown function 'zzz' (known: hi, m1, m2)"
     )
 
 
@@ -428,7 +433,7 @@ def test_a_module_without_a_profile_cannot_be_compiled() -> None:
     lib = AnytimeLibrary([RegistrySource(registry)])
     message = compile_error("(defschema p (x) (m1 x))", lib)
     assert message.splitlines()[0] == (
-        "<schema>:1:19: error: module 'm1' has no performance profile (python module "
+        "p.any:1:19: error: module 'm1' has no performance profile (python module "
         f"{__name__}): the compiler cannot allocate time to it"
     )
 
@@ -439,7 +444,7 @@ def test_every_bad_call_is_reported_at_once() -> None:
     lib = AnytimeLibrary([RegistrySource(registry)])
     text = "(defschema p (x)\n  (setf a (m1 x))\n  (mm2 a))"
     with pytest.raises(SchemaError) as raised:
-        compile_program(program(text), lib, TIME, source_lines=text.split("\n"))
+        compile_program(program(text), lib, TIME, source=source(text))
     assert [(d.line, d.column) for d in raised.value.diagnostics] == [(2, 12), (3, 4)]
 
 
@@ -461,7 +466,7 @@ def profile_only_library() -> AnytimeLibrary:
 def test_a_profile_only_module_whose_inputs_cannot_be_matched() -> None:
     message = compile_error("(defschema p (x y) (merge x y))", profile_only_library())
     assert message.splitlines()[0] == (
-        "<schema>:1:21: error: cannot tell which arguments of 'merge' carry the quality of its "
+        "p.any:1:21: error: cannot tell which arguments of 'merge' carry the quality of its "
         "inputs (left, right): it is known only by its profile; name the arguments like its "
         "inputs"
     )
@@ -496,20 +501,28 @@ def test_a_module_called_with_too_few_arguments_for_its_quality_inputs() -> None
         registry=registry,
     )(two)
     message = compile_error("(defschema p (x) (m2 x))", AnytimeLibrary([RegistrySource(registry)]))
-    assert message.splitlines()[0] == "<schema>:1:19: error: function 'm2' takes 2 arguments, got 1"
+    assert message.splitlines()[0] == "p.any:1:19: error: function 'm2' takes 2 arguments, got 1"
+
+
+def grid_error(time: Any = TIME, quality: Any = QUALITY, **options: Any) -> tuple[str | None, str]:
+    """(where, message) of the CompileError a bad grid makes: the message names no file, and
+    `where` names the one compiled (the command line prints `WHERE: error: MESSAGE`)."""
+    with pytest.raises(CompileError) as raised:
+        compile_program(program(CHAIN), exponential_chain(0.1, 0.1), time, quality, **options)
+    return raised.value.where, str(raised.value)
 
 
 @pytest.mark.parametrize(
     ("time", "message"),
     [
-        ([], "<schema>: error: time grid: expected at least one total time, got none"),
-        ([-5, 0, 5], "<schema>: error: time grid: expected times >= 0, got -5"),
-        ([0, 5, float("nan")], "<schema>: error: time grid: expected times >= 0, got nan"),
-        ([0, 10, 5], "<schema>: error: time grid: expected increasing times"),
-        ([0, 10, 10], "<schema>: error: time grid: expected increasing times"),
+        ([], "time grid: expected at least one total time, got none"),
+        ([-5, 0, 5], "time grid: expected times >= 0, got -5"),
+        ([0, 5, float("nan")], "time grid: expected times >= 0, got nan"),
+        ([0, 10, 5], "time grid: expected increasing times"),
+        ([0, 10, 10], "time grid: expected increasing times"),
         (
             [0, 5, 12],
-            "<schema>: error: time grid: every total must be a multiple of the resolution 5 "
+            "time grid: every total must be a multiple of the resolution 5 "
             "(allocations are "
             "whole multiples of it), got 12",
         ),
@@ -517,32 +530,34 @@ def test_a_module_called_with_too_few_arguments_for_its_quality_inputs() -> None
     ids=["empty", "negative", "nan", "decreasing", "repeated", "off-the-lattice"],
 )
 def test_bad_time_grids(time: list[float], message: str) -> None:
-    assert compile_error(CHAIN, exponential_chain(0.1, 0.1), time=time) == message
+    assert grid_error(time=time) == ("<schema>", message)
 
 
 def test_a_time_grid_off_the_given_resolution() -> None:
-    assert compile_error(CHAIN, exponential_chain(0.1, 0.1), resolution=3.0) == (
-        "<schema>: error: time grid: every total must be a multiple of the resolution 3 "
+    assert grid_error(resolution=3.0) == (
+        "<schema>",
+        "time grid: every total must be a multiple of the resolution 3 "
         "(allocations are whole "
-        "multiples of it), got 5"
+        "multiples of it), got 5",
     )
-    assert compile_error(CHAIN, exponential_chain(0.1, 0.1), resolution=0.0) == (
-        "<schema>: error: time resolution: expected a number > 0, got 0"
+    assert grid_error(resolution=0.0) == (
+        "<schema>",
+        "time resolution: expected a number > 0, got 0",
     )
 
 
 @pytest.mark.parametrize(
     ("quality", "message"),
     [
-        ([0.0, 1.5], "<schema>: error: input quality: expected qualities in [0, 1], got 1.5"),
-        ([-0.1, 1.0], "<schema>: error: input quality: expected qualities in [0, 1], got -0.1"),
-        ([], "<schema>: error: input quality: expected at least one quality, got none"),
-        ([0.5, 0.2], "<schema>: error: input quality: expected increasing qualities"),
+        ([0.0, 1.5], "input quality: expected qualities in [0, 1], got 1.5"),
+        ([-0.1, 1.0], "input quality: expected qualities in [0, 1], got -0.1"),
+        ([], "input quality: expected at least one quality, got none"),
+        ([0.5, 0.2], "input quality: expected increasing qualities"),
     ],
     ids=["above-one", "negative", "empty", "decreasing"],
 )
 def test_bad_input_quality_grids(quality: list[float], message: str) -> None:
-    assert compile_error(CHAIN, exponential_chain(0.1, 0.1), quality=quality) == message
+    assert grid_error(quality=quality) == ("<schema>", message)
 
 
 def test_an_unknown_allocator() -> None:
@@ -560,9 +575,10 @@ def test_profiles_in_different_time_units() -> None:
         ),
     )
     with pytest.raises(CompileError) as raised:
-        compile_program(program(CHAIN), lib, TIME, filename="p.any")
+        compile_program(program(CHAIN), lib, TIME, source=source(CHAIN))
+    assert raised.value.where == "p.any"
     assert str(raised.value) == (
-        "p.any: schema 'p': its modules' profiles are in different time units (m1: ticks, "
+        "schema 'p': its modules' profiles are in different time units (m1: ticks, "
         "m2: seconds); measure them with one clock"
     )
 

@@ -92,5 +92,5 @@ def test_navigate_out_without_matplotlib_says_so_before_the_run(
     monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib -> ImportError
     code, out, err = cli("navigate", "--size", "32", "--quiet", "--out", str(tmp_path / "o"))
     assert (code, out) == (1, "")
-    assert err == f"{MISSING_MATPLOTLIB}\n"
+    assert err == f"anytime: error: {MISSING_MATPLOTLIB}\n"
     assert not (tmp_path / "o").exists()

@@ -132,10 +132,11 @@ def test_conversion_errors() -> None:
     with pytest.raises(ProfileError) as raised:
         convert_profile(seconds, 10.0, to="seconds")
     assert str(raised.value) == "calibrate-sum: time_unit: the profile is already in seconds"
-    with pytest.raises(ValueError) as bad_rate:
+    with pytest.raises(CalibrationError) as bad_rate:
         convert_profile(PROFILE, 0.0)
     assert str(bad_rate.value) == "ticks_per_second: expected a positive number, got 0.0"
-    with pytest.raises(ValueError) as bad_unit:
+    assert isinstance(bad_rate.value, ValueError)  # still what it resembles
+    with pytest.raises(CalibrationError) as bad_unit:
         convert_profile(PROFILE, 1.0, to="minutes")  # type: ignore[arg-type]
     assert str(bad_unit.value) == "to: expected 'seconds' or 'ticks', got 'minutes'"
 
@@ -181,6 +182,9 @@ def test_calibration_errors() -> None:
         "module 'calibrate-broken' failed while being calibrated (trial 0): RuntimeError: out of"
         " numbers"
     )
+    with pytest.raises(CalibrationError) as no_budget:
+        calibrate(idle, 0.0)
+    assert str(no_budget.value) == "seconds: expected a positive budget, got 0.0"
 
 
 # --- `anytime calibrate MODULE` ------------------------------------------------------------------

@@ -7,10 +7,13 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from anytime.clocks import WorkClock
+from anytime.errors import AnytimeError
 from anytime.modules import ModuleError, Registry
 from anytime.runtime.deadline import (
     CostBoundError,
     CriticalEvent,
+    DeadlineError,
+    UnknownEventError,
     critical_event,
     deadline_from,
     proportional_split,
@@ -74,23 +77,38 @@ def test_or_a_recorded_violation_when_not_strict() -> None:
 def test_bad_estimators_and_arguments() -> None:
     with pytest.raises(ModuleError, match="first parameter must be the context"):
         critical_event("x", cost_bound=1, registry=Registry())(lambda situation: 1.0)
-    with pytest.raises(ValueError, match="cost bound"):
+    with pytest.raises(DeadlineError) as bound:
         critical_event("x", cost_bound=-1)
-    with pytest.raises(ValueError, match="expected a time >= 0 or None"):
+    assert str(bound.value) == "a cost bound must be finite and >= 0, got -1"
+    with pytest.raises(DeadlineError, match="expected a time >= 0 or None"):
         deadline_from(None, [_event("neg", -1.0, 0, 0, Registry())], WorkClock())
-    with pytest.raises(KeyError, match="unknown critical event 'nope'"):
+    with pytest.raises(UnknownEventError) as unknown:
         deadline_from(None, ["nope"], WorkClock(), registry=Registry())
-    with pytest.raises(ValueError, match="margin"):
+    assert str(unknown.value) == "unknown critical event 'nope' (known: none)"  # not quoted
+    with pytest.raises(DeadlineError) as margin:
         deadline_from(None, [], WorkClock(), margin=-1)
+    assert str(margin.value) == "margin must be finite and >= 0, got -1.0"
+
+
+def test_deadline_errors_are_in_the_tree_and_what_they_resemble() -> None:
+    """Caught as the framework's errors (the command line's AnytimeError) or as the builtin
+    they resemble, as before they were in the tree."""
+    assert issubclass(DeadlineError, AnytimeError) and issubclass(DeadlineError, ValueError)
+    assert issubclass(UnknownEventError, DeadlineError) and issubclass(UnknownEventError, KeyError)
 
 
 def test_proportional_split_by_hand() -> None:
     assert proportional_split(100.0, [1, 3]) == (25.0, 75.0)
     assert proportional_split(9.0, [0, 0, 0]) == (3.0, 3.0, 3.0)
-    with pytest.raises(ValueError, match="lower bounds"):
+    with pytest.raises(DeadlineError) as bounds:
         proportional_split(1.0, [-1.0])
-    with pytest.raises(ValueError, match="time stock"):
+    assert str(bounds.value) == "lower bounds must be finite and >= 0, got [-1.0]"
+    with pytest.raises(DeadlineError) as empty:
+        proportional_split(1.0, [])
+    assert str(empty.value) == "expected a non-empty list of lower bounds, got []"
+    with pytest.raises(DeadlineError) as stock:
         proportional_split(math.inf, [1.0])
+    assert str(stock.value) == "the time stock must be finite and >= 0, got inf"
 
 
 bounds = st.lists(st.floats(0.0, 1e6, allow_subnormal=False), min_size=1, max_size=10)

@@ -296,14 +296,14 @@ def overcoming_library() -> AnytimeLibrary:
 @functools.cache
 def overcoming_program(allocator: str = "auto") -> CompiledProgram:
     """`overcome-obstacle` of `schemas/obstacles.any`, compiled for `TIME_GRID` (cached)."""
-    program = load_schema_file("obstacles.any")["overcome-obstacle"]
+    schemas = load_schema_file("obstacles.any")
     return compile_program(
-        program,
+        schemas["overcome-obstacle"],
         overcoming_library(),
         TIME_GRID,
         allocator=allocator,
         resolution=RESOLUTION,
-        filename=str(SCHEMA_FILE),
+        source=schemas.source,
     )
 
 

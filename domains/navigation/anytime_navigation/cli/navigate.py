@@ -120,40 +120,35 @@ def add_command(commands: CommandGroup) -> None:
 def _world(args: argparse.Namespace) -> World:
     if args.map is None:
         if args.start is not None or args.goal is not None:
-            raise UsageError("anytime navigate: error: --start and --goal need --map")
+            raise UsageError("--start and --goal need --map")
         return random_world(args.size, seed=args.seed)
     try:
         blocked, width, height = load_map(args.map)
     except MapError as error:
-        raise InputError(f"anytime navigate: error: {error}") from None
+        raise InputError(error.message, where=f"{error.filename}:{error.line}") from None
     except OSError as error:
-        raise InputError(
-            f"anytime navigate: error: cannot read '{args.map}': {error.strerror}"
-        ) from None
+        raise InputError(f"cannot read '{args.map}': {error.strerror}") from None
     free = ~blocked[:height, :width]
     cells = np.argwhere(free)
     if cells.size == 0:
-        raise InputError(f"anytime navigate: error: {args.map}: the map has no free cell")
+        raise InputError(f"{args.map}: the map has no free cell")
     start = args.start or (int(cells[0][1]), int(cells[0][0]))
     goal = args.goal or (int(cells[-1][1]), int(cells[-1][0]))
     for name, (x, y) in (("start", start), ("goal", goal)):
         if not (0 <= x < width and 0 <= y < height):
-            raise InputError(
-                f"anytime navigate: error: the {name} {x},{y} is outside the {width}x{height} map"
-            )
+            raise InputError(f"the {name} {x},{y} is outside the {width}x{height} map")
         if blocked[y, x]:
-            raise InputError(f"anytime navigate: error: the {name} {x},{y} is a blocked cell")
+            raise InputError(f"the {name} {x},{y} is a blocked cell")
     if not reachable(blocked, start)[goal[1], goal[0]]:
         raise InputError(
-            f"anytime navigate: error: the goal {goal[0]},{goal[1]} cannot be reached from the "
-            f"start {start[0]},{start[1]}"
+            f"the goal {goal[0]},{goal[1]} cannot be reached from the start {start[0]},{start[1]}"
         )
     return World(blocked, start, goal)
 
 
 def run_navigate(args: argparse.Namespace) -> int:
     if args.policy == "fixed" and args.contract is None:
-        raise UsageError("anytime navigate: error: --policy fixed needs --contract TICKS")
+        raise UsageError("--policy fixed needs --contract TICKS")
     if args.out is not None:
         require_matplotlib()  # the figures need the plot extra: say so before the run, not after
     world = _world(args)
@@ -174,7 +169,7 @@ def run_navigate(args: argparse.Namespace) -> int:
         try:
             obstacles = random_obstacles(world, args.moving_obstacles, args.seed)
         except ValueError as error:
-            raise InputError(f"anytime navigate: error: --moving-obstacles: {error}") from None
+            raise InputError(f"--moving-obstacles: {error}") from None
     bars = False if args.quiet else None  # progress on a terminal's stderr, unless --quiet
 
     def run(policy: str, contract: float | None = None) -> TaskReport:
@@ -203,9 +198,7 @@ def run_navigate(args: argparse.Namespace) -> int:
             out.mkdir(parents=True, exist_ok=True)
             write_atomic(out / "events.jsonl", report.log.to_jsonl())
         except OSError as error:
-            raise InputError(
-                f"anytime navigate: error: cannot write to '{out}': {error.strerror}"
-            ) from None
+            raise InputError(f"cannot write to '{out}': {error.strerror}") from None
         written.append(str(out / "events.jsonl"))
         try:
             from ..frame_figures import write_frames

@@ -135,7 +135,7 @@ def run_plan(args: argparse.Namespace) -> int:
         blocked, width, height = load_map(args.map)
         problems = _problems(args, blocked, width, height)
     except MapError as error:
-        raise InputError(f"{error.filename}:{error.line}: error: {error.message}") from None
+        raise InputError(error.message, where=f"{error.filename}:{error.line}") from None
     pyramid = Pyramid.build(blocked) if args.planner == "atp" else None
     solutions = []
     enabled = False if args.quiet or len(problems) == 1 else None  # on a terminal's stderr
@@ -161,32 +161,27 @@ def _problems(
         problems = [Problem(args.start, args.goal, None, "")]
         for name, (x, y) in (("--start", args.start), ("--goal", args.goal)):
             if not (0 <= x < width and 0 <= y < height):
-                raise InputError(
-                    f"anytime: error: {name} {x},{y} is outside the {width}x{height} map"
-                    f" '{args.map}'"
-                )
+                raise InputError(f"{name} {x},{y} is outside the {width}x{height} map '{args.map}'")
             if blocked[y, x]:
-                raise InputError(
-                    f"anytime: error: {name} {x},{y} is a blocked cell of '{args.map}'"
-                )
+                raise InputError(f"{name} {x},{y} is a blocked cell of '{args.map}'")
     else:
         scen = args.scen
         if scen is None:
             scen = os.fspath(args.map) + ".scen"
             if not Path(scen).is_file():
                 raise InputError(
-                    f"anytime: error: no scenario file '{scen}' next to the map: give --scen "
+                    f"no scenario file '{scen}' next to the map: give --scen "
                     "FILE.scen, or --start X,Y --goal X,Y"
                 )
         scenarios = load_scenarios(scen, blocked)[: args.limit]
         if not scenarios:
-            raise InputError(f"anytime: error: {scen}: no problems in the scenario file")
+            raise InputError(f"{scen}: no problems in the scenario file")
         problems = []
         for number, scenario in enumerate(scenarios, 1):
             where = f"{scen}: problem {number}: "
             if (scenario.width, scenario.height) != (width, height):
                 raise InputError(
-                    f"anytime: error: {where}it is for a {scenario.width}x{scenario.height} map,"
+                    f"{where}it is for a {scenario.width}x{scenario.height} map,"
                     f" '{args.map}' is {width}x{height}"
                 )
             optimal = scenario.optimal if args.movement == 8 else None
@@ -195,7 +190,7 @@ def _problems(
         (sx, sy), (gx, gy) = problem.start, problem.goal
         if not reachable(blocked, problem.start, args.movement)[gy, gx]:
             raise InputError(
-                f"anytime: error: {problem.where}the goal {gx},{gy} cannot be reached from the"
+                f"{problem.where}the goal {gx},{gy} cannot be reached from the"
                 f" start {sx},{sy} on '{args.map}'"
             )
     return problems
