@@ -56,13 +56,12 @@ def _pip_install(source: Path, target: Path) -> subprocess.CompletedProcess[str]
     tests/test_library.py installs the toy plugin)."""
     command = [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-index"]
     try:  # without build isolation when this environment's setuptools can build wheels
-        import setuptools
-
-        if tuple(map(int, setuptools.__version__.split(".")[:2])) >= (70, 1):
+        version = importlib.metadata.version("setuptools")
+        if tuple(map(int, version.split(".")[:2])) >= (70, 1):
             command.append("--no-build-isolation")
         else:
             command.remove("--no-index")  # pip fetches a build backend from the index
-    except ImportError:
+    except importlib.metadata.PackageNotFoundError:
         command.remove("--no-index")
     command += ["--target", str(target), str(source)]
     env = os.environ | {"PIP_DISABLE_PIP_VERSION_CHECK": "1"}
@@ -104,7 +103,7 @@ def test_the_plugin_is_found_through_its_entry_point(installed: Installed) -> No
     library = installed.library
     assert library.problems == ()
     assert [p.name for p in library.plugins] == ["estimation"]
-    assert Path(installed.package.__file__).is_relative_to(installed.site)
+    assert Path(str(installed.package.__file__)).is_relative_to(installed.site)
     timed = ["cube-side", "estimate-volume", "joint-side", "read-label"]
     assert installed.names == (
         *("cube-side", "estimate-volume", "has-label?", "has-sensor?", "joint-side"),
