@@ -2,10 +2,12 @@
 
     .venv/bin/python benchmarks/bench_promises.py [--runs 100] [--quick]
 
-Two programs: the navigation plugin's `navigate` and the example plugin's `side-length`
+Five programs: the navigation plugin's `navigate`, the example plugin's `side-length`
 (docs/example-plugin, a plugin that is not the framework's: measure a plot's area with a noisy
 sensor, then take its square root, `schemas/side-length.any`, each plot scored against its true
-side).
+side), and the three schemas of the test plugin tests/plugins/estimation_plugin (another third
+party's: estimate a tank's volume by Monte Carlo, or read its label, then the side of its cube;
+a chain, a two-input program and a best-of, each tank scored against its true side).
 
 The shipped `navigate` schema (sense with anytime vision, then plan with the ATP) compiled
 against the navigation plugin's measured profiles, on the profiles' own setting (random
@@ -41,6 +43,9 @@ from anytime.runtime import run_program
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "docs" / "example-plugin"))  # the example plugin, as it ships
 
+sys.path.insert(0, str(ROOT / "tests" / "plugins" / "estimation_plugin"))  # the test plugin
+
+import anytime_estimation as estimation  # noqa: E402
 from anytime_survey import PLUGIN as SURVEY  # noqa: E402
 from anytime_survey import Plot, quality  # noqa: E402
 
@@ -74,6 +79,32 @@ def survey_trial(
     record = run_program(compiled, [plot], total, clock=WorkClock())
     value = record.result.value if record.result is not None else None
     return quality(value, math.sqrt(area)), record.time_used, value is None
+
+
+def estimation_trial(
+    compiled: CompiledProgram, j: int, i: int, total: float
+) -> tuple[float, float, bool]:
+    """A fresh tank (two for two-tank-side; labelled for labelled-tank-side, whose best-of the
+    compiler expects with both preconditions holding), scored against its true side."""
+    rng = np.random.default_rng([SEED_BASE, len(compiled.name), j, i])
+
+    def tank(labelled: bool = False) -> estimation.Tank:
+        volume = float(rng.uniform(*estimation.VOLUMES))
+        seed = int(rng.integers(2**32))
+        if not labelled:
+            return estimation.Tank(volume, seed)
+        readable = bool(rng.random() < estimation.READABLE)
+        return estimation.Tank(volume, seed, label=volume, label_readable=readable)
+
+    if compiled.name == "two-tank-side":
+        tanks = [tank(), tank()]
+        truth = (tanks[0].volume + tanks[1].volume) ** (1 / 3)
+    else:
+        tanks = [tank(labelled=compiled.name == "labelled-tank-side")]
+        truth = tanks[0].volume ** (1 / 3)
+    record = run_program(compiled, tanks, total, clock=WorkClock())
+    value = record.result.value if record.result is not None else None
+    return estimation.quality(value, truth), record.time_used, value is None
 
 
 def promise_table(compiled: CompiledProgram, trial: Trial, runs: int) -> tuple[str, str]:
@@ -135,9 +166,19 @@ def main() -> None:
         range(0, 65, 8),
         resolution=2,
     )
+    tanks = AnytimeLibrary()
+    for module in estimation.PLUGIN.modules:
+        tanks.add(LibraryEntry.of_module(module))
+    estimation_programs = compile_file(
+        load_schema_path(estimation.SCHEMA_FILE), tanks, range(0, 41, 4), resolution=2
+    )
     for title, compiled, trial in (
         ("navigate (navigation plugin), fresh 128x128 worlds", navigate, navigate_trial),
         ("side-length (example plugin), fresh plots", side_length, survey_trial),
+        *(
+            (f"{p.name} (estimation test plugin), fresh tanks", p, estimation_trial)
+            for p in estimation_programs
+        ),
     ):
         started = time.perf_counter()
         rows, summary = promise_table(compiled, trial, runs)

@@ -61,8 +61,10 @@ BENCHMARKS = [
         "Compiler: promised against delivered",
         "The compiled expectation at every budget of the table against the mean quality that"
         " runs on fresh instances deliver, with its standard error, for the navigation"
-        " plugin's navigate schema and for the example plugin's side-length schema (a plugin"
-        " that is not the framework's). Target: within two standard errors at every budget,"
+        " plugin's navigate schema, for the example plugin's side-length schema (a plugin"
+        " that is not the framework's) and for the three schemas of the test plugin"
+        " tests/plugins/estimation_plugin (a chain, a two-input program, a best-of)."
+        " Target: within two standard errors at every budget,"
         " including the smallest, and no run over its budget on the work clock; not met yet"
         " (the problem sets' inputs of a given quality are not those the upstream module"
         " gives, and a module that steps before its first result overruns a budget of 0).",
