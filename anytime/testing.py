@@ -24,7 +24,10 @@ passed, failed or skipped, with a message that says what was seen and where:
   `|measured - declared| <= q * se + tolerance`, where `se` combines the measured standard
   error and the declared one (a measured declared profile has one), and `q` is the Student
   t quantile that makes the chance of a false alarm over all cells at most `1 - confidence`
-  (Bonferroni). Skipped for a module without a profile or with one in seconds.
+  (Bonferroni). A module that declares its `step` fails it too when the step measured then
+  (the largest gap between its results, or the most past its allocation) is larger than the
+  declared one: the compiler would reserve too little for it. Skipped for a module without a
+  profile or with one in seconds.
 
 The time grid is the declared profile's (so the profile is compared at its own cells, without
 interpolation), else the grid registered with the problem set; `time=` and `input_grids=`
@@ -707,6 +710,21 @@ def _check_profile(
         f" {se[cell]:.3f}), declared {theirs[cell]:.3f}, allowed {allowed[cell]:.3f}"
     )
     failures = f"; {build.failures} of {build.runs} runs failed" if build.failures else ""
+    declared_step, measured_step = module.step, measured.step
+    if declared_step is not None and measured_step is not None:
+        if measured_step > declared_step + 1e-9 * max(1.0, declared_step):
+            seen = (
+                f"a run used {_ticks(measured_step)} past its allocation (the most"
+                if module.kind == "contract"
+                else f"a run went {_ticks(measured_step)} without a result (the largest gap"
+            )
+            return Check(
+                "profile",
+                False,
+                f"the declared step, {_ticks(declared_step)}, is smaller than the one measured:"
+                f" {seen} over {build.runs} runs){failures}",
+            )
+        failures += f"; step: {measured_step:g} measured, {declared_step:g} declared"
     if gap[cell] > allowed[cell]:
         n_bad = int(np.sum(gap > allowed))
         return Check(

@@ -125,6 +125,7 @@ class Done:
     failures: int
     overruns: int
     first_failure: tuple[int, str] | None  # (flat trial index, description)
+    step: float = 0.0  # the largest step of the chunk's runs (see `_interruptible`, `_contract`)
 
 
 def measure_chunk(chunk: Chunk) -> Done:
@@ -132,6 +133,7 @@ def measure_chunk(chunk: Chunk) -> Done:
     grid = chunk.grid
     quality = np.zeros((chunk.stop - chunk.start, len(grid.time)))
     failures = overruns = 0
+    step = 0.0
     first: tuple[int, str] | None = None
     measure = _interruptible if chunk.module.kind == "interruptible" else _contract
     for row, flat in enumerate(range(chunk.start, chunk.stop)):
@@ -146,13 +148,14 @@ def measure_chunk(chunk: Chunk) -> Done:
             CLOCKS[chunk.clock][0],
             f"trial {instance} at input qualities {list(qualities)}",
         )
-        failed, overran = measure(trial, grid.time, quality[row])
+        failed, overran, longest = measure(trial, grid.time, quality[row])
         overruns += overran
+        step = max(step, longest)
         failures += len(failed)
         if failed and first is None:
             headline, details = failed[0]
             first = (flat, f"{headline} ({trial.where})\n{details}".rstrip())
-    return Done(chunk.start, quality, failures, overruns, first)
+    return Done(chunk.start, quality, failures, overruns, first, step)
 
 
 @frozen(eq=False)
@@ -237,12 +240,19 @@ def _arguments(
 Failures = list[tuple[str, str]]  # (headline, traceback) of each failed run
 
 
-def _interruptible(trial: Trial, time: Array, out: Array) -> tuple[Failures, int]:
-    """One run up to the last grid time; `out[j]` becomes the score of the answer at `time[j]`."""
+def _interruptible(trial: Trial, time: Array, out: Array) -> tuple[Failures, int, float]:
+    """One run up to the last grid time; `out[j]` becomes the score of the answer at `time[j]`.
+
+    Also returns the run's step: the largest gap between the moments it gave control back (its
+    start, every yield, the end of the run once closed), so the time from its last yield to its
+    return, its failure or the end of its clean-up counts, and so does the gap to a yield past
+    the last grid time (the one that ends the run).
+    """
     instance, args = trial.problem()
     ctx = Context(allocation=float(time[-1]), clock=trial.clock())
     answers: list[tuple[int, Any]] = []  # (first grid index it answers for, value)
     failed: Failures = []
+    last = step = 0.0  # the last moment it gave control back, and the largest gap so far
     generator = trial.module(ctx, *args)
     try:
         while True:
@@ -254,6 +264,7 @@ def _interruptible(trial: Trial, time: Array, out: Array) -> tuple[Failures, int
                 failed.append(_failure(exc))
                 break
             at = ctx.elapsed
+            step, last = max(step, at - last), at
             if at > time[-1]:
                 break
             if not isinstance(item, Result):
@@ -269,19 +280,25 @@ def _interruptible(trial: Trial, time: Array, out: Array) -> tuple[Failures, int
             generator.close()
         except Exception as exc:
             failed.append(_failure(exc))
+        step = max(step, ctx.elapsed - last)
     # Scored after the run, so that the scorer's time is never charged to the module. No answer
     # at all (the first came after the last grid time, as a slow wall clock can make it) leaves
     # the row at quality 0.
     ends = [first for first, _ in answers[1:]] + [len(time)] if answers else []
     for (first, value), end in zip(answers, ends, strict=True):
         out[first:end] = trial.score(instance, value)
-    return failed, 0
+    return failed, 0, step
 
 
-def _contract(trial: Trial, time: Array, out: Array) -> tuple[Failures, int]:
-    """One run per grid time on the same instance, with that time as its allocation."""
+def _contract(trial: Trial, time: Array, out: Array) -> tuple[Failures, int, float]:
+    """One run per grid time on the same instance, with that time as its allocation.
+
+    Also returns the step: the most any of the runs used past its allocation (0 if none did),
+    whether it returned a result, none, or raised.
+    """
     failed: Failures = []
     overruns = 0
+    step = 0.0
     for j, allocation in enumerate(time):
         instance, args = trial.problem()  # made afresh: a module may change its arguments
         ctx = Context(allocation=float(allocation), clock=trial.clock())
@@ -289,8 +306,10 @@ def _contract(trial: Trial, time: Array, out: Array) -> tuple[Failures, int]:
             result = trial.module(ctx, *args)
         except Exception as exc:
             failed.append(_failure(exc))
+            step = max(step, float(ctx.elapsed - allocation))
             continue
         used = ctx.elapsed
+        step = max(step, float(used - allocation))
         if result is None:  # no result: the row keeps quality 0
             overruns += used > allocation
             continue
@@ -300,4 +319,4 @@ def _contract(trial: Trial, time: Array, out: Array) -> tuple[Failures, int]:
         if used > allocation:  # counted as a plain int (a numpy bool would make it int64)
             overruns += 1
         out[j] = trial.score(instance, result.value)
-    return failed, overruns
+    return failed, overruns, step
