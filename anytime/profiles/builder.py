@@ -17,8 +17,10 @@ the ticks a module reports and does not depend on how busy the machine is.
 - The profile's `step` is measured too, as the maximum over all runs: for an interruptible
   module the largest gap between successive yields, counting from its start to the first and
   from the last to the end of its run (the yield past the largest grid time that ends a run
-  counts); for a contract module the most a run used past its allocation (0 if none did). It
-  is as reproducible as the profile: on the work clock, the same for any workers and chunks.
+  counts; a run that returns by itself right after the `ctx.tick` that spent that time
+  watches its time between ticks, and its last stretch counts as its longest tick there); for
+  a contract module the most a run used past its allocation (0 if none did). It is as
+  reproducible as the profile: on the work clock, the same for any workers and chunks.
 - A module that raises, or yields something that is not a `Result`, is a failed run: it keeps
   the last result it registered before failing (interruptible) or scores 0 (contract). Failures
   are counted and the first one's traceback is kept; they never stop the build. A contract run

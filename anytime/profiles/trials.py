@@ -244,15 +244,23 @@ def _interruptible(trial: Trial, time: Array, out: Array) -> tuple[Failures, int
     """One run up to the last grid time; `out[j]` becomes the score of the answer at `time[j]`.
 
     Also returns the run's step: the largest gap between the moments it gave control back (its
-    start, every yield, the end of the run once closed), so the time from its last yield to its
-    return, its failure or the end of its clean-up counts, and so does the gap to a yield past
-    the last grid time (the one that ends the run).
+    start, every yield, the end of the run), so the gap to a yield past the last grid time (the
+    one that ends the run) counts, and so does the time from its last yield to its return or
+    failure. Except for a run that ends by itself right after the report of work that spent its
+    allocation (its last `ctx.tick` began before the allocation and ended at or past it): such
+    a module watches its time between reports of work, and would have stopped after any of
+    them at an earlier deadline, so its stretch after its last yield counts as the longest
+    interval between its reports of work there, not as one gap. The clean-up after the run is
+    closed counts as part of its last stretch.
     """
     instance, args = trial.problem()
-    ctx = Context(allocation=float(time[-1]), clock=trial.clock())
+    allocation = float(time[-1])
+    clock = _Watch(trial.clock())
+    ctx = Context(allocation=allocation, clock=clock)
     answers: list[tuple[int, Any]] = []  # (first grid index it answers for, value)
     failed: Failures = []
     last = step = 0.0  # the last moment it gave control back, and the largest gap so far
+    cut = False  # the run was ended here, at a yield past the last grid time
     generator = trial.module(ctx, *args)
     try:
         while True:
@@ -265,7 +273,9 @@ def _interruptible(trial: Trial, time: Array, out: Array) -> tuple[Failures, int
                 break
             at = ctx.elapsed
             step, last = max(step, at - last), at
+            clock.mark()
             if at > time[-1]:
+                cut = True
                 break
             if not isinstance(item, Result):
                 failed.append((f"yielded a {type(item).__name__}, not a Result", ""))
@@ -280,7 +290,11 @@ def _interruptible(trial: Trial, time: Array, out: Array) -> tuple[Failures, int
             generator.close()
         except Exception as exc:
             failed.append(_failure(exc))
-        step = max(step, ctx.elapsed - last)
+        end = ctx.elapsed
+        stretch = end - last
+        if not cut and clock.spent_by_last_report(ctx.start + allocation):
+            stretch = max(clock.longest, clock.now() - clock.previous)
+        step = max(step, stretch)
     # Scored after the run, so that the scorer's time is never charged to the module. No answer
     # at all (the first came after the last grid time, as a slow wall clock can make it) leaves
     # the row at quality 0.
@@ -288,6 +302,37 @@ def _interruptible(trial: Trial, time: Array, out: Array) -> tuple[Failures, int
     for (first, value), end in zip(answers, ends, strict=True):
         out[first:end] = trial.score(instance, value)
     return failed, 0, step
+
+
+class _Watch:
+    """A clock that notes, since its last `mark()`, the longest interval between the module's
+    reports of work (from the mark to the first, between them), and when the last one began."""
+
+    def __init__(self, clock: Clock) -> None:
+        self.clock = clock
+        self.unit = clock.unit
+        self.longest = 0.0
+        self.previous = self.began = clock.now()  # the last report's end, and its start
+        self.reports = 0
+
+    def now(self) -> float:
+        return self.clock.now()
+
+    def advance(self, n: float) -> None:
+        began = self.clock.now()
+        self.clock.advance(n)
+        now = self.clock.now()
+        self.longest = max(self.longest, now - self.previous)
+        self.began, self.previous = began, now
+        self.reports += 1
+
+    def mark(self) -> None:
+        self.longest, self.previous, self.reports = 0.0, self.clock.now(), 0
+
+    def spent_by_last_report(self, deadline: float) -> bool:
+        """Whether the last report since the mark began before `deadline` and reached it."""
+        slack = 1e-9 * max(1.0, abs(deadline))  # as `Context.remaining` rounds
+        return self.reports > 0 and self.began < deadline - slack <= self.previous
 
 
 def _contract(trial: Trial, time: Array, out: Array) -> tuple[Failures, int, float]:
