@@ -606,6 +606,7 @@ def test_an_unreadable_profile_makes_the_step_raise_unless_one_is_declared(tmp_p
         (None, STEPPED, "step:        7 ticks (measured)"),
         (7, STEPPED, "step:        7 ticks (declared; measured 7)"),
         (3, STEPPED, "step:        3 ticks (declared; measured 7, larger than declared)"),
+        (1, STEPPED, "step:        1 tick (declared; measured 7, larger than declared)"),
         (9, STEPPED, "step:        9 ticks (declared; measured 7)"),
         (2.5, FIND_PATH_PROFILE, "step:        2.5 ticks (declared)"),
         (2, None, "step:        2 (declared)"),

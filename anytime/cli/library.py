@@ -134,6 +134,8 @@ def _step_line(entry: LibraryEntry, profile: ConditionalPerformanceProfile | Non
     if step is None:
         return None
     unit = "" if profile is None else f" {profile.time_unit}"
+    if step == 1:
+        unit = unit.removesuffix("s")  # 1 tick, 1 second
     if declared is None:
         return f"{step:g}{unit} (measured)"
     if measured is None:
