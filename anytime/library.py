@@ -69,6 +69,7 @@ class LibraryEntry:
         module: the module, or None for a profile-only entry.
         profile_source: the profile, the path of its file, or None.
         profile_file: the file the profile comes from, if it is not built in memory.
+        step: (a property) the module's step, declared or else measured (see `step`).
     """
 
     name: str
@@ -130,6 +131,28 @@ class LibraryEntry:
             cached = self._load()
             self._cache["profile"] = cached
         return cached
+
+    @property
+    def declared_step(self) -> float | None:
+        """The step the module declares (`step=` of its decorator), or None."""
+        return None if self.module is None else self.module.step
+
+    @property
+    def measured_step(self) -> float | None:
+        """The step its profile records (measured by the profile builder), or None: no
+        profile, or one without a step (a file written before profiles had one, a compiled
+        program's, a tabulated one). Reads the profile like `profile`, with its errors."""
+        profile = self.profile
+        return None if profile is None else profile.step
+
+    @property
+    def step(self) -> float | None:
+        """The most time the module can use past any moment before it next registers a result
+        or returns (interruptible), or past its allocation (contract), in its profile's time
+        unit: its declared step if it declares one, else its profile's measured step, else None
+        (unknown). Reads the profile when the module declares none (its `ProfileError`s)."""
+        declared = self.declared_step
+        return declared if declared is not None else self.measured_step
 
     def _load(self) -> ConditionalPerformanceProfile:
         source = self.profile_source

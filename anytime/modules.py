@@ -21,6 +21,7 @@ from __future__ import annotations
 import importlib
 import inspect
 import math
+import numbers
 import os
 import sys
 import threading
@@ -30,6 +31,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import attrs
+import numpy as np
 from attrs import field, frozen
 
 from anytime.clocks import Clock, WorkClock
@@ -140,6 +142,26 @@ def _min_quality(qualities: Sequence[float]) -> float:
     return min(qualities, default=1.0)
 
 
+def _as_float(value: Any) -> Any:
+    """A real number (not a bool) as a float; anything else as given, for the validator."""
+    if isinstance(value, numbers.Real) and not isinstance(value, bool | np.bool_):
+        return float(value)
+    return value
+
+
+def _check_step(module: AnytimeModule, _: attrs.Attribute[Any], step: object) -> None:
+    """A declared step is a finite number >= 0 (or None); the message names the module."""
+    if step is None:
+        return
+    if not (isinstance(step, float) and math.isfinite(step) and step >= 0):
+        where = f"module '{module.name}' ({_qualified(module.function)})"
+        got = f"{step:g}" if isinstance(step, float) else repr(step)
+        raise ModuleError(
+            f"{where}: step: expected a finite number >= 0 (the most time it uses before its"
+            f" next result or its return; None: not declared), got {got}"
+        )
+
+
 @frozen(eq=False)
 class AnytimeModule:
     """A registered module: its function, what it declares, and where it came from.
@@ -160,6 +182,12 @@ class AnytimeModule:
             not report its true quality the runtime decides by its profile instead: it keeps
             the latest result (not the one with the highest self-report), and a best-of's
             choice and adaptive re-allocation use the profile's prediction for the time used.
+        step: the most time it can use past any moment before it next registers a result or
+            returns, in its profile's time unit (ticks on the work clock), or None (not
+            declared; its measured profile may know it). For an interruptible module the
+            largest gap between successive results, counting from its start to the first and
+            from the last to its end; for a contract module the most it may use past its
+            allocation. It bounds how far a run can overshoot the time it is given.
     """
 
     name: str
@@ -173,6 +201,7 @@ class AnytimeModule:
     probability: float | None = None  # an elementary test's chance of being true (for `if`)
     accepts_missing: bool = False  # called with `MISSING` for an input that has no result
     reports: QualityReport = "true"
+    step: float | None = field(default=None, converter=_as_float, validator=_check_step)
 
     @property
     def arity(self) -> int:
@@ -263,6 +292,7 @@ def _declare(
     probability: float | None = None,
     accepts_missing: bool = False,
     reports: QualityReport = "true",
+    step: float | None = None,
 ) -> AnytimeModule:
     module_name = (name or function.__name__.replace("_", "-")).lower()
     where = f"module '{module_name}' ({_qualified(function)})"
@@ -307,6 +337,7 @@ def _declare(
         probability=probability,
         accepts_missing=accepts_missing,
         reports=reports,
+        step=step,
     )
     if not register:
         return module
@@ -336,6 +367,7 @@ def interruptible(
     register: bool = True,
     accepts_missing: bool = False,
     reports: QualityReport = "true",
+    step: float | None = None,
 ) -> Callable[[Callable[..., Iterator[Result]]], AnytimeModule]:
     """Register a generator `f(ctx, *args)` that yields successively better `Result`s.
 
@@ -351,6 +383,9 @@ def interruptible(
             (default: it is not called, and has no result either).
         reports: what its `Result.quality` is: "true" (default), "estimate" or "none" (see
             `AnytimeModule`).
+        step: the largest gap between its successive results (from its start to the first,
+            from the last to its return), in its profile's time unit, if known (see
+            `AnytimeModule`; the profile builder measures it otherwise).
     """
 
     def decorate(function: Callable[..., Iterator[Result]]) -> AnytimeModule:
@@ -364,6 +399,7 @@ def interruptible(
             register=register,
             accepts_missing=accepts_missing,
             reports=reports,
+            step=step,
         )
 
     return decorate
@@ -378,11 +414,12 @@ def contract(
     register: bool = True,
     accepts_missing: bool = False,
     reports: QualityReport = "true",
+    step: float | None = None,
 ) -> Callable[[Callable[..., Result | None]], AnytimeModule]:
     """Register a function `f(ctx, *args) -> Result` that uses `ctx.allocation` up front (it
     returns None when it has no result).
 
-    Arguments as for `interruptible`.
+    Arguments as for `interruptible`, except `step`: the most it may use past its allocation.
     """
 
     def decorate(function: Callable[..., Result | None]) -> AnytimeModule:
@@ -396,6 +433,7 @@ def contract(
             register=register,
             accepts_missing=accepts_missing,
             reports=reports,
+            step=step,
         )
 
     return decorate

@@ -140,11 +140,14 @@ def interruptible(
     profile: ProfileSource = None,
     accepts_missing: bool = False,
     reports: QualityReport = "true",
+    step: float | None = None,
 ) -> Callable[[Callable[..., Iterator[Result]]], AnytimeModule]:
     """Declare a generator `f(ctx, *args)` that yields successively better `Result`s.
 
     As `anytime.interruptible`, but registers nothing: list the module in your `Plugin`.
-    A relative `profile` path is a file of the defining module's package.
+    A relative `profile` path is a file of the defining module's package. `step`, if given, is
+    the largest gap between its successive results (from its start to the first, from the last
+    to its return), in its profile's time unit; `anytime profile` measures it otherwise.
     """
     return _interruptible(
         name,
@@ -153,6 +156,7 @@ def interruptible(
         register=False,
         accepts_missing=accepts_missing,
         reports=reports,
+        step=step,
     )
 
 
@@ -163,11 +167,13 @@ def contract(
     profile: ProfileSource = None,
     accepts_missing: bool = False,
     reports: QualityReport = "true",
+    step: float | None = None,
 ) -> Callable[[Callable[..., Result | None]], AnytimeModule]:
     """Declare a function `f(ctx, *args) -> Result` that reads `ctx.allocation` up front (it
     returns None when it has no result).
 
-    As `anytime.contract`, but registers nothing: list the module in your `Plugin`.
+    As `anytime.contract`, but registers nothing: list the module in your `Plugin`. `step`, if
+    given, is the most it may use past its allocation.
     """
     return _contract(
         name,
@@ -176,6 +182,7 @@ def contract(
         register=False,
         accepts_missing=accepts_missing,
         reports=reports,
+        step=step,
     )
 
 

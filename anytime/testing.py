@@ -12,7 +12,8 @@ passed, failed or skipped, with a message that says what was seen and where:
 - **errors**: no run raises;
 - **deadline**: at every allocation of the time grid, a run never registers a result after its
   allocation and uses at most one of its own steps (the largest single `ctx.tick(n)` it began
-  before the deadline) past it; a contract module does not overrun its contract at all;
+  before the deadline) past it, and at most its declared `step` if it declares one (what the
+  compiler reserves for it); a contract module does not overrun its contract at all;
 - **interruption**: stopped from outside at a random tick, a run answers with the best result
   the module registered before the stop (its latest, for a module that does not report its
   true quality), never with none once one was registered, and that
@@ -24,7 +25,10 @@ passed, failed or skipped, with a message that says what was seen and where:
   `|measured - declared| <= q * se + tolerance`, where `se` combines the measured standard
   error and the declared one (a measured declared profile has one), and `q` is the Student
   t quantile that makes the chance of a false alarm over all cells at most `1 - confidence`
-  (Bonferroni). Skipped for a module without a profile or with one in seconds.
+  (Bonferroni). Its message warns when the step measured then (the largest gap between
+  results) is larger than the module's declared `step`: the declaration is right only if the
+  module stops on `ctx.expired` between its results (the deadline check tests that). Skipped
+  for a module without a profile or with one in seconds.
 
 The time grid is the declared profile's (so the profile is compared at its own cells, without
 interpolation), else the grid registered with the problem set; `time=` and `input_grids=`
@@ -594,6 +598,14 @@ def _check_deadline(module: AnytimeModule, runs: list[_Run]) -> Check:
         elif module.kind == "contract":
             if record.status is Status.CONTRACT_EXPIRED:
                 bad.append((r, f"overran its contract: used {_ticks(record.time_used)}"))
+        elif module.step is not None and over > module.step + 1e-9 * max(1.0, r.allocation):
+            bad.append(
+                (
+                    r,
+                    f"used {_ticks(record.time_used)}, {over:g} past the allocation, more than"
+                    f" its declared step ({_ticks(module.step)})",
+                )
+            )
         elif over > r.largest_step + 1e-9 * max(1.0, r.allocation):
             bad.append(
                 (
@@ -707,6 +719,14 @@ def _check_profile(
         f" {se[cell]:.3f}), declared {theirs[cell]:.3f}, allowed {allowed[cell]:.3f}"
     )
     failures = f"; {build.failures} of {build.runs} runs failed" if build.failures else ""
+    declared_step, measured_step = module.step, measured.step
+    if declared_step is not None and measured_step is not None and measured_step > declared_step:
+        apart = "past its allocation" if module.kind == "contract" else "without a result"
+        failures += (
+            f"; warning: a run went {_ticks(measured_step)} {apart}, more than its declared"
+            f" step ({_ticks(declared_step)}): right only if it stops on ctx.expired in"
+            " between"
+        )
     if gap[cell] > allowed[cell]:
         n_bad = int(np.sum(gap > allowed))
         return Check(

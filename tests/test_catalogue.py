@@ -417,3 +417,71 @@ def test_a_module_whose_quality_is_an_estimate_answers_with_its_latest_result() 
     assert report["interruption"].message.endswith(
         "all answered with the latest result registered before"
     )
+
+
+# --- a declared step -----------------------------------------------------------------------------
+
+STEPPED = Registry()
+
+
+def _by_fives(ctx: Context, data: Result, limit: int) -> Iterator[Result]:
+    """Counts five a time, in one tick of 5, registering after each: its step is 5 ticks."""
+    for done in range(5, limit + 5, 5):
+        ctx.tick(5)
+        yield Result(min(done, limit), data.quality * min(done, limit) / limit)
+
+
+@interruptible("catalogue-fives", inputs=["data"], profile=COUNTING, registry=STEPPED, step=2)
+def fives(ctx: Context, data: Result, limit: int) -> Iterator[Result]:
+    """Counts five a time; declares a step of 2."""
+    yield from _by_fives(ctx, data, limit)
+
+
+@interruptible("catalogue-fives-5", inputs=["data"], profile=COUNTING, registry=STEPPED, step=5)
+def fives_honest(ctx: Context, data: Result, limit: int) -> Iterator[Result]:
+    """Counts five a time; declares its step, 5."""
+    yield from _by_fives(ctx, data, limit)
+
+
+@interruptible("catalogue-ones", inputs=["data"], profile=COUNTING, registry=STEPPED, step=1)
+def ones(ctx: Context, data: Result, limit: int) -> Iterator[Result]:
+    """Counts like `good`, registering every tick; declares its step, 1."""
+    yield from good.function(ctx, data, limit)
+
+
+@interruptible("catalogue-halves", inputs=["data"], profile=COUNTING, registry=STEPPED, step=0.5)
+def halves(ctx: Context, data: Result, limit: int) -> Iterator[Result]:
+    """Counts like `good`, registering every tick; declares a step of 0.5."""
+    yield from good.function(ctx, data, limit)
+
+
+def test_a_declared_step_smaller_than_the_module_s_fails_the_deadline_check() -> None:
+    # Given 0 ticks it registers its first result at 5 (the other allocations are multiples of
+    # 5, where it stops on time, or more than it needs).
+    report = check_module(fives, Counting(), trials=10)
+    assert [c.name for c in report.failed] == ["deadline"], report.format()
+    assert report["deadline"].message == (
+        "used 5 ticks, 5 past the allocation, more than its declared step (2 ticks) (allocation"
+        " 0, trial 0 at input qualities [0.5]); 20 of 100 runs missed the deadline"
+    )
+    # The profile check measured the step too, and warns.
+    assert report["profile"].message.endswith(
+        "; warning: a run went 5 ticks without a result, more than its declared step (2 ticks):"
+        " right only if it stops on ctx.expired in between"
+    )
+    honest = check_module(fives_honest, Counting(), trials=10)
+    assert honest.passed, honest.format()
+    assert "warning" not in honest["profile"].message
+
+
+def test_a_declared_step_below_the_module_s_ticks_fails_the_deadline_check() -> None:
+    assert check_module(ones, Counting(), trials=5).passed
+    report = check_module(halves, Counting(), trials=5)
+    assert [c.name for c in report.failed] == ["deadline"], report.format()
+    assert report["deadline"].message.startswith(
+        "used 1 tick, 1 past the allocation, more than its declared step (0.5 ticks)"
+    )
+    assert report["profile"].message.endswith(
+        "; warning: a run went 1 tick without a result, more than its declared step (0.5"
+        " ticks): right only if it stops on ctx.expired in between"
+    )

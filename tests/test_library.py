@@ -10,8 +10,11 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
+import attrs
 import pytest
+from conftest import Cli
 
+import anytime.library
 from anytime import (
     REGISTRY,
     AnytimeLibrary,
@@ -542,3 +545,97 @@ def test_an_installed_plugin_package_is_discovered(tmp_path: Path) -> None:
     }
     assert rows["toy-halve"]["origin"] == "plugin 'toy-extra' (toy_anytime_plugin.extra:modules)"
     assert rows["toy-halve"]["kind"] == "contract"
+
+
+# --- a module's step ----------------------------------------------------------------------------
+
+STEPPED = attrs.evolve(FIND_PATH_PROFILE, step=7)
+
+
+def _stepped_registry(declared: float | None, profile: Any) -> Registry:
+    fresh = Registry()
+
+    @interruptible("find-path", inputs=["domain"], profile=profile, registry=fresh, step=declared)
+    def find_path(ctx: Any, start: Any, goal: Any, domain: Any) -> Iterator[Result]:
+        yield Result(None, 0.0)
+
+    return fresh
+
+
+@pytest.mark.parametrize(
+    ("declared", "profile", "step"),
+    [
+        (None, None, None),  # nothing known
+        (None, FIND_PATH_PROFILE, None),  # a profile without a step (every old file)
+        (None, STEPPED, 7.0),  # measured
+        (3, STEPPED, 3.0),  # declared, though smaller: the module's word
+        (9, FIND_PATH_PROFILE, 9.0),
+        (0, None, 0.0),
+    ],
+)
+def test_an_entry_s_step_is_the_declared_one_else_the_measured_one(
+    declared: float | None, profile: Any, step: float | None
+) -> None:
+    entry = AnytimeLibrary([RegistrySource(_stepped_registry(declared, profile))])["find-path"]
+    assert entry.step == step
+    assert entry.declared_step == (None if declared is None else float(declared))
+    assert entry.measured_step == (None if profile is None else profile.step)
+
+
+def test_a_profile_only_entry_has_its_file_s_step(tmp_path: Path) -> None:
+    directory = tmp_path / "profiles"
+    directory.mkdir()
+    save_profile(STEPPED, directory / "find-path.yaml")
+    save_profile(VISION_PROFILE, directory / "vision.yaml")
+    library = AnytimeLibrary([ProfileDirectory(directory)])
+    assert (library["find-path"].step, library["get-domain-description"].step) == (7.0, None)
+
+
+def test_an_unreadable_profile_makes_the_step_raise_unless_one_is_declared(tmp_path: Path) -> None:
+    missing = tmp_path / "nowhere.yaml"
+    entry = AnytimeLibrary([RegistrySource(_stepped_registry(None, missing))])["find-path"]
+    with pytest.raises(ProfileError, match="no such profile file"):
+        _ = entry.step
+    declared = AnytimeLibrary([RegistrySource(_stepped_registry(4, missing))])["find-path"]
+    assert declared.step == 4.0  # the profile is not read for it
+
+
+@pytest.mark.parametrize(
+    ("declared", "profile", "line"),
+    [
+        (None, STEPPED, "step:        7 ticks (measured)"),
+        (7, STEPPED, "step:        7 ticks (declared; measured 7)"),
+        (3, STEPPED, "step:        3 ticks (declared; measured 7, larger than declared)"),
+        (1, STEPPED, "step:        1 tick (declared; measured 7, larger than declared)"),
+        (9, STEPPED, "step:        9 ticks (declared; measured 7)"),
+        (2.5, FIND_PATH_PROFILE, "step:        2.5 ticks (declared)"),
+        (2, None, "step:        2 (declared)"),
+    ],
+)
+def test_library_show_prints_the_step_when_known(
+    cli: Cli, monkeypatch: pytest.MonkeyPatch, declared: Any, profile: Any, line: str
+) -> None:
+    registry = _stepped_registry(declared, profile)
+    monkeypatch.setattr(anytime.library, "REGISTRY", registry)
+    code, out, err = cli("library", "show", "find-path", "--no-plugins")
+    assert (code, err) == (0, "")
+    lines = out.splitlines()
+    assert lines[5] == line, out
+    assert lines[4] == "inputs:      domain"
+    code, out, _ = cli("library", "show", "find-path", "--no-plugins", "--json")
+    data = json.loads(out)
+    measured = None if profile is None else profile.step
+    mine = None if declared is None else float(declared)
+    want = (mine if mine is not None else measured, mine, measured)
+    assert (data["step"], data["declared_step"], data["measured_step"]) == want
+
+
+def test_library_show_says_nothing_of_an_unknown_step(
+    cli: Cli, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(anytime.library, "REGISTRY", _stepped_registry(None, FIND_PATH_PROFILE))
+    code, out, _ = cli("library", "show", "find-path", "--no-plugins")
+    assert code == 0 and "step" not in out
+    code, out, _ = cli("library", "show", "find-path", "--no-plugins", "--json")
+    data = json.loads(out)
+    assert (data["step"], data["declared_step"], data["measured_step"]) == (None, None, None)

@@ -6,6 +6,7 @@ import threading
 from collections.abc import Iterator
 from pathlib import Path
 
+import attrs
 import pytest
 
 from anytime.clocks import WallClock, WorkClock
@@ -189,3 +190,79 @@ def test_two_functions_under_one_name_name_both_origins() -> None:
     # Registering the same function again (a reloaded module) replaces it.
     again = interruptible("twin", registry=registry)(first.function)
     assert registry.get("twin") is again
+
+
+# --- a declared step ------------------------------------------------------------------------------
+
+
+@interruptible("stepped", inputs=[], registry=TOYS, step=10)
+def stepped(ctx: Context) -> Iterator[Result]:
+    for i in range(3):
+        ctx.tick(10)
+        yield Result(i, i / 2)
+
+
+def test_a_module_declares_its_step_or_none() -> None:
+    assert stepped.step == 10.0 and isinstance(stepped.step, float)
+    assert count_up.step is None
+
+    @contract("late-by-two", registry=Registry(), step=2)
+    def late(ctx: Context) -> Result:
+        ctx.tick(ctx.allocation + 2)
+        return Result(1, 1)
+
+    assert (late.kind, late.step) == ("contract", 2.0)
+    # It travels with the module: by reference, and in the fields a copy by value is made of.
+    assert pickle.loads(pickle.dumps(stepped)) is stepped
+    assert attrs.asdict(stepped, recurse=False)["step"] == 10.0
+
+
+@pytest.mark.parametrize(
+    ("step", "shown"),
+    [
+        (-1, "-1"),
+        (-0.5, "-0.5"),
+        (math.inf, "inf"),
+        (math.nan, "nan"),
+        ("5", "'5'"),
+        (True, "True"),
+    ],
+)
+def test_a_bad_step_is_refused_naming_the_module_and_the_field(step: object, shown: str) -> None:
+    def g(ctx: Context) -> Iterator[Result]:
+        yield Result(1, 1)
+
+    def f(ctx: Context) -> Result:
+        return Result(1, 1)
+
+    registry = Registry()
+    for declare, function in ((interruptible, g), (contract, f)):
+        with pytest.raises(ModuleError) as caught:
+            declare("s", registry=registry, step=step)(function)  # type: ignore[arg-type]
+        assert str(caught.value) == (
+            f"module 's' ({function.__module__}.{function.__qualname__}): step: expected a finite"
+            " number >= 0 (the most time it uses before its next result or its return; None:"
+            f" not declared), got {shown}"
+        )
+    assert len(registry) == 0
+
+
+def test_the_plugin_decorators_declare_a_step_without_registering() -> None:
+    from anytime import REGISTRY
+    from anytime.plugin import contract as plugin_contract
+    from anytime.plugin import interruptible as plugin_interruptible
+
+    before = len(REGISTRY)
+
+    @plugin_interruptible("plugin-stepped", step=3)
+    def gen(ctx: Context) -> Iterator[Result]:
+        yield Result(1, 1)
+
+    @plugin_contract("plugin-late", step=0)
+    def late(ctx: Context) -> Result:
+        return Result(1, 1)
+
+    assert (gen.step, late.step) == (3.0, 0.0)
+    assert len(REGISTRY) == before and "plugin-stepped" not in REGISTRY
+    with pytest.raises(ModuleError, match=r"^module 'plugin-bad' .*: step: expected a finite"):
+        plugin_interruptible("plugin-bad", step=-3)(gen.function)

@@ -105,6 +105,9 @@ def run_library_show(args: argparse.Namespace) -> int:
         ["parameters:", parameters],
         ["inputs:", ", ".join(entry.inputs) or "none"],
     ]
+    step = _step_line(entry, profile)
+    if step is not None:
+        fields.append(["step:", step])
     if profile is None:
         fields.append(["profile:", "none"])
         print(format_table(fields), end="")
@@ -126,6 +129,23 @@ def run_library_show(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _step_line(entry: LibraryEntry, profile: ConditionalPerformanceProfile | None) -> str | None:
+    """'5 ticks (declared; measured 4)', '3 ticks (measured)', or None when unknown."""
+    declared, measured = entry.declared_step, None if profile is None else profile.step
+    step = declared if declared is not None else measured
+    if step is None:
+        return None
+    unit = "" if profile is None else f" {profile.time_unit}"
+    if step == 1:
+        unit = unit.removesuffix("s")  # 1 tick, 1 second
+    if declared is None:
+        return f"{step:g}{unit} (measured)"
+    if measured is None:
+        return f"{step:g}{unit} (declared)"
+    larger = ", larger than declared" if measured > declared else ""
+    return f"{step:g}{unit} (declared; measured {measured:g}{larger})"
+
+
 def profile_summary(profile: ConditionalPerformanceProfile) -> str:
     """One line: '3 input grid pts x 4 times x 4 bins, ticks'."""
     parts = []
@@ -144,6 +164,10 @@ def _entry_json(
     data: dict[str, Any] = {"name": entry.name, "kind": entry.kind, "inputs": list(entry.inputs)}
     if full:
         data["parameters"] = list(entry.parameters)
+        measured = None if profile is None else profile.step
+        declared = entry.declared_step
+        data["step"] = declared if declared is not None else measured
+        data["declared_step"], data["measured_step"] = declared, measured
     data["arity"] = entry.arity
     data["origin"] = entry.origin
     data["profile"] = None

@@ -14,6 +14,13 @@ the ticks a module reports and does not depend on how busy the machine is.
   grid time t it is credited with the last `Result` it yielded at or before t (a result yielded
   once the clock has passed t does not count for t); before its first result its quality is 0.
 - A **contract** module runs once per instance and grid time, with `ctx.allocation = t`.
+- The profile's `step` is measured too, as the maximum over all runs: for an interruptible
+  module the largest gap between successive yields, counting from its start to the first and
+  from the last to the end of its run (the yield past the largest grid time that ends a run
+  counts; a run that returns by itself right after the `ctx.tick` that spent that time
+  watches its time between ticks, and its last stretch counts as its longest tick there); for
+  a contract module the most a run used past its allocation (0 if none did). It is as
+  reproducible as the profile: on the work clock, the same for any workers and chunks.
 - A module that raises, or yields something that is not a `Result`, is a failed run: it keeps
   the last result it registered before failing (interruptible) or scores 0 (contract). Failures
   are counted and the first one's traceback is kept; they never stop the build. A contract run
@@ -333,17 +340,21 @@ def build_profile(
     ]
     quality = np.zeros((total, len(grid.time)))
     failures = overruns = 0
+    step = 0.0
     first: tuple[int, str] | None = None
     with ProgressBar(total, label=module.name, enabled=progress) as bar:
         for done in _run(chunks, executor, workers):
             quality[done.start : done.start + len(done.quality)] = done.quality
             failures += done.failures
             overruns += done.overruns
+            step = max(step, done.step)
             if done.first_failure is not None and (first is None or done.first_failure < first):
                 first = done.first_failure
             bar.update(len(done.quality))
     return ProfileBuild(
-        profile=_tabulate(module, grid, quality.reshape((*grid.cell_shape, trials, -1)), clock),
+        profile=_tabulate(
+            module, grid, quality.reshape((*grid.cell_shape, trials, -1)), clock, step
+        ),
         trials=trials,
         runs=total * (len(grid.time) if module.kind == "contract" else 1),
         failures=failures,
@@ -404,9 +415,9 @@ def _check(
 
 
 def _tabulate(
-    module: AnytimeModule, grid: Grid, quality: Array, clock: str
+    module: AnytimeModule, grid: Grid, quality: Array, clock: str, step: float
 ) -> ConditionalPerformanceProfile:
-    """The profile of a (*cells, trials, times) table of scored qualities."""
+    """The profile of a (*cells, trials, times) table of scored qualities, and measured `step`."""
     axis = quality.ndim - 2
     n_bins = len(grid.bins) - 1
     # The bin holding each quality, as `point_mass` finds it (1.0 falls in the last bin).
@@ -429,6 +440,7 @@ def _tabulate(
         module=module.name,
         kind=kind,
         time_unit=CLOCKS[clock][1],
+        step=step,
     )
 
 

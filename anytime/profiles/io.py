@@ -6,6 +6,7 @@ A profile file is one YAML mapping (docs/profiles.md says more)::
     module: find-path                  # default: the file name without its extension
     kind: interruptible                # or contract; default interruptible
     time_unit: ticks                   # or seconds; default ticks
+    step: 5                            # optional: the module's step, in time_unit (measured)
     inputs: [domain]                   # quality-carrying inputs in axis order; may be empty
     input_quality: [[0.8, 0.9, 1.0]]   # one increasing grid of qualities per input
     time: [0, 100, 200, 400]           # required: increasing allocations >= 0
@@ -22,6 +23,9 @@ A deterministic profile gives `expected:` (shape without the last axis) instead 
 quality itself is kept as the profile's `mean`, so expected quality is exact, not a bin midpoint
 (it must lie between the first and last bin edges).
 Exactly one of `probability` and `expected` must be given; `std` and `samples` go with either.
+`step` is the most time the module used past any moment before it next registered a result or
+returned (interruptible), or past its allocation (contract); a file without it (every file
+written before it existed) has an unknown step, None. A bad `step` names its line and column.
 `inputs` may be left out when the input axes have no names; when given it names every axis.
 
 Files are read with `yaml.safe_load` only: a tag that would construct a Python object is
@@ -70,6 +74,7 @@ FIELDS = (
     "module",
     "kind",
     "time_unit",
+    "step",
     "inputs",
     "input_quality",
     "time",
@@ -112,7 +117,7 @@ def load_profile(path: str | os.PathLike[str]) -> ConditionalPerformanceProfile:
         ) from None
     except OSError as exc:
         raise ProfileError(f"{filename}: cannot read the file: {exc.strerror or exc}") from None
-    return profile_from_dict(_parse_yaml(text, filename), filename)
+    return _Reader(filename, text).read(_parse_yaml(text, filename))
 
 
 def _parse_yaml(text: str, filename: str) -> object:
@@ -166,11 +171,19 @@ def profile_from_dict(
 class _Reader:
     """Reads one file's mapping, field by field, failing at the first problem."""
 
-    def __init__(self, filename: str) -> None:
+    def __init__(self, filename: str, text: str | None = None) -> None:
         self.filename = filename
+        self.text = text  # the file's text, when there is one: messages can then say where
 
-    def fail(self, field: str, problem: str) -> NoReturn:
-        raise ProfileError(f"{self.filename}: {field}: {problem}")
+    def fail(self, field: str, problem: str, *, at_line: bool = False) -> NoReturn:
+        """Raise the `ProfileError`; with `at_line`, at the line and column of the value of the
+        top-level `field` when the text is known."""
+        where = self.filename
+        if at_line and self.text is not None:
+            mark = _value_mark(self.text, field)
+            if mark is not None:
+                where = f"{where}:{mark.line + 1}:{mark.column + 1}"
+        raise ProfileError(f"{where}: {field}: {problem}")
 
     def read(self, data: object) -> ConditionalPerformanceProfile:
         return self.profile(self.fields(data))
@@ -217,6 +230,7 @@ class _Reader:
         time_unit = cast(
             TimeUnit, self.choice("time_unit", data.get("time_unit", "ticks"), TIME_UNITS)
         )
+        step = self.step(data["step"]) if "step" in data else None
         grids = self.input_grids(data.get("input_quality", []))
         inputs = self.inputs(data["inputs"], len(grids)) if "inputs" in data else ()
         time = self.grid("time", data["time"], minimum=1, quality=False)
@@ -257,6 +271,7 @@ class _Reader:
                 module=module,
                 kind=kind,
                 time_unit=time_unit,
+                step=step,
             )
         except ProfileError as exc:  # the class's own invariants: re-prefix with the file
             message = str(exc).removeprefix(f"{module or 'profile'}: ")
@@ -274,6 +289,24 @@ class _Reader:
             expected = " or ".join(repr(option) for option in options)
             self.fail(field, f"expected {expected}, got {_describe(value)}")
         return value
+
+    def step(self, value: object) -> float:
+        """The module's step: a finite number >= 0 (a file gives no null: leave it out)."""
+        expected = "a finite number >= 0 (the module's step, in time_unit)"
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            hint = ""
+            if isinstance(value, str) and _EXPONENT.match(value):
+                hint = (
+                    " (YAML reads it as a string: write a dot and a signed exponent, as in 1.0e+3)"
+                )
+            self.fail("step", f"expected {expected}, got {_describe(value)}{hint}", at_line=True)
+        try:
+            step = float(value)
+        except OverflowError:
+            self.fail("step", f"expected {expected}, got {value}", at_line=True)
+        if not np.isfinite(step) or step < 0:
+            self.fail("step", f"expected {expected}, got {_format(step)}", at_line=True)
+        return step
 
     def inputs(self, value: object, n_grids: int) -> tuple[str, ...]:
         if not isinstance(value, list):
@@ -379,6 +412,19 @@ class _Reader:
         self.check("expected", mean, outside, f"a quality within the bins [{low}, {high}]")
 
 
+def _value_mark(text: str, field: str) -> yaml.Mark | None:
+    """Where the value of the top-level `field` starts (composing builds no objects)."""
+    try:
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.YAMLError:  # cannot happen for text that loaded; kept as a safety net
+        return None
+    if isinstance(root, yaml.MappingNode):
+        for key, value in root.value:
+            if isinstance(key, yaml.ScalarNode) and key.value == field:
+                return cast(yaml.Mark, value.start_mark)
+    return None
+
+
 def _count(n: int, noun: str) -> str:
     return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
 
@@ -421,6 +467,9 @@ def profile_to_dict(profile: ConditionalPerformanceProfile) -> dict[str, Any]:
         data["module"] = profile.module
     data["kind"] = profile.kind
     data["time_unit"] = profile.time_unit
+    if profile.step is not None:
+        step = float(profile.step)
+        data["step"] = int(step) if step.is_integer() and abs(step) < 2**53 else step
     if len(profile.inputs) == profile.n_inputs:  # unnamed input axes are left unnamed
         data["inputs"] = list(profile.inputs)
     data["input_quality"] = [_plain(grid) for grid in profile.input_grids]

@@ -15,6 +15,7 @@ counts as exactly 0, and a module that always reaches 1.0 as exactly 1.0.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from typing import Any, Literal, NoReturn
 
@@ -50,6 +51,15 @@ def _optional_array(value: ArrayLike | None) -> Array | None:
     return None if value is None else _frozen_array(value)
 
 
+def _optional_number(value: Any) -> Any:
+    """A real number as a Python float; anything else as given, for `_validate` to refuse."""
+    if isinstance(value, int | float | np.integer | np.floating) and not isinstance(
+        value, bool | np.bool_
+    ):
+        return float(value)
+    return value
+
+
 def _array_field(**kwargs: Any) -> Any:
     return field(converter=_frozen_array, eq=cmp_using(eq=np.array_equal), hash=False, **kwargs)
 
@@ -79,6 +89,12 @@ class ConditionalPerformanceProfile:
         mean: optional exact expected quality per cell, shape probability.shape[:-1].
         samples: optional number of trials behind each cell (a measured profile).
         std: optional standard deviation of the measured quality per cell.
+        step: the module's step, in `time_unit`, or None (unknown): the most time it used past
+            any moment before it next registered a result or returned (an interruptible
+            module: the largest gap between its results, counting from its start and to its
+            end), or past its allocation (a contract module). The profile builder measures it
+            as the maximum over all its trials; it bounds how far a run overshoots the time it
+            is given. A compiled program's profile has none.
     """
 
     input_grids: tuple[Array, ...] = field(
@@ -100,6 +116,7 @@ class ConditionalPerformanceProfile:
     module: str = ""
     kind: Kind = "interruptible"
     time_unit: TimeUnit = "ticks"
+    step: float | None = field(default=None, converter=_optional_number)
 
     def __attrs_post_init__(self) -> None:
         _validate(self)
@@ -335,6 +352,10 @@ def _validate(p: ConditionalPerformanceProfile) -> None:
         fail("kind", f"expected 'interruptible' or 'contract', got {p.kind!r}")
     if p.time_unit not in ("ticks", "seconds"):
         fail("time_unit", f"expected 'ticks' or 'seconds', got {p.time_unit!r}")
+    step = p.step
+    if step is not None and not (isinstance(step, float) and math.isfinite(step) and step >= 0):
+        got = f"{step:g}" if isinstance(step, float) else repr(step)
+        fail("step", f"expected a finite number >= 0 (or None: unknown), got {got}")
 
 
 def _check_grid(

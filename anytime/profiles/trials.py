@@ -125,6 +125,7 @@ class Done:
     failures: int
     overruns: int
     first_failure: tuple[int, str] | None  # (flat trial index, description)
+    step: float = 0.0  # the largest step of the chunk's runs (see `_interruptible`, `_contract`)
 
 
 def measure_chunk(chunk: Chunk) -> Done:
@@ -132,6 +133,7 @@ def measure_chunk(chunk: Chunk) -> Done:
     grid = chunk.grid
     quality = np.zeros((chunk.stop - chunk.start, len(grid.time)))
     failures = overruns = 0
+    step = 0.0
     first: tuple[int, str] | None = None
     measure = _interruptible if chunk.module.kind == "interruptible" else _contract
     for row, flat in enumerate(range(chunk.start, chunk.stop)):
@@ -146,13 +148,14 @@ def measure_chunk(chunk: Chunk) -> Done:
             CLOCKS[chunk.clock][0],
             f"trial {instance} at input qualities {list(qualities)}",
         )
-        failed, overran = measure(trial, grid.time, quality[row])
+        failed, overran, longest = measure(trial, grid.time, quality[row])
         overruns += overran
+        step = max(step, longest)
         failures += len(failed)
         if failed and first is None:
             headline, details = failed[0]
             first = (flat, f"{headline} ({trial.where})\n{details}".rstrip())
-    return Done(chunk.start, quality, failures, overruns, first)
+    return Done(chunk.start, quality, failures, overruns, first, step)
 
 
 @frozen(eq=False)
@@ -237,12 +240,27 @@ def _arguments(
 Failures = list[tuple[str, str]]  # (headline, traceback) of each failed run
 
 
-def _interruptible(trial: Trial, time: Array, out: Array) -> tuple[Failures, int]:
-    """One run up to the last grid time; `out[j]` becomes the score of the answer at `time[j]`."""
+def _interruptible(trial: Trial, time: Array, out: Array) -> tuple[Failures, int, float]:
+    """One run up to the last grid time; `out[j]` becomes the score of the answer at `time[j]`.
+
+    Also returns the run's step: the largest gap between the moments it gave control back (its
+    start, every yield, the end of the run), so the gap to a yield past the last grid time (the
+    one that ends the run) counts, and so does the time from its last yield to its return or
+    failure. Except for a run that ends by itself right after the report of work that spent its
+    allocation (its last `ctx.tick` began before the allocation and ended at or past it): such
+    a module watches its time between reports of work, and would have stopped after any of
+    them at an earlier deadline, so its stretch after its last yield counts as the longest
+    interval between its reports of work there, not as one gap. The clean-up after the run is
+    closed counts as part of its last stretch.
+    """
     instance, args = trial.problem()
-    ctx = Context(allocation=float(time[-1]), clock=trial.clock())
+    allocation = float(time[-1])
+    clock = _Watch(trial.clock())
+    ctx = Context(allocation=allocation, clock=clock)
     answers: list[tuple[int, Any]] = []  # (first grid index it answers for, value)
     failed: Failures = []
+    last = step = 0.0  # the last moment it gave control back, and the largest gap so far
+    cut = False  # the run was ended here, at a yield past the last grid time
     generator = trial.module(ctx, *args)
     try:
         while True:
@@ -254,7 +272,10 @@ def _interruptible(trial: Trial, time: Array, out: Array) -> tuple[Failures, int
                 failed.append(_failure(exc))
                 break
             at = ctx.elapsed
+            step, last = max(step, at - last), at
+            clock.mark()
             if at > time[-1]:
+                cut = True
                 break
             if not isinstance(item, Result):
                 failed.append((f"yielded a {type(item).__name__}, not a Result", ""))
@@ -269,19 +290,60 @@ def _interruptible(trial: Trial, time: Array, out: Array) -> tuple[Failures, int
             generator.close()
         except Exception as exc:
             failed.append(_failure(exc))
+        end = ctx.elapsed
+        stretch = end - last
+        if not cut and clock.spent_by_last_report(ctx.start + allocation):
+            stretch = max(clock.longest, clock.now() - clock.previous)
+        step = max(step, stretch)
     # Scored after the run, so that the scorer's time is never charged to the module. No answer
     # at all (the first came after the last grid time, as a slow wall clock can make it) leaves
     # the row at quality 0.
     ends = [first for first, _ in answers[1:]] + [len(time)] if answers else []
     for (first, value), end in zip(answers, ends, strict=True):
         out[first:end] = trial.score(instance, value)
-    return failed, 0
+    return failed, 0, step
 
 
-def _contract(trial: Trial, time: Array, out: Array) -> tuple[Failures, int]:
-    """One run per grid time on the same instance, with that time as its allocation."""
+class _Watch:
+    """A clock that notes, since its last `mark()`, the longest interval between the module's
+    reports of work (from the mark to the first, between them), and when the last one began."""
+
+    def __init__(self, clock: Clock) -> None:
+        self.clock = clock
+        self.unit = clock.unit
+        self.longest = 0.0
+        self.previous = self.began = clock.now()  # the last report's end, and its start
+        self.reports = 0
+
+    def now(self) -> float:
+        return self.clock.now()
+
+    def advance(self, n: float) -> None:
+        began = self.clock.now()
+        self.clock.advance(n)
+        now = self.clock.now()
+        self.longest = max(self.longest, now - self.previous)
+        self.began, self.previous = began, now
+        self.reports += 1
+
+    def mark(self) -> None:
+        self.longest, self.previous, self.reports = 0.0, self.clock.now(), 0
+
+    def spent_by_last_report(self, deadline: float) -> bool:
+        """Whether the last report since the mark began before `deadline` and reached it."""
+        slack = 1e-9 * max(1.0, abs(deadline))  # as `Context.remaining` rounds
+        return self.reports > 0 and self.began < deadline - slack <= self.previous
+
+
+def _contract(trial: Trial, time: Array, out: Array) -> tuple[Failures, int, float]:
+    """One run per grid time on the same instance, with that time as its allocation.
+
+    Also returns the step: the most any of the runs used past its allocation (0 if none did),
+    whether it returned a result, none, or raised.
+    """
     failed: Failures = []
     overruns = 0
+    step = 0.0
     for j, allocation in enumerate(time):
         instance, args = trial.problem()  # made afresh: a module may change its arguments
         ctx = Context(allocation=float(allocation), clock=trial.clock())
@@ -289,8 +351,10 @@ def _contract(trial: Trial, time: Array, out: Array) -> tuple[Failures, int]:
             result = trial.module(ctx, *args)
         except Exception as exc:
             failed.append(_failure(exc))
+            step = max(step, float(ctx.elapsed - allocation))
             continue
         used = ctx.elapsed
+        step = max(step, float(used - allocation))
         if result is None:  # no result: the row keeps quality 0
             overruns += used > allocation
             continue
@@ -300,4 +364,4 @@ def _contract(trial: Trial, time: Array, out: Array) -> tuple[Failures, int]:
         if used > allocation:  # counted as a plain int (a numpy bool would make it int64)
             overruns += 1
         out[j] = trial.score(instance, result.value)
-    return failed, overruns
+    return failed, overruns, step

@@ -256,7 +256,7 @@ WITH_INPUT = (
     "probability: [[[1, 0], [0.5, 0.5]], [[1, 0], [0, 1]]]\n"
 )
 KNOWN = (
-    "format, module, kind, time_unit, inputs, input_quality, time, quality_bins, probability,"
+    "format, module, kind, time_unit, step, inputs, input_quality, time, quality_bins, probability,"
     " expected, mean, std, samples, modules, allocation"
 )
 
