@@ -198,6 +198,12 @@ class ConditionalPerformanceProfile:
         table = self.mean if self.mean is not None else self.probability @ self.values
         return self.interpolate(table, q, t)
 
+    def no_result(self, q: ArrayLike, t: ArrayLike) -> Array:
+        """The probability that the module has no result at input qualities `q` (..., m) and
+        times `t` (...): 0 where the profile does not say (it was measured before the builder
+        recorded it, or is analytic)."""
+        return np.zeros(np.broadcast_shapes(np.shape(t), np.shape(q)[:-1]))
+
     def representatives(self, q: ArrayLike, t: ArrayLike) -> Array:
         """The quality each bin stands for at (q, t), shape (..., K).
 
