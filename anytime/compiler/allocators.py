@@ -216,9 +216,14 @@ class Proportional:
         nodes = evaluator.model.anytime_nodes
         if not nodes:
             return nothing_to_allocate(evaluator, quality, units)
-        star = np.array([least_useful_time(n.profile) for n in nodes])
+        star = np.array([least_useful_time(n.profile) + _step(n) for n in nodes])
         allocation = proportional_split(units, star)
         return allocation, evaluator.expected(quality, allocation * dt)
+
+
+def _step(node: ModuleNode | IfNode) -> float:
+    """The part of a node's share it reserves for its last step (see `ModuleNode.run_time`)."""
+    return node.step if isinstance(node, ModuleNode) else 0.0
 
 
 def dp_obstacle(model: CompileModel) -> str | None:
@@ -344,7 +349,7 @@ class DynamicProgramming:
         infeasible = np.isneginf(q).any(axis=-1)
         q = np.where(np.isneginf(q), 0.0, q)
         if isinstance(node, ModuleNode):
-            t = np.broadcast_to(candidates[:, 0] * dt, (n_cells, n_rows))
+            t = np.broadcast_to(node.run_time(candidates[:, 0] * dt), (n_cells, n_rows))
             step = max(1, CHUNK // max(n_cells, 1))  # bounds the interpolation's memory
             value = (
                 np.concatenate(

@@ -250,7 +250,7 @@ def _outside_input_grids(model: CompileModel, seen: Mapping[int, list[Dist]]) ->
             continue
         names = profile.inputs or tuple(f"input {i + 1}" for i in range(profile.n_inputs))
         for name, grid, dist in zip(names, profile.input_grids, seen[node.index], strict=False):
-            reached = dist.values[dist.probs > 1e-9]
+            reached = dist.values[(dist.probs > 1e-9) & (dist.values >= 0)]  # not no result
             if not len(reached):
                 continue
             low, high = float(reached.min()), float(reached.max())
@@ -363,6 +363,8 @@ def _baselines(model: CompileModel, units: np.ndarray, dt: float) -> dict[str, n
     curve = profile.expected(best_input, profile.time)
     useful_min = profile.time[np.argmax(curve > 0)] if np.any(curve > 0) else profile.time[-1]
     useful_max = profile.time[np.argmax(curve >= curve.max() - 1e-12)]
+    if isinstance(nodes[0], ModuleNode):  # its share holds its step too
+        useful_min, useful_max = useful_min + nodes[0].step, useful_max + nodes[0].step
     result = {"equal": equal}
     for name, useful in (("min", useful_min), ("max", useful_max)):
         first = np.minimum(np.ceil(useful / dt - 1e-9).astype(np.int64), units)

@@ -44,6 +44,12 @@ from anytime.profiles.profile import Array, ConditionalPerformanceProfile
 MAX_SUPPORT = 64
 FOLD_GRID = np.linspace(0.0, 1.0, 41)
 
+#: The value that stands for "no result" in a distribution's support: its own outcome, never a
+#: quality. It counts 0 in an expectation; a call one of whose inputs has it is not made (it
+#: has no result either) unless its module accepts a missing input; a best-of's maximum skips
+#: it (an alternative without a result is not a candidate).
+NO_RESULT = -1.0
+
 
 @frozen
 class Dist:
@@ -53,8 +59,14 @@ class Dist:
     probs: Array  # (B, K)
 
     def expected(self) -> Array:
-        expected: Array = np.einsum("bk,bk->b", self.values, self.probs)
+        """The expected quality, no result counting 0."""
+        expected: Array = np.einsum("bk,bk->b", np.maximum(self.values, 0.0), self.probs)
         return expected
+
+    def missing(self) -> Array:
+        """The probability of no result."""
+        missing: Array = np.einsum("bk,bk->b", self.values == NO_RESULT, self.probs)
+        return missing
 
     @classmethod
     def point(cls, quality: ArrayLike) -> Dist:
@@ -63,15 +75,20 @@ class Dist:
 
 
 def fold(dist: Dist, grid: Array = FOLD_GRID) -> Dist:
-    """The distribution on `grid`, each value's mass split between its neighbours (mean kept)."""
+    """The distribution on `grid`, each value's mass split between its neighbours (mean kept),
+    and the mass of no result kept as its own outcome."""
+    present = dist.values != NO_RESULT
     v = np.clip(dist.values, grid[0], grid[-1])
     i = np.clip(np.searchsorted(grid, v, side="right") - 1, 0, len(grid) - 2)
     upper = (v - grid[i]) / (grid[i + 1] - grid[i])
-    out = np.zeros((len(v), len(grid)))
+    out = np.zeros((len(v), len(grid) + 1))
     rows = np.broadcast_to(np.arange(len(v))[:, None], v.shape)
-    np.add.at(out, (rows, i), dist.probs * (1 - upper))
-    np.add.at(out, (rows, i + 1), dist.probs * upper)
-    return Dist(np.broadcast_to(grid, out.shape).copy(), out)
+    probs = np.where(present, dist.probs, 0.0)
+    np.add.at(out, (rows, i), probs * (1 - upper))
+    np.add.at(out, (rows, i + 1), probs * upper)
+    out[:, -1] = dist.missing()
+    values = np.broadcast_to(np.append(grid, NO_RESULT), out.shape).copy()
+    return Dist(values, out)
 
 
 class Evaluator:
@@ -140,23 +157,79 @@ class Evaluator:
         if isinstance(node, TestNode):  # its quality flows nowhere
             return Dist.point(np.ones(batch))
         q, p = _combinations(inputs, batch)  # (B, C1..Cm, m), (B, C1..Cm)
+        if isinstance(node, ChoiceNode):  # the best alternative that has a result
+            out = Dist(np.max(q, axis=-1).reshape(batch, -1), p.reshape(batch, -1))
+            return fold(out) if out.values.shape[1] > MAX_SUPPORT else out
+        missing = np.any(q == NO_RESULT, axis=-1)  # some input has no result
+        q = np.maximum(q, 0.0)  # what a module that accepts a missing input is looked up at
         match node:
-            case ElementaryNode(combine=combine):
+            case ElementaryNode(combine=combine, entry=entry):
                 values = combine(np.moveaxis(q, -1, 0)) if inputs else np.ones(p.shape)
+                module = entry.module if entry is not None else None
+                if module is None or not module.accepts_missing:
+                    values = np.where(missing, NO_RESULT, values)
                 out = Dist(values.reshape(batch, -1), p.reshape(batch, -1))
-            case ChoiceNode():
-                values = np.max(q, axis=-1)
-                out = Dist(values.reshape(batch, -1), p.reshape(batch, -1))
-            case ModuleNode(profile=profile, time_index=time_index):
+            case ModuleNode():
                 t = np.broadcast_to(
-                    alloc[:, time_index].reshape((batch,) + (1,) * (p.ndim - 1)), p.shape
+                    alloc[:, node.time_index].reshape((batch,) + (1,) * (p.ndim - 1)), p.shape
                 )
-                if node.deterministic:
-                    values = profile.expected(q, t)
-                    out = Dist(values.reshape(batch, -1), p.reshape(batch, -1))
-                else:
-                    out = _binned(profile, q, t, p, batch)
+                # The call is not made (no result) where an input lacks one, or where its share
+                # is less than its step: it could not answer within it.
+                present = p if node.accepts_missing else np.where(missing, 0.0, p)
+                present = np.where(node.starts(t), present, 0.0)
+                run = node.run_time(t)
+                out = _from_profile(node.profile, node.deterministic, q, run, present, batch)
+                gone = (p - present).reshape(batch, -1).sum(axis=1)
+                if np.any(gone > 0):
+                    out = Dist(
+                        np.column_stack([out.values, np.full(batch, NO_RESULT)]),
+                        np.column_stack([out.probs, gone]),
+                    )
         return fold(out) if out.values.shape[1] > MAX_SUPPORT else out
+
+
+def _from_profile(
+    profile: ConditionalPerformanceProfile,
+    deterministic: bool,
+    q: Array,
+    t: Array,
+    p: Array,
+    batch: int,
+) -> Dist:
+    """A profile's output for every input combination (qualities `q`, run time `t`, their
+    probabilities `p`), no result its own outcome where the profile records it."""
+    if deterministic:
+        values = profile.expected(q, t)
+        out = Dist(values.reshape(batch, -1), p.reshape(batch, -1))
+    else:
+        out = _binned(profile, q, t, p, batch)
+    none = profile.no_result(q, t)
+    if not np.any(none > 0):
+        return out
+    # The no-result mass is part of the lowest quality's: move it to its own outcome there.
+    w = p.reshape(batch, -1)
+    share = np.einsum("bc,bc->b", w, none.reshape(batch, -1))
+    return _split_lowest(out, share)
+
+
+def _split_lowest(out: Dist, share: Array) -> Dist:
+    """`out` with mass `share` (B,) of its lowest support value moved to no result (that
+    value's mass holds it: a no-result trial scores the lowest quality, 0); the remaining
+    mass there keeps the mean."""
+    values, probs = out.values.copy(), out.probs.copy()
+    low = np.argmin(np.where(probs > 0, values, np.inf), axis=1)
+    rows = np.arange(len(values))
+    mass = probs[rows, low]
+    moved = np.minimum(share, mass)
+    left = mass - moved
+    values[rows, low] = np.divide(
+        values[rows, low] * mass, left, out=np.zeros_like(mass), where=left > 1e-15
+    )
+    probs[rows, low] = left
+    return Dist(
+        np.column_stack([values, np.full(len(values), NO_RESULT)]),
+        np.column_stack([probs, moved]),
+    )
 
 
 def _binned(
@@ -188,13 +261,10 @@ def _mixture(node: IfNode, inputs: list[Dist], alloc: Array, batch: int) -> Dist
         t = np.broadcast_to(
             alloc[:, node.time_index].reshape((batch,) + (1,) * (p.ndim - 1)), p.shape
         )
-        if plan.deterministic:
-            values.append(profile.expected(q, t).reshape(batch, -1))
-            probs.append(plan.probability * p.reshape(batch, -1))
-        else:
-            branch = _binned(profile, q, t, p, batch)
-            values.append(branch.values)
-            probs.append(plan.probability * branch.probs)
+        q = np.maximum(q, 0.0)  # a branch's own program decides what a missing input means
+        branch = _from_profile(profile, plan.deterministic, q, t, p, batch)
+        values.append(branch.values)
+        probs.append(plan.probability * branch.probs)
     out = Dist(np.concatenate(values, axis=1), np.concatenate(probs, axis=1))
     return fold(out) if out.values.shape[1] > MAX_SUPPORT else out
 

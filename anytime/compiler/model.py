@@ -19,6 +19,7 @@ from typing import Any, Literal
 import attrs
 import numpy as np
 from attrs import frozen
+from numpy.typing import ArrayLike
 
 from anytime.dsl.graph import DataflowGraph, InputRef, NodeRef, Source
 from anytime.dsl.normalize import count
@@ -28,6 +29,7 @@ from anytime.dsl.source import Source as SourceText
 from anytime.errors import AnytimeError, Diagnostic, SchemaError
 from anytime.library import AnytimeLibrary, LibraryEntry
 from anytime.profiles.profile import (
+    Array,
     ConditionalPerformanceProfile,
     default_bins,
     new_profile,
@@ -91,6 +93,10 @@ class ModuleNode:
         entry: the library entry (None for a schema call).
         callee: for a schema call, the callee compiled (a `CompiledProgram`).
         within: the alternative it is inside, if any.
+        step: the module's step, reserved out of its share (see `run_time`): declared, or
+            measured by the profile builder (0 when unknown, and for a called schema, whose
+            own modules reserve theirs).
+        accepts_missing: the module is called even when an input has no result.
     """
 
     index: int
@@ -102,6 +108,30 @@ class ModuleNode:
     entry: LibraryEntry | None = None
     callee: Any = None
     within: Within | None = None
+    step: float = 0.0
+    accepts_missing: bool = False
+
+    def run_time(self, share: ArrayLike) -> Array:
+        """The time the module runs with, given its share of the total: the share less its
+        step (the most it may use past its deadline before it answers), so that it answers
+        within its share; a result it registers after that time does not count, as in the
+        profile, which says what it has by then. For a measured profile, that time is rounded
+        down to the profile's time grid (up to its last time): between the times it was
+        measured at, nothing is known of what a module has, and a module whose results come
+        in steps is not what a straight line between them says."""
+        run = np.maximum(np.asarray(share, dtype=np.float64) - self.step, 0.0)
+        grid = self.profile.time
+        if self.profile.samples is None or len(grid) < 2:
+            return run
+        slack = 1e-9 * max(1.0, float(grid[-1]))
+        below = grid[np.clip(np.searchsorted(grid, run + slack, side="right") - 1, 0, None)]
+        return np.where(run >= grid[-1], run, np.minimum(below, run))
+
+    def starts(self, share: ArrayLike) -> Array:
+        """Whether the module is started with this share: not when the share is less than its
+        step (it could not be sure to answer within it)."""
+        slack = 1e-9 * max(1.0, self.step)
+        return np.asarray(np.asarray(share, dtype=np.float64) >= self.step - slack)
 
 
 @frozen(eq=False)
@@ -435,9 +465,18 @@ class _Resolver:
                 f"module '{entry.name}' has no performance profile ({entry.origin}): "
                 "the compiler cannot allocate time to it"
             )
-        deterministic = is_deterministic(profile)
+        module = entry.module
         return ModuleNode(
-            index, entry.name, slots, profile, deterministic, self.timed(), entry, within=within
+            index,
+            entry.name,
+            slots,
+            profile,
+            is_deterministic(profile),
+            self.timed(),
+            entry,
+            within=within,
+            step=float(entry.step or 0.0),
+            accepts_missing=module is not None and module.accepts_missing,
         )
 
     def schema_call(self, index: int, call: SchemaCall) -> CompileNode | str:

@@ -234,10 +234,12 @@ def convert_profile(
             f"{profile.module or 'profile'}: time_unit: the profile is already in {to}"
         )
     if to == "seconds":
-        time = [_rescale(t, lambda x: x / rate, lambda x: x * rate) for t in profile.time]
+        forward, backward = (lambda x: x / rate), (lambda x: x * rate)
     else:
-        time = [_rescale(t, lambda x: x * rate, lambda x: x / rate) for t in profile.time]
-    return attrs.evolve(profile, time=np.array(time), time_unit=to)
+        forward, backward = (lambda x: x * rate), (lambda x: x / rate)
+    time = [_rescale(t, forward, backward) for t in profile.time]
+    step = None if profile.step is None else _rescale(profile.step, forward, backward)
+    return attrs.evolve(profile, time=np.array(time), time_unit=to, step=step)
 
 
 def _rescale(

@@ -35,6 +35,7 @@ from attrs import frozen
 from anytime.clocks import Clock, WorkClock
 from anytime.compiler.allocators import reallocate
 from anytime.compiler.compile import CompiledProgram
+from anytime.compiler.evaluate import NO_RESULT
 from anytime.compiler.model import (
     ChoiceNode,
     CompileNode,
@@ -170,7 +171,7 @@ class _Execution:
                 self.results[node.index] = record.result
                 self.judged[node.index] = self.judge(node, record)
             else:
-                self.judged[node.index] = 0.0
+                self.judged[node.index] = NO_RESULT
         output = self.model.graph.output
         if isinstance(output, NodeRef):
             last = self.records.get(output.index)
@@ -212,12 +213,25 @@ class _Execution:
                 return run(module, args, kwargs, clock=self.clock)
             case ModuleNode(callee=None):
                 module, args, kwargs = self.arguments(node)
-                given = self.budget(node)
+                share = self.budget(node)
+                allocation = float(node.run_time(share))
+                if not node.starts(share):
+                    return _no_result(
+                        node.name,
+                        f"not run: its share ({share:g}) is less than its step ({node.step:g}):"
+                        " it could not be sure to answer within it",
+                    )
+                if self.certainly_nothing(node, allocation):
+                    return _no_result(
+                        node.name,
+                        f"not run: with {allocation:g} of its share of {share:g} (its step "
+                        f"{node.step:g} kept back) its profile gives it no result",
+                    )
                 return run(
                     module,
                     args,
                     kwargs,
-                    allocation=given,
+                    allocation=allocation,
                     clock=self.clock,
                     stop=self.stop,
                     hard=self.hard,
@@ -293,6 +307,13 @@ class _Execution:
         )
 
     # --- time --------------------------------------------------------------------------------
+
+    def certainly_nothing(self, node: ModuleNode, allocation: float) -> bool:
+        """Whether the module's profile says it has no result with this allocation, at the
+        qualities its inputs were judged to have: then it is not started (it could only use
+        time, past its share when that is less than its step)."""
+        q = np.asarray(_judged_inputs(node, self.judged, self.qualities)).reshape(1, -1)
+        return bool(node.profile.no_result(q, np.asarray([allocation]))[0] >= 1.0 - 1e-12)
 
     def budget(self, node: ModuleNode | IfNode) -> float:
         """The time a node gets: its planned share (re-planned first in adaptive mode), less
@@ -486,16 +507,23 @@ def decision_quality(
         return result.quality
     if node.entry.module.reports == "true":
         return result.quality
-    inputs = [
-        judged.get(slot.index, 0.0)
+    q = np.asarray(_judged_inputs(node, judged, qualities)).reshape(1, -1)
+    return float(node.profile.expected(q, np.asarray([used]))[0])
+
+
+def _judged_inputs(
+    node: ModuleNode, judged: Mapping[int, float], qualities: Sequence[float]
+) -> list[float]:
+    """The qualities a node's inputs were judged to have, in its profile's axis order (a
+    missing one, for a module that accepts it, at 0)."""
+    return [
+        max(judged.get(slot.index, 0.0), 0.0)
         if slot.kind == "node"
         else qualities[slot.index]
         if slot.kind == "input"
         else slot.value
         for slot in node.slots
     ]
-    q = np.asarray(inputs, dtype=np.float64).reshape(1, -1)
-    return float(node.profile.expected(q, np.asarray([used]))[0])
 
 
 def bind_inputs(

@@ -66,25 +66,31 @@ def test_a_measured_module_that_always_reaches_one_compiles_to_exactly_one(
     library: AnytimeLibrary,
 ) -> None:
     """With the default ten bins it compiled to 0.950 (the last bin's midpoint), and to 0.050
-    at T = 0 where nothing runs."""
+    at T = 0 where nothing runs. Its measured step (10 ticks: a run may go that long without a
+    result) is kept back from its share, so that it answers within it: it runs 10 ticks at
+    T = 20, where it always has its answer, and nothing can be promised below."""
     program = parse_schemas("(defschema p (delay) (exact delay))", "p.any")["p"]
     compiled = compile_program(program, library, TIME)
-    half = library.profile("exact").mean[1]  # the share of the trials with a delay of 5
-    np.testing.assert_array_equal(compiled.expected, [0.0, half, 1.0, 1.0])
+    assert library["exact"].step == 10.0
+    np.testing.assert_array_equal(compiled.expected, [0.0, 0.0, 0.0, 1.0])
+    for total, expected in zip(TIME, compiled.expected, strict=True):
+        for delay in (5, 10):
+            record = run_program(compiled, {"delay": delay}, total, clock=WorkClock())
+            assert (record.quality, record.time_used <= total) == (expected, True)
 
 
 def test_a_chain_fed_no_result_or_a_perfect_result_expects_exactly_what_runs_give(
     library: AnytimeLibrary,
 ) -> None:
-    """No result upstream (T = 0) is exactly 0 downstream; a perfect one (T >= 10) exactly
-    1.0, which is what every run gives."""
+    """No result upstream is exactly 0 downstream; a perfect one exactly 1.0, which is what
+    every run gives."""
     program = parse_schemas("(defschema p (delay) (refine (exact delay)))", "p.any")["p"]
     compiled = compile_program(program, library, [0.0, 10.0, 15.0, 20.0], resolution=5.0)
-    np.testing.assert_array_equal(compiled.expected, [0.0, 1.0, 1.0, 1.0])
-    for total in (10.0, 15.0, 20.0):
-        for delay in (5, 10):
-            record = run_program(compiled, {"delay": delay}, total, clock=WorkClock()).result
-            assert record.quality == 1.0, (total, delay)
+    # `exact` keeps back its step of 10 ticks: with 15 it runs 5, enough for the delay of 5.
+    np.testing.assert_array_equal(compiled.expected, [0.0, 0.0, 0.5, 1.0])
+    for total, delay, quality in [(10.0, 5, 0.0), (15.0, 5, 1.0), (15.0, 10, 0.0), (20.0, 10, 1.0)]:
+        record = run_program(compiled, {"delay": delay}, total, clock=WorkClock())
+        assert (record.quality, record.time_used <= total) == (quality, True), (total, delay)
 
 
 def test_qualities_outside_a_profiles_input_grid_are_a_warning() -> None:

@@ -31,6 +31,8 @@ from anytime.runtime import ProgramRecord, Status, run_program
 SOURCE = Path(__file__).resolve().parent / "estimation_plugin"
 SCHEMAS = ("tank-side", "two-tank-side", "labelled-tank-side")
 TOTALS = range(0, 41, 4)  # the compiled time grid (ticks), on a lattice of 2 ticks
+#: The least error of a compiled expectation itself (see the promise test).
+PROFILE_ERROR = 0.001
 RUNS = 300  # fresh instances per total
 #: The totals the fast test compares adaptive with fixed runs at (the slow one: every total).
 ADAPTIVE_TOTALS = (20, 32)
@@ -287,7 +289,10 @@ def test_each_total_delivers_what_the_compiler_expects(installed: Installed, sch
     """At every total, the realised mean against the compiled expectation, in standard errors
     of the mean (|diff| / (1 / RUNS) where every run scored the same): within 2 at every total
     but at most 2 of them (at 5% each, 2 of the 9 or so totals where quality varies may fall
-    outside 2 by chance alone), and within 3 at all. At T = 0 both are exactly 0."""
+    outside 2 by chance alone), and within 3 at all. The compiled expectation has an error of
+    its own, which the realised standard error does not see: the profiles' sampling error and
+    their interpolation between measured input qualities (measured at up to 0.003 on the
+    two-input profile); it is taken as at least `PROFILE_ERROR`. At T = 0 both are exactly 0."""
     compiled = installed.programs[schema]
     assert compiled.expected[0] == 0.0
     assert _runs(installed, schema, 0).qualities.tolist() == [0.0] * RUNS
@@ -295,7 +300,8 @@ def test_each_total_delivers_what_the_compiler_expects(installed: Installed, sch
     for j in _totals(compiled):
         runs = _runs(installed, schema, j)
         promised = float(compiled.expected[j])
-        z = abs(runs.mean - promised) / (runs.se if runs.se > 0 else 1 / RUNS)
+        se = math.hypot(runs.se if runs.se > 0 else 1 / RUNS, PROFILE_ERROR)
+        z = abs(runs.mean - promised) / se
         report.append(
             (z, f"T={compiled.profile.time[j]:g}: compiled {promised:.4f}, realised"
                 f" {runs.mean:.4f} (se {runs.se:.4f}, {z:.2f} se)")
@@ -305,13 +311,6 @@ def test_each_total_delivers_what_the_compiler_expects(installed: Installed, sch
     assert [line for z, line in report if z > 3] == []
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="the runtime does not reserve a module's step: an interruptible module given an "
-    "allocation that is not a multiple of its step runs one step past it (cube-side and "
-    "joint-side step 3 ticks on the compiler's 2-tick lattice: given 10, they end at 12), so "
-    "the program ends 1 or 2 ticks over its total",
-)
 @pytest.mark.parametrize("schema", SCHEMAS)
 def test_no_run_ends_over_its_total(installed: Installed, schema: str) -> None:
     compiled = installed.programs[schema]

@@ -278,3 +278,13 @@ def test_usage_errors(cli: Cli, argv: list[str], message: str) -> None:
     code, _, err = cli("calibrate", "calibrate-sum", "--no-plugins", *argv)
     assert code == 2
     assert message in err
+
+
+@pytest.mark.parametrize("rate", [4.0, 1e9 / 7])
+def test_a_measured_step_converts_with_the_time_axis(rate: float) -> None:
+    """The step is a time like the grid's: it was left in ticks in a profile in seconds."""
+    stepped = attrs.evolve(PROFILE, step=12.0)
+    seconds = convert_profile(stepped, rate)
+    assert seconds.step == pytest.approx(12.0 / rate, rel=1e-15)
+    assert convert_profile(seconds, rate, to="ticks").step == 12.0
+    assert convert_profile(PROFILE, rate).step is None

@@ -76,7 +76,16 @@ __all__ = [
 PROFILE_SIZE = 128
 
 
-@contract("get-domain-description", inputs=[], profile="profiles/get-domain-description.yaml")
+# The steps are declared: each module watches its time (vision buys what its allocation pays
+# for, the planners search with `limit=ctx.remaining`), so none runs past its deadline, as
+# `anytime check` verifies; the builder's measure (the longest gap between results) would keep
+# back over a thousand ticks of the planner's share.
+@contract(
+    "get-domain-description",
+    inputs=[],
+    profile="profiles/get-domain-description.yaml",
+    step=0,
+)
 def get_domain_description(ctx: Context, sensor: Sensor) -> Result:
     """Anytime vision under a contract: the map bought with `ctx.allocation` ticks inside the
     sensor's window, what the robot already knew outside it. Quality: the fraction of cells of
@@ -97,7 +106,11 @@ def get_domain_description(ctx: Context, sensor: Sensor) -> Result:
 
 
 @interruptible(
-    "find-path", inputs=["domain"], profile="profiles/find-path.yaml", reports="estimate"
+    "find-path",
+    inputs=["domain"],
+    profile="profiles/find-path.yaml",
+    reports="estimate",
+    step=0,
 )
 def find_path(ctx: Context, start: Position, goal: Position, domain: Result) -> Iterator[Result]:
     """The anytime abstract planner on the map `domain` describes: a `MultiPath` after the first
@@ -110,7 +123,7 @@ def find_path(ctx: Context, start: Position, goal: Position, domain: Result) -> 
     yield from atp(ctx, start, goal, Pyramid.build(blocked), movement=description.movement)
 
 
-@contract("a-star", inputs=["domain"], profile="profiles/a-star.yaml")
+@contract("a-star", inputs=["domain"], profile="profiles/a-star.yaml", step=0)
 def a_star(ctx: Context, start: Position, goal: Position, domain: Result, level: int = 2) -> Result:
     """Plain A* at one abstraction level of the map `domain` describes (the level's cells of
     2^level x 2^level base cells), as a contract: the plan if the search finishes within the
