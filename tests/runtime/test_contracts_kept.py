@@ -6,8 +6,11 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
+import attrs
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from anytime.clocks import WorkClock
 from anytime.compiler import compile_program
@@ -76,3 +79,52 @@ def test_an_overshoot_is_taken_from_the_calls_after_it(program: object, total: f
         clock = WorkClock()
         run_program(program, {"x": "data"}, total, clock=clock)
         assert clock.now() <= total
+
+
+@pytest.fixture(scope="module")
+def declared() -> object:
+    """The same program, with the coarse module's step (7 ticks) declared."""
+    registry = Registry()
+    for module in MODULES:
+        registry.add(attrs.evolve(module, step=7.0) if module.name == "coarse-steps" else module)
+    schema = parse_schemas("(defschema p (x) (fine-steps (coarse-steps x)))", "p.any")["p"]
+    library = AnytimeLibrary.default(registry=registry, plugins=False)
+    return compile_program(schema, library, np.arange(0.0, 61.0, 1.0))
+
+
+def test_with_its_step_kept_back_no_run_ends_over_its_total(declared: object) -> None:
+    """Every total from 0 to 60 ticks: the coarse module runs with its share less 7, so it
+    answers within its share, and the program within its total."""
+    for total in np.arange(0.0, 61.0, 1.0):
+        share = declared.allocation_at([], total)[0]
+        record = run_program(declared, {"x": "data"}, total)
+        first = record.records[0]
+        assert record.time_used <= total, (total, record)
+        assert first.time_used <= share + 1e-9
+        if share < 7:  # it is not started: it could not be sure to answer within its share
+            assert (first.status, first.time_used) == (Status.NO_RESULT, 0.0)
+            assert first.error == (
+                f"not run: its share ({share:g}) is less than its step (7): it could not be"
+                " sure to answer within it"
+            )
+        else:
+            assert first.allocation == share - 7
+
+
+@settings(max_examples=200, deadline=None)
+@given(share=st.floats(0, 1e6), step=st.floats(0, 1e6))
+def test_a_module_runs_with_its_share_less_its_step(share: float, step: float) -> None:
+    node = attrs.evolve(_node(), step=step)
+    run = float(node.run_time(share))
+    assert 0.0 <= run <= share
+    assert bool(node.starts(share)) == (share >= step - 1e-9 * max(1.0, step))
+    if node.starts(share):
+        assert run + step <= share * (1 + 1e-12) + 1e-9
+
+
+def _node() -> object:
+    schema = parse_schemas("(defschema p (x) (coarse-steps x))", "p.any")["p"]
+    compiled = compile_program(
+        schema, AnytimeLibrary.default(registry=MODULES, plugins=False), TIME
+    )
+    return compiled.model.anytime_nodes[0]
