@@ -11,7 +11,13 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from anytime.clocks import WallClock, WorkClock
-    from anytime.compiler import CompiledProgram, compile_file, compile_program
+    from anytime.compiler import (
+        CompiledProgram,
+        compile_file,
+        compile_program,
+        load_compiled,
+        save_compiled,
+    )
     from anytime.dsl import (
         DataflowGraph,
         Program,
@@ -101,12 +107,14 @@ __all__ = [
     "elementary",
     "format_program",
     "interruptible",
+    "load_compiled",
     "load_profile",
     "load_schemas",
     "parse_schemas",
     "program_module",
     "run",
     "run_program",
+    "save_compiled",
     "save_profile",
 ]
 
@@ -118,6 +126,8 @@ _WHERE = {
     "CompiledProgram": "anytime.compiler",
     "compile_file": "anytime.compiler",
     "compile_program": "anytime.compiler",
+    "load_compiled": "anytime.compiler",
+    "save_compiled": "anytime.compiler",
     "DataflowGraph": "anytime.dsl",
     "Program": "anytime.dsl",
     "SchemaFile": "anytime.dsl",

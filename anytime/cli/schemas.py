@@ -25,6 +25,7 @@ from anytime.compiler import (
     compile_file,
     compiled_to_dict,
     format_report,
+    save_compiled,
 )
 from anytime.compiler.compile import ALLOCATOR_NAMES, DEFAULT_INPUT_QUALITY, default_time_grid
 from anytime.dsl import SchemaFile, format_programs, graph_to_dot, load_schemas, program_to_json
@@ -148,7 +149,7 @@ def run_compile(args: argparse.Namespace) -> int:
                 )
     if args.output is not None:
         try:
-            wanted[0].save(args.output)
+            save_compiled(wanted[0], args.output)
         except OSError as error:
             raise InputError(f"cannot write '{args.output}': {error.strerror}") from None
     if args.json:

@@ -12,6 +12,7 @@ from anytime.compiler.compile import CompiledProgram, compile_file, compile_prog
 from anytime.compiler.evaluate import Dist, Evaluator
 from anytime.compiler.model import CompileError, CompileModel, build_model
 from anytime.compiler.report import compiled_to_dict, format_report
+from anytime.compiler.storage import load_compiled, save_compiled
 
 __all__ = [
     "ALLOCATORS",
@@ -30,4 +31,6 @@ __all__ = [
     "compiled_to_dict",
     "dp_obstacle",
     "format_report",
+    "load_compiled",
+    "save_compiled",
 ]

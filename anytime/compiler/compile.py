@@ -13,7 +13,6 @@ optimum.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -31,7 +30,6 @@ from anytime.compiler.model import CompileError, CompileModel, IfNode, ModuleNod
 from anytime.dsl.program import Call, Program, SchemaCall, SchemaFile
 from anytime.dsl.source import Source
 from anytime.library import AnytimeLibrary
-from anytime.profiles.io import save_profile
 from anytime.profiles.profile import (
     Array,
     ConditionalPerformanceProfile,
@@ -120,12 +118,6 @@ class CompiledProgram:
     def expected(self) -> Array:
         assert self.profile.mean is not None
         return self.profile.mean
-
-    def save(self, path: str | os.PathLike[str]) -> None:
-        """Write the compiled profile with its allocation table (OSError if it cannot)."""
-        save_profile(
-            self.profile, path, extra={"modules": self.modules, "allocation": self.allocation}
-        )
 
     def allocation_at(self, quality: Sequence[float], total: float) -> Array:
         """The allocation for program input qualities `quality` and total time `total`: the

@@ -68,7 +68,8 @@ from anytime.text import did_you_mean
 FORMAT = "anytime-profile/1"
 
 #: Every field a file may have, in the order they are written. A compiled program's file adds
-#: `modules` and `allocation` (its time-allocation table); reading it as a profile skips them.
+#: `modules`, `allocation` (its time-allocation table) and `compiled` (the rest of the compile
+#: result, see `anytime.compiler.storage`); reading it as a profile skips them.
 FIELDS = (
     "format",
     "module",
@@ -86,6 +87,7 @@ FIELDS = (
     "samples",
     "modules",
     "allocation",
+    "compiled",
 )
 
 KINDS = ("interruptible", "contract")
@@ -496,14 +498,17 @@ def save_profile(
     """Write `profile` to `path` in the `anytime-profile/1` format, atomically (a temporary
     file renamed over `path`; OSError if it cannot).
 
-    `extra` adds fields a reader of profiles skips (a compiled program's `modules` and
-    `allocation`); arrays in it are written like the profile's tables.
+    `extra` adds fields a reader of profiles skips (a compiled program's `modules`,
+    `allocation` and `compiled`); arrays in it are written like the profile's tables.
     """
     data = profile_to_dict(profile)
     for key, value in (extra or {}).items():
-        if key not in ("modules", "allocation"):
+        if key not in ("modules", "allocation", "compiled"):
             raise ValueError(f"not a field a profile file may carry: {key!r}")
-        data[key] = _plain(np.asarray(value)) if key == "allocation" else list(value)
+        if key == "allocation":
+            data[key] = _plain(np.asarray(value))
+        else:
+            data[key] = dict(value) if key == "compiled" else list(value)
     text = yaml.dump(
         data,
         Dumper=_Dumper,

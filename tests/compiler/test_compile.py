@@ -33,6 +33,7 @@ from anytime.compiler import (
     Evaluator,
     compile_file,
     compile_program,
+    save_compiled,
 )
 from anytime.compiler.model import ModuleNode
 from anytime.dsl import parse_schemas
@@ -389,7 +390,7 @@ def test_save_writes_a_profile_file_with_the_allocation(make: Any, tmp_path: Pat
     text, lib = make()
     compiled = compile_program(program(text), lib, TIME, QUALITY)
     path = tmp_path / "p.yaml"
-    compiled.save(path)
+    save_compiled(compiled, path)
     assert load_profile(path) == compiled.profile
     data = yaml.safe_load(path.read_text(encoding="utf-8"))
     assert data["modules"] == list(compiled.modules)

@@ -1,0 +1,243 @@
+"""Saving a compiled program and loading it back, with its table, without compiling again.
+
+The file is a profile file (`anytime-profile/1`): the compiled profile, with `modules` and
+`allocation` (its time-allocation table), so that anything that reads profiles reads it. It
+adds one mapping, `compiled`, that a reader of profiles skips: the program's schema text (and
+that of every schema it calls), the fields of the compile result, a fingerprint of each
+module's profile it was compiled against, and, nested the same way, the compiled schemas it
+calls and the compiled branches of its ifs.
+
+Loading resolves the program against the library again (the modules' code comes from there)
+and takes every table from the file; a module whose profile has changed since is an error,
+since the table was optimal for the old one.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+import yaml
+
+from anytime.compiler.compile import CompiledProgram
+from anytime.compiler.model import CompileError, ModuleNode, build_model
+from anytime.dsl import format_program, parse_schemas
+from anytime.dsl.program import Program, SchemaFile
+from anytime.errors import AnytimeError
+from anytime.files import MAX_PROFILE_BYTES, read_input
+from anytime.library import AnytimeLibrary
+from anytime.profiles.io import load_profile, profile_from_dict, profile_to_dict, save_profile
+from anytime.profiles.profile import ConditionalPerformanceProfile
+
+#: The compile result's fields that are plain data, as the file carries them.
+_FIELDS = (
+    "allocator",
+    "requested",
+    "dp_obstacle",
+    "approximations",
+    "kept_smaller",
+    "warnings",
+    "resolution",
+    "exhaustive_gap",
+)
+
+
+def save_compiled(compiled: CompiledProgram, path: str | os.PathLike[str]) -> None:
+    """Write `compiled` to `path`, atomically (OSError if it cannot)."""
+    document = _document(compiled)
+    document["schema"] = _schema_text(compiled)
+    save_profile(
+        compiled.profile,
+        path,
+        extra={
+            "modules": compiled.modules,
+            "allocation": compiled.allocation,
+            "compiled": document,
+        },
+    )
+
+
+def load_compiled(path: str | os.PathLike[str], library: AnytimeLibrary) -> CompiledProgram:
+    """Read a compiled program written by `save_compiled`, its modules from `library`.
+
+    Raises:
+        ProfileError: the file is not a readable profile file.
+        CompileError: it has no compiled program, or one that does not fit the library (a
+            module missing or changed since), or its tables do not fit its program.
+    """
+    filename = os.fspath(path)
+    profile = load_profile(path)
+    data = yaml.safe_load(read_input(path, limit=MAX_PROFILE_BYTES, kind="profile files"))
+    document = data.get("compiled")
+    if not isinstance(document, Mapping) or not isinstance(document.get("schema"), str):
+        raise CompileError(
+            "compiled: missing (a profile, not a compiled program: expected a file written "
+            "by `anytime compile -o` or save_compiled)",
+            where=filename,
+        )
+    try:
+        schemas = parse_schemas(document["schema"], f"{filename} (compiled.schema)")
+    except AnytimeError as error:
+        raise CompileError(f"compiled.schema: {error}", where=filename) from None
+    top = document.get("name")
+    if not isinstance(top, str) or top not in schemas:
+        raise CompileError(
+            f"compiled.name: expected one of {list(schemas.names)}, got {top!r}", where=filename
+        )
+    loader = _Loader(filename, library, schemas)
+    tables = {"allocation": data.get("allocation"), "modules": data.get("modules")}
+    return loader.program(schemas[top], profile, {**document, **tables}, "compiled")
+
+
+def _document(compiled: CompiledProgram) -> dict[str, Any]:
+    """The compile result's fields, nested callees and branches, for the file."""
+    document: dict[str, Any] = {"name": compiled.name}
+    for field in _FIELDS:
+        value = getattr(compiled, field)
+        document[field] = list(value) if isinstance(value, tuple) else value
+    document["baselines"] = {k: _plain(v) for k, v in compiled.baselines.items()}
+    document["profiles"] = {
+        node.name: fingerprint(node.profile)
+        for node in compiled.model.anytime_nodes
+        if isinstance(node, ModuleNode) and node.callee is None
+    }
+    nested = {}
+    for node in compiled.model.anytime_nodes:
+        if isinstance(node, ModuleNode) and node.callee is not None:
+            nested[node.name] = _nested(node.callee)
+    if nested:
+        document["callees"] = nested
+    branches = {
+        plan.compiled.name: _nested(plan.compiled)
+        for node in compiled.model.anytime_nodes
+        if not isinstance(node, ModuleNode)
+        for plan in node.branches
+    }
+    if branches:
+        document["branches"] = branches
+    return document
+
+
+def _nested(compiled: CompiledProgram) -> dict[str, Any]:
+    return {
+        "profile": profile_to_dict(compiled.profile),
+        "modules": list(compiled.modules),
+        "allocation": _plain(compiled.allocation),
+        **_document(compiled),
+    }
+
+
+def _schema_text(compiled: CompiledProgram) -> str:
+    """The program and every schema it calls (callees first), as DSL text that parses back to
+    the same programs."""
+    programs: dict[str, Program] = {}
+
+    def visit(program: CompiledProgram) -> None:
+        for node in program.model.anytime_nodes:
+            if isinstance(node, ModuleNode) and node.callee is not None:
+                visit(node.callee)
+        programs.setdefault(program.name, program.model.program)
+
+    visit(compiled)
+    return "\n\n".join(format_program(p) for p in programs.values()) + "\n"
+
+
+def fingerprint(profile: ConditionalPerformanceProfile) -> str:
+    """A short digest of a profile's contents, to tell a changed profile."""
+    text = yaml.safe_dump(profile_to_dict(profile), sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def _plain(array: Any) -> Any:
+    return np.asarray(array, dtype=np.float64).tolist()
+
+
+class _Loader:
+    """Rebuilds a compiled program and, through it, the ones it calls and its branches."""
+
+    def __init__(self, filename: str, library: AnytimeLibrary, schemas: SchemaFile) -> None:
+        self.filename, self.library, self.schemas = filename, library, schemas
+
+    def fail(self, field: str, problem: str) -> CompileError:
+        return CompileError(f"{field}: {problem}", where=self.filename)
+
+    def program(
+        self,
+        program: Program,
+        profile: ConditionalPerformanceProfile,
+        document: Mapping[str, Any],
+        field: str,
+    ) -> CompiledProgram:
+        callees_doc = _mapping(document.get("callees", {}))
+        callees = {
+            name: self.nested(self.schemas[name], callees_doc.get(name), f"{field}.callees.{name}")
+            for name in program.callees()
+        }
+        branches_doc = _mapping(document.get("branches", {}))
+
+        def branch(sub: Program) -> CompiledProgram:
+            return self.nested(sub, branches_doc.get(sub.name), f"{field}.branches.{sub.name}")
+
+        model = build_model(program, self.library, self.schemas.source, branch, callees)
+        if list(document.get("modules") or []) != list(model.module_names):
+            raise self.fail(
+                f"{field}.modules",
+                f"expected {list(model.module_names)} (the program's), got "
+                f"{document.get('modules')!r}",
+            )
+        cells = profile.probability.shape[:-1]
+        allocation = np.asarray(document.get("allocation"), dtype=np.float64)
+        if allocation.shape != (*cells, len(model.module_names)):
+            raise self.fail(
+                f"{field}.allocation",
+                f"expected shape {(*cells, len(model.module_names))}, got {allocation.shape}",
+            )
+        printed = _mapping(document.get("profiles", {}))
+        for node in model.anytime_nodes:
+            if isinstance(node, ModuleNode) and node.callee is None:
+                if printed.get(node.name) != fingerprint(node.profile):
+                    raise self.fail(
+                        f"{field}.profiles.{node.name}",
+                        f"module '{node.name}' has a profile other than the one the program "
+                        "was compiled against: compile it again",
+                    )
+        baselines = {
+            str(k): np.asarray(v, dtype=np.float64)
+            for k, v in _mapping(document.get("baselines", {})).items()
+        }
+        values = {name: document.get(name) for name in _FIELDS}
+        return CompiledProgram(
+            name=program.name,
+            model=model,
+            profile=profile,
+            allocation=allocation,
+            allocator=str(values["allocator"]),
+            baselines=baselines,
+            exhaustive_gap=_optional(values["exhaustive_gap"], float),
+            resolution=float(values["resolution"] or 1.0),
+            requested=str(values["requested"] or "auto"),
+            dp_obstacle=_optional(values["dp_obstacle"], str),
+            approximations=tuple(str(a) for a in values["approximations"] or ()),
+            kept_smaller=tuple(float(t) for t in values["kept_smaller"] or ()),
+            warnings=tuple(str(w) for w in values["warnings"] or ()),
+        )
+
+    def nested(self, program: Program, document: Any, field: str) -> CompiledProgram:
+        if not isinstance(document, Mapping):
+            raise self.fail(field, "missing (the file holds no table for it)")
+        try:
+            profile = profile_from_dict(document.get("profile"), f"{self.filename}: {field}")
+        except AnytimeError as error:
+            raise self.fail(f"{field}.profile", str(error)) from None
+        return self.program(program, profile, document, field)
+
+
+def _mapping(value: Any) -> Mapping[str, Any]:
+    return value if isinstance(value, Mapping) else {}
+
+
+def _optional(value: Any, kind: Callable[[Any], Any]) -> Any:
+    return None if value is None else kind(value)
