@@ -157,8 +157,8 @@ class Evaluator:
         if isinstance(node, TestNode):  # its quality flows nowhere
             return Dist.point(np.ones(batch))
         q, p = _combinations(inputs, batch)  # (B, C1..Cm, m), (B, C1..Cm)
-        if isinstance(node, ChoiceNode):  # the best alternative that has a result
-            out = Dist(np.max(q, axis=-1).reshape(batch, -1), p.reshape(batch, -1))
+        if isinstance(node, ChoiceNode):
+            out = _choice(node, inputs, q, p, batch)
             return fold(out) if out.values.shape[1] > MAX_SUPPORT else out
         missing = np.any(q == NO_RESULT, axis=-1)  # some input has no result
         q = np.maximum(q, 0.0)  # what a module that accepts a missing input is looked up at
@@ -186,6 +186,45 @@ class Evaluator:
                         np.column_stack([out.probs, gone]),
                     )
         return fold(out) if out.values.shape[1] > MAX_SUPPORT else out
+
+
+def _choice(node: ChoiceNode, inputs: list[Dist], q: Array, p: Array, batch: int) -> Dist:
+    """A best-of: the best alternative that has a result, as the runtime judges them. An
+    alternative whose quality is known (its module reports it) is judged by it; one whose
+    module does not report it by what its profile predicts, its mean given a result, so the
+    runtime picks it, and gets its whole distribution, where that mean beats the others."""
+    if not any(node.estimated):  # all judged by their quality: the maximum
+        return Dist(np.max(q, axis=-1).reshape(batch, -1), p.reshape(batch, -1))
+    judged, present = [], []
+    for dist, estimated in zip(inputs, node.estimated, strict=True):
+        if not estimated:
+            judged.append(dist)
+            present.append(dist)
+            continue
+        missing = dist.missing()
+        kept = np.where(dist.values == NO_RESULT, 0.0, dist.probs)
+        given = kept / np.where(missing < 1, 1 - missing, 1.0)[:, None]
+        mean = np.einsum("bk,bk->b", np.maximum(dist.values, 0.0), given)
+        # Judged: its predicted mean if it has a result, else it is no candidate.
+        judged.append(
+            Dist(
+                np.column_stack([mean, np.full(batch, NO_RESULT)]),
+                np.column_stack([1 - missing, missing]),
+            )
+        )
+        present.append(Dist(dist.values, given))
+    q, p = _combinations(judged, batch)
+    winner = np.argmax(q, axis=-1)  # the first of equals, as the runtime
+    best = np.take_along_axis(q, winner[..., None], axis=-1)[..., 0]
+    estimated = np.asarray(node.estimated)[winner] & (best != NO_RESULT)
+    values = [np.where(estimated, NO_RESULT, best).reshape(batch, -1)]
+    probs = [np.where(estimated, 0.0, p).reshape(batch, -1)]
+    for i, dist in enumerate(present):
+        if node.estimated[i]:  # where it wins, its own distribution given a result
+            mass = np.where(estimated & (winner == i), p, 0.0).reshape(batch, -1).sum(axis=1)
+            values.append(dist.values)
+            probs.append(mass[:, None] * dist.probs)
+    return Dist(np.concatenate(values, axis=1), np.concatenate(probs, axis=1))
 
 
 def _from_profile(

@@ -165,7 +165,10 @@ class TestNode:
 class ChoiceNode:
     """A best-of: its quality is the best of its alternatives' (`slots`, one per alternative,
     `values` where each comes from); `preconditions` gives each alternative's test node
-    (None: always applicable)."""
+    (None: always applicable). `estimated` marks the alternatives whose result comes from a
+    module that does not report its true quality: the runtime judges those by what their
+    profile predicts, not by their quality, so the best-of cannot pick the best of them run by
+    run, and its quality is not their maximum (see the evaluator)."""
 
     index: int
     slots: tuple[Slot, ...]
@@ -173,6 +176,7 @@ class ChoiceNode:
     preconditions: tuple[int | None, ...]
     within: Within | None = None
     name: str = "best-of"
+    estimated: tuple[bool, ...] = ()
 
 
 @frozen(eq=False)
@@ -234,6 +238,14 @@ class CompileModel:
                 return True
             tag = self.node(tag.choice).within
         return False
+
+
+def _estimated(node: CompileNode | None) -> bool:
+    """Whether the runtime judges a node's result by its profile's prediction (its module does
+    not report its true quality), not by the quality the result says."""
+    if not isinstance(node, ModuleNode) or node.entry is None or node.entry.module is None:
+        return False
+    return node.entry.module.reports != "true"
 
 
 def is_deterministic(profile: ConditionalPerformanceProfile) -> bool:
@@ -334,6 +346,7 @@ class _Resolver:
         self.within: dict[str, Within | None] = {}
         self.in_if: set[str] = set()
         self.tests: set[str] = set()
+        self.built: dict[int, CompileNode] = {}
         self.place(program.steps, None, inside_if=False)
 
     def place(self, steps: Sequence[Step], within: Within | None, inside_if: bool) -> None:
@@ -396,6 +409,7 @@ class _Resolver:
                 self.complain(index, built)
             else:
                 nodes.append(built)
+                self.built[index] = built
         if self.diagnostics:
             raise SchemaError(self.diagnostics)
         profiles = [n for n in nodes if isinstance(n, Timed)]
@@ -506,7 +520,12 @@ class _Resolver:
             for a in choice.alternatives
         )
         slots = tuple(self.slot(s) for s in values)
-        return ChoiceNode(index, slots, values, tests, self.within[choice.target])
+        estimated = tuple(
+            isinstance(s, NodeRef) and _estimated(self.built.get(s.index)) for s in values
+        )
+        return ChoiceNode(
+            index, slots, values, tests, self.within[choice.target], estimated=estimated
+        )
 
     def conditional(self, index: int, step: If) -> CompileNode | str:
         graph = self.graph

@@ -85,3 +85,43 @@ def test_what_a_module_reports_is_checked() -> None:
     with pytest.raises(ModuleError) as raised:
         boaster("maybe", Registry())
     assert str(raised.value).endswith("reports must be one of true, estimate, none, got 'maybe'")
+
+
+def test_a_best_of_of_estimated_alternatives_promises_what_the_runtime_picks() -> None:
+    """Two modules that do not report their true quality: a gamble (1.0 or 0.0, even odds)
+    and a sure 0.6. The runtime judges them by their profiles' means, 0.5 and 0.6, so it
+    always takes the sure one and delivers 0.6; the maximum of the two, 0.8, was promised."""
+    from anytime.modules import contract
+    from anytime.profiles import new_profile
+
+    time = np.arange(0.0, 11.0)
+    bins = np.array([0.0, 0.001, 0.999, 1.0])
+    ready = (time >= 2)[:, None]
+    gamble = np.where(ready, [0.5, 0.0, 0.5], [1.0, 0.0, 0.0])
+    sure = np.where(ready, [0.0, 1.0, 0.0], [1.0, 0.0, 0.0])
+    registry = Registry()
+    for name, probability, mean in (
+        ("gamble", gamble, np.where(time >= 2, 0.5, 0.0)),
+        ("sure", sure, np.where(time >= 2, 0.6, 0.0)),
+    ):
+        profile = new_profile(
+            input_grids=[], time=time, bins=bins, probability=probability, mean=mean,
+            kind="contract",
+        )  # fmt: skip
+
+        def answer(ctx: Context, seed: int, name: str = name) -> Result | None:
+            ctx.tick(ctx.allocation)
+            if ctx.allocation < 2:
+                return None
+            truth = float(np.random.default_rng(seed).integers(2)) if name == "gamble" else 0.6
+            return Result((name, truth), 0.9)  # what it says of itself is not its quality
+
+        answer.__name__ = answer.__qualname__ = name
+        contract(name, inputs=[], profile=profile, registry=registry, reports="estimate")(answer)
+    schema = parse_schemas("(defschema p (s) (best-of (gamble s) (sure s)))", "p.any")["p"]
+    program = compile_program(
+        schema, AnytimeLibrary.default(registry=registry, plugins=False), time
+    )
+    assert program.expected[-1] == pytest.approx(0.6, abs=1e-12)
+    truths = [run_program(program, [seed], 10.0).result.value for seed in range(50)]
+    assert truths == [("sure", 0.6)] * 50
