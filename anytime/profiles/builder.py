@@ -445,7 +445,7 @@ def _tabulate(
     probability = counts / trials
     # Each bin's mean quality (its midpoint where no trial fell in it), kept inside the bin as
     # the profile checks it: the first bin reaches down to 0, the last up to 1.
-    midpoints = (grid.bins[:-1] + grid.bins[1:]) / 2
+    midpoints = np.round((grid.bins[:-1] + grid.bins[1:]) / 2, 12)  # 0.15, not 0.15000000000000002
     bin_mean = np.divide(
         sums, counts, out=np.broadcast_to(midpoints, sums.shape).copy(), where=counts > 0
     )

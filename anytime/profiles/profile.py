@@ -206,16 +206,19 @@ class ConditionalPerformanceProfile:
     def interpolate(self, table: Array, q: ArrayLike, t: ArrayLike) -> Array:
         """Interpolate any `table` of this profile's cell shape (optionally with trailing axes,
         such as a compiled program's allocation table) at points (q, t), as the profile is."""
-        t_arr = np.asarray(t, dtype=np.float64)
-        q_arr = np.asarray(q, dtype=np.float64).reshape((*t_arr.shape, self.n_inputs))
-        batch = t_arr.shape
-        t_flat = t_arr.reshape(-1)
-        q_flat = q_arr.reshape((t_flat.size, self.n_inputs))
+        q_flat, t_flat, batch = self._flat(q, t)
         trailing = table.shape[len(self.cell_shape) :]
         out = np.zeros((t_flat.size, *trailing))
         for index, w in self._corners(q_flat, t_flat):
             out += w.reshape((-1, *([1] * len(trailing)))) * table[index]
         return out.reshape((*batch, *trailing))
+
+    def _flat(self, q: ArrayLike, t: ArrayLike) -> tuple[Array, Array, tuple[int, ...]]:
+        """Points (q, t) as a flat batch: q (N, m), t (N,), and the batch's shape."""
+        t_arr = np.asarray(t, dtype=np.float64)
+        q_arr = np.asarray(q, dtype=np.float64).reshape((*t_arr.shape, self.n_inputs))
+        t_flat = t_arr.reshape(-1)
+        return q_arr.reshape((t_flat.size, self.n_inputs)), t_flat, t_arr.shape
 
     def distribution(self, q: ArrayLike, t: ArrayLike) -> Array:
         """Output-quality distribution at input qualities `q` (..., m) and times `t` (...)."""
@@ -265,7 +268,22 @@ class ConditionalPerformanceProfile:
             return shifted
         moments = self.interpolate(self.probability * self.bin_mean, q, t)
         exact = np.divide(moments, distribution, out=shifted, where=distribution > 0)
-        return np.clip(exact, 0.0, 1.0)
+        # Within the bin means it mixes, so that rounding never moves a mixture of one value
+        # (a grid point; a bin whose mean is the same everywhere) off that value.
+        low, high = self._held_range(self.bin_mean, q, t)
+        return np.clip(np.where(distribution > 0, np.clip(exact, low, high), exact), 0.0, 1.0)
+
+    def _held_range(self, table: Array, q: ArrayLike, t: ArrayLike) -> tuple[Array, Array]:
+        """Per bin at (q, t), the least and greatest of `table` (shaped like `probability`)
+        over the interpolation's corners that give the bin mass (+inf, -inf where none do)."""
+        q_flat, t_flat, batch = self._flat(q, t)
+        low = np.full((t_flat.size, self.n_bins), np.inf)
+        high = np.full((t_flat.size, self.n_bins), -np.inf)
+        for index, w in self._corners(q_flat, t_flat):
+            held = w[:, None] * self.probability[index] > 0
+            low = np.where(held, np.minimum(low, table[index]), low)
+            high = np.where(held, np.maximum(high, table[index]), high)
+        return low.reshape((*batch, self.n_bins)), high.reshape((*batch, self.n_bins))
 
     def _shifted_midpoints(self, distribution: Array, q: ArrayLike, t: ArrayLike) -> Array:
         """The midpoints, moved by one common fraction so that `distribution` has the mean."""
@@ -468,7 +486,9 @@ def _check_no_result(
     bad = ~np.isfinite(table) | (table < 0) | (table > 1)
     if np.any(bad):
         index = _first(bad)
-        fail(_where("no_result", index), f"expected a probability in [0, 1], got {table[index]:g}")
+        fail(
+            _where("no_result", index), f"expected a probability in [0, 1], got {table[index]:.10g}"
+        )
     first = probability[..., 0]
     bad = table > first + SUM_TOLERANCE
     if np.any(bad):
@@ -502,7 +522,7 @@ def _check_bin_mean(
         fail(
             _where("bin_mean", index),
             f"expected a quality within bin {k}, [{lower[k]:g}, {upper[k]:g}], got"
-            f" {table[index]:g}",
+            f" {table[index]:.10g}",
         )
     if mean is None:
         return
