@@ -13,6 +13,7 @@ from typing import Any
 import attrs
 import numpy as np
 import pytest
+from conftest import Cli
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
@@ -223,6 +224,28 @@ def test_a_table_of_zeros_is_kept_as_none_and_not_written(tmp_path: Path) -> Non
     save_profile(some, tmp_path / "m.yaml")
     assert "no_result: [0.25, 0]\n" in (tmp_path / "m.yaml").read_text()
     assert load_profile(tmp_path / "m.yaml") == attrs.evolve(some, module="m")
+
+
+def test_library_show_says_where_a_module_may_have_no_result(
+    cli: Cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "profiles").mkdir()
+    label = new_profile(
+        time=[0, 4, 8], bins=[0, 0.5, 1], probability=[[1, 0], [0.4, 0.6], [0.4, 0.6]],
+        mean=[0, 0.6, 0.6], bin_mean=[[0, 0.75], [0, 1], [0, 1]], no_result_table=[1, 0.4, 0.4],
+        module="read-label",
+    )  # fmt: skip
+    save_profile(label, "profiles/read-label.yaml")
+    save_profile(attrs.evolve(label, no_result_table=None, module="ok"), "profiles/ok.yaml")
+    code, out, err = cli("library", "show", "read-label", "--no-plugins", "--profiles", "profiles")
+    assert (code, err) == (0, "")
+    assert (
+        "  quality bins  0, 0.5, 1 (2 bins)\n  no result     in 3 of 3 cells, probability up to 1\n"
+        in out
+    )
+    code, out, err = cli("library", "show", "ok", "--no-plugins", "--profiles", "profiles")
+    assert (code, err) == (0, "") and "no result" not in out
 
 
 def test_an_old_file_loads_without_either_table() -> None:
