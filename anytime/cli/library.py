@@ -123,6 +123,10 @@ def run_library_show(args: argparse.Namespace) -> int:
     if profile.samples is not None:
         low, high = int(profile.samples.min()), int(profile.samples.max())
         axes.append(["samples per cell", f"{low}" if low == high else f"{low} to {high}"])
+    missing = profile.no_result_table
+    if missing is not None:  # None: a result in every cell, or not known
+        cells = f"{int(np.count_nonzero(missing))} of {missing.size} cells"
+        axes.append(["no result", f"in {cells}, probability up to {missing.max():.3g}"])
     lines = [format_table(fields) + "axes:", *format_table(axes, indent=2).splitlines(), ""]
     lines.extend(_expected_table(profile))
     print("\n".join(lines))

@@ -5,14 +5,16 @@ one problem whose quality-carrying inputs have the qualities `q`, and `score(ins
 is the domain's quality function for an output. The builder runs the module on `trials`
 instances at every point of the input-quality grid and time grid, scores each output, and
 returns the measured profile: the histogram of scored qualities per cell, with its sample mean,
-standard deviation and sample count.
+standard deviation and sample count, the mean quality of the trials in each bin (`bin_mean`)
+and the fraction of trials that had no result (`no_result_table`; they score 0).
 
 How time is measured (see docs/plugins.md): by default with a `WorkClock`, so a profile counts
 the ticks a module reports and does not depend on how busy the machine is.
 
 - An **interruptible** module runs once per instance, up to the largest time on the grid. At
   grid time t it is credited with the last `Result` it yielded at or before t (a result yielded
-  once the clock has passed t does not count for t); before its first result its quality is 0.
+  once the clock has passed t does not count for t); before its first result it has no result,
+  quality 0.
 - A **contract** module runs once per instance and grid time, with `ctx.allocation = t`.
 - The profile's `step` is measured too, as the maximum over all runs: for an interruptible
   module the largest gap between successive yields, counting from its start to the first and
@@ -22,7 +24,7 @@ the ticks a module reports and does not depend on how busy the machine is.
   a contract module the most a run used past its allocation (0 if none did). It is as
   reproducible as the profile: on the work clock, the same for any workers and chunks.
 - A module that raises, or yields something that is not a `Result`, is a failed run: it keeps
-  the last result it registered before failing (interruptible) or scores 0 (contract). Failures
+  the last result it registered before failing (interruptible) or has none (contract). Failures
   are counted and the first one's traceback is kept; they never stop the build. A contract run
   that uses more than its allocation keeps its result and is counted as an overrun.
 
@@ -47,7 +49,7 @@ from typing import Any, Literal
 
 import numpy as np
 from attrs import frozen
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from anytime.errors import AnytimeError, ProfileError
 from anytime.modules import AnytimeModule
@@ -339,12 +341,15 @@ def build_profile(
         for start in range(0, total, chunk_size)
     ]
     quality = np.zeros((total, len(grid.time)))
+    scored = np.ones(quality.shape, dtype=np.bool_)
     failures = overruns = 0
     step = 0.0
     first: tuple[int, str] | None = None
     with ProgressBar(total, label=module.name, enabled=progress) as bar:
         for done in _run(chunks, executor, workers):
             quality[done.start : done.start + len(done.quality)] = done.quality
+            if done.scored is not None:
+                scored[done.start : done.start + len(done.quality)] = done.scored
             failures += done.failures
             overruns += done.overruns
             step = max(step, done.step)
@@ -353,7 +358,12 @@ def build_profile(
             bar.update(len(done.quality))
     return ProfileBuild(
         profile=_tabulate(
-            module, grid, quality.reshape((*grid.cell_shape, trials, -1)), clock, step
+            module,
+            grid,
+            quality.reshape((*grid.cell_shape, trials, -1)),
+            ~scored.reshape((*grid.cell_shape, trials, -1)),
+            clock,
+            step,
         ),
         trials=trials,
         runs=total * (len(grid.time) if module.kind == "contract" else 1),
@@ -415,15 +425,33 @@ def _check(
 
 
 def _tabulate(
-    module: AnytimeModule, grid: Grid, quality: Array, clock: str, step: float
+    module: AnytimeModule,
+    grid: Grid,
+    quality: Array,
+    missing: NDArray[np.bool_],
+    clock: str,
+    step: float,
 ) -> ConditionalPerformanceProfile:
-    """The profile of a (*cells, trials, times) table of scored qualities, and measured `step`."""
+    """The profile of a (*cells, trials, times) table of scored qualities (0 where `missing`,
+    a trial without a result at that time), and measured `step`."""
     axis = quality.ndim - 2
     n_bins = len(grid.bins) - 1
     # The bin holding each quality, as `point_mass` finds it (1.0 falls in the last bin).
     index = np.clip(np.searchsorted(grid.bins, quality, side="right") - 1, 0, n_bins - 1)
-    probability = np.stack([(index == k).mean(axis=axis) for k in range(n_bins)], axis=-1)
+    inside = [index == k for k in range(n_bins)]  # one mask per bin, over every cell at once
+    counts = np.stack([mask.sum(axis=axis) for mask in inside], axis=-1)
+    sums = np.stack([np.where(mask, quality, 0.0).sum(axis=axis) for mask in inside], axis=-1)
     trials = quality.shape[axis]
+    probability = counts / trials
+    # Each bin's mean quality (its midpoint where no trial fell in it), kept inside the bin as
+    # the profile checks it: the first bin reaches down to 0, the last up to 1.
+    midpoints = np.round((grid.bins[:-1] + grid.bins[1:]) / 2, 12)  # 0.15, not 0.15000000000000002
+    bin_mean = np.divide(
+        sums, counts, out=np.broadcast_to(midpoints, sums.shape).copy(), where=counts > 0
+    )
+    lower = np.concatenate(([0.0], grid.bins[1:-1]))
+    upper = np.concatenate((grid.bins[1:-1], [1.0]))
+    bin_mean = np.clip(bin_mean, lower, upper)
     std = quality.std(axis=axis, ddof=1) if trials > 1 else np.zeros(probability.shape[:-1])
     kind: Literal["interruptible", "contract"] = (
         "contract" if module.kind == "contract" else "interruptible"
@@ -441,6 +469,8 @@ def _tabulate(
         kind=kind,
         time_unit=CLOCKS[clock][1],
         step=step,
+        no_result_table=missing.mean(axis=axis),
+        bin_mean=bin_mean,
     )
 
 

@@ -17,12 +17,18 @@ A profile file is one YAML mapping (docs/profiles.md says more)::
     mean: [[...], ...]                 # optional: expected quality per cell
     std: [[...], ...]                  # optional: standard deviation per cell (measured)
     samples: [[...], ...]              # optional: trials per cell (measured)
+    bin_mean: [[[...], ...], ...]      # optional: mean quality per bin of each cell (measured)
+    no_result: [[...], ...]            # optional: probability of no result per cell (measured)
 
 A deterministic profile gives `expected:` (shape without the last axis) instead of
 `probability:` and `mean:`: each cell is a point mass in the bin holding that quality, and the
 quality itself is kept as the profile's `mean`, so expected quality is exact, not a bin midpoint
 (it must lie between the first and last bin edges).
-Exactly one of `probability` and `expected` must be given; `std` and `samples` go with either.
+Exactly one of `probability` and `expected` must be given; `std`, `samples` and `no_result` go
+with either, `bin_mean` (shape of `probability`) only with `probability`. `no_result` is written
+only where some cell may have no result, so the files of modules that always have one do not
+carry it; a file without it (every file written before it existed) has None, and so has one
+without `bin_mean`.
 `step` is the most time the module used past any moment before it next registered a result or
 returned (interruptible), or past its allocation (contract); a file without it (every file
 written before it existed) has an unknown step, None. A bad `step` names its line and column.
@@ -85,6 +91,8 @@ FIELDS = (
     "mean",
     "std",
     "samples",
+    "bin_mean",
+    "no_result",
     "modules",
     "allocation",
     "compiled",
@@ -224,6 +232,12 @@ class _Reader:
                 "not allowed next to expected, which is the mean"
                 " (expected mean only with probability, got both)",
             )
+        if "expected" in data and "bin_mean" in data:
+            self.fail(
+                "bin_mean",
+                "not allowed next to expected, whose point masses stand for their quality"
+                " (expected bin_mean only with probability, got both)",
+            )
         return data
 
     def profile(self, data: Mapping[Any, Any]) -> ConditionalPerformanceProfile:
@@ -251,15 +265,19 @@ class _Reader:
             return self.table(key, data[key], cells, axes, quality=quality) if key in data else None
 
         mean: Array | None
+        bin_mean: Array | None = None
         if "expected" in data:
             mean = self.table("expected", data["expected"], cells, axes, quality=True)
             self.within_bins(mean, bins)
             probability = point_mass(mean, bins)
         else:
-            shape, bin_axis = (*cells, len(bins) - 1), "one per quality bin"
-            probability = self.table("probability", data["probability"], shape, (*axes, bin_axis))
+            shape, bin_axes = (*cells, len(bins) - 1), (*axes, "one per quality bin")
+            probability = self.table("probability", data["probability"], shape, bin_axes)
             mean = optional("mean", quality=True)
+            if "bin_mean" in data:  # the class checks each against its bin's edges
+                bin_mean = self.table("bin_mean", data["bin_mean"], shape, bin_axes)
         std, samples = optional("std"), optional("samples")
+        no_result = optional("no_result")  # the class checks it against the first bin's mass
         try:
             return new_profile(
                 input_grids=grids,
@@ -274,6 +292,8 @@ class _Reader:
                 kind=kind,
                 time_unit=time_unit,
                 step=step,
+                no_result_table=no_result,
+                bin_mean=bin_mean,
             )
         except ProfileError as exc:  # the class's own invariants: re-prefix with the file
             message = str(exc).removeprefix(f"{module or 'profile'}: ")
@@ -487,6 +507,10 @@ def profile_to_dict(profile: ConditionalPerformanceProfile) -> dict[str, Any]:
         data["std"] = _plain(profile.std)
     if profile.samples is not None:
         data["samples"] = _plain(profile.samples)
+    if profile.bin_mean is not None:
+        data["bin_mean"] = _plain(profile.bin_mean)
+    if profile.no_result_table is not None:  # never all zeros: the profile keeps that as None
+        data["no_result"] = _plain(profile.no_result_table)
     return data
 
 
@@ -525,6 +549,7 @@ def _is_point_mass(profile: ConditionalPerformanceProfile) -> bool:
     mean = profile.mean
     return (
         mean is not None
+        and profile.bin_mean is None  # which the `expected` form cannot carry
         and bool(np.all((mean >= profile.bins[0]) & (mean <= profile.bins[-1])))
         and np.array_equal(profile.probability, point_mass(mean, profile.bins))
     )

@@ -7,10 +7,18 @@ clamped to the nearest end, so asking for more time than the table covers gives 
 its longest run, and asking below the lowest input quality gives that of the lowest.
 
 A bin stands for one quality value, its representative, when a distribution is propagated into
-the next module: its midpoint, moved so that the cell's distribution has the profile's exact
-mean where the per-cell `mean` table is known (a measured profile's sample mean, or the exact
-curve of a deterministic profile); so bin width does not blur expected quality, no result
-counts as exactly 0, and a module that always reaches 1.0 as exactly 1.0.
+the next module. A measured profile knows each bin's mean (`bin_mean`, the mean quality of the
+trials that fell in it), and the representative is that mean, interpolated as the distribution
+is: so any measured distribution (a point mass at 0 or 1, a module with two outcomes) stands for
+exactly its measured qualities, and the mean is exact. Without bin means, a bin's midpoint is
+moved so that the cell's distribution has the profile's exact mean where the per-cell `mean`
+table is known (the exact curve of a deterministic profile, or a sample mean): so bin width does
+not blur expected quality, no result counts as exactly 0, and a module that always reaches 1.0
+as exactly 1.0.
+
+No result is an outcome of its own: downstream modules are not run on a missing input. A
+measured profile knows, per cell, the probability that the module has no result
+(`no_result_table`); it counts as quality 0, in the first bin's mass.
 """
 
 from __future__ import annotations
@@ -29,7 +37,8 @@ Array = NDArray[np.float64]
 Kind = Literal["interruptible", "contract"]
 TimeUnit = Literal["ticks", "seconds"]
 
-#: Rows of a distribution may miss 1 by this much (the file format's tolerance).
+#: Rows of a distribution may miss 1 by this much (the file format's tolerance); so may the
+#: other sums a profile keeps consistent (the bin means' mean, no result within the first bin).
 SUM_TOLERANCE = 1e-6
 
 
@@ -95,6 +104,16 @@ class ConditionalPerformanceProfile:
             end), or past its allocation (a contract module). The profile builder measures it
             as the maximum over all its trials; it bounds how far a run overshoots the time it
             is given. A compiled program's profile has none.
+        no_result_table: optional probability that the module has no result, per cell, shape
+            probability.shape[:-1] (file key `no_result`; `no_result(q, t)` interpolates it).
+            A trial without a result counts as quality 0, in the first bin's mass, so it is at
+            most `probability[..., 0]`. None: always a result, or not known (0 either way); a
+            table of zeros is kept as None.
+        bin_mean: optional mean quality of the trials that fell in each bin of each cell, shape
+            probability.shape (the bin's midpoint where it has no mass), each within its bin
+            (the first bin also holds qualities below the first edge and the last above the
+            last, as `point_mass` places them); with `mean`, `probability @ bin_mean == mean`.
+            `representatives` stands each bin for it.
     """
 
     input_grids: tuple[Array, ...] = field(
@@ -117,9 +136,18 @@ class ConditionalPerformanceProfile:
     kind: Kind = "interruptible"
     time_unit: TimeUnit = "ticks"
     step: float | None = field(default=None, converter=_optional_number)
+    no_result_table: Array | None = field(
+        default=None, converter=_optional_array, eq=cmp_using(eq=_optional_eq), hash=False
+    )
+    bin_mean: Array | None = field(
+        default=None, converter=_optional_array, eq=cmp_using(eq=_optional_eq), hash=False
+    )
 
     def __attrs_post_init__(self) -> None:
         _validate(self)
+        if self.no_result_table is not None and not np.any(self.no_result_table):
+            # Never without a result is what None says too: one form, so files round-trip.
+            object.__setattr__(self, "no_result_table", None)
 
     # --- shape -----------------------------------------------------------------------------
 
@@ -178,42 +206,87 @@ class ConditionalPerformanceProfile:
     def interpolate(self, table: Array, q: ArrayLike, t: ArrayLike) -> Array:
         """Interpolate any `table` of this profile's cell shape (optionally with trailing axes,
         such as a compiled program's allocation table) at points (q, t), as the profile is."""
-        t_arr = np.asarray(t, dtype=np.float64)
-        q_arr = np.asarray(q, dtype=np.float64).reshape((*t_arr.shape, self.n_inputs))
-        batch = t_arr.shape
-        t_flat = t_arr.reshape(-1)
-        q_flat = q_arr.reshape((t_flat.size, self.n_inputs))
+        q_flat, t_flat, batch = self._flat(q, t)
         trailing = table.shape[len(self.cell_shape) :]
         out = np.zeros((t_flat.size, *trailing))
         for index, w in self._corners(q_flat, t_flat):
             out += w.reshape((-1, *([1] * len(trailing)))) * table[index]
         return out.reshape((*batch, *trailing))
 
+    def _flat(self, q: ArrayLike, t: ArrayLike) -> tuple[Array, Array, tuple[int, ...]]:
+        """Points (q, t) as a flat batch: q (N, m), t (N,), and the batch's shape."""
+        t_arr = np.asarray(t, dtype=np.float64)
+        q_arr = np.asarray(q, dtype=np.float64).reshape((*t_arr.shape, self.n_inputs))
+        t_flat = t_arr.reshape(-1)
+        return q_arr.reshape((t_flat.size, self.n_inputs)), t_flat, t_arr.shape
+
     def distribution(self, q: ArrayLike, t: ArrayLike) -> Array:
         """Output-quality distribution at input qualities `q` (..., m) and times `t` (...)."""
         return self.interpolate(self.probability, q, t)
 
+    @property
+    def mean_table(self) -> Array:
+        """The expected quality per cell: `mean`, else the bin means' (or midpoints') mean."""
+        if self.mean is not None:
+            return self.mean
+        if self.bin_mean is not None:
+            table: Array = np.einsum("...k,...k->...", self.probability, self.bin_mean)
+            return table
+        return self.probability @ self.values
+
     def expected(self, q: ArrayLike, t: ArrayLike) -> Array:
         """Expected output quality at input qualities `q` (..., m) and times `t` (...)."""
-        table = self.mean if self.mean is not None else self.probability @ self.values
-        return self.interpolate(table, q, t)
+        return self.interpolate(self.mean_table, q, t)
 
     def no_result(self, q: ArrayLike, t: ArrayLike) -> Array:
         """The probability that the module has no result at input qualities `q` (..., m) and
-        times `t` (...): 0 where the profile does not say (it was measured before the builder
-        recorded it, or is analytic)."""
-        return np.zeros(np.broadcast_shapes(np.shape(t), np.shape(q)[:-1]))
+        times `t` (...), interpolated as `expected` is: 0 where the profile does not say (it
+        was measured before the builder recorded it, or is analytic)."""
+        if self.no_result_table is None:
+            return np.zeros(np.broadcast_shapes(np.shape(t), np.shape(q)[:-1]))
+        return self.interpolate(self.no_result_table, q, t)
 
     def representatives(self, q: ArrayLike, t: ArrayLike) -> Array:
         """The quality each bin stands for at (q, t), shape (..., K).
 
-        Without a `mean` table, the bin midpoints. With one, each midpoint moves the same
-        fraction of the way to its bin's lower edge (or upper edge) so that the distribution's
-        mean is the profile's expected quality, staying inside its bin: so no result (a mean
-        of exactly 0) stands for 0, not for the first bin's midpoint, and a module that always
-        reaches 1.0 stands for 1.0. (A mean the bins cannot hold, below the mean of the lower
-        edges or above that of the upper ones, is met as closely as the bins allow.)"""
+        With a `bin_mean` table, each bin's mass-weighted mean over the interpolated cells: the
+        interpolation of `probability * bin_mean` divided by the interpolated probability. So
+        a measured distribution stands for exactly its measured qualities (a point mass at 0
+        or 1, a module with two outcomes), and the distribution's mean is the interpolated
+        `expected`. A bin without mass at (q, t) takes the rule below.
+
+        Without it, and without a `mean` table, the bin midpoints. With a `mean` table, each
+        midpoint moves the same fraction of the way to its bin's lower edge (or upper edge) so
+        that the distribution's mean is the profile's expected quality, staying inside its
+        bin: so no result (a mean of exactly 0) stands for 0, not for the first bin's midpoint,
+        and a module that always reaches 1.0 stands for 1.0. (A mean the bins cannot hold,
+        below the mean of the lower edges or above that of the upper ones, is met as closely
+        as the bins allow.)"""
         distribution = self.distribution(q, t)
+        shifted = self._shifted_midpoints(distribution, q, t)
+        if self.bin_mean is None:
+            return shifted
+        moments = self.interpolate(self.probability * self.bin_mean, q, t)
+        exact = np.divide(moments, distribution, out=shifted, where=distribution > 0)
+        # Within the bin means it mixes, so that rounding never moves a mixture of one value
+        # (a grid point; a bin whose mean is the same everywhere) off that value.
+        low, high = self._held_range(self.bin_mean, q, t)
+        return np.clip(np.where(distribution > 0, np.clip(exact, low, high), exact), 0.0, 1.0)
+
+    def _held_range(self, table: Array, q: ArrayLike, t: ArrayLike) -> tuple[Array, Array]:
+        """Per bin at (q, t), the least and greatest of `table` (shaped like `probability`)
+        over the interpolation's corners that give the bin mass (+inf, -inf where none do)."""
+        q_flat, t_flat, batch = self._flat(q, t)
+        low = np.full((t_flat.size, self.n_bins), np.inf)
+        high = np.full((t_flat.size, self.n_bins), -np.inf)
+        for index, w in self._corners(q_flat, t_flat):
+            held = w[:, None] * self.probability[index] > 0
+            low = np.where(held, np.minimum(low, table[index]), low)
+            high = np.where(held, np.maximum(high, table[index]), high)
+        return low.reshape((*batch, self.n_bins)), high.reshape((*batch, self.n_bins))
+
+    def _shifted_midpoints(self, distribution: Array, q: ArrayLike, t: ArrayLike) -> Array:
+        """The midpoints, moved by one common fraction so that `distribution` has the mean."""
         values = np.broadcast_to(self.values, distribution.shape)
         if self.mean is None:
             return values.copy()
@@ -354,6 +427,10 @@ def _validate(p: ConditionalPerformanceProfile) -> None:
         _check_non_negative(table, field_name, fail)
     if p.mean is not None and np.any(p.mean > 1):
         fail("mean", f"expected qualities in [0, 1], got {p.mean[p.mean > 1].flat[0]:g}")
+    if p.no_result_table is not None:
+        _check_no_result(p.no_result_table, p.probability, fail)
+    if p.bin_mean is not None:
+        _check_bin_mean(p.bin_mean, p.probability, p.bins, p.mean, fail)
     if p.kind not in ("interruptible", "contract"):
         fail("kind", f"expected 'interruptible' or 'contract', got {p.kind!r}")
     if p.time_unit not in ("ticks", "seconds"):
@@ -389,3 +466,72 @@ def _check_non_negative(table: Array, name: str, fail: Callable[[str, str], NoRe
     bad = ~np.isfinite(table) | (table < 0)
     if np.any(bad):
         fail(name, f"expected finite numbers >= 0, got {table[bad].flat[0]:g}")
+
+
+def _where(field_name: str, index: Sequence[int]) -> str:
+    return field_name + "".join(f"[{int(i)}]" for i in index)
+
+
+def _first(bad: NDArray[np.bool_]) -> tuple[int, ...]:
+    return tuple(int(i) for i in np.argwhere(bad)[0])
+
+
+def _check_no_result(
+    table: Array, probability: Array, fail: Callable[[str, str], NoReturn]
+) -> None:
+    """Probabilities per cell, each at most its cell's first-bin mass (no result scores 0)."""
+    cells = probability.shape[:-1]
+    if table.shape != cells:
+        fail("no_result", f"expected shape {list(cells)}, got {list(table.shape)}")
+    bad = ~np.isfinite(table) | (table < 0) | (table > 1)
+    if np.any(bad):
+        index = _first(bad)
+        fail(
+            _where("no_result", index), f"expected a probability in [0, 1], got {table[index]:.10g}"
+        )
+    first = probability[..., 0]
+    bad = table > first + SUM_TOLERANCE
+    if np.any(bad):
+        index = _first(bad)
+        fail(
+            _where("no_result", index),
+            f"expected at most the first bin's probability, {_where('probability', index)}[0]"
+            f" = {first[index]:.10g}, which counts every trial without a result (within"
+            f" {SUM_TOLERANCE:g}), got {table[index]:.10g}",
+        )
+
+
+def _check_bin_mean(
+    table: Array,
+    probability: Array,
+    bins: Array,
+    mean: Array | None,
+    fail: Callable[[str, str], NoReturn],
+) -> None:
+    """Qualities per bin of each cell, within the bin, and agreeing with the cell's `mean`."""
+    if table.shape != probability.shape:
+        fail("bin_mean", f"expected shape {list(probability.shape)}, got {list(table.shape)}")
+    # The first bin holds every quality below its upper edge, the last every one from its
+    # lower edge (as `point_mass` and the builder place them).
+    lower = np.concatenate(([0.0], bins[1:-1]))
+    upper = np.concatenate((bins[1:-1], [1.0]))
+    bad = ~np.isfinite(table) | (table < lower) | (table > upper)
+    if np.any(bad):
+        index = _first(bad)
+        k = index[-1]
+        fail(
+            _where("bin_mean", index),
+            f"expected a quality within bin {k}, [{lower[k]:g}, {upper[k]:g}], got"
+            f" {table[index]:.10g}",
+        )
+    if mean is None:
+        return
+    implied = np.einsum("...k,...k->...", probability, table)
+    gap = np.abs(implied - mean)
+    if np.any(gap > SUM_TOLERANCE):
+        index = _first(gap > SUM_TOLERANCE)
+        fail(
+            _where("bin_mean", index),
+            f"expected bin means whose mean over the bins is {_where('mean', index)} ="
+            f" {mean[index]:.10g} (within {SUM_TOLERANCE:g}), got {implied[index]:.10g}",
+        )

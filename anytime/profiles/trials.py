@@ -14,7 +14,7 @@ from typing import Any, Literal, Protocol
 
 import numpy as np
 from attrs import cmp_using, field, frozen
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from anytime.clocks import Clock, WallClock, WorkClock
 from anytime.errors import AnytimeError
@@ -126,12 +126,15 @@ class Done:
     overruns: int
     first_failure: tuple[int, str] | None  # (flat trial index, description)
     step: float = 0.0  # the largest step of the chunk's runs (see `_interruptible`, `_contract`)
+    # (stop - start, len(time)): whether the run had a result at each grid time (None: always)
+    scored: NDArray[np.bool_] | None = None
 
 
 def measure_chunk(chunk: Chunk) -> Done:
     """Run one chunk of trials."""
     grid = chunk.grid
     quality = np.zeros((chunk.stop - chunk.start, len(grid.time)))
+    scored = np.zeros(quality.shape, dtype=np.bool_)  # no result until one is scored
     failures = overruns = 0
     step = 0.0
     first: tuple[int, str] | None = None
@@ -148,14 +151,14 @@ def measure_chunk(chunk: Chunk) -> Done:
             CLOCKS[chunk.clock][0],
             f"trial {instance} at input qualities {list(qualities)}",
         )
-        failed, overran, longest = measure(trial, grid.time, quality[row])
+        failed, overran, longest = measure(trial, grid.time, quality[row], scored[row])
         overruns += overran
         step = max(step, longest)
         failures += len(failed)
         if failed and first is None:
             headline, details = failed[0]
             first = (flat, f"{headline} ({trial.where})\n{details}".rstrip())
-    return Done(chunk.start, quality, failures, overruns, first, step)
+    return Done(chunk.start, quality, failures, overruns, first, step, scored)
 
 
 @frozen(eq=False)
@@ -240,8 +243,11 @@ def _arguments(
 Failures = list[tuple[str, str]]  # (headline, traceback) of each failed run
 
 
-def _interruptible(trial: Trial, time: Array, out: Array) -> tuple[Failures, int, float]:
-    """One run up to the last grid time; `out[j]` becomes the score of the answer at `time[j]`.
+def _interruptible(
+    trial: Trial, time: Array, out: Array, scored: NDArray[np.bool_]
+) -> tuple[Failures, int, float]:
+    """One run up to the last grid time; `out[j]` becomes the score of the answer at `time[j]`
+    and `scored[j]` true where there is one (before its first result the run has none).
 
     Also returns the run's step: the largest gap between the moments it gave control back (its
     start, every yield, the end of the run), so the gap to a yield past the last grid time (the
@@ -297,10 +303,11 @@ def _interruptible(trial: Trial, time: Array, out: Array) -> tuple[Failures, int
         step = max(step, stretch)
     # Scored after the run, so that the scorer's time is never charged to the module. No answer
     # at all (the first came after the last grid time, as a slow wall clock can make it) leaves
-    # the row at quality 0.
+    # the row at quality 0, without a result.
     ends = [first for first, _ in answers[1:]] + [len(time)] if answers else []
     for (first, value), end in zip(answers, ends, strict=True):
         out[first:end] = trial.score(instance, value)
+        scored[first:end] = True
     return failed, 0, step
 
 
@@ -335,8 +342,12 @@ class _Watch:
         return self.reports > 0 and self.began < deadline - slack <= self.previous
 
 
-def _contract(trial: Trial, time: Array, out: Array) -> tuple[Failures, int, float]:
-    """One run per grid time on the same instance, with that time as its allocation.
+def _contract(
+    trial: Trial, time: Array, out: Array, scored: NDArray[np.bool_]
+) -> tuple[Failures, int, float]:
+    """One run per grid time on the same instance, with that time as its allocation; `out[j]`
+    is the score of its result, and `scored[j]` true where it returned one (a run that raised
+    or returned None has none).
 
     Also returns the step: the most any of the runs used past its allocation (0 if none did),
     whether it returned a result, none, or raised.
@@ -355,7 +366,7 @@ def _contract(trial: Trial, time: Array, out: Array) -> tuple[Failures, int, flo
             continue
         used = ctx.elapsed
         step = max(step, float(used - allocation))
-        if result is None:  # no result: the row keeps quality 0
+        if result is None:  # no result: the row keeps quality 0, unscored
             overruns += used > allocation
             continue
         if not isinstance(result, Result):
@@ -364,4 +375,5 @@ def _contract(trial: Trial, time: Array, out: Array) -> tuple[Failures, int, flo
         if used > allocation:  # counted as a plain int (a numpy bool would make it int64)
             overruns += 1
         out[j] = trial.score(instance, result.value)
+        scored[j] = True
     return failed, overruns, step
