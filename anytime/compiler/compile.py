@@ -394,7 +394,8 @@ def _compiled_profile(
     model: CompileModel, output: Dist, q_grid: Array, time: Array, cell_shape: tuple[int, ...]
 ) -> ConditionalPerformanceProfile:
     """The output distributions binned (on the output module's bins, or ten equal bins), with
-    the exact expected quality kept as the profile's mean."""
+    the exact expected quality kept as the profile's mean, each bin's exact mean, and the
+    probability of no result (in the lowest bin's mass, as a measured profile has it)."""
     bins = default_bins()
     if model.output.kind == "node":
         node = model.node(model.output.index)
@@ -404,14 +405,28 @@ def _compiled_profile(
     probability = np.zeros((len(output.values), len(bins) - 1))
     rows = np.broadcast_to(np.arange(len(k))[:, None], k.shape)
     np.add.at(probability, (rows, k), output.probs)
-    probability /= probability.sum(axis=1, keepdims=True)
+    moments = np.zeros_like(probability)
+    np.add.at(moments, (rows, k), output.probs * np.maximum(output.values, 0.0))
+    total = probability.sum(axis=1, keepdims=True)
+    probability /= total
+    lower, upper = bins[:-1], bins[1:]
+    bin_mean = np.divide(
+        moments / total,
+        probability,
+        out=np.broadcast_to((lower + upper) / 2, probability.shape).copy(),
+        where=probability > 1e-15,
+    )
+    bin_mean = np.clip(bin_mean, lower, upper)
     mean = np.clip(output.expected(), 0.0, 1.0)
+    no_result = np.minimum(output.missing(), probability[:, 0])
     return new_profile(
         input_grids=[q_grid] * len(model.quality_inputs),
         time=time,
         bins=bins,
         probability=probability.reshape(*cell_shape, len(bins) - 1),
         mean=mean.reshape(cell_shape),
+        bin_mean=bin_mean.reshape(*cell_shape, len(bins) - 1),
+        no_result_table=no_result.reshape(cell_shape) if np.any(no_result > 0) else None,
         inputs=model.quality_inputs,
         module=model.program.name,
         kind="contract",

@@ -663,7 +663,7 @@ def _mixture(
     for plan, profile in zip(plans, profiles, strict=True):
         order = np.argsort(plan.axes)
         expand = [a for a in range(m) if a not in plan.axes]
-        cells = profile.mean if profile.mean is not None else profile.probability @ profile.values
+        cells = profile.mean_table
         cells = np.moveaxis(cells, list(range(len(order))), list(np.argsort(order)))
         probs = profile.probability
         if not same:  # each old bin's mass to the new bin holding its midpoint

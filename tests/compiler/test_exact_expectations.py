@@ -103,7 +103,8 @@ def test_qualities_outside_a_profiles_input_grid_are_a_warning() -> None:
     library = AnytimeLibrary()
     library.add(measured(exact))
     library.add(LibraryEntry.of_module(attrs.evolve(refine, profile_source=narrow)))
-    program = parse_schemas("(defschema p (delay) (refine (exact delay)))", "p.any")["p"]
+    # The program's input carries any quality of the default grid, 0 to 1.
+    program = parse_schemas("(defschema p (x) (refine x))", "p.any")["p"]
     compiled = compile_program(program, library, TIME)
     assert compiled.warnings == (
         "module 'refine': input 'x' receives qualities 0 to 1, but its profile was measured on"
@@ -111,6 +112,10 @@ def test_qualities_outside_a_profiles_input_grid_are_a_warning() -> None:
     )
     within = compile_program(program, _library(), TIME)
     assert within.warnings == ()
+    # What has no result upstream is no quality: `refine` is not called on it, so a chain
+    # whose upstream answers 1.0 or nothing feeds it only 1.0.
+    chain = parse_schemas("(defschema p (delay) (refine (exact delay)))", "p.any")["p"]
+    assert compile_program(chain, library, TIME).warnings == ()
 
 
 def _library() -> AnytimeLibrary:
