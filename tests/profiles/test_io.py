@@ -257,7 +257,7 @@ WITH_INPUT = (
 )
 KNOWN = (
     "format, module, kind, time_unit, step, inputs, input_quality, time, quality_bins, probability,"
-    " expected, mean, std, samples, bin_mean, no_result, modules, allocation"
+    " expected, mean, std, samples, bin_mean, no_result, modules, allocation, compiled"
 )
 
 
