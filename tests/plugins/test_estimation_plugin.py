@@ -70,7 +70,7 @@ def _pip_install(source: Path, target: Path) -> subprocess.CompletedProcess[str]
     return subprocess.run(command, capture_output=True, text=True, env=env, check=False)
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")  # gone before the other tests: it is on sys.path
 def installed(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Installed]:
     root = tmp_path_factory.mktemp("estimation")
     source = root / "source"  # pip builds in place: keep the work tree clean
