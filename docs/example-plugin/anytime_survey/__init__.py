@@ -89,14 +89,17 @@ class Plots:
 
 
 class Areas:
-    """Problems for `square-root`: an area of the quality asked for, as `measure` gives it: off
-    by (1 - q) / 5 of the truth, above or below (at quality 0, 20% off: no result is not a
-    quality, and the module is not called without one)."""
+    """Problems for `square-root`: an area of the quality asked for, as `measure` gives it. Its
+    error is symmetric, so an area of quality q > 0 is off by (1 - q) / 5 of the truth, above
+    or below; quality 0 is any error of 20% or more, drawn like one reading's (the worst
+    `measure` gives). No result is not a quality: the module is not called without one."""
 
     def instance(self, rng: np.random.Generator, input_qualities: tuple[float, ...]) -> Instance:
         area = float(rng.uniform(10, 1000))
         (q,) = input_qualities
         error = (1.0 - q) / 5.0 * float(rng.choice([-1.0, 1.0]))
+        while q == 0 and abs(error) <= 0.2:
+            error = NOISE * float(rng.standard_normal())
         return Instance(args=(Result(area * (1.0 + error), q),), reference=math.sqrt(area))
 
     def score(self, instance: Instance, value: Any) -> float:
