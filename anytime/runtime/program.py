@@ -65,8 +65,8 @@ class ProgramRecord:
         result: the output's best result (None when the output module registered none).
         status: "failed" if any call failed, "no-result" without an output result,
             "contract-expired" if the run used more than its total, else "completed".
-        records: one run record per call, in execution order (the calls of a called schema
-            or of an if's branch after the call's own record).
+        records: one run record per call of the program, in execution order, then those of
+            the calls inside the schemas it called and the branches its ifs ran.
         allocations: the time each module was given, in allocation-vector order.
         time_used: time on the run's clock from start to the answer.
     """
