@@ -56,7 +56,38 @@ class Call:
     function_span: Span = field(eq=False, repr=False)
 
 
-Expr = Symbol | Number | String | Call
+@frozen
+class BestOfForm:
+    """`(best-of ALTERNATIVE...)`, each alternative `(when PRECONDITION EXPR)` or an EXPR."""
+
+    args: tuple[Expr, ...]
+    keywords: tuple[KeywordArg, ...]
+    span: Span = field(eq=False, repr=False)
+    function_span: Span = field(eq=False, repr=False)
+
+
+@frozen
+class WhenForm:
+    """`(when PRECONDITION EXPR)`: an alternative of a best-of (allowed only there)."""
+
+    args: tuple[Expr, ...]
+    keywords: tuple[KeywordArg, ...]
+    span: Span = field(eq=False, repr=False)
+    function_span: Span = field(eq=False, repr=False)
+
+
+@frozen
+class IfForm:
+    """`(if CONDITION THEN ELSE [:p P])`."""
+
+    args: tuple[Expr, ...]
+    keywords: tuple[KeywordArg, ...]
+    span: Span = field(eq=False, repr=False)
+    function_span: Span = field(eq=False, repr=False)
+
+
+SpecialForm = BestOfForm | WhenForm | IfForm
+Expr = Symbol | Number | String | Call | BestOfForm | WhenForm | IfForm
 
 
 @frozen

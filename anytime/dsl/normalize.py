@@ -11,7 +11,21 @@ from __future__ import annotations
 import functools
 from collections.abc import Callable, Collection, Iterable, Mapping
 
-from anytime.dsl.nodes import Call, Expr, Number, SchemaDef, Setf, SourceFile, Span, String, Symbol
+from anytime.dsl.nodes import (
+    BestOfForm,
+    Call,
+    Expr,
+    IfForm,
+    Number,
+    SchemaDef,
+    Setf,
+    SourceFile,
+    Span,
+    SpecialForm,
+    String,
+    Symbol,
+    WhenForm,
+)
 from anytime.dsl.program import (
     Alternative,
     Arg,
@@ -31,8 +45,20 @@ from anytime.dsl.program import Call as CallStep
 from anytime.errors import Diagnostic, SchemaError
 from anytime.text import suggest as suggest  # re-exported: the compiler imports it from here
 
-#: The special forms: choices among alternatives and conditionals, not functions.
+#: The special forms' reserved words (each form has its own grammar rule and syntax node).
 SPECIAL_FORMS = ("best-of", "if", "when")
+
+
+def _word(form: SpecialForm) -> str:
+    """The reserved word a special form is written with."""
+    match form:
+        case BestOfForm():
+            return "best-of"
+        case IfForm():
+            return "if"
+        case WhenForm():
+            return "when"
+
 
 #: Known functions: a name -> arity mapping (None: any number of arguments), or just names.
 KnownFunctions = Mapping[str, int | None] | Collection[str]
@@ -222,7 +248,7 @@ class _ProgramBuilder:
         else:
             self.assigned_at[name] = form.target_span
             self.values[name] = value
-        return Var(name) if isinstance(form.value, Call) else value
+        return Var(name) if isinstance(form.value, Call | SpecialForm) else value
 
     def expression(self, expr: Expr, name: str | None) -> Arg:
         """Flatten `expr`; a call's result goes to `name` or, when None, to a fresh temporary."""
@@ -230,19 +256,24 @@ class _ProgramBuilder:
             return Literal(expr.value)
         if isinstance(expr, Symbol):
             return self.lookup(expr)
+        match expr:
+            case BestOfForm():
+                return self.best_of(expr, name)
+            case IfForm():
+                return self.conditional(expr, name)
+            case WhenForm():
+                self.checker.error(
+                    expr.function_span,
+                    "'when' is allowed only as an alternative of best-of: "
+                    "(best-of (when PRECONDITION EXPR) ...)",
+                )
+                self.quiet_dead_code = True  # the uses inside it are not read
+                for arg in (*expr.args, *(k.value for k in expr.keywords)):
+                    self.expression(arg, None)
+                return Var(name if name is not None else self.fresh())
         return self.call(expr, name)
 
     def call(self, call: Call, name: str | None) -> Var:
-        if call.function == "best-of":
-            return self.best_of(call, name)
-        if call.function == "if":
-            return self.conditional(call, name)
-        if call.function == "when":
-            self.checker.error(
-                call.function_span,
-                "'when' is allowed only as an alternative of best-of: "
-                "(best-of (when PRECONDITION EXPR) ...)",
-            )
         args = tuple(self.expression(arg, None) for arg in call.args)
         target = name if name is not None else self.fresh()
         step: Step
@@ -269,7 +300,7 @@ class _ProgramBuilder:
         finally:
             self.steps = outer
 
-    def best_of(self, call: Call, name: str | None) -> Var:
+    def best_of(self, call: BestOfForm, name: str | None) -> Var:
         """`(best-of (when PRE EXPR) ... EXPR)`: an alternative written without `when` is
         always applicable."""
         error = self.checker.error
@@ -283,7 +314,7 @@ class _ProgramBuilder:
             )
         forms: list[tuple[Expr | None, Expr]] = []
         for form in call.args:
-            if not (isinstance(form, Call) and form.function == "when"):
+            if not isinstance(form, WhenForm):
                 forms.append((None, form))  # unconditional
             elif len(form.args) != 2 or form.keywords:
                 got = len(form.args) + len(form.keywords)
@@ -307,6 +338,15 @@ class _ProgramBuilder:
         """A precondition is one call of an elementary function of variables and constants
         (whether the function is elementary is checked against the library by the compiler)."""
         error = self.checker.error
+        if isinstance(expr, SpecialForm):
+            error(
+                expr.function_span,
+                "the precondition of 'when' must be a call of an elementary function, "
+                f"not of '{_word(expr)}'",
+            )
+            self.quiet_dead_code = True
+            self.nested(lambda: self.expression(expr, None))
+            return None
         if not isinstance(expr, Call):
             what = "a variable" if isinstance(expr, Symbol) else "a constant"
             error(
@@ -315,7 +355,7 @@ class _ProgramBuilder:
             )
             self.expression(expr, None)
             return None
-        if expr.function in SPECIAL_FORMS or expr.function in self.schemas:
+        if expr.function in self.schemas:
             error(
                 expr.function_span,
                 "the precondition of 'when' must be a call of an elementary function, "
@@ -325,7 +365,7 @@ class _ProgramBuilder:
             self.nested(lambda: self.expression(expr, None))
             return None
         for arg in expr.args:
-            if isinstance(arg, Call):
+            if isinstance(arg, Call | SpecialForm):
                 error(
                     arg.span,
                     "the arguments of a precondition must be variables or constants "
@@ -338,7 +378,7 @@ class _ProgramBuilder:
         assert isinstance(test, CallStep)
         return test
 
-    def conditional(self, call: Call, name: str | None) -> Var:
+    def conditional(self, call: IfForm, name: str | None) -> Var:
         """`(if CONDITION THEN ELSE [:p P])`: the condition always runs; each branch's steps
         are nested in it."""
         error = self.checker.error

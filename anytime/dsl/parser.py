@@ -25,17 +25,21 @@ from lark.exceptions import (
 from lark.tree import Meta
 
 from anytime.dsl.nodes import (
+    BestOfForm,
     Call,
     Expr,
     Form,
+    IfForm,
     KeywordArg,
     Number,
     SchemaDef,
     Setf,
     SourceFile,
     Span,
+    SpecialForm,
     String,
     Symbol,
+    WhenForm,
 )
 from anytime.dsl.source import Source
 from anytime.errors import Diagnostic, SchemaSyntaxError
@@ -231,6 +235,14 @@ def _translate(error: UnexpectedInput, source: Source) -> SchemaSyntaxError:
             message = f"unexpected character {char!r}"
         return _error_at(source, pos, message)
 
+    if isinstance(error, UnexpectedToken) and error.token.type in _RESERVED:
+        word = str(error.token).lower()
+        return _error_at(
+            source,
+            error.token.start_pos or 0,
+            f"'{word}' is a reserved word (best-of, if, when): it cannot name a variable or "
+            "a parameter, and it opens its form: (" + _RESERVED[error.token.type] + ")",
+        )
     message = error.match_examples(
         _lark().parse, SYNTAX_EXAMPLES, token_type_match_fallback=True, use_accepts=True
     ) or _generic_message(error)
@@ -238,6 +250,13 @@ def _translate(error: UnexpectedInput, source: Source) -> SchemaSyntaxError:
         return _error_at(source, error.token.start_pos or 0, message)
     return _error_at(source, len(text), message)
 
+
+#: The special forms' reserved words, as the grammar names them, with their shapes.
+_RESERVED = {
+    "BEST_OF": "best-of (when PRECONDITION EXPR) ... EXPR",
+    "WHEN": "when PRECONDITION EXPR",
+    "IF": "if CONDITION THEN ELSE [:p P]",
+}
 
 _TOKEN_WORDS = {
     "LPAR": "'('",
@@ -248,6 +267,9 @@ _TOKEN_WORDS = {
     "STRING": "a string",
     "_DEFSCHEMA": "'defschema'",
     "_SETF": "'setf'",
+    "BEST_OF": "'best-of'",
+    "WHEN": "'when'",
+    "IF": "'if'",
     "$END": "the end of the file",
 }
 
@@ -314,9 +336,26 @@ class _ToNodes(Transformer[Token, tuple[SchemaDef, ...]]):
 
     def call(self, meta: Meta, children: list[Any]) -> Call:
         function, *rest = children
+        args, keywords = self._arguments(rest)
+        return Call(function.lower(), args, keywords, _span(meta), _span(function))
+
+    def best_of(self, meta: Meta, children: list[Any]) -> BestOfForm:
+        head, *rest = children
+        return BestOfForm(*self._arguments(rest), _span(meta), _span(head))
+
+    def when(self, meta: Meta, children: list[Any]) -> WhenForm:
+        head, *rest = children
+        return WhenForm(*self._arguments(rest), _span(meta), _span(head))
+
+    def if_(self, meta: Meta, children: list[Any]) -> IfForm:
+        head, *rest = children
+        return IfForm(*self._arguments(rest), _span(meta), _span(head))
+
+    def _arguments(self, items: list[Any]) -> tuple[tuple[Expr, ...], tuple[KeywordArg, ...]]:
+        """Positional arguments, then keyword arguments, each keyword once."""
         args: list[Expr] = []
         keywords: list[KeywordArg] = []
-        for item in rest:
+        for item in items:
             if isinstance(item, KeywordArg):
                 if any(k.name == item.name for k in keywords):
                     raise self._fail(item.span, f"keyword :{item.name} is given twice")
@@ -327,7 +366,7 @@ class _ToNodes(Transformer[Token, tuple[SchemaDef, ...]]):
                 )
             else:
                 args.append(item)
-        return Call(function.lower(), tuple(args), tuple(keywords), _span(meta), _span(function))
+        return tuple(args), tuple(keywords)
 
     def keyword_arg(self, meta: Meta, children: list[Any]) -> KeywordArg:
         keyword, value = children
@@ -353,4 +392,4 @@ class _ToNodes(Transformer[Token, tuple[SchemaDef, ...]]):
 
 
 def _expr_span(expr: Form) -> Span:
-    return expr.function_span if isinstance(expr, Call) else expr.span
+    return expr.function_span if isinstance(expr, Call | SpecialForm) else expr.span

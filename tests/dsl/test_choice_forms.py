@@ -6,7 +6,7 @@ import pytest
 
 from anytime.dsl import format_program, parse_schemas, program_to_json
 from anytime.dsl.program import Alternative, BestOf, Branch, Call, If, Var
-from anytime.errors import SchemaError
+from anytime.errors import SchemaError, SchemaSyntaxError
 
 CHOOSE = """(defschema choose (w)
   (setf plan (best-of (when (left-clear? w) (detour-left (sense w)))
@@ -195,3 +195,39 @@ def test_dot_draws_choices_as_diamonds_with_labelled_arguments() -> None:
     assert 's1_n0 -> s1_n3 [label="condition: t2"];' in lines
     assert 's1_n1 -> s1_n3 [label="then: t3"];' in lines
     assert 's1_n2 -> s1_n3 [label="else: t4"];' in lines
+
+
+ALTERNATIVES = "(when PRECONDITION EXPR) ... EXPR"
+
+
+@pytest.mark.parametrize(
+    ("text", "column", "word", "shape"),
+    [
+        ("(defschema p (when) (f when))", 15, "when", "when PRECONDITION EXPR"),
+        ("(defschema p (x) (setf if (f x)) if)", 24, "if", "if CONDITION THEN ELSE [:p P]"),
+        (
+            "(defschema p (x) (f Best-Of))",
+            21,
+            "best-of",
+            "best-of (when PRECONDITION EXPR) ... EXPR",
+        ),
+    ],
+)
+def test_the_special_forms_words_are_reserved(
+    text: str, column: int, word: str, shape: str
+) -> None:
+    """Each form has a grammar rule of its own, opened by its reserved word."""
+    with pytest.raises(SchemaSyntaxError) as raised:
+        parse_schemas(text)
+    (diagnostic,) = raised.value.diagnostics
+    assert (diagnostic.line, diagnostic.column, diagnostic.message) == (
+        1,
+        column,
+        f"'{word}' is a reserved word (best-of, if, when): it cannot name a variable or a "
+        f"parameter, and it opens its form: ({shape})",
+    )
+
+
+def test_a_name_that_only_starts_with_a_reserved_word_is_a_name() -> None:
+    program = parse_schemas("(defschema p (iffy best-of-3 whence) (f iffy best-of-3 whence))")["p"]
+    assert program.inputs == ("iffy", "best-of-3", "whence")
