@@ -9,17 +9,7 @@ from __future__ import annotations
 
 from attrs import field, frozen
 
-from anytime.dsl.source import Source
-
-
-@frozen
-class Span:
-    """A place in the source: 1-based line and column where it starts and one past its end."""
-
-    line: int
-    column: int
-    end_line: int
-    end_column: int
+from anytime.dsl.source import Source, Span
 
 
 @frozen

@@ -20,7 +20,6 @@ from anytime.dsl.nodes import (
     SchemaDef,
     Setf,
     SourceFile,
-    Span,
     SpecialForm,
     String,
     Symbol,
@@ -42,6 +41,7 @@ from anytime.dsl.program import (
     walk,
 )
 from anytime.dsl.program import Call as CallStep
+from anytime.dsl.source import Span
 from anytime.errors import Diagnostic, SchemaError
 from anytime.text import suggest as suggest  # re-exported: the compiler imports it from here
 

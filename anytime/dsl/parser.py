@@ -35,13 +35,12 @@ from anytime.dsl.nodes import (
     SchemaDef,
     Setf,
     SourceFile,
-    Span,
     SpecialForm,
     String,
     Symbol,
     WhenForm,
 )
-from anytime.dsl.source import Source
+from anytime.dsl.source import Source, Span
 from anytime.errors import Diagnostic, SchemaSyntaxError
 
 #: Deeper nesting than this is refused with a clear error (real schemas nest a few levels).

@@ -18,8 +18,7 @@ from typing import TYPE_CHECKING
 
 from attrs import Factory, field, frozen
 
-from anytime.dsl.nodes import Span
-from anytime.dsl.source import Source
+from anytime.dsl.source import Source, Span
 
 if TYPE_CHECKING:
     from anytime.dsl.graph import DataflowGraph

@@ -7,14 +7,19 @@ and a caret without reading the file again.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 from attrs import field, frozen
 
 from anytime.errors import Diagnostic
 
-if TYPE_CHECKING:
-    from anytime.dsl.nodes import Span
+
+@frozen
+class Span:
+    """A place in the source: 1-based line and column where it starts and one past its end."""
+
+    line: int
+    column: int
+    end_line: int
+    end_column: int
 
 
 @frozen

@@ -7,10 +7,9 @@ from pathlib import Path
 import pytest
 
 from anytime.dsl import load_schemas, parse_schemas
-from anytime.dsl.nodes import Span
 from anytime.dsl.parser import parse_syntax
 from anytime.dsl.program import SchemaFile
-from anytime.dsl.source import Source
+from anytime.dsl.source import Source, Span
 from anytime.errors import Diagnostic, SchemaError
 
 TEXT = "(defschema p (x)\n  (find-path x))\n"
