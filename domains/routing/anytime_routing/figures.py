@@ -57,7 +57,7 @@ def write_figures(
     ax.set_xlim(-0.05, 1.05)
     ax.set_ylim(-0.05, 1.05)
     ax.set_aspect("equal")
-    ax.legend(loc="upper right", fontsize="small")
+    ax.legend(loc="best", fontsize="small", framealpha=0.8)
     tours_png = out / "tours.png"
     save_figure(figure, tours_png)
 
