@@ -20,7 +20,15 @@ from anytime.plugin import (
 )
 
 from .domain import CUSTOMERS, DEPOTS, EXACT_NODES
-from .program import RESOLUTION, SCHEMAS, TIME_GRID, Delivery, compiled_program, deliver, world_for
+from .program import (
+    RESOLUTIONS,
+    SCHEMAS,
+    TIME_GRIDS,
+    Delivery,
+    compiled_program,
+    deliver,
+    world_for,
+)
 
 __all__ = ["add_commands", "run_deliver"]
 
@@ -57,7 +65,8 @@ def add_commands(commands: CommandGroup) -> None:
         "--budget",
         type=float_in_range(0.0, MAX_BUDGET),
         default=60.0,
-        help=f"ticks of work, a multiple of {RESOLUTION:g} (60)",
+        help="ticks of work, a multiple of the schema's lattice: 2 for deliver, 4 for"
+        " deliver-best (60)",
     )
     parser.add_argument(
         "--schema", choices=SCHEMAS, default="deliver", help="the packaged schema (deliver)"
@@ -67,22 +76,23 @@ def add_commands(commands: CommandGroup) -> None:
     parser.add_argument("--json", action="store_true", help="print JSON")
 
 
-def _grid(budget: float) -> tuple[float, ...]:
-    return tuple(sorted(set(TIME_GRID) | {budget}))
+def _grid(schema: str, budget: float) -> tuple[float, ...]:
+    return tuple(sorted(set(TIME_GRIDS[schema]) | {budget}))
 
 
 def run_deliver(args: argparse.Namespace) -> int:
     if args.depots > args.customers:
         raise InputError(f"--depots {args.depots}: more depots than customers ({args.customers})")
-    steps = args.budget / RESOLUTION
+    resolution = RESOLUTIONS[args.schema]
+    steps = args.budget / resolution
     if abs(steps - round(steps)) > 1e-9:
         raise InputError(
-            f"--budget {args.budget:g}: expected a multiple of {RESOLUTION:g} ticks (the"
+            f"--budget {args.budget:g}: expected a multiple of {resolution:g} ticks (the"
             " allocation lattice of the compiled schema)"
         )
     if args.out is not None:
         require_matplotlib()  # say so before the run, not after
-    program = compiled_program(args.schema, _grid(args.budget))
+    program = compiled_program(args.schema, _grid(args.schema, args.budget))
     world = world_for(args.customers, args.depots, args.seed)
     run = deliver(program, world, args.budget, adaptive=args.adaptive)
     j = list(program.profile.time).index(args.budget)

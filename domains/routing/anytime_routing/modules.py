@@ -279,7 +279,7 @@ def insert_tours(ctx: Context, clusters: Result) -> Iterator[Result]:
 # --- elementary -------------------------------------------------------------------------------
 
 
-@elementary("has-customers?")
+@elementary("has-customers?", inputs=[])
 def has_customers(sites: Sites) -> bool:
     """The tour planners' precondition: there are customers to visit."""
     return len(sites.points) > 0

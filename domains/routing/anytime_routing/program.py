@@ -31,9 +31,9 @@ from .domain import (
 from .resources import load_schema_file
 
 __all__ = [
-    "RESOLUTION",
+    "RESOLUTIONS",
     "SCHEMAS",
-    "TIME_GRID",
+    "TIME_GRIDS",
     "Delivery",
     "compiled_program",
     "deliver",
@@ -43,9 +43,11 @@ __all__ = [
 
 #: The packaged schemas: the chain and the DAG with a best-of.
 SCHEMAS = ("deliver", "deliver-best")
-#: The compiled totals (ticks) and the allocation lattice (the profiles' time step).
-TIME_GRID = tuple(range(0, 101, 4))
-RESOLUTION = 2.0
+#: The compiled totals (ticks) and the allocation lattice of each schema: the chain on the
+#: profiles' time step; the DAG (four modules: the exhaustive search grows as the lattice's
+#: cube) on every other one.
+TIME_GRIDS = {"deliver": tuple(range(0, 101, 4)), "deliver-best": tuple(range(0, 65, 4))}
+RESOLUTIONS = {"deliver": 2.0, "deliver-best": 4.0}
 
 
 @cache
@@ -54,10 +56,12 @@ def _library() -> AnytimeLibrary:
 
 
 @cache
-def compiled_program(schema: str, time_grid: tuple[float, ...] = TIME_GRID) -> CompiledProgram:
-    """The packaged `schema` compiled against the installed profiles over `time_grid`."""
+def compiled_program(schema: str, time_grid: tuple[float, ...] | None = None) -> CompiledProgram:
+    """The packaged `schema` compiled against the installed profiles over `time_grid` (default:
+    its `TIME_GRIDS` entry) on its lattice."""
+    grid = list(time_grid if time_grid is not None else TIME_GRIDS[schema])
     programs = compile_file(
-        load_schema_file(), _library(), list(time_grid), schema=schema, resolution=RESOLUTION
+        load_schema_file(), _library(), grid, schema=schema, resolution=RESOLUTIONS[schema]
     )
     (program,) = [p for p in programs if p.name == schema]
     return program
