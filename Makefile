@@ -19,8 +19,8 @@ demo: $(INSTALLED)
 test: lint typecheck pytest
 
 lint: $(INSTALLED)
-	$(BIN)/ruff check anytime domains/navigation tests benchmarks docs conftest.py .ci
-	$(BIN)/ruff format --check anytime domains/navigation tests benchmarks docs conftest.py .ci
+	$(BIN)/ruff check anytime domains/navigation domains/routing tests benchmarks docs conftest.py .ci
+	$(BIN)/ruff format --check anytime domains/navigation domains/routing tests benchmarks docs conftest.py .ci
 
 typecheck: $(INSTALLED)
 	$(BIN)/mypy
@@ -46,12 +46,13 @@ bench: $(INSTALLED)
 docs: $(INSTALLED)
 	$(BIN)/python docs/cli_help.py
 
-$(INSTALLED): pyproject.toml domains/navigation/pyproject.toml
+$(INSTALLED): pyproject.toml domains/navigation/pyproject.toml domains/routing/pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 11))' || \
 		{ echo "anytime-compose needs Python >= 3.11 (set PYTHON=...)"; exit 1; }
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev]' -e domains/navigation
+	$(BIN)/python -m pip install --quiet -e '.[dev]' -e domains/navigation \
+		-e 'domains/routing[measure]'
 	touch $@
 
 clean:

@@ -30,6 +30,18 @@ EXPECTED = {
         ],
         "anytime-compose",
     ),
+    "anytime_routing": (
+        "anytime_routing",
+        [
+            "anytime_routing/py.typed",
+            "anytime_routing/schemas/routing.any",
+            *(
+                f"anytime_routing/profiles/{m}.yaml"
+                for m in ("estimate-demand", "cluster-stops", "plan-tours", "insert-tours")
+            ),
+        ],
+        "anytime-compose",
+    ),
 }
 
 

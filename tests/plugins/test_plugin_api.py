@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import anytime_navigation
+import anytime_routing
 import pytest
 
 import anytime.plugin
@@ -16,7 +17,10 @@ from anytime import AnytimeLibrary
 from anytime.library import Plugin, PluginSource
 
 PUBLIC = {"anytime", "anytime.plugin"}
-PLUGINS = {"navigation": Path(anytime_navigation.__file__).parent}
+PLUGINS = {
+    "navigation": Path(anytime_navigation.__file__).parent,
+    "routing": Path(anytime_routing.__file__).parent,
+}
 
 
 def _framework_imports(path: Path) -> list[tuple[int, str]]:

@@ -1,0 +1,112 @@
+"""The compiled routing programs and one delivery run, as `anytime deliver` and the tests use
+them: compile a packaged schema (once per process per time grid), run it on a world under a
+budget on the work clock, and score it against the reference."""
+
+from __future__ import annotations
+
+from functools import cache
+
+import numpy as np
+from attrs import frozen
+
+from anytime.plugin import (
+    AnytimeLibrary,
+    CompiledProgram,
+    ProgramRecord,
+    WorkClock,
+    compile_file,
+    run_program,
+)
+
+from .domain import (
+    Clustering,
+    ReferenceUnavailable,
+    Tours,
+    World,
+    random_world,
+    reference_clustering,
+    reference_length,
+    tour_quality,
+)
+from .resources import load_schema_file
+
+__all__ = [
+    "RESOLUTIONS",
+    "SCHEMAS",
+    "TIME_GRIDS",
+    "Delivery",
+    "compiled_program",
+    "deliver",
+    "reference_for",
+    "world_for",
+]
+
+#: The packaged schemas: the chain and the DAG with a best-of.
+SCHEMAS = ("deliver", "deliver-best")
+#: The compiled totals (ticks) and the allocation lattice of each schema: the chain on the
+#: profiles' time step; the DAG (four modules: the exhaustive search grows as the lattice's
+#: cube) on every other one.
+TIME_GRIDS = {"deliver": tuple(range(0, 101, 4)), "deliver-best": tuple(range(0, 65, 4))}
+RESOLUTIONS = {"deliver": 2.0, "deliver-best": 4.0}
+
+
+@cache
+def _library() -> AnytimeLibrary:
+    return AnytimeLibrary.default()
+
+
+@cache
+def compiled_program(schema: str, time_grid: tuple[float, ...] | None = None) -> CompiledProgram:
+    """The packaged `schema` compiled against the installed profiles over `time_grid` (default:
+    its `TIME_GRIDS` entry) on its lattice."""
+    grid = list(time_grid if time_grid is not None else TIME_GRIDS[schema])
+    programs = compile_file(
+        load_schema_file(), _library(), grid, schema=schema, resolution=RESOLUTIONS[schema]
+    )
+    (program,) = [p for p in programs if p.name == schema]
+    return program
+
+
+def world_for(customers: int, depots: int, seed: int) -> World:
+    """The world `anytime deliver --seed S` solves."""
+    return random_world(np.random.default_rng(seed), customers, depots)
+
+
+@frozen
+class Delivery:
+    """One run: the record, the tours (None without a result), the reference clustering and
+    length (None where no exact or LKH tour can be had), the true quality."""
+
+    record: ProgramRecord
+    tours: Tours | None
+    reference: Clustering
+    reference_length: float | None
+    quality: float | None
+
+
+def reference_for(world: World) -> tuple[Clustering, float | None]:
+    """The world's reference clustering and the length of its optimal tours (None where a
+    depot has more stops than Held-Karp takes and LKH is not installed)."""
+    _, reference = reference_clustering(world.points, world.shares, world.depots)
+    try:
+        return reference, reference_length(reference)
+    except ReferenceUnavailable:
+        return reference, None
+
+
+def deliver(
+    program: CompiledProgram,
+    world: World,
+    budget: float,
+    adaptive: bool = False,
+    reference: tuple[Clustering, float | None] | None = None,
+) -> Delivery:
+    """Run `program` on `world` with `budget` ticks on the work clock and score it against
+    `reference` (default: `reference_for(world)`)."""
+    record = run_program(
+        program, [world.orders, world.sites], budget, clock=WorkClock(), adaptive=adaptive
+    )
+    tours = record.result.value if record.result is not None else None
+    clustering, length = reference if reference is not None else reference_for(world)
+    quality = tour_quality(tours, length) if length is not None else None
+    return Delivery(record, tours, clustering, length, quality)

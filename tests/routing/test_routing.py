@@ -1,0 +1,253 @@
+"""The routing plugin (domains/routing, `anytime-routing`): its kernels' invariants, its
+modules through the catalogue, its compiled schemas' promises on fresh problems, and `anytime
+deliver`. Imports of the framework are the public API only."""
+
+from __future__ import annotations
+
+import ast
+import json
+import math
+from pathlib import Path
+
+import anytime_routing
+import numpy as np
+import pytest
+from anytime_routing import geometry as G
+from anytime_routing.domain import (
+    Clustering,
+    clustering_quality,
+    demand_quality,
+    random_world,
+    run_kmeans,
+)
+from anytime_routing.modules import (
+    PROBLEM_SETS,
+    cluster_stops,
+    clustering_of_quality,
+    demand_of_quality,
+    estimate_demand,
+    plan_tours,
+)
+from anytime_routing.plugin import PLUGIN
+from anytime_routing.program import SCHEMAS, compiled_program, deliver, reference_for
+from conftest import Cli
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from anytime import Context, Result
+from anytime.testing import assert_module_passes
+
+PACKAGE = Path(anytime_routing.__file__).parent
+#: Roots of the fresh problems' seeds, apart from the profile builder's SeedSequence(0, ...).
+SEED = 20_250_114
+
+
+def _imports(path: Path) -> list[str]:
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            found += [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            found.append(node.module)
+    return [n for n in found if n.split(".")[0] == "anytime"]
+
+
+def test_the_plugin_imports_only_the_public_api() -> None:
+    imports = [m for path in PACKAGE.rglob("*.py") for m in _imports(path)]
+    assert imports and set(imports) <= {"anytime", "anytime.plugin"}
+
+
+# --- kernels: invariants ------------------------------------------------------------------
+
+points = st.integers(min_value=4, max_value=12).flatmap(
+    lambda n: st.lists(st.tuples(st.floats(0, 1), st.floats(0, 1)), min_size=n, max_size=n)
+)
+
+
+@settings(max_examples=60, deadline=None)
+@given(points, st.integers(0, 2**32 - 1))
+def test_a_two_opt_or_or_opt_move_never_lengthens_a_tour(coords: list, seed: int) -> None:
+    dist = G.distance_matrix(np.array(coords))
+    tour = np.random.default_rng(seed).permutation(len(coords)).astype(np.int64)
+    before = G.tour_length(dist, tour)
+    gain, i, j = G.best_two_opt(dist, tour)
+    if gain > G.EPS:
+        after = G.apply_two_opt(tour, i, j)
+        assert sorted(after) == list(range(len(coords)))
+        assert G.tour_length(dist, after) == pytest.approx(before - gain, abs=1e-9)
+        assert G.tour_length(dist, after) < before
+    gain, start, length, edge, reverse = G.best_or_opt(dist, tour)
+    if gain > G.EPS:
+        after = G.apply_or_opt(tour, start, length, edge, reverse)
+        assert sorted(after) == list(range(len(coords)))
+        assert G.tour_length(dist, after) == pytest.approx(before - gain, abs=1e-9)
+
+
+@settings(max_examples=40, deadline=None)
+@given(points)
+def test_the_lower_bound_never_exceeds_a_tour_and_held_karp_is_optimal(coords: list) -> None:
+    dist = G.distance_matrix(np.array(coords))
+    optimum, tour = G.held_karp(dist)
+    assert sorted(tour) == list(range(len(coords)))
+    assert G.tour_length(dist, tour) == pytest.approx(optimum)
+    assert G.one_tree_bound(dist) <= optimum + 1e-9
+    assert optimum <= G.tour_length(dist, G.nearest_neighbour(dist)) + 1e-9
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 5), st.floats(0, 30))
+def test_clusters_cover_every_customer_once(seed: int, depots: int, allocation: float) -> None:
+    world = random_world(np.random.default_rng(seed), customers=12, depots=depots)
+    demand = estimate_demand(Context(4), world.orders)
+    assert demand is not None
+    for answer in cluster_stops(Context(allocation), demand, world.sites):
+        c: Clustering = answer.value
+        members = np.sort(np.concatenate([c.members(k) for k in range(depots)]))
+        assert members.tolist() == list(range(12))
+        for tours in plan_tours(Context(40), answer):
+            visited = np.sort(np.concatenate(tours.value.orders))
+            assert visited.tolist() == list(range(12))
+            assert 0 <= tours.quality <= 1
+
+
+def test_the_self_estimate_of_plan_tours_is_a_bound_on_its_own_clustering() -> None:
+    """Its 1-tree bound over the length never exceeds optimal over the length."""
+    rng = np.random.default_rng([SEED, 1])
+    for _ in range(20):
+        world = random_world(rng)
+        _, clustering = run_kmeans(world.points, world.shares, world.depots, seed=0)
+        optimum = sum(
+            G.held_karp(G.distance_matrix(clustering.nodes(k)))[0] for k in range(world.depots)
+        )
+        for result in plan_tours(Context(60), Result(clustering, 1.0)):
+            assert result.quality <= optimum / result.value.length + 1e-9
+
+
+# --- problem sets ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("q", [0.3, 0.6, 0.9])
+def test_a_demand_input_of_quality_q_is_estimate_demands_answer(q: float) -> None:
+    rng = np.random.default_rng([SEED, 2])
+    for _ in range(10):
+        world, demand = demand_of_quality(rng, q)
+        assert abs(demand_quality(demand.value, world.shares) - q) <= 0.01
+
+
+@pytest.mark.parametrize("q", [0.5, 0.9, 1.0])
+def test_a_clustering_input_of_quality_q_is_cluster_stops_answer(q: float) -> None:
+    rng = np.random.default_rng([SEED, 3])
+    for _ in range(5):
+        world, clustering, reference = clustering_of_quality(rng, q)
+        best = G.kmeans_cost(world.points, world.shares, reference.centres, reference.labels)
+        assert abs(clustering_quality(clustering.value, world.shares, best) - q) <= 0.01
+
+
+# --- the catalogue --------------------------------------------------------------------------
+
+CATALOGUE = {  # a few cells per module: `anytime check MODULE` runs the full grids
+    "estimate-demand": {"time": [0, 2, 10, 40]},
+    "cluster-stops": {"time": [0, 4, 24], "input_grids": [[0.8]]},
+    "plan-tours": {"time": [0, 4, 20], "input_grids": [[0.95]]},
+    "insert-tours": {"time": [0, 24, 48], "input_grids": [[0.95]]},
+}
+
+
+@pytest.mark.parametrize("name", sorted(CATALOGUE))
+def test_every_module_passes_the_catalogue(name: str) -> None:
+    module = next(m for m in PLUGIN.modules if m.name == name)
+    assert module.step == 0.0
+    assert_module_passes(module, PROBLEM_SETS[name].problems, trials=10, **CATALOGUE[name])
+
+
+# --- promises -------------------------------------------------------------------------------
+
+
+def _check_promises(schema: str, worlds: int, every: int, adaptive: bool = False) -> list[str]:
+    """At every `every`-th total of the compiled grid from 0 up, on `worlds` fresh problems:
+    |realised mean - compiled expectation| <= max(0.01, 2 standard errors), and no run over
+    its total on the work clock. Returns the failures."""
+    program = compiled_program(schema)
+    rng = np.random.default_rng([SEED, SCHEMAS.index(schema)])
+    problems = []
+    for _ in range(worlds):
+        world = random_world(rng)
+        problems.append((world, reference_for(world)))
+    failures = []
+    for j in range(0, len(program.profile.time), every):
+        total = float(program.profile.time[j])
+        qualities, used = [], []
+        for world, reference in problems:
+            run = deliver(program, world, total, adaptive, reference)
+            assert run.quality is not None
+            qualities.append(run.quality)
+            used.append(run.record.time_used)
+        mean = float(np.mean(qualities))
+        se = float(np.std(qualities, ddof=1) / math.sqrt(worlds))
+        promised = float(program.expected[j])
+        if abs(mean - promised) > max(0.01, 2 * se):
+            failures.append(f"T={total:g}: compiled {promised:.4f}, realised {mean:.4f} ({se:.4f})")
+        if max(used) > total:
+            failures.append(f"T={total:g}: a run used {max(used):g}")
+    return failures
+
+
+@pytest.mark.parametrize("schema", SCHEMAS)
+def test_each_total_delivers_what_the_compiler_expects(schema: str) -> None:
+    assert _check_promises(schema, worlds=100, every=3) == []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("adaptive", [False, True])
+@pytest.mark.parametrize("schema", SCHEMAS)
+def test_every_total_delivers_what_the_compiler_expects(schema: str, adaptive: bool) -> None:
+    assert _check_promises(schema, worlds=400, every=1, adaptive=adaptive) == []
+
+
+# --- anytime deliver ------------------------------------------------------------------------
+
+
+def test_deliver_json_has_exactly_its_keys(cli: Cli) -> None:
+    code, out, err = cli("deliver", "--json", "--budget", "40")
+    assert code == 0, err
+    run = json.loads(out)
+    assert list(run) == [
+        "schema", "budget", "allocation", "expected_quality", "realised_quality",
+        "time_used", "status", "customers", "depots", "seed",
+    ]  # fmt: skip
+    assert run["time_used"] <= run["budget"] == 40
+    assert list(run["allocation"]) == ["estimate-demand", "cluster-stops", "plan-tours"]
+    assert 0 < run["realised_quality"] <= 1
+
+
+@pytest.mark.parametrize(
+    ("args", "status", "message"),
+    [
+        (["--depots", "5", "--customers", "3"], 1,
+         "anytime: error: --depots 5: more depots than customers (3)\n"),
+        (["--budget", "7"], 1,
+         "anytime: error: --budget 7: expected a multiple of 2 ticks (the allocation lattice of"
+         " the compiled schema)\n"),
+    ],
+)  # fmt: skip
+def test_deliver_says_what_is_wrong(cli: Cli, args: list[str], status: int, message: str) -> None:
+    code, _, err = cli("deliver", *args)
+    assert (code, err) == (status, message)
+
+
+@pytest.mark.parametrize(
+    ("args", "fragment"),
+    [
+        (["--customers", "0"], "argument --customers: "),
+        (["--schema", "nope"], "argument --schema: invalid choice: 'nope'"),
+        (["--budget", "-2"], "argument --budget: "),
+    ],
+)
+def test_deliver_usage_errors_exit_2(cli: Cli, args: list[str], fragment: str) -> None:
+    code, _, err = cli("deliver", *args)
+    assert code == 2 and fragment in err and "Traceback" not in err
+
+
+def test_the_repository_shows_the_packaged_schemas() -> None:
+    shown = Path(__file__).resolve().parents[2] / "schemas" / "routing.any"
+    assert shown.read_text() == (PACKAGE / "schemas" / "routing.any").read_text()
