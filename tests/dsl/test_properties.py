@@ -45,7 +45,7 @@ _GRAMMAR = (Path(anytime.dsl.__file__).parent / "grammar.lark").read_text(encodi
 _SYMBOL_MATCH = re.search(r"^SYMBOL:\s*/(.*)/\s*$", _GRAMMAR, re.MULTILINE)
 assert _SYMBOL_MATCH is not None, "grammar.lark no longer defines SYMBOL as a regex"
 SYMBOL = re.compile(_SYMBOL_MATCH.group(1))
-RESERVED = frozenset({"defschema", "setf"})
+RESERVED = frozenset({"defschema", "setf", *SPECIAL_FORMS})  # words a name cannot be
 
 _FIRST = "abcdefghijklmnopqrstuvwxyz_*"
 _REST = _FIRST + "0123456789+!?<>=/-"
