@@ -58,7 +58,14 @@ from anytime.runtime.deadline import (
 )
 from anytime.runtime.deadline import critical_event as _critical_event
 from anytime.runtime.executor import RunRecord, Status, run
-from anytime.runtime.monitor import Adjustment, DeadlineValue, EventLog, Monitor
+from anytime.runtime.monitor import (
+    Adjustment,
+    CostModel,
+    DeadlineValue,
+    EventLog,
+    Monitor,
+    ValueModel,
+)
 from anytime.runtime.program import ProgramRecord, program_module, run_program
 
 __all__ = [
@@ -76,6 +83,7 @@ __all__ = [
     "CompiledProgram",
     "ConditionalPerformanceProfile",
     "Context",
+    "CostModel",
     "CriticalEvent",
     "Deadline",
     "DeadlineValue",
@@ -99,6 +107,7 @@ __all__ = [
     "Status",
     "Unit",
     "UsageError",
+    "ValueModel",
     "VisionHyperbola",
     "WallClock",
     "WorkClock",
