@@ -20,9 +20,14 @@ import time
 from pathlib import Path
 
 import numpy as np
-from anytime_routing.domain import Clustering, random_world
+from anytime_routing.domain import Clustering
 from anytime_routing.modules import plan_tours
-from anytime_routing.program import SCHEMAS, compiled_program, deliver, reference_for
+from anytime_routing.program import (
+    SCHEMAS,
+    compiled_program,
+    deliver,
+    fresh_problems,
+)
 from tables import machine, table
 
 from anytime import Context, Result
@@ -37,10 +42,7 @@ def promises(worlds: int) -> None:
     for schema in SCHEMAS:
         program = compiled_program(schema)
         rng = np.random.default_rng([SEED, SCHEMAS.index(schema)])
-        problems = []
-        for _ in range(worlds):
-            world = random_world(rng)
-            problems.append((world, reference_for(world)))
+        problems = fresh_problems(rng, worlds)
         rows = []
         met = 0
         for j, total in enumerate(program.profile.time):

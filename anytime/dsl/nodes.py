@@ -47,33 +47,29 @@ class Call:
 
 
 @frozen
-class BestOfForm:
+class _Form:
+    """A special form: its arguments as a call's, its reserved word's place as `function_span`.
+    Each form is a class of its own, so that passes dispatch on its type."""
+
+    args: tuple[Expr, ...]
+    keywords: tuple[KeywordArg, ...]
+    span: Span = field(eq=False, repr=False)
+    function_span: Span = field(eq=False, repr=False)
+
+
+@frozen
+class BestOfForm(_Form):
     """`(best-of ALTERNATIVE...)`, each alternative `(when PRECONDITION EXPR)` or an EXPR."""
 
-    args: tuple[Expr, ...]
-    keywords: tuple[KeywordArg, ...]
-    span: Span = field(eq=False, repr=False)
-    function_span: Span = field(eq=False, repr=False)
-
 
 @frozen
-class WhenForm:
+class WhenForm(_Form):
     """`(when PRECONDITION EXPR)`: an alternative of a best-of (allowed only there)."""
 
-    args: tuple[Expr, ...]
-    keywords: tuple[KeywordArg, ...]
-    span: Span = field(eq=False, repr=False)
-    function_span: Span = field(eq=False, repr=False)
-
 
 @frozen
-class IfForm:
+class IfForm(_Form):
     """`(if CONDITION THEN ELSE [:p P])`."""
-
-    args: tuple[Expr, ...]
-    keywords: tuple[KeywordArg, ...]
-    span: Span = field(eq=False, repr=False)
-    function_span: Span = field(eq=False, repr=False)
 
 
 SpecialForm = BestOfForm | WhenForm | IfForm

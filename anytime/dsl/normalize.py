@@ -338,11 +338,14 @@ class _ProgramBuilder:
         """A precondition is one call of an elementary function of variables and constants
         (whether the function is elementary is checked against the library by the compiler)."""
         error = self.checker.error
-        if isinstance(expr, SpecialForm):
+        if isinstance(expr, SpecialForm) or (
+            isinstance(expr, Call) and expr.function in self.schemas
+        ):
+            name = _word(expr) if isinstance(expr, SpecialForm) else expr.function
             error(
                 expr.function_span,
                 "the precondition of 'when' must be a call of an elementary function, "
-                f"not of '{_word(expr)}'",
+                f"not of '{name}'",
             )
             self.quiet_dead_code = True
             self.nested(lambda: self.expression(expr, None))
@@ -354,15 +357,6 @@ class _ProgramBuilder:
                 f"the precondition of 'when' must be a call of an elementary function, not {what}",
             )
             self.expression(expr, None)
-            return None
-        if expr.function in self.schemas:
-            error(
-                expr.function_span,
-                "the precondition of 'when' must be a call of an elementary function, "
-                f"not of '{expr.function}'",
-            )
-            self.quiet_dead_code = True
-            self.nested(lambda: self.expression(expr, None))
             return None
         for arg in expr.args:
             if isinstance(arg, Call | SpecialForm):

@@ -9,7 +9,6 @@ profile builder's), scored against the hidden truth as the plugin's problem sets
 
 from __future__ import annotations
 
-import ast
 import importlib.metadata
 import math
 import os
@@ -118,21 +117,6 @@ def test_the_plugin_is_found_through_its_entry_point(installed: Installed) -> No
         assert profile is not None and profile.module == name and profile.time_unit == "ticks"
         assert library.measurement(name) is library.plugins[0].problem_sets[name]
     assert {library[n].module.reports for n in timed} == {"estimate", "true"}  # type: ignore[union-attr]
-
-
-def _framework_imports(path: Path) -> list[str]:
-    found = []
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-        if isinstance(node, ast.Import):
-            found += [alias.name for alias in node.names]
-        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            found.append(node.module)
-    return [name for name in found if name.split(".")[0] == "anytime"]
-
-
-def test_the_plugin_imports_only_the_public_api() -> None:
-    imports = [m for path in SOURCE.rglob("*.py") for m in _framework_imports(path)]
-    assert imports and set(imports) <= {"anytime", "anytime.plugin"}
 
 
 @pytest.mark.slow

