@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 from toy_modules import toy_registry
 
@@ -51,3 +52,18 @@ def test_the_shipped_navigate_schema_says_why_and_where_as_fields(navigation_any
     two = compiled[-1]
     assert two.approximations and two.approximations[0].startswith("the program is a DAG")
     assert not two.exact
+
+
+def test_the_navigation_demo_table_starts_at_zero_and_is_what_runs_are_given(
+    navigation_any: Path,
+) -> None:
+    """The demo's table (0 to 3000 by 250): exactly 0 at T = 0, where nothing runs (it was
+    0.010, a bin midpoint), and `allocation_at` gives the table's own split at every total
+    (it rescaled 0, 250 at T = 500 to 0, 500)."""
+    schemas = load_schemas(navigation_any)
+    (navigate,) = compile_file(
+        schemas, AnytimeLibrary.default(), range(0, 3001, 250), schema="navigate"
+    )
+    assert navigate.expected[0] == 0.0
+    for j, total in enumerate(navigate.profile.time):
+        np.testing.assert_array_equal(navigate.allocation_at([], total), navigate.allocation[j])
