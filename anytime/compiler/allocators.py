@@ -27,15 +27,14 @@ Each works on a batch of cells at once: rows of program input qualities `q (C, m
 
 from __future__ import annotations
 
-import itertools
-from collections.abc import Mapping, Sequence
-from math import comb
+from collections.abc import Iterator, Mapping, Sequence
+from math import comb, prod
 from typing import Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from anytime.compiler.evaluate import Evaluator
+from anytime.compiler.evaluate import FOLD_GRID, MAX_SUPPORT, Evaluator
 from anytime.compiler.model import (
     ChoiceNode,
     CompileError,
@@ -49,11 +48,18 @@ from anytime.profiles.profile import Array, ConditionalPerformanceProfile
 
 IMPROVEMENT = 1e-12  # a trade must raise E[Q_out] by more than this to count
 EXHAUSTIVE_LIMIT = 4_000_000  # rows the exhaustive search may evaluate in one compile
-CHUNK = 200_000  # rows evaluated at once
+CHUNK = 200_000  # rows evaluated at once, at most
+DEFAULT_MEMORY = 10**9  # bytes an allocator's search may hold at once, unless told otherwise
+#: How much more than the arrays `row_bytes` counts numpy's temporaries take (measured with
+#: tracemalloc on random programs, benchmarks/bench_allocators.py).
+WORKSPACE = 3
 
 
 class Evaluates(Protocol):
     """What hill-climbing and the exhaustive search need: batched expected quality."""
+
+    @property
+    def model(self) -> CompileModel: ...
 
     @property
     def n_modules(self) -> int: ...
@@ -72,14 +78,106 @@ class Allocator(Protocol):
 
 
 def compositions(total: int, parts: int) -> np.ndarray:
-    """Every way to write `total` as an ordered sum of `parts` non-negative integers."""
+    """Every way to write `total` as an ordered sum of `parts` non-negative integers, in
+    lexicographic order (built column by column in numpy: memory is the result's only)."""
     if parts == 0:
         return np.zeros((1 if total == 0 else 0, 0), dtype=np.int64)
-    if parts == 1:
-        return np.array([[total]], dtype=np.int64)
-    bars = np.array(list(itertools.combinations(range(total + parts - 1), parts - 1)))
-    edges = np.column_stack([np.full(len(bars), -1), bars, np.full(len(bars), total + parts - 1)])
-    return np.diff(edges, axis=1) - 1
+    rows = np.zeros((1, 0), dtype=np.int64)
+    spent = np.zeros(1, dtype=np.int64)
+    for _ in range(parts - 1):
+        # Each row grows by every value from 0 to what it has left, in increasing order.
+        room = total - spent + 1
+        start = np.repeat(np.cumsum(room) - room, room)
+        value = np.arange(int(room.sum()), dtype=np.int64) - start
+        rows = np.column_stack([np.repeat(rows, room, axis=0), value])
+        spent = np.repeat(spent, room) + value
+    return np.column_stack([rows, total - spent])
+
+
+def composition_blocks(total: int, parts: int, limit: int) -> Iterator[np.ndarray]:
+    """`compositions(total, parts)` in lexicographic blocks of at most `limit` rows where it
+    can (a block fixes the leading parts; one with a single free part is one row)."""
+    if parts <= 1 or comb(total + parts - 1, parts - 1) <= limit:
+        yield compositions(total, parts)
+        return
+    for first in range(total + 1):
+        for block in composition_blocks(total - first, parts - 1, limit):
+            yield np.column_stack([np.full(len(block), first, dtype=np.int64), block])
+
+
+def row_bytes(model: CompileModel) -> int:
+    """About how many bytes evaluating one allocation of `model` holds at its peak: every
+    node's output distribution (they are kept to the end) and the largest node's working
+    arrays (its input combinations), from the support sizes the evaluator's distributions
+    reach (a deterministic module's is its inputs' product, a stochastic one's its bins, a
+    support past `MAX_SUPPORT` is folded)."""
+    support: dict[int, int] = {}
+    kept, peak = 0, 0
+    for node in model.nodes:
+        sizes = [support[s.index] if s.kind == "node" else 1 for s in node.slots]
+        combos = prod(sizes)
+        work = combos * (len(sizes) + 6)
+        out = combos
+        if isinstance(node, TestNode):
+            out = 1
+        elif isinstance(node, IfNode):
+            out = sum(
+                prod(sizes[a] for a in plan.axes) * (plan.compiled.profile.n_bins + 1)
+                for plan in node.branches
+            )
+            work = out * (len(sizes) + 6)
+        elif isinstance(node, ModuleNode):
+            if not node.deterministic:
+                out = node.profile.n_bins
+                work = combos * (len(sizes) + 6 + 4 * node.profile.n_bins)
+            # A call that may not be made, or a profile that records no result: one more value.
+            out += node.step > 0 or node.profile.no_result_table is not None or out < combos
+        if out > MAX_SUPPORT:
+            out = len(FOLD_GRID) + 1
+        support[node.index] = out
+        kept += 2 * out
+        peak = max(peak, work)
+    return 8 * WORKSPACE * (kept + peak)
+
+
+def chunk_rows(model: CompileModel, memory: int, per_row: int = 0) -> int:
+    """How many rows to evaluate at once within `memory` bytes (each row also holding
+    `per_row` bytes of the caller's own): at least one, at most `CHUNK`."""
+    return int(min(CHUNK, max(1, memory // (row_bytes(model) + per_row))))
+
+
+def expected_in_chunks(
+    evaluator: Evaluates, quality: Array, allocation: np.ndarray, memory: int
+) -> Array:
+    """`evaluator.expected` of rows `quality (R, m)`, `allocation (R, n)`, a chunk at a time."""
+    step = chunk_rows(evaluator.model, memory)
+    if len(allocation) <= step:
+        return evaluator.expected(quality, allocation)
+    return np.concatenate(
+        [
+            evaluator.expected(quality[i : i + step], allocation[i : i + step])
+            for i in range(0, len(allocation), step)
+        ]
+    )
+
+
+def check_memory(name: str, needed: int, memory: int) -> None:
+    """Refuse a search whose least memory `needed` is over the cap `memory`, with both."""
+    if needed > memory:
+        raise CompileError(
+            f"the {name} search needs about {format_bytes(needed)} of memory at the least, "
+            f"more than the cap of {format_bytes(memory)}: raise the cap (memory=, --memory), "
+            "or use a coarser time grid, fewer input qualities or another allocator"
+        )
+
+
+def format_bytes(size: float) -> str:
+    """A byte count for people: 512 B, 3.2 kB, 1.5 MB, 2 GB (powers of 1000)."""
+    for unit in ("B", "kB", "MB", "GB"):
+        if size < 1000 or unit == "GB":
+            return f"{size:.3g} {unit}" if unit != "B" else f"{size:.0f} B"
+        size /= 1000
+    raise AssertionError(size)
 
 
 def nothing_to_allocate(
@@ -97,10 +195,69 @@ def equal_split(units: np.ndarray, n: int) -> np.ndarray:
     return (base + extra).astype(np.int64)
 
 
+def trades(n: int) -> np.ndarray:
+    """Every trade of one unit from one module to another, as rows `(n (n - 1), n)`."""
+    pairs = np.array([(i, j) for i in range(n) for j in range(n) if i != j]).reshape(-1, 2)
+    trade = np.zeros((len(pairs), n), dtype=np.int64)
+    trade[np.arange(len(pairs)), pairs[:, 0]] = -1
+    trade[np.arange(len(pairs)), pairs[:, 1]] = 1
+    return trade
+
+
+def climb(
+    evaluator: Evaluates,
+    quality: Array,
+    allocation: np.ndarray,
+    best: Array,
+    step: np.ndarray,
+    dt: float,
+    memory: int,
+) -> tuple[np.ndarray, Array]:
+    """The papers' hill-climbing from `allocation (R, n)` (expected qualities `best`), every row
+    in lockstep: while some trade of `step` units from one module to another raises E[Q_out],
+    make the best one; else halve the step, until it is below one unit. Returns the final
+    allocations and qualities (the inputs are not changed)."""
+    allocation, best, step = allocation.copy(), best.copy(), step.copy()
+    n = allocation.shape[1]
+    trade = trades(n)
+    per_row = len(trade) * (row_bytes(evaluator.model) + 16 * n + 8 * quality.shape[1])
+    chunk = max(1, memory // per_row)
+    active = step >= 1
+    while active.any():
+        for start in range(0, int(active.sum()), chunk):
+            rows = np.flatnonzero(active)[start : start + chunk]
+            candidates = allocation[rows, None, :] + step[rows, None, None] * trade[None]
+            valid = (candidates >= 0).all(axis=2)
+            q = np.repeat(quality[rows], len(trade), axis=0)
+            value = evaluator.expected(q, candidates.reshape(-1, n) * dt).reshape(valid.shape)
+            value[~valid] = -np.inf
+            choice = value.argmax(axis=1)
+            top = value[np.arange(len(rows)), choice]
+            gain = top > best[rows] + IMPROVEMENT
+            allocation[rows[gain]] = candidates[gain, choice[gain]]
+            best[rows[gain]] = top[gain]
+            step[rows[~gain]] //= 2
+        active = step >= 1
+    return allocation, best
+
+
+def least_climbing_memory(evaluator: Evaluates, rows: int) -> int:
+    """What hill-climbing holds at the least: its rows' allocations, and one row's trades."""
+    n = evaluator.n_modules
+    trade = n * (n - 1)
+    return 8 * rows * (3 * n + 4) + trade * (row_bytes(evaluator.model) + 16 * n)
+
+
 class HillClimbing:
     """The papers' hill-climbing time allocation, run on every cell in lockstep."""
 
     name = "hill-climbing"
+
+    def __init__(self, memory: int = DEFAULT_MEMORY) -> None:
+        self.memory = memory
+
+    def memory_needed(self, evaluator: Evaluates, units: np.ndarray) -> int:
+        return least_climbing_memory(evaluator, len(units))
 
     def allocate(
         self, evaluator: Evaluates, quality: Array, units: np.ndarray, dt: float
@@ -109,38 +266,22 @@ class HillClimbing:
         if n == 0:
             return nothing_to_allocate(evaluator, quality, units)
         allocation = equal_split(units, n)
-        best = evaluator.expected(quality, allocation * dt)
+        best = expected_in_chunks(evaluator, quality, allocation * dt, self.memory)
         if n == 1:
             return allocation, best
-        pairs = np.array([(i, j) for i in range(n) for j in range(n) if i != j])
-        trade = np.zeros((len(pairs), n), dtype=np.int64)
-        trade[np.arange(len(pairs)), pairs[:, 0]] = -1
-        trade[np.arange(len(pairs)), pairs[:, 1]] = 1
         step = np.maximum(units // n, 1)  # initial-resolution(T): one equal share
-        active = units > 0
-        while active.any():
-            rows = np.flatnonzero(active)
-            candidates = allocation[rows, None, :] + step[rows, None, None] * trade[None]
-            valid = (candidates >= 0).all(axis=2)
-            flat = candidates.reshape(-1, n)
-            q = np.repeat(quality[rows], len(pairs), axis=0)
-            value = evaluator.expected(q, flat * dt).reshape(len(rows), len(pairs))
-            value[~valid] = -np.inf
-            choice = value.argmax(axis=1)
-            gain = value[np.arange(len(rows)), choice] > best[rows] + IMPROVEMENT
-            better = rows[gain]
-            allocation[better] = candidates[gain, choice[gain]]
-            best[better] = value[gain, choice[gain]]
-            stuck = rows[~gain]
-            step[stuck] //= 2
-            active[stuck] = step[stuck] >= 1
-        return allocation, best
+        step[units <= 0] = 0
+        return climb(evaluator, quality, allocation, best, step, dt, self.memory)
 
 
 class Exhaustive:
-    """Every allocation on the lattice; the reference for small programs."""
+    """Every allocation on the lattice; the reference for small programs. The allocations of
+    each total are generated and evaluated a block at a time, within the memory cap."""
 
     name = "exhaustive"
+
+    def __init__(self, memory: int = DEFAULT_MEMORY) -> None:
+        self.memory = memory
 
     @staticmethod
     def rows(units: np.ndarray, n: int) -> int:
@@ -150,6 +291,12 @@ class Exhaustive:
     @staticmethod
     def computable(units: np.ndarray, n: int) -> bool:
         return Exhaustive.rows(units, n) <= EXHAUSTIVE_LIMIT
+
+    def memory_needed(self, evaluator: Evaluates, units: np.ndarray) -> int:
+        """Its rows' results, and the smallest block: one allocation for each cell of a total."""
+        n = evaluator.n_modules
+        cells = max(np.unique(units, return_counts=True)[1], default=0)
+        return 8 * len(units) * (n + 2) + cells * (row_bytes(evaluator.model) + 24 * n)
 
     def allocate(
         self, evaluator: Evaluates, quality: Array, units: np.ndarray, dt: float
@@ -167,9 +314,8 @@ class Exhaustive:
         best = np.full(len(units), -np.inf)
         for total in np.unique(units):  # one simplex per distinct total, all its cells at once
             cells = np.flatnonzero(units == total)
-            candidates = compositions(int(total), n)
-            for start in range(0, len(candidates), max(1, CHUNK // len(cells))):
-                chunk = candidates[start : start + max(1, CHUNK // len(cells))]
+            per_block = chunk_rows(evaluator.model, self.memory, 24 * n) // len(cells)
+            for chunk in composition_blocks(int(total), n, max(1, per_block)):
                 q = np.repeat(quality[cells], len(chunk), axis=0)
                 a = np.tile(chunk, (len(cells), 1))
                 value = evaluator.expected(q, a * dt).reshape(len(cells), len(chunk))
@@ -268,6 +414,21 @@ class DynamicProgramming:
 
     name = "dp"
 
+    def __init__(self, memory: int = DEFAULT_MEMORY) -> None:
+        self.memory = memory
+
+    def memory_needed(self, evaluator: Evaluator, units: np.ndarray) -> int:
+        """The largest node's candidate splits (every split of every budget among its own run
+        and its subtrees), and their values for one input-quality cell at a time."""
+        top = int(units.max(initial=0))
+        parts = [
+            (1 if isinstance(node, ModuleNode) else 0)
+            + sum(slot.kind == "node" for slot in node.slots)
+            for node in evaluator.model.nodes
+            if not isinstance(node, TestNode | IfNode)
+        ]
+        return max((_split_bytes(top, k, 1) for k in parts), default=0)
+
     def allocate(
         self, evaluator: Evaluator, quality: Array, units: np.ndarray, dt: float
     ) -> tuple[np.ndarray, Array]:
@@ -289,7 +450,7 @@ class DynamicProgramming:
             # Inner subtrees may get any budget; the root only the totals asked for.
             budgets = totals if node.index == root else None
             best[node.index], choice[node.index], splits[node.index] = self._node(
-                node, best, cells, top, dt, budgets
+                node, best, cells, top, dt, budgets, self.memory
             )
         n = evaluator.n_modules
         if n == 0:
@@ -322,9 +483,11 @@ class DynamicProgramming:
         top: int,
         dt: float,
         budgets: np.ndarray | None,
+        memory: int,
     ) -> tuple[Array, np.ndarray, np.ndarray]:
-        children = [s.index for s in node.slots if s.kind == "node"]
-        parts = (1 if isinstance(node, ModuleNode) else 0) + len(children)
+        parts = (1 if isinstance(node, ModuleNode) else 0) + sum(
+            s.kind == "node" for s in node.slots
+        )
         # Every split of every budget up to `top` (or of `budgets` only): the own time first,
         # then each child's.
         with_slack = compositions(top, parts + 1)
@@ -333,12 +496,43 @@ class DynamicProgramming:
         if budgets is not None:
             keep = np.isin(spent, budgets)
             candidates, spent = candidates[keep], spent[keep]
+        # The best split for each budget: candidates that spend exactly that budget.
+        order = np.argsort(spent, kind="stable")
+        bounds = np.searchsorted(spent[order], np.arange(top + 2))
+        table = np.full((len(cells), top + 1), -np.inf)
+        index = np.zeros((len(cells), top + 1), dtype=np.int64)
+        fixed = _split_bytes(top, parts, 0)
+        per_cell = max(1, _split_bytes(top, parts, 1) - fixed)
+        step = max(1, (memory - fixed) // per_cell)
+        for first in range(0, len(cells), step):  # a chunk of input-quality cells at a time
+            rows = slice(first, first + step)
+            value = DynamicProgramming._values(node, best, cells, rows, candidates, dt)
+            for budget in range(top + 1):
+                members = order[bounds[budget] : bounds[budget + 1]]
+                if len(members) == 0:
+                    continue
+                pick = value[:, members].argmax(axis=1)
+                table[rows, budget] = value[np.arange(len(value)), members[pick]]
+                index[rows, budget] = members[pick]
+        return table, index, candidates
+
+    @staticmethod
+    def _values(
+        node: ModuleNode | ElementaryNode | ChoiceNode,
+        best: dict[int, Array],
+        cells: Array,
+        rows: slice,
+        candidates: np.ndarray,
+        dt: float,
+    ) -> Array:
+        """The node's quality for every candidate split, for the input-quality cells `rows`."""
+        cells = cells[rows]
         n_cells, n_rows = len(cells), len(candidates)
         qualities = []
         column = 1 if isinstance(node, ModuleNode) else 0
         for slot in node.slots:
             if slot.kind == "node":
-                qualities.append(best[slot.index][:, candidates[:, column]])
+                qualities.append(best[slot.index][rows][:, candidates[:, column]])
                 column += 1
             elif slot.kind == "input":
                 qualities.append(np.repeat(cells[:, [slot.index]], n_rows, axis=1))
@@ -366,20 +560,14 @@ class DynamicProgramming:
             value = node.combine(np.moveaxis(q, -1, 0)) if qualities else np.ones((n_cells, n_rows))
         else:  # a best-of: the best of its alternatives
             value = np.max(q, axis=-1) if qualities else np.ones((n_cells, n_rows))
-        value = np.where(infeasible, -np.inf, value)
-        # The best split for each budget: candidates that spend exactly that budget.
-        table = np.full((n_cells, top + 1), -np.inf)
-        index = np.zeros((n_cells, top + 1), dtype=np.int64)
-        order = np.argsort(spent, kind="stable")
-        bounds = np.searchsorted(spent[order], np.arange(top + 2))
-        for budget in range(top + 1):
-            members = order[bounds[budget] : bounds[budget + 1]]
-            if len(members) == 0:
-                continue
-            pick = value[:, members].argmax(axis=1)
-            table[:, budget] = value[np.arange(n_cells), members[pick]]
-            index[:, budget] = members[pick]
-        return table, index, candidates
+        return np.where(infeasible, -np.inf, value)
+
+
+def _split_bytes(top: int, parts: int, cells: int) -> int:
+    """What dp holds for a node of `parts` parts: its candidate splits of every budget up to
+    `top` (with their slack column, and the sort), and their values for `cells` cells."""
+    splits = comb(top + parts, parts)
+    return 8 * splits * (2 * parts + 4) + 8 * WORKSPACE * cells * splits * (parts + 4)
 
 
 class _Restricted:
@@ -394,6 +582,10 @@ class _Restricted:
         observed: Mapping[int, float],
     ) -> None:
         self.evaluator, self.base, self.free, self.observed = evaluator, base, list(free), observed
+
+    @property
+    def model(self) -> CompileModel:
+        return self.evaluator.model
 
     @property
     def n_modules(self) -> int:
