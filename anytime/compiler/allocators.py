@@ -70,6 +70,11 @@ class Evaluates(Protocol):
 class Allocator(Protocol):
     name: str
 
+    def memory_needed(self, evaluator: Evaluator, units: np.ndarray) -> int:
+        """The bytes the search holds at the least (with its smallest chunks) for these
+        totals, so that a table that cannot fit the cap is refused before it starts."""
+        ...
+
     def allocate(
         self, evaluator: Evaluator, quality: Array, units: np.ndarray, dt: float
     ) -> tuple[np.ndarray, Array]:
@@ -212,11 +217,13 @@ def climb(
     step: np.ndarray,
     dt: float,
     memory: int,
+    every_step: bool = False,
 ) -> tuple[np.ndarray, Array]:
     """The papers' hill-climbing from `allocation (R, n)` (expected qualities `best`), every row
     in lockstep: while some trade of `step` units from one module to another raises E[Q_out],
-    make the best one; else halve the step, until it is below one unit. Returns the final
-    allocations and qualities (the inputs are not changed)."""
+    make the best one; else halve the step (or, with `every_step`, try the next smaller one),
+    until it is below one unit. Returns the final allocations and qualities (the inputs are not
+    changed)."""
     allocation, best, step = allocation.copy(), best.copy(), step.copy()
     n = allocation.shape[1]
     trade = trades(n)
@@ -227,16 +234,20 @@ def climb(
         for start in range(0, int(active.sum()), chunk):
             rows = np.flatnonzero(active)[start : start + chunk]
             candidates = allocation[rows, None, :] + step[rows, None, None] * trade[None]
+            # Only trades a module can afford are evaluated (a negative share is no call, and
+            # would widen the batch's distributions for nothing).
             valid = (candidates >= 0).all(axis=2)
-            q = np.repeat(quality[rows], len(trade), axis=0)
-            value = evaluator.expected(q, candidates.reshape(-1, n) * dt).reshape(valid.shape)
-            value[~valid] = -np.inf
+            row, column = np.nonzero(valid)
+            value = np.full(valid.shape, -np.inf)
+            value[row, column] = evaluator.expected(
+                quality[rows[row]], candidates[row, column] * dt
+            )
             choice = value.argmax(axis=1)
             top = value[np.arange(len(rows)), choice]
             gain = top > best[rows] + IMPROVEMENT
             allocation[rows[gain]] = candidates[gain, choice[gain]]
             best[rows[gain]] = top[gain]
-            step[rows[~gain]] //= 2
+            step[rows[~gain]] = step[rows[~gain]] - 1 if every_step else step[rows[~gain]] // 2
         active = step >= 1
     return allocation, best
 
@@ -338,17 +349,23 @@ def least_useful_time(profile: ConditionalPerformanceProfile) -> float:
 
 
 def proportional_split(units: np.ndarray, weights: Array) -> np.ndarray:
-    """`units` split in proportion to `weights` on the lattice (largest remainders first);
-    an equal split when every weight is 0."""
-    n = len(weights)
-    if n == 0 or not weights.sum() > 0:
-        return equal_split(units, n) if n else np.zeros((len(units), 0), dtype=np.int64)
-    exact = units[:, None] * (weights / weights.sum())[None, :]
+    """`units` split in proportion to `weights` on the lattice (largest remainders first),
+    the weights one vector `(n,)` or one per row `(C, n)`; an equal split where every weight
+    is 0."""
+    weights = np.broadcast_to(
+        np.asarray(weights, dtype=np.float64), (len(units), np.shape(weights)[-1])
+    )
+    n = weights.shape[1]
+    if n == 0:
+        return np.zeros((len(units), 0), dtype=np.int64)
+    total = weights.sum(axis=1, keepdims=True)
+    share = np.divide(weights, total, out=np.full(weights.shape, 1.0 / n), where=total > 0)
+    exact = units[:, None] * share
     base = np.floor(exact + 1e-9).astype(np.int64)
     left = units - base.sum(axis=1)
     rank = np.argsort(np.argsort(-(exact - base), axis=1, kind="stable"), axis=1)
     split: np.ndarray = base + (rank < left[:, None])
-    return split
+    return np.where((total > 0), split, equal_split(units, n))
 
 
 class Proportional:
@@ -356,15 +373,21 @@ class Proportional:
 
     name = "proportional"
 
+    def __init__(self, memory: int = DEFAULT_MEMORY) -> None:
+        self.memory = memory
+
+    def memory_needed(self, evaluator: Evaluates, units: np.ndarray) -> int:
+        return 8 * len(units) * (evaluator.n_modules + 2) + row_bytes(evaluator.model)
+
     def allocate(
-        self, evaluator: Evaluator, quality: Array, units: np.ndarray, dt: float
+        self, evaluator: Evaluates, quality: Array, units: np.ndarray, dt: float
     ) -> tuple[np.ndarray, Array]:
         nodes = evaluator.model.anytime_nodes
         if not nodes:
             return nothing_to_allocate(evaluator, quality, units)
         star = np.array([least_useful_time(n.profile) + _step(n) for n in nodes])
         allocation = proportional_split(units, star)
-        return allocation, evaluator.expected(quality, allocation * dt)
+        return allocation, expected_in_chunks(evaluator, quality, allocation * dt, self.memory)
 
 
 def _step(node: ModuleNode | IfNode) -> float:
@@ -627,13 +650,3 @@ def reallocate(
     new[free] = split[0] * resolution
     new[free[0]] += budget - units[0] * resolution
     return new
-
-
-ALLOCATORS: dict[
-    str, type[HillClimbing] | type[Exhaustive] | type[DynamicProgramming] | type[Proportional]
-] = {
-    "hill-climbing": HillClimbing,
-    "exhaustive": Exhaustive,
-    "dp": DynamicProgramming,
-    "proportional": Proportional,
-}

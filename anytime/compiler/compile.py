@@ -20,13 +20,16 @@ from attrs import frozen
 from numpy.typing import ArrayLike
 
 from anytime.compiler.allocators import (
-    ALLOCATORS,
+    DynamicProgramming,
     Exhaustive,
+    HillClimbing,
+    Proportional,
     dp_obstacle,
     equal_split,
 )
 from anytime.compiler.evaluate import Dist, Evaluator
 from anytime.compiler.model import CompileError, CompileModel, IfNode, ModuleNode, build_model
+from anytime.compiler.multistart import MultiStart
 from anytime.dsl.program import Call, Program, SchemaCall, SchemaFile
 from anytime.dsl.source import Source
 from anytime.library import AnytimeLibrary
@@ -40,7 +43,23 @@ from anytime.profiles.profile import (
 #: The default grid of program input qualities: 0, 0.1, ..., 1.
 DEFAULT_INPUT_QUALITY = tuple(float(q) for q in np.round(np.linspace(0, 1, 11), 12))
 
-#: Allocators by name; "auto" is dp where local compilation is exact, else hill-climbing.
+#: Allocators by name.
+ALLOCATORS: dict[
+    str,
+    type[HillClimbing]
+    | type[Exhaustive]
+    | type[DynamicProgramming]
+    | type[Proportional]
+    | type[MultiStart],
+] = {
+    "hill-climbing": HillClimbing,
+    "exhaustive": Exhaustive,
+    "dp": DynamicProgramming,
+    "proportional": Proportional,
+    "multi-start": MultiStart,
+}
+
+#: The names an allocator may be asked for by: "auto" chooses (see `_choose`).
 ALLOCATOR_NAMES = ("auto", *ALLOCATORS)
 
 
