@@ -27,7 +27,13 @@ from anytime.compiler import (
     format_report,
     save_compiled,
 )
-from anytime.compiler.compile import ALLOCATOR_NAMES, DEFAULT_INPUT_QUALITY, default_time_grid
+from anytime.compiler.allocators import DEFAULT_MEMORY
+from anytime.compiler.compile import (
+    ALLOCATOR_NAMES,
+    DEFAULT_INPUT_QUALITY,
+    default_time_grid,
+    memory_bytes,
+)
 from anytime.dsl import SchemaFile, format_programs, graph_to_dot, load_schemas, program_to_json
 from anytime.library import AnytimeLibrary
 
@@ -67,7 +73,8 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "--allocator",
         choices=ALLOCATOR_NAMES,
         default="auto",
-        help="auto (default): dp where local compilation is exact, else hill-climbing",
+        help="auto (default): dp where local compilation is exact, else exhaustive where it is "
+        "cheap, else multi-start",
     )
     compile_.add_argument(
         "--time-grid",
@@ -95,10 +102,26 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
         choices=["ticks", "seconds"],
         help="the unit the time grid is in; it must be the profiles' unit",
     )
+    compile_.add_argument(
+        "--memory",
+        type=memory_size,
+        metavar="SIZE",
+        default=DEFAULT_MEMORY,
+        help="the most memory a search may hold at once, e.g. 512MB, 1GB, 2GiB (default: 1GB); "
+        "it evaluates in chunks within it, and a table that cannot fit is refused up front",
+    )
     compile_.add_argument("-o", "--output", metavar="OUT.yaml", help="write the compiled profile")
     compile_.add_argument("--json", action="store_true", help="print the report as JSON")
     library_options(compile_)
     compile_.set_defaults(run=run_compile)
+
+
+def memory_size(text: str) -> int:
+    """The --memory option: a size in bytes or with a unit (a usage error otherwise)."""
+    try:
+        return memory_bytes(text)
+    except CompileError as error:
+        raise argparse.ArgumentTypeError(str(error).removeprefix("memory: ")) from None
 
 
 def run_parse(args: argparse.Namespace) -> int:
@@ -136,6 +159,7 @@ def run_compile(args: argparse.Namespace) -> int:
         allocator=args.allocator,
         input_quality=args.input_quality,
         resolution=args.resolution,
+        memory=args.memory,
     )
     wanted = [c for c in compiled if args.schema is None or c.name == args.schema.lower()]
     if args.time_unit is not None:
@@ -180,6 +204,7 @@ def compile_schemas(
     allocator: str,
     input_quality: Sequence[float] = DEFAULT_INPUT_QUALITY,
     resolution: float | None = None,
+    memory: int = DEFAULT_MEMORY,
 ) -> list[CompiledProgram]:
     """`compile_file` as the commands run it: the time grid given (by the `time_grid` option
     type) or the default, a lattice too large refused up front (a usage error), compile errors
@@ -199,6 +224,7 @@ def compile_schemas(
             schema=schema,
             allocator=allocator,
             resolution=resolution,
+            memory=memory,
         )
     except CompileError as error:
         raise InputError(str(error), where=error.where or schemas.filename) from None

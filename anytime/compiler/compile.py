@@ -13,6 +13,7 @@ optimum.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -20,12 +21,15 @@ from attrs import frozen
 from numpy.typing import ArrayLike
 
 from anytime.compiler.allocators import (
+    DEFAULT_MEMORY,
     DynamicProgramming,
     Exhaustive,
     HillClimbing,
     Proportional,
+    check_memory,
     dp_obstacle,
     equal_split,
+    row_bytes,
 )
 from anytime.compiler.evaluate import Dist, Evaluator
 from anytime.compiler.model import CompileError, CompileModel, IfNode, ModuleNode, build_model
@@ -61,6 +65,34 @@ ALLOCATORS: dict[
 
 #: The names an allocator may be asked for by: "auto" chooses (see `_choose`).
 ALLOCATOR_NAMES = ("auto", *ALLOCATORS)
+
+#: "auto" runs the exhaustive search (exact) where it evaluates at most this many allocations
+#: per cell of the table, about what the multi-start search evaluates itself.
+AUTO_EXHAUSTIVE_PER_CELL = 1_000
+#: The exhaustive reference behind `exhaustive_gap` is run where its allocations times the
+#: bytes of evaluating one (`row_bytes`, a measure of the work) stay below this: a few seconds.
+REFERENCE_WORK = 2 * 10**9
+
+_UNITS = {"b": 1, "kb": 10**3, "mb": 10**6, "gb": 10**9, "tb": 10**12}
+_UNITS |= {"kib": 2**10, "mib": 2**20, "gib": 2**30, "tib": 2**40}
+
+
+def memory_bytes(memory: int | str) -> int:
+    """A memory cap in bytes: a number of bytes, or a size such as "512MB", "1.5GB", "2GiB"
+    (kB, MB, GB, TB: powers of 1000; KiB, MiB, GiB, TiB: of 1024)."""
+    if isinstance(memory, str):
+        match = re.fullmatch(r"\s*([0-9]*\.?[0-9]+)\s*([a-zA-Z]*)\s*", memory)
+        unit = match.group(2).lower() if match else ""
+        if match is None or (unit and unit not in _UNITS):
+            raise CompileError(
+                f"memory: expected a size such as 512MB, 1GB or 2GiB, got '{memory}'"
+            )
+        size = float(match.group(1)) * _UNITS[unit or "b"]
+    else:
+        size = memory
+    if not size >= 1:
+        raise CompileError(f"memory: expected at least one byte, got {memory!r}")
+    return int(size)
 
 
 @frozen(eq=False)
@@ -161,6 +193,7 @@ def compile_program(
     resolution: float | None = None,
     source: Source | None = None,
     callees: Mapping[str, CompiledProgram] | None = None,
+    memory: int | str = DEFAULT_MEMORY,
 ) -> CompiledProgram:
     """Compile one program; the schemas it calls must be compiled already (`callees`, by
     name), or be modules of the library. Errors are placed in `source`, the program's file
@@ -172,8 +205,12 @@ def compile_program(
         allocator: "auto", "dp", "hill-climbing", "exhaustive" or "proportional".
         resolution: the time unit allocations are multiples of (default: the grid's step);
             every T must be a multiple of it.
+        memory: the most memory the search may hold at once, in bytes or as a size ("1GB");
+            it evaluates in chunks within it, and a table whose search cannot fit is refused
+            before it starts (a CompileError with the estimate).
     """
     filename = source.filename if source is not None else "<schema>"
+    cap = memory_bytes(memory)
     time = _check_time_grid(time_grid, filename)
     dt = _resolution(time, resolution, filename)
     units = np.rint(time / dt).astype(np.int64)
@@ -191,6 +228,7 @@ def compile_program(
             resolution=dt,
             source=source,
             callees=callees,
+            memory=cap,
         )
 
     model = build_model(program, library, source, compile_branch, callees)
@@ -204,10 +242,17 @@ def compile_program(
     u_rows = np.tile(units, len(q_cells))
 
     evaluator = Evaluator(model)
-    small = len(model.anytime_nodes) <= 4 and Exhaustive.computable(
-        u_rows, len(model.anytime_nodes)
-    )
-    chosen = _choose(model, allocator, small)
+    n = len(model.anytime_nodes)
+    exhaustive_rows = Exhaustive.rows(u_rows, n)
+    cheap = exhaustive_rows <= AUTO_EXHAUSTIVE_PER_CELL * len(u_rows)
+    chosen = _choose(model, allocator, cheap)
+    search = ALLOCATORS[chosen](cap)
+    # The search, and the evaluation of the whole table after it.
+    needed = search.memory_needed(evaluator, u_rows) + len(u_rows) * row_bytes(model)
+    try:
+        check_memory(chosen, needed, cap)
+    except CompileError as error:
+        raise CompileError(f"schema '{program.name}': {error}", where=filename) from None
     approximations = []
     stochastic = [
         n for n in model.anytime_nodes if not isinstance(n, ModuleNode) or not n.deterministic
@@ -217,7 +262,7 @@ def compile_program(
             "the program is a DAG: a shared result makes later inputs correlated, and "
             "evaluation treats them as independent (exact for trees, approximate here)"
         )
-    allocation, _ = ALLOCATORS[chosen]().allocate(evaluator, q_rows, u_rows, dt)
+    allocation, _ = search.allocate(evaluator, q_rows, u_rows, dt)
     seen: dict[int, list[Dist]] = {}
     output = evaluator.evaluate(q_rows, allocation * dt, seen=seen)
     warnings = _outside_input_grids(model, seen)
@@ -227,11 +272,15 @@ def compile_program(
         for name, split in _baselines(model, u_rows, dt).items()
     }
     gap = None
-    n = len(model.anytime_nodes)
+    reference = Exhaustive(cap)
     if chosen == "exhaustive":
         gap = 0.0
-    elif n <= 4 and Exhaustive.computable(u_rows, n):
-        _, optimum = Exhaustive().allocate(evaluator, q_rows, u_rows, dt)
+    elif (
+        Exhaustive.computable(u_rows, n)
+        and exhaustive_rows * row_bytes(model) <= REFERENCE_WORK
+        and reference.memory_needed(evaluator, u_rows) <= cap
+    ):
+        _, optimum = reference.allocate(evaluator, q_rows, u_rows, dt)
         gap = float(np.max(optimum - output.expected()))
     profile = _compiled_profile(model, output, q_grid, time, cell_shape)
     return CompiledProgram(
@@ -284,6 +333,7 @@ def compile_file(
     schema: str | None = None,
     allocator: str = "auto",
     resolution: float | None = None,
+    memory: int | str = DEFAULT_MEMORY,
 ) -> list[CompiledProgram]:
     """Compile the schemas of a file bottom-up (callees first), so that a call of a schema
     uses the callee's compiled profile (and, at run time, runs the callee's program).
@@ -291,7 +341,8 @@ def compile_file(
     Only `schema` and the schemas it calls are compiled when it is given. A callee is compiled
     on every multiple of the resolution up to the largest total, so its callers can give it any
     share of their time on the lattice. Returns the compiled programs, callees first. Errors
-    are placed in the file's own source (`schemas.source`).
+    are placed in the file's own source (`schemas.source`). `memory` caps each compilation's
+    search (see `compile_program`).
     """
     wanted = [schemas[schema]] if schema is not None else list(schemas.programs)
     needed: set[str] = set()
@@ -318,14 +369,15 @@ def compile_file(
             resolution=dt,
             source=schemas.source,
             callees=compiled,
+            memory=memory,
         )
         compiled[program.name] = result
     return list(compiled.values())
 
 
-def _choose(model: CompileModel, allocator: str, small: bool = False) -> str:
+def _choose(model: CompileModel, allocator: str, cheap: bool = False) -> str:
     """The allocator to run for `allocator` ("auto": dp where it is exact, else exhaustive
-    when affordable, else hill-climbing; dp asked for where it is not exact: hill-climbing)."""
+    where it is cheap, else multi-start; dp asked for where it is not exact: hill-climbing)."""
     if allocator not in ALLOCATOR_NAMES:
         raise CompileError(
             f"unknown allocator '{allocator}' (expected one of {', '.join(ALLOCATOR_NAMES)})"
@@ -334,8 +386,8 @@ def _choose(model: CompileModel, allocator: str, small: bool = False) -> str:
     if allocator == "auto":
         if obstacle is None:
             return "dp"
-        # hill-climbing can stop at a local maximum; the exact search is affordable
-        return "exhaustive" if small else "hill-climbing"
+        # The exact search where it costs no more than the multi-start's own evaluations.
+        return "exhaustive" if cheap else "multi-start"
     if allocator == "dp" and obstacle is not None:
         return "hill-climbing"
     return allocator
@@ -351,6 +403,11 @@ def _allocator_note(compiled: CompiledProgram) -> str:
     return {
         "dp": "dp: local compilation, exact for this tree of monotone modules",
         "hill-climbing": "hill-climbing as in the papers (may stop at a local maximum)",
+        "multi-start": (
+            "multi-start: hill-climbing from the papers' start, the proportional split, the"
+            " best points of a coarse lattice and the neighbouring totals' allocations (no"
+            " worse than hill-climbing; may miss the optimum)"
+        ),
         "exhaustive": "exhaustive: every allocation on the time lattice",
         "proportional": (
             "proportional: Romanenko's rule, T_i = T * T_i* / sum T_j*, with T_i* the least "

@@ -25,6 +25,7 @@ from hypothesis import strategies as st
 
 from anytime.compiler import CompiledProgram, compile_program, dp_obstacle
 from anytime.compiler.allocators import Exhaustive, compositions, equal_split
+from anytime.compiler.compile import AUTO_EXHAUSTIVE_PER_CELL
 from anytime.dsl import parse_schemas
 from anytime.library import AnytimeLibrary
 from anytime.modules import Context, Registry, Result, elementary, interruptible
@@ -47,11 +48,12 @@ DAG_NOTE = (
 
 
 def auto_fallback(compiled: CompiledProgram) -> str:
-    """What "auto" uses when dp would not be exact: the exact search when it is affordable,
-    else hill-climbing."""
+    """What "auto" uses when dp would not be exact: the exact search when it is cheap (no more
+    allocations per cell than the multi-start search evaluates), else multi-start."""
     n = len(compiled.model.anytime_nodes)
     units = np.rint(compiled.profile.time / compiled.resolution).astype(np.int64)
-    return "exhaustive" if n <= 4 and Exhaustive.computable(units, n) else "hill-climbing"
+    cheap = Exhaustive.rows(units, n) <= AUTO_EXHAUSTIVE_PER_CELL * len(units)
+    return "exhaustive" if cheap else "multi-start"
 
 
 def compile_with(
@@ -194,8 +196,8 @@ def test_compiled_quality_is_at_least_every_baseline(program: RandomProgram) -> 
 def test_stochastic_profiles_fall_back_to_exhaustive_or_hill_climbing(
     program: RandomProgram,
 ) -> None:
-    """Auto picks the exact search when it is affordable, else hill-climbing; dp asked for
-    falls back to hill-climbing; both say why."""
+    """Auto picks the exact search when it is cheap, else multi-start; dp asked for falls back
+    to hill-climbing; both say why."""
     first = next(s.name for s in program.modules if s.stochastic)
     reason = STOCHASTIC_REASON.format(first)
     library = program.library()
@@ -204,8 +206,8 @@ def test_stochastic_profiles_fall_back_to_exhaustive_or_hill_climbing(
         assert auto.note == f"exhaustive, because dp would not be exact: {reason}"
         assert auto.exhaustive_gap == 0.0
     else:
-        assert auto.allocator == "hill-climbing"
-        assert without_idle(auto.note) == f"hill-climbing, because dp would not be exact: {reason}"
+        assert auto.allocator == "multi-start"
+        assert without_idle(auto.note) == f"multi-start, because dp would not be exact: {reason}"
     asked = compile_with(program, "dp", library)
     assert asked.allocator == "hill-climbing"
     assert without_idle(asked.note) == f"dp was asked for but {reason}: fell back to hill-climbing"
