@@ -239,9 +239,10 @@ def climb(
             valid = (candidates >= 0).all(axis=2)
             row, column = np.nonzero(valid)
             value = np.full(valid.shape, -np.inf)
-            value[row, column] = evaluator.expected(
-                quality[rows[row]], candidates[row, column] * dt
-            )
+            if len(row):
+                value[row, column] = evaluator.expected(
+                    quality[rows[row]], candidates[row, column] * dt
+                )
             choice = value.argmax(axis=1)
             top = value[np.arange(len(rows)), choice]
             gain = top > best[rows] + IMPROVEMENT
