@@ -564,7 +564,7 @@ def test_bad_input_quality_grids(quality: list[float], message: str) -> None:
 def test_an_unknown_allocator() -> None:
     assert compile_error(CHAIN, exponential_chain(0.1, 0.1), allocator="greedy") == (
         "unknown allocator 'greedy' (expected one of auto, hill-climbing, exhaustive, dp, "
-        "proportional)"
+        "proportional, multi-start)"
     )
 
 
