@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Callable, Iterator
+from functools import partial
 
 import numpy as np
 from bench_compiler import (
@@ -234,27 +235,12 @@ def bench_scale(sizes: list[int], programs: int, seed: int) -> str:
                     )
                     tables = {}
                     for name in seconds:
-                        spent, compiled = timed(
-                            compile_program,
-                            program,
-                            library,
-                            grid,
-                            q11,
-                            allocator=name,
-                            resolution=resolution,
-                        )
+                        run = partial(compile_program, program, library, grid, q11, allocator=name)
+                        spent, compiled = timed(run, resolution=resolution)
                         seconds[name] = max(seconds[name], spent)
                         tables[name] = compiled.expected
                         if k == 0:  # once more, traced: the first program's peak memory
-                            peak[name] = peak_mib(
-                                compile_program,
-                                program,
-                                library,
-                                grid,
-                                q11,
-                                allocator=name,
-                                resolution=resolution,
-                            )
+                            peak[name] = peak_mib(run, resolution=resolution)
                     gains.append(-relative_gap(tables["multi-start"], tables["hill-climbing"]))
                 gain = np.concatenate(gains)
                 rows.append(

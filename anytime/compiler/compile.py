@@ -7,8 +7,9 @@ quality, the output-quality distribution it gives and its expectation. The resul
 schemas compose hierarchically (`compile_file` compiles callees first). A `CompiledProgram` is
 data; the runtime runs it (`anytime.runtime.run_program`, `program_module`).
 Every compilation also reports the baselines of the papers' Figures 8/10 (equal
-split, MIN and MAX for the first module) and, where it is computable, the gap to the exhaustive
-optimum.
+split, MIN and MAX for the first module) and, where that search is small, the gap to the
+exhaustive optimum. The search runs within a memory cap (`memory=`): allocations are evaluated
+in chunks, and a table whose search cannot fit is refused before it starts.
 """
 
 from __future__ import annotations
@@ -202,7 +203,8 @@ def compile_program(
     Args:
         time_grid: the totals T to fill the table for (increasing, >= 0).
         input_quality: the grid of qualities for every quality-carrying program input.
-        allocator: "auto", "dp", "hill-climbing", "exhaustive" or "proportional".
+        allocator: "auto", "dp", "hill-climbing", "exhaustive", "proportional" or
+            "multi-start" (see `_choose` for what "auto" picks).
         resolution: the time unit allocations are multiples of (default: the grid's step);
             every T must be a multiple of it.
         memory: the most memory the search may hold at once, in bytes or as a size ("1GB");

@@ -41,7 +41,6 @@ from anytime.compiler.allocators import (
     equal_split,
     expected_in_chunks,
     least_climbing_memory,
-    nothing_to_allocate,
     proportional_split,
     row_bytes,
 )
@@ -71,13 +70,10 @@ class MultiStart:
         self, evaluator: Evaluates, quality: Array, units: np.ndarray, dt: float
     ) -> tuple[np.ndarray, Array]:
         n = evaluator.n_modules
-        if n == 0:
-            return nothing_to_allocate(evaluator, quality, units)
-        if n == 1:
-            allocation = units[:, None].astype(np.int64)
-            return allocation, expected_in_chunks(evaluator, quality, allocation * dt, self.memory)
         # The papers' hill-climbing first: the result is never below it.
         allocation, best = HillClimbing(self.memory).allocate(evaluator, quality, units, dt)
+        if n <= 1:  # nothing to split
+            return allocation, best
         first = np.where(units > 0, np.maximum(units // n, 1), 0)
         starts, steps, owners = [], [], []
         if len(evaluator.model.anytime_nodes) == n:  # not a restricted evaluator
