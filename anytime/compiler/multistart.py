@@ -46,7 +46,7 @@ from anytime.compiler.allocators import (
 )
 from anytime.profiles.profile import Array
 
-SEED_POINTS = 400  # points of the coarse lattice a cell evaluates, at most
+SEED_POINTS = 1500  # points of the coarse lattice a cell evaluates, at most
 SEEDS = 3  # of which the best few are climbed
 ROUNDS = 3  # rounds of starts from the neighbouring totals' allocations
 

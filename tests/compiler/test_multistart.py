@@ -133,7 +133,7 @@ def chain_library() -> AnytimeLibrary:
         ),
         (
             "multi-start",
-            "schema 'p': the multi-start search needs about 121 kB of memory at the least,"
+            "schema 'p': the multi-start search needs about 446 kB of memory at the least,"
             " more than the cap of 1 kB: raise the cap (memory=, --memory), or use a coarser"
             " time grid, fewer input qualities or another allocator",
         ),
