@@ -242,18 +242,28 @@ def _outside_input_grids(model: CompileModel, seen: Mapping[int, list[Dist]]) ->
             continue
         names = profile.inputs or tuple(f"input {i + 1}" for i in range(profile.n_inputs))
         for name, grid, dist in zip(names, profile.input_grids, seen[node.index], strict=False):
-            reached = dist.values[(dist.probs > 1e-9) & (dist.values >= 0)]  # not no result
-            if not len(reached):
+            present = (dist.probs > 1e-9) & (dist.values >= 0)  # not no result
+            if not present.any():
                 continue
+            reached = dist.values[present]
             low, high = float(reached.min()), float(reached.max())
-            if low >= grid[0] - 1e-9 and high <= grid[-1] + 1e-9:
+            outside = present & ((dist.values < grid[0] - 1e-9) | (dist.values > grid[-1] + 1e-9))
+            if not outside.any():
                 continue
+            # The worst cell: how often an input falls outside, given its share of the time.
+            share = float(np.where(outside, dist.probs, 0.0).sum(axis=1).max())
             warnings.append(
                 f"module '{node.name}': input '{name}' receives qualities {low:.3g} to"
-                f" {high:.3g}, but its profile was measured on {grid[0]:g} to {grid[-1]:g}:"
-                " outside that range the profile is clamped to its nearest end"
+                f" {high:.3g}, but its profile was measured on {grid[0]:g} to {grid[-1]:g};"
+                f" outside that range (up to {_percent(share)} of its inputs at some total)"
+                " the profile is clamped to its nearest end"
             )
     return tuple(warnings)
+
+
+def _percent(p: float) -> str:
+    """A probability as a percentage with two significant digits (at least 0.01%)."""
+    return f"{max(p, 1e-4) * 100:.2g}%" if p < 0.995 else "100%"
 
 
 def compile_file(
