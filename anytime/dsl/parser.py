@@ -28,17 +28,18 @@ from anytime.dsl.nodes import (
     BestOfForm,
     Call,
     Expr,
-    Form,
     IfForm,
     KeywordArg,
+    MapForm,
     Number,
+    RepeatForm,
     SchemaDef,
     Setf,
     SourceFile,
-    SpecialForm,
     String,
     Symbol,
     WhenForm,
+    expr_span,
 )
 from anytime.dsl.source import Source, Span
 from anytime.errors import Diagnostic, SchemaSyntaxError
@@ -239,7 +240,8 @@ def _translate(error: UnexpectedInput, source: Source) -> SchemaSyntaxError:
         return _error_at(
             source,
             error.token.start_pos or 0,
-            f"'{word}' is a reserved word (best-of, if, when): it cannot name a variable or "
+            f"'{word}' is a reserved word (best-of, if, when, map, repeat): it cannot name a "
+            "variable or "
             "a parameter, and it opens its form: (" + _RESERVED[error.token.type] + ")",
         )
     message = error.match_examples(
@@ -255,6 +257,8 @@ _RESERVED = {
     "BEST_OF": "best-of (when PRECONDITION EXPR) ... EXPR",
     "WHEN": "when PRECONDITION EXPR",
     "IF": "if CONDITION THEN ELSE [:p P]",
+    "MAP": "map FUNCTION ITEMS ARG... [:max K]",
+    "REPEAT": "repeat N (FUNCTION ARG...)",
 }
 
 _TOKEN_WORDS = {
@@ -269,6 +273,8 @@ _TOKEN_WORDS = {
     "BEST_OF": "'best-of'",
     "WHEN": "'when'",
     "IF": "'if'",
+    "MAP": "'map'",
+    "REPEAT": "'repeat'",
     "$END": "the end of the file",
 }
 
@@ -350,6 +356,14 @@ class _ToNodes(Transformer[Token, tuple[SchemaDef, ...]]):
         head, *rest = children
         return IfForm(*self._arguments(rest), _span(meta), _span(head))
 
+    def map_(self, meta: Meta, children: list[Any]) -> MapForm:
+        head, *rest = children
+        return MapForm(*self._arguments(rest), _span(meta), _span(head))
+
+    def repeat(self, meta: Meta, children: list[Any]) -> RepeatForm:
+        head, *rest = children
+        return RepeatForm(*self._arguments(rest), _span(meta), _span(head))
+
     def _arguments(self, items: list[Any]) -> tuple[tuple[Expr, ...], tuple[KeywordArg, ...]]:
         """Positional arguments, then keyword arguments, each keyword once."""
         args: list[Expr] = []
@@ -361,7 +375,7 @@ class _ToNodes(Transformer[Token, tuple[SchemaDef, ...]]):
                 keywords.append(item)
             elif keywords:
                 raise self._fail(
-                    _expr_span(item), "a positional argument cannot follow keyword arguments"
+                    expr_span(item), "a positional argument cannot follow keyword arguments"
                 )
             else:
                 args.append(item)
@@ -388,7 +402,3 @@ class _ToNodes(Transformer[Token, tuple[SchemaDef, ...]]):
     def string(self, meta: Meta, children: list[Token]) -> String:
         # Lisp escapes: a backslash makes the next character literal.
         return String(re.sub(r"\\(.)", r"\1", children[0][1:-1], flags=re.DOTALL), _span(meta))
-
-
-def _expr_span(expr: Form) -> Span:
-    return expr.function_span if isinstance(expr, Call | SpecialForm) else expr.span
