@@ -457,7 +457,7 @@ def _resolution(time: Array, resolution: float | None, filename: str) -> float:
             f"(allocations are whole multiples of it), got {time[off][0]:g}",
             where=filename,
         )
-    return resolution
+    return float(resolution)
 
 
 def _check_quality_grid(grid: ArrayLike, filename: str) -> Array:
