@@ -2,7 +2,7 @@
 
 `tour` has diminishing returns (a concave curve: equal shares are best), `climb` an S-shaped
 curve (nothing, then a steep rise: the marginal-value rule concentrates the time), `sense` a
-world model a per-item call may read. Every curve is linear in its input qualities, so the
+world model that `route` (a tour on it) reads. Every curve is linear in its input qualities, so the
 profiles' interpolation on the grid [0, 1] is exact.
 """
 
@@ -27,6 +27,10 @@ def tour_curve(t: Any, q: Any) -> Any:
 
 def climb_curve(t: Any, q: Any) -> Any:
     return np.asarray(q) * np.clip((np.asarray(t) - 8.0) / 8.0, 0.0, 1.0)
+
+
+def route_curve(t: Any, depot: Any, world: Any) -> Any:
+    return np.asarray(depot) * np.asarray(world) * -np.expm1(-0.1 * np.asarray(t))
 
 
 def sense_curve(t: Any) -> Any:
@@ -59,6 +63,18 @@ def loop_registry() -> Registry:
     )
     def climb(ctx: Context, depot: Result) -> Iterator[Result]:
         yield from _iterate(climb_curve, depot.quality, ctx, depot.value)
+
+    @interruptible(
+        "route",
+        inputs=["depot", "world"],
+        profile=tabulate(route_curve, TIME, input_grids=LINEAR * 2, inputs=["depot", "world"]),
+        registry=registry,
+    )
+    def route(ctx: Context, depot: Result, world: Result) -> Iterator[Result]:
+        while True:
+            quality = route_curve(ctx.elapsed, depot.quality, world.quality)
+            yield Result((depot.value, ctx.elapsed), float(quality))
+            ctx.tick(1)
 
     @interruptible("sense", inputs=[], profile=tabulate(sense_curve, TIME), registry=registry)
     def sense(ctx: Context, sensor: Any) -> Iterator[Result]:

@@ -169,6 +169,7 @@ class _Execution:
         self.applicable: dict[int, list[bool]] = {}  # each best-of's, once decided
 
     def run(self) -> ProgramRecord:
+        self.count_input_collections()
         for node in self.model.nodes:
             if not self.active(node):
                 continue
@@ -351,6 +352,21 @@ class _Execution:
             registered=1,
         )
 
+    def count_input_collections(self) -> None:
+        """The maps over program inputs know their counts from the start: where one is not the
+        count planned for, the whole time is re-planned with that count's profile."""
+        planned = self.model
+        for node in planned.nodes:
+            if not isinstance(node, LoopNode) or node.kind != "map":
+                continue
+            source = planned.graph.nodes[node.index].args[0]
+            if isinstance(source, InputRef):
+                items = _plain(self.values[source.name])
+                if _is_collection(items) and len(items) != node.count:
+                    self.model = self.model.with_count(node.index, len(items))
+        if self.model is not planned:
+            self.replan()
+
     def loop_calls(self, node: LoopNode, module: AnytimeModule) -> tuple[list[list[Any]], Array]:
         """Each call's arguments and the qualities of its quality-carrying inputs (c, m): a
         map's item first, at its own quality (a `Result`'s, else the collection's); a repeat's
@@ -363,8 +379,8 @@ class _Execution:
             n = node.most
             return [list(rest) for _ in range(n)], np.tile(judged, (n, 1)).reshape(n, -1)
         collection = self.value(sources[0])
-        items = collection.value if isinstance(collection, Result) else collection
-        if not isinstance(items, Sequence) or isinstance(items, str | bytes):
+        items = _plain(collection)
+        if not _is_collection(items):
             variable = self.model.graph.nodes[node.index].variable
             raise ExecutionError(
                 f"schema '{self.model.program.name}': the collection of map '{variable}' must "
@@ -652,14 +668,21 @@ def _wrapped(value: Any) -> Result:
     return value if isinstance(value, Result) else Result(value, 1.0)
 
 
+def _plain(value: Any) -> Any:
+    return value.value if isinstance(value, Result) else value
+
+
+def _is_collection(value: Any) -> bool:
+    """What a map iterates over: a sequence (a list, a tuple), not a string."""
+    return isinstance(value, Sequence) and not isinstance(value, str | bytes)
+
+
 def _passed(value: Any, carries_quality: bool) -> Any:
     """A value as a call is passed it: a `Result` where the argument carries quality, else the
     plain value (`MISSING` as it is: only for a module that accepts it, see `not_run`)."""
     if value is MISSING:
         return MISSING
-    if carries_quality:
-        return _wrapped(value)
-    return value.value if isinstance(value, Result) else value
+    return _wrapped(value) if carries_quality else _plain(value)
 
 
 def _truth(value: Any) -> bool:
