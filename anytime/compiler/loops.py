@@ -149,8 +149,6 @@ def loop_profiles(
         if m
         else np.zeros((1, 0))
     )
-    dt = float(lattice[1] - lattice[0]) if len(lattice) > 1 else 1.0
-    top = len(lattice) - 1
     cell_shape = (*(len(g) for g in grids), len(lattice))
     q_rows = np.repeat(cells, len(lattice), axis=0)  # (cells * times, m), time fastest
     profiles = []
@@ -158,15 +156,8 @@ def loop_profiles(
         if count == 0:
             output = Dist.point(np.ones(len(q_rows)))
         else:
-            qualities = np.broadcast_to(cells[:, None, :], (len(cells), count, m))
-            curves = call_curves(call, np.ascontiguousarray(qualities), top, dt)
-            split = best_splits(curves).reshape(-1, count)  # (cells * times, count)
-            if call.deterministic:  # each call's quality is its curve's: a point mass
-                flat = np.repeat(curves, len(lattice), axis=0)
-                got = np.take_along_axis(flat, split[:, :, None], axis=2)[:, :, 0]
-                output = Dist.point(got.mean(axis=1))
-            else:
-                output = _mean_of_calls(call, q_rows, split * dt)
+            shares = _compiled_shares(call, cells, count, lattice)
+            output = _mean_of_calls(call, q_rows, shares)
         profiles.append(
             binned_profile(
                 output,
@@ -182,9 +173,28 @@ def loop_profiles(
     return tuple(profiles)
 
 
+def _compiled_shares(call: ModuleNode, cells: Array, count: int, lattice: Array) -> Array:
+    """The shares (cells * times, count) the run-time rule gives `count` calls whose items are
+    all at a cell's qualities, for each time of the lattice: as `run_time_split` does."""
+    dt = float(lattice[1] - lattice[0]) if len(lattice) > 1 else 1.0
+    m = cells.shape[1]
+    qualities = np.ascontiguousarray(np.broadcast_to(cells[:, None, :], (len(cells), count, m)))
+    curves = call_curves(call, qualities, len(lattice) - 1, dt)
+    shares = best_splits(curves) * dt  # (cells, times, count)
+    equal = identical_concave(curves)
+    shares[equal] = np.asarray(lattice)[:, None] / count
+    return shares.reshape(-1, count)
+
+
 def _mean_of_calls(call: ModuleNode, q: Array, shares: Array) -> Dist:
     """The distribution of the mean quality of independent calls (B rows of input qualities
-    `q`, shares (B, c)): a running mean, folded when its support grows (mean kept exact)."""
+    `q`, shares (B, c)): a running mean, folded when its support grows (mean kept exact); a
+    deterministic call's is a point mass at the mean of the calls' curves."""
+    if call.deterministic:
+        t = call.run_time(shares)
+        qualities = np.broadcast_to(q[:, None, :], (*t.shape, q.shape[1]))
+        each = np.where(call.starts(shares), call.profile.expected(qualities, t), 0.0)
+        return Dist.point(each.mean(axis=1))
     total: Dist | None = None
     for i in range(shares.shape[1]):
         share = shares[:, i]

@@ -113,3 +113,14 @@ def test_a_program_with_a_loop_plots(tmp_path: Path) -> None:
     path = tmp_path / "plan.png"
     plot_compiled(compiled("plan"), path)
     assert path.stat().st_size > 0
+
+
+@pytest.mark.parametrize("total", [8, 16, 40])
+def test_what_runs_is_what_was_compiled_even_on_a_coarse_lattice(total: int) -> None:
+    """Four items at quality 1, a lattice of 8: equal shares of the whole share, at compile
+    time as at run time."""
+    schemas = parse_schemas(LOOPS)
+    tours = compile_file(schemas, loop_library(), range(0, 41, 8), schema="tours")[-1]
+    run = run_program(tours, [["a", "b", "c", "d"]], total)
+    assert [r.allocation for r in run.records[1:]] == [total / 4] * 4
+    assert run.quality == pytest.approx(tours.expected[-1][total // 8])
