@@ -8,15 +8,22 @@ profile, each call's curve at the quality of its own item:
 
 - identical concave curves (a repeat, or a map over items of one quality, of a module with
   diminishing returns): equal shares, which are then optimal;
-- otherwise the marginal-value rule: give the next time to the call whose expected quality
-  rises most per unit, looking past flat stretches to the steepest chord of its curve (greedy
-  on the concave hull, Ibaraki & Katoh ch. 4); it stops when more time raises no call, leaving
-  the rest unused.
+- concave curves that differ (items of different qualities): the marginal-value rule, each
+  next unit of time to the call whose expected quality it raises most, which is optimal for
+  separable concave problems (Ibaraki & Katoh, ch. 4; Gross 1956);
+- any other curves (S-shaped, discrete variants): the marginal-value rule can be far from the
+  best there (unit by unit it stops at an S-curve's flat start; looking ahead to the steepest
+  chord it still missed by up to 22% on benchmarks/bench_loops.py's cases), so the split is
+  exact instead, by dynamic
+  programming over the calls (the max-plus recursion of the separable problem, O(c U^2) for c
+  calls and U lattice units).
+
+In every case time that raises no call is left unused.
 
 Both the compiler (the loop's profile for each count, its items all at the collection's
-quality) and the runtime (the items' own qualities) use `split_units`, so what runs is what was
-compiled. A split is never worse than one for less time: for each budget the best split found
-for any budget up to it is kept.
+quality) and the runtime (the items' own qualities) use `best_splits`, so what runs is what was
+compiled. A loop's expectation never falls as its time grows: each rule leaves unused the time
+that would lower it.
 """
 
 from __future__ import annotations
@@ -42,87 +49,106 @@ def call_curves(call: ModuleNode, qualities: Array, units: int, dt: float) -> Ar
     return curves
 
 
+def concave(curves: Array) -> np.ndarray:
+    """Per row (B,): whether every call's curve (B, c, U+1) is non-decreasing and concave
+    (diminishing returns)."""
+    rises = np.diff(curves, axis=-1)
+    falls = np.diff(rises, axis=-1)
+    return np.asarray(
+        np.all(rises >= -TOLERANCE, axis=(1, 2)) & np.all(falls <= TOLERANCE, axis=(1, 2))
+    )
+
+
 def identical_concave(curves: Array) -> np.ndarray:
-    """Per row (B,): whether its calls' curves (B, c, U+1) are one curve, non-decreasing and
-    concave, so that equal shares are optimal."""
+    """Per row (B,): whether its calls' curves (B, c, U+1) are one concave, non-decreasing
+    curve, so that equal shares are optimal."""
     same = np.all(np.abs(curves - curves[:, :1]) <= TOLERANCE, axis=(1, 2))
-    rises = np.diff(curves[:, 0], axis=-1)
-    concave = np.all(np.diff(rises, axis=-1) <= TOLERANCE, axis=-1)
-    return np.asarray(same & concave & np.all(rises >= -TOLERANCE, axis=-1))
+    return np.asarray(same & concave(curves))
 
 
 def equal_units(units: np.ndarray, calls: int) -> np.ndarray:
-    """`units` (B,) shared by `calls` as equally as whole units allow (the first ones get the
-    remainder)."""
-    base = units[:, None] // calls
-    extra = np.arange(calls)[None, :] < (units % calls)[:, None]
+    """`units` (...) shared by `calls` as equally as whole units allow (the first ones get the
+    remainder): shape (..., calls)."""
+    base = units[..., None] // calls
+    extra = np.arange(calls) < (units % calls)[..., None]
     return np.asarray(base + extra, dtype=np.int64)
 
 
-def marginal_units(curves: Array, units: np.ndarray) -> np.ndarray:
-    """The marginal-value rule on curves (B, c, U+1) for budgets `units` (B,): repeatedly give
-    the call with the steepest next chord (largest gain per unit over its next j units, the
-    smallest such j) those j units, while some gain is left and the budget allows."""
-    b, c, top = curves.shape[0], curves.shape[1], curves.shape[2] - 1
+def marginal_units(curves: Array) -> np.ndarray:
+    """The marginal-value rule for every budget 0..U: each next unit to the call whose
+    expected quality it raises most (the first on ties; to none when it raises none). For
+    concave curves the splits are optimal and nested, so one pass gives them all:
+    shape (B, U+1, c)."""
+    b, c, width = curves.shape
     split = np.zeros((b, c), dtype=np.int64)
-    left = units.astype(np.int64).copy()
-    steps = np.arange(1, top + 1)
-    active = left > 0
-    while np.any(active):
-        at = split[active]  # (A, c)
-        ahead = at[:, :, None] + steps[None, None, :]  # (A, c, U)
-        fits = (ahead <= top) & (steps[None, None, :] <= left[active][:, None, None])
-        here = np.take_along_axis(curves[active], at[:, :, None], axis=2)
-        there = np.take_along_axis(curves[active], np.minimum(ahead, top), axis=2)
-        rate = np.where(fits, (there - here) / steps, -np.inf)
-        flat = rate.reshape(len(at), -1)
-        best = np.argmax(flat, axis=1)  # the first call, then the shortest chord, on ties
-        gain = flat[np.arange(len(at)), best]
-        go = gain > TOLERANCE
-        which, size = best // top, best % top + 1
-        index = np.flatnonzero(active)[go]
-        split[index, which[go]] += size[go]
-        left[index] -= size[go]
-        active[np.flatnonzero(active)[~go]] = False
-        active &= left > 0
-    return split
+    out = np.zeros((b, width, c), dtype=np.int64)
+    rows = np.arange(b)
+    for budget in range(1, width):
+        here = np.take_along_axis(curves, split[:, :, None], axis=2)[:, :, 0]
+        there = np.take_along_axis(curves, np.minimum(split + 1, width - 1)[:, :, None], axis=2)
+        gain = np.where(split < width - 1, there[:, :, 0] - here, -np.inf)
+        best = np.argmax(gain, axis=1)
+        go = gain[rows, best] > TOLERANCE
+        split[rows[go], best[go]] += 1
+        out[:, budget] = split
+    return out
 
 
-def split_units(curves: Array, units: np.ndarray) -> tuple[np.ndarray, Array]:
-    """The run-time split of each budget `units` (B,) among calls with expected-quality curves
-    (B, c, U+1) on the lattice: equal shares for identical concave curves, the marginal-value
-    rule otherwise. Returns the split (B, c) in units and its expected mean quality (B,)."""
-    b, c = curves.shape[:2]
-    if c == 0:
-        return np.zeros((b, 0), dtype=np.int64), np.ones(b)
-    equal = identical_concave(curves)
-    split = np.where(equal[:, None], equal_units(units, c), 0)
-    if not np.all(equal):
-        split[~equal] = marginal_units(curves[~equal], units[~equal])
-    value = np.take_along_axis(curves, split[:, :, None], axis=2)[:, :, 0].mean(axis=1)
-    return split, value
+def exact_units(curves: Array) -> np.ndarray:
+    """The best split of every budget 0..U by dynamic programming over the calls (the
+    separable problem's max-plus recursion, exact for any curves; a budget need not be
+    spent): shape (B, U+1, c). O(c U^2) per row, in chunks of rows."""
+    b, c, width = curves.shape
+    out = np.zeros((b, width, c), dtype=np.int64)
+    budget = np.arange(width)
+    before = budget[:, None] - budget[None, :]  # (u, j): the budget left for earlier calls
+    fits = before >= 0
+    chunk = max(1, 4_000_000 // (width * width))
+    for lo in range(0, b, chunk):
+        part = curves[lo : lo + chunk]
+        value = np.zeros((len(part), width))  # no calls yet: 0 at every budget
+        choices = []
+        for call in range(c):
+            candidates = np.where(
+                fits, value[:, np.maximum(before, 0)] + part[:, call, None, :], -np.inf
+            )
+            choice = np.argmax(candidates, axis=2)  # (rows, u): its units, the fewest on ties
+            choices.append(choice)
+            # Non-decreasing in the budget: time no call can use is left to the "no calls" 0.
+            value = np.max(candidates, axis=2)
+        left = np.broadcast_to(budget, (len(part), width)).copy()
+        for call in reversed(range(c)):
+            units = np.take_along_axis(choices[call], left, axis=1)
+            out[lo : lo + chunk, :, call] = units
+            left -= units
+    return out
 
 
 def best_splits(curves: Array) -> np.ndarray:
-    """For curves (B, c, U+1), the split (B, U+1, c) of every budget 0..U, each never worse
-    than one for a smaller budget (which it then keeps, leaving the rest unused)."""
+    """The run-time rule's split (B, U+1, c) of every budget 0..U among calls with
+    expected-quality curves (B, c, U+1): equal shares for identical concave curves, the
+    marginal-value rule for concave ones, dynamic programming otherwise (where the
+    marginal-value rule can be far from the best: benchmarks/bench_loops.py)."""
     b, c, width = curves.shape
-    rows = np.repeat(curves, width, axis=0)
-    budgets = np.tile(np.arange(width), b)
-    split, value = split_units(rows, budgets)
-    value = value.reshape(b, width)
-    split = split.reshape(b, width, c)
-    # The best budget up to each one: its own unless a smaller one is better by more than
-    # rounding.
-    own = value >= np.maximum.accumulate(value, axis=1) - TOLERANCE
-    best = np.maximum.accumulate(np.where(own, np.arange(width), 0), axis=1)
-    return np.take_along_axis(split, best[:, :, None], axis=1)
+    out = np.zeros((b, width, c), dtype=np.int64)
+    if c == 0:
+        return out
+    equal = identical_concave(curves)
+    smooth = concave(curves) & ~equal
+    other = ~(equal | smooth)
+    out[equal] = equal_units(np.arange(width), c)
+    if np.any(smooth):
+        out[smooth] = marginal_units(curves[smooth])
+    if np.any(other):
+        out[other] = exact_units(curves[other])
+    return out
 
 
 def run_time_split(call: ModuleNode, qualities: Array, share: float, dt: float) -> Array:
     """The shares of time (c,) a loop gives its calls at run time: `qualities` (c, m) their
     inputs' qualities, `share` the loop's time. Equal shares of the whole share where they are
-    optimal, else the lattice split, the part of the share below one unit to the first call."""
+    optimal, else the lattice split (the part of the share below one unit unused, as in the
+    compiled table)."""
     c = len(qualities)
     if c == 0:
         return np.zeros(0)
@@ -130,9 +156,7 @@ def run_time_split(call: ModuleNode, qualities: Array, share: float, dt: float) 
     curves = call_curves(call, qualities[None], units, dt)
     if identical_concave(curves)[0]:
         return np.full(c, share / c)
-    split = best_splits(curves)[0, units] * dt
-    split[0] += share - units * dt
-    return np.asarray(split, dtype=np.float64)
+    return np.asarray(best_splits(curves)[0, units] * dt, dtype=np.float64)
 
 
 def loop_profiles(

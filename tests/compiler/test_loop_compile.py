@@ -17,7 +17,7 @@ from loop_modules import loop_library
 
 from anytime.compiler import compile_file, compile_program
 from anytime.compiler.allocators import compositions
-from anytime.compiler.loops import call_curves, loop_profiles, run_time_split, split_units
+from anytime.compiler.loops import best_splits, call_curves, loop_profiles, run_time_split
 from anytime.compiler.model import LoopNode, ModuleNode
 from anytime.compiler.storage import load_compiled, save_compiled
 from anytime.dsl import parse_schemas
@@ -156,10 +156,8 @@ def test_more_time_never_lowers_the_loops_compiled_expectation(
             assert curve[-1] <= best + 1e-9
 
 
-def test_the_split_of_no_calls_is_empty_and_their_mean_is_one() -> None:
-    split, value = split_units(np.zeros((2, 0, 5)), np.array([3, 4]))
-    assert split.shape == (2, 0)
-    np.testing.assert_array_equal(value, [1.0, 1.0])
+def test_the_split_of_no_calls_is_empty() -> None:
+    assert best_splits(np.zeros((2, 0, 5))).shape == (2, 5, 0)
 
 
 @pytest.mark.parametrize(
@@ -196,3 +194,26 @@ def test_a_compiled_loop_is_saved_and_loaded_back(tmp_path: Path) -> None:
         next(n for n in c.model.nodes if isinstance(n, LoopNode)) for c in (loaded, tours)
     )
     np.testing.assert_allclose(loop.profile.mean, old.profile.mean)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    rises=st.lists(st.floats(0.0, 1.0), min_size=4, max_size=12),
+    qualities=st.lists(st.floats(0.1, 1.0), min_size=1, max_size=4),
+    total=st.integers(0, 15),
+)
+def test_the_run_time_split_of_any_curve_is_within_half_a_percent_of_exhaustive(
+    rises: list[float], qualities: list[float], total: int
+) -> None:
+    steps = np.cumsum(rises) / max(sum(rises), 1e-9)
+    time = np.arange(len(steps), dtype=np.float64)
+    profile = tabulate(
+        lambda t, q: np.asarray(q) * np.interp(t, time, steps), time, input_grids=[[0.0, 1.0]]
+    )
+    call = ModuleNode(0, "f", (), profile, True, 0)
+    q = np.asarray(qualities).reshape(-1, 1)
+    shares = run_time_split(call, q, float(total), 1.0)
+    assert shares.sum() <= total + 1e-9
+    got = float(call.profile.expected(q, call.run_time(shares)).mean())
+    best = best_by_exhaustive(call, q, total)
+    assert best * (1 - 0.005) - 1e-12 <= got <= best + 1e-12
