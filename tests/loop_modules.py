@@ -43,26 +43,23 @@ def _iterate(curve: Any, q: float, ctx: Context, value: Any) -> Iterator[Result]
         ctx.tick(1)
 
 
+def _on_depots(curve: Any) -> Any:
+    """A module that tours one depot, its quality the curve's at the depot's quality."""
+
+    def run(ctx: Context, depot: Result) -> Iterator[Result]:
+        yield from _iterate(curve, depot.quality, ctx, depot.value)
+
+    return run
+
+
 def loop_registry() -> Registry:
     registry = Registry()
 
-    @interruptible(
-        "tour",
-        inputs=["depot"],
-        profile=tabulate(tour_curve, TIME, input_grids=LINEAR, inputs=["depot"]),
-        registry=registry,
-    )
-    def tour(ctx: Context, depot: Result) -> Iterator[Result]:
-        yield from _iterate(tour_curve, depot.quality, ctx, depot.value)
-
-    @interruptible(
-        "climb",
-        inputs=["depot"],
-        profile=tabulate(climb_curve, TIME, input_grids=LINEAR, inputs=["depot"]),
-        registry=registry,
-    )
-    def climb(ctx: Context, depot: Result) -> Iterator[Result]:
-        yield from _iterate(climb_curve, depot.quality, ctx, depot.value)
+    for name, curve in (("tour", tour_curve), ("climb", climb_curve)):
+        run = _on_depots(curve)
+        run.__name__ = run.__qualname__ = name
+        profile = tabulate(curve, TIME, input_grids=LINEAR, inputs=["depot"])
+        interruptible(name, inputs=["depot"], profile=profile, registry=registry)(run)
 
     @interruptible(
         "route",

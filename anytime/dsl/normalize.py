@@ -419,15 +419,13 @@ class _ProgramBuilder:
             else:
                 p = float(keyword.value.value)
         if len(call.args) != 3:
-            error(
+            return self.malformed(
                 call.span,
                 "if takes a condition, a then expression and an else expression: "
                 f"(if CONDITION THEN ELSE [:p P]), got {count(len(call.args))}",
+                call.args,
+                target,
             )
-            self.quiet_dead_code = True  # the uses inside it are not read
-            for arg in call.args:
-                self.expression(arg, None)
-            return Var(target)
         condition = self.expression(call.args[0], None)
         then = Branch(*self.nested(lambda: self.expression(call.args[1], None)))
         other = Branch(*self.nested(lambda: self.expression(call.args[2], None)))
@@ -455,24 +453,22 @@ class _ProgramBuilder:
                 )
             else:
                 most = _whole(keyword.value) or most
-        function = form.args[0] if form.args else None
-        if len(form.args) < 2 or not isinstance(function, Symbol):
-            if len(form.args) < 2:
-                error(
-                    form.span,
-                    "map takes a function and a collection: (map FUNCTION ITEMS ARG... "
-                    f"[:max K]), got {count(len(form.args))}",
-                )
-            else:
-                assert function is not None
-                error(
-                    expr_span(function),
-                    "the function of 'map' must be the name of a module, not "
-                    f"{_describe(function)}",
-                )
-            self.quiet_dead_code = True  # the uses inside it are not read
-            self.nested(lambda: Literal(0) if not form.args else self.flatten(form.args[1:]))
-            return Var(target)
+        if len(form.args) < 2:
+            return self.malformed(
+                form.span,
+                "map takes a function and a collection: (map FUNCTION ITEMS ARG... "
+                f"[:max K]), got {count(len(form.args))}",
+                form.args[1:],
+                target,
+            )
+        function = form.args[0]
+        if not isinstance(function, Symbol):
+            return self.malformed(
+                expr_span(function),
+                f"the function of 'map' must be the name of a module, not {_describe(function)}",
+                form.args[1:],
+                target,
+            )
         if function.name in self.schemas:
             error(
                 function.span,
@@ -497,14 +493,13 @@ class _ProgramBuilder:
         for keyword in form.keywords:
             error(keyword.span, f"repeat takes no keyword arguments (got :{keyword.name})")
         if len(form.args) != 2:
-            error(
+            return self.malformed(
                 form.span,
                 "repeat takes a count and a call: (repeat N (FUNCTION ARG...)), "
                 f"got {count(len(form.args))}",
+                form.args,
+                target,
             )
-            self.quiet_dead_code = True  # the uses inside it are not read
-            self.nested(lambda: self.flatten(form.args))
-            return Var(target)
         number, body = form.args
         n = _whole(number)
         if n is None:
@@ -525,21 +520,26 @@ class _ProgramBuilder:
                 )
             else:
                 message = f"repeat calls a module of the library, not the schema '{body.function}'"
-            error(expr_span(body), message)
-            self.quiet_dead_code = True
-            self.nested(lambda: self.flatten((body,)))
-            return Var(target)
+            return self.malformed(expr_span(body), message, (body,), target)
         args = tuple(self.expression(arg, None) for arg in body.args)
         self.steps.append(
             Repeat(target, n or 1, body.function, args, form.span, body.function_span)
         )
         return Var(target)
 
-    def flatten(self, exprs: Iterable[Expr]) -> Arg:
-        """Flatten expressions only to report the errors inside them (a malformed form's)."""
-        for expr in exprs:
-            self.expression(expr, None)
-        return Literal(0)
+    def malformed(self, span: Span, message: str, inside: Iterable[Expr], target: str) -> Var:
+        """Report a malformed form; what it holds is flattened only to report the errors in
+        it (its uses are not read, so no dead-code errors follow)."""
+        self.checker.error(span, message)
+        self.quiet_dead_code = True
+
+        def flatten() -> Arg:
+            for expr in inside:
+                self.expression(expr, None)
+            return Literal(0)
+
+        self.nested(flatten)
+        return Var(target)
 
     def lookup(self, symbol: Symbol) -> Arg:
         if symbol.name in self.values:

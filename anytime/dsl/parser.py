@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 import re
 from functools import cache
-from typing import Any
+from typing import Any, TypeVar
 
 from lark import Lark, Token, Transformer, v_args
 from lark.exceptions import (
@@ -39,10 +39,13 @@ from anytime.dsl.nodes import (
     String,
     Symbol,
     WhenForm,
+    _Form,
     expr_span,
 )
 from anytime.dsl.source import Source, Span
 from anytime.errors import Diagnostic, SchemaSyntaxError
+
+FormT = TypeVar("FormT", bound=_Form)  # the special forms' base class
 
 #: Deeper nesting than this is refused with a clear error (real schemas nest a few levels).
 MAX_NESTING = 100
@@ -345,24 +348,24 @@ class _ToNodes(Transformer[Token, tuple[SchemaDef, ...]]):
         return Call(function.lower(), args, keywords, _span(meta), _span(function))
 
     def best_of(self, meta: Meta, children: list[Any]) -> BestOfForm:
-        head, *rest = children
-        return BestOfForm(*self._arguments(rest), _span(meta), _span(head))
+        return self._form(BestOfForm, meta, children)
 
     def when(self, meta: Meta, children: list[Any]) -> WhenForm:
-        head, *rest = children
-        return WhenForm(*self._arguments(rest), _span(meta), _span(head))
+        return self._form(WhenForm, meta, children)
 
     def if_(self, meta: Meta, children: list[Any]) -> IfForm:
-        head, *rest = children
-        return IfForm(*self._arguments(rest), _span(meta), _span(head))
+        return self._form(IfForm, meta, children)
 
     def map_(self, meta: Meta, children: list[Any]) -> MapForm:
-        head, *rest = children
-        return MapForm(*self._arguments(rest), _span(meta), _span(head))
+        return self._form(MapForm, meta, children)
 
     def repeat(self, meta: Meta, children: list[Any]) -> RepeatForm:
+        return self._form(RepeatForm, meta, children)
+
+    def _form(self, kind: type[FormT], meta: Meta, children: list[Any]) -> FormT:
+        """A special form: its reserved word, then its arguments as a call's."""
         head, *rest = children
-        return RepeatForm(*self._arguments(rest), _span(meta), _span(head))
+        return kind(*self._arguments(rest), _span(meta), _span(head))
 
     def _arguments(self, items: list[Any]) -> tuple[tuple[Expr, ...], tuple[KeywordArg, ...]]:
         """Positional arguments, then keyword arguments, each keyword once."""
