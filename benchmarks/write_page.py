@@ -89,6 +89,17 @@ BENCHMARKS = [
         " compiled split never worse).",
     ),
     (
+        "bench_loops.py",
+        ["--random", "40"],
+        "Loops: splitting a map's time among its calls",
+        "For K = 1..4 calls of one module on items of different qualities, the mean expected"
+        " quality under the run-time split (equal shares, the marginal-value rule or dynamic"
+        " programming, by the calls' curves) against the best split by exhaustive search over"
+        " the K calls and an equal split, per budget; then random situations: the gap (target:"
+        " within 0.5% for K <= 4), the marginal-value rule used alone, and the time of one"
+        " split against one exhaustive search.",
+    ),
+    (
         "bench_overcoming.py",
         [],
         "Navigation: overcoming moving obstacles",

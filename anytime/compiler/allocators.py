@@ -42,6 +42,7 @@ from anytime.compiler.model import (
     CompileModel,
     ElementaryNode,
     IfNode,
+    LoopNode,
     ModuleNode,
     TestNode,
 )
@@ -221,7 +222,7 @@ class Proportional:
         return allocation, evaluator.expected(quality, allocation * dt)
 
 
-def _step(node: ModuleNode | IfNode) -> float:
+def _step(node: ModuleNode | IfNode | LoopNode) -> float:
     """The part of a node's share it reserves for its last step (see `ModuleNode.run_time`)."""
     return node.step if isinstance(node, ModuleNode) else 0.0
 
@@ -305,7 +306,7 @@ class DynamicProgramming:
                 continue
             split = splits[node.index][choice[node.index][inverse, budget[node.index]]]
             column = 0
-            if isinstance(node, ModuleNode):
+            if isinstance(node, ModuleNode | LoopNode):
                 allocation[:, node.time_index] = split[:, 0]
                 column = 1
             for slot in node.slots:
@@ -316,7 +317,7 @@ class DynamicProgramming:
 
     @staticmethod
     def _node(
-        node: ModuleNode | ElementaryNode | ChoiceNode,
+        node: ModuleNode | ElementaryNode | ChoiceNode | LoopNode,
         best: dict[int, Array],
         cells: Array,
         top: int,
@@ -324,7 +325,7 @@ class DynamicProgramming:
         budgets: np.ndarray | None,
     ) -> tuple[Array, np.ndarray, np.ndarray]:
         children = [s.index for s in node.slots if s.kind == "node"]
-        parts = (1 if isinstance(node, ModuleNode) else 0) + len(children)
+        parts = (1 if isinstance(node, ModuleNode | LoopNode) else 0) + len(children)
         # Every split of every budget up to `top` (or of `budgets` only): the own time first,
         # then each child's.
         with_slack = compositions(top, parts + 1)
@@ -335,7 +336,7 @@ class DynamicProgramming:
             candidates, spent = candidates[keep], spent[keep]
         n_cells, n_rows = len(cells), len(candidates)
         qualities = []
-        column = 1 if isinstance(node, ModuleNode) else 0
+        column = 1 if isinstance(node, ModuleNode | LoopNode) else 0
         for slot in node.slots:
             if slot.kind == "node":
                 qualities.append(best[slot.index][:, candidates[:, column]])
@@ -348,7 +349,7 @@ class DynamicProgramming:
         # A subtree cannot spend a budget it has no use for (no anytime module): -inf there.
         infeasible = np.isneginf(q).any(axis=-1)
         q = np.where(np.isneginf(q), 0.0, q)
-        if isinstance(node, ModuleNode):
+        if isinstance(node, ModuleNode | LoopNode):
             t = np.broadcast_to(node.run_time(candidates[:, 0] * dt), (n_cells, n_rows))
             step = max(1, CHUNK // max(n_cells, 1))  # bounds the interpolation's memory
             value = (

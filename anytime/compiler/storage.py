@@ -23,7 +23,8 @@ import numpy as np
 import yaml
 
 from anytime.compiler.compile import CompiledProgram
-from anytime.compiler.model import CompileError, ModuleNode, build_model
+from anytime.compiler.loops import loop_profiles
+from anytime.compiler.model import CompileError, IfNode, LoopNode, ModuleNode, build_model
 from anytime.dsl import format_program, parse_schemas
 from anytime.dsl.program import Program, SchemaFile
 from anytime.errors import AnytimeError
@@ -101,7 +102,7 @@ def _document(compiled: CompiledProgram) -> dict[str, Any]:
     document["baselines"] = {k: _plain(v) for k, v in compiled.baselines.items()}
     document["profiles"] = {
         node.name: fingerprint(node.profile)
-        for node in compiled.model.anytime_nodes
+        for node in _modules_of(compiled.model.anytime_nodes)
         if isinstance(node, ModuleNode) and node.callee is None
     }
     nested = {}
@@ -113,7 +114,7 @@ def _document(compiled: CompiledProgram) -> dict[str, Any]:
     branches = {
         plan.compiled.name: _nested(plan.compiled)
         for node in compiled.model.anytime_nodes
-        if not isinstance(node, ModuleNode)
+        if isinstance(node, IfNode)
         for plan in node.branches
     }
     if branches:
@@ -181,7 +182,14 @@ class _Loader:
         def branch(sub: Program) -> CompiledProgram:
             return self.nested(sub, branches_doc.get(sub.name), f"{field}.branches.{sub.name}")
 
-        model = build_model(program, self.library, self.schemas.source, branch, callees)
+        # A loop's profiles are computed again from its call's (checked below) on the lattice.
+        dt = float(document.get("resolution") or 1.0)
+        lattice = np.arange(int(np.rint(profile.time[-1] / dt)) + 1, dtype=np.float64) * dt
+
+        def loop(call: ModuleNode, most: int, name: str) -> tuple[Any, ...]:
+            return loop_profiles(call, most, lattice, name)
+
+        model = build_model(program, self.library, self.schemas.source, branch, callees, loop)
         if list(document.get("modules") or []) != list(model.module_names):
             raise self.fail(
                 f"{field}.modules",
@@ -196,7 +204,7 @@ class _Loader:
                 f"expected shape {(*cells, len(model.module_names))}, got {allocation.shape}",
             )
         printed = _mapping(document.get("profiles", {}))
-        for node in model.anytime_nodes:
+        for node in _modules_of(model.anytime_nodes):
             if isinstance(node, ModuleNode) and node.callee is None:
                 if printed.get(node.name) != fingerprint(node.profile):
                     raise self.fail(
@@ -233,6 +241,11 @@ class _Loader:
         except AnytimeError as error:
             raise self.fail(f"{field}.profile", str(error)) from None
         return self.program(program, profile, document, field)
+
+
+def _modules_of(nodes: Any) -> list[Any]:
+    """The nodes that get time, a loop's call in the loop's place (its profile is the call's)."""
+    return [node.call if isinstance(node, LoopNode) else node for node in nodes]
 
 
 def _mapping(value: Any) -> Mapping[str, Any]:
