@@ -36,10 +36,10 @@ written before it existed) has an unknown step, None. A bad `step` names its lin
 
 Files are read by a safe loader only, libyaml's (`yaml.CSafeLoader`) where PyYAML has it, else
 the pure one: a tag that would construct a Python object is refused, never run. A file the fast
-loader refuses is read again by the pure one, so a message is the same with either. Every problem is a `ProfileError` saying
-`FILE: field: what is wrong (expected ..., got ...)`; YAML syntax errors add the line and
-column (`FILE:LINE:COL: ...`). YAML 1.1 reads `1e-3` and `1.0e3` as strings: give such numbers
-a dot and a signed exponent, `1.0e-3` and `1.0e+3`.
+loader refuses is read again by the pure one, so a message is the same with either. Every
+problem is a `ProfileError` saying `FILE: field: what is wrong (expected ..., got ...)`; YAML
+syntax errors add the line and column (`FILE:LINE:COL: ...`). YAML 1.1 reads `1e-3` and `1.0e3`
+as strings: give such numbers a dot and a signed exponent, `1.0e-3` and `1.0e+3`.
 
 Large tables go into a binary companion beside the file (`NAME.npz` for `NAME.yaml`, numpy's
 uncompressed archive, read with pickles refused); the file then has `tables: {file, sha256,
