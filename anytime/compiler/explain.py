@@ -99,7 +99,7 @@ class Explanation:
 def default_totals(compiled: CompiledProgram) -> tuple[float, ...]:
     """A few totals of the table's grid: a quarter, half and all of the way up (0 left out)."""
     time = compiled.profile.time
-    picked = np.unique(np.rint(np.linspace(0, len(time) - 1, 4)[1:]).astype(int))
+    picked = np.unique(np.rint((len(time) - 1) * np.array([0.25, 0.5, 1.0])).astype(int))
     return tuple(float(time[j]) for j in picked if time[j] > 0) or (float(time[-1]),)
 
 
