@@ -112,13 +112,16 @@ FIELDS = (
 KINDS = ("interruptible", "contract")
 TIME_UNITS = ("ticks", "seconds")
 
-#: The tables of a profile, in the order they are written; a companion can hold any of them.
+#: The tables of a profile, in the order they are written; a companion can hold any of them,
+#: and the time grid when it is longer than `LONG_GRID`.
 TABLES = ("probability", "expected", "mean", "std", "samples", "bin_mean", "no_result")
+LONG_GRID = 1_000
 
 #: A profile whose tables hold more numbers than this is written with a binary companion.
 COMPANION_THRESHOLD = 100_000
-#: The largest companion read: every table at the largest size a file may describe.
-MAX_COMPANION_BYTES = len(TABLES) * 8 * 10_000_000 + (1 << 20)
+#: The largest companion read: every table and the time grid at the largest size a file may
+#: describe.
+MAX_COMPANION_BYTES = (len(TABLES) + 1) * 8 * 10_000_000 + (1 << 20)
 
 #: libyaml's loader where PyYAML was built with it (ten times faster), else the pure one; both
 #: construct plain data only (the safe constructor).
@@ -260,10 +263,10 @@ class _Reader:
                 "tables.shapes", f"expected a mapping of table -> shape, got {_describe(shapes)}"
             )
         for key, shape in shapes.items():
-            if key not in TABLES:
+            if key not in (*TABLES, "time"):
                 self.fail(
                     f"tables.shapes.{key}",
-                    f"expected one of {', '.join(TABLES)}, got {_describe(key)}",
+                    f"expected one of {', '.join(TABLES)}, time; got {_describe(key)}",
                 )
             if key in data:
                 self.fail(key, "given both in this file and in its companion (expected one)")
@@ -484,17 +487,16 @@ class _Reader:
         ]
 
     def grid(self, field: str, value: object, *, minimum: int, quality: bool) -> Array:
-        """A 1-D list of numbers; the class checks that it increases."""
+        """A 1-D list of numbers (or a companion's array); the class checks that it increases."""
+        if isinstance(value, np.ndarray) and value.ndim == 1 and len(value) >= minimum:
+            return self.checked(field, value, quality)
         if not isinstance(value, list) or len(value) < minimum:
             self.fail(
                 field,
                 f"expected a list of at least {_count(minimum, 'number')}, got {_describe(value)}",
             )
         grid = np.array([self.number(f"{field}[{i}]", x) for i, x in enumerate(value)])
-        self.non_negative(field, grid)
-        if quality:
-            self.in_unit_interval(field, grid)
-        return grid
+        return self.checked(field, grid, quality)
 
     def table(
         self,
@@ -687,6 +689,9 @@ def save_profile(
     if companion is None:
         companion = sum(table.size for table in tables.values()) > COMPANION_THRESHOLD
     if companion:
+        if len(profile.time) > LONG_GRID:  # read as fast as the tables it indexes
+            del data["time"]
+            tables = {"time": profile.time, **tables}
         data["tables"] = _write_companion(tables, Path(path))
     else:
         data.update((key, _plain(table)) for key, table in tables.items())
