@@ -95,6 +95,12 @@ class Explanation:
     modules: tuple[ModuleMargin, ...]
     best_move: Move | None
 
+    @property
+    def unused(self) -> float:
+        """The time the split leaves unused: where a smaller total's split does better (the
+        compile result's `kept_smaller`), more of the time would lower the expectation."""
+        return max(self.total - sum(m.share for m in self.modules), 0.0)
+
 
 def default_totals(compiled: CompiledProgram) -> tuple[float, ...]:
     """A few totals of the table's grid: a quarter, half and all of the way up (0 left out)."""
@@ -235,6 +241,7 @@ def explanation_to_dict(explanation: Explanation) -> dict[str, Any]:
         "input_quality": list(explanation.input_quality),
         "unit": explanation.unit,
         "expected_quality": explanation.expected,
+        "unused": explanation.unused,
         "modules": [
             {
                 "module": m.module,
@@ -270,6 +277,8 @@ def format_explanations(compiled: CompiledProgram, explanations: Sequence[Explan
     )
     for e in explanations:
         lines.append(f"  T = {e.total:g} {unit}: expected quality {e.expected:.5f}")
+        if e.unused > 1e-9 * max(1.0, e.total):
+            lines[-1] += f" ({e.unused:g} {unit} unused: a smaller total's split does better)"
         table = [["module", "share", "+1 unit", "-1 unit", ""]]
         for m in e.modules:
             less = "-" if m.loss is None else f"{-m.loss:+.5f}"

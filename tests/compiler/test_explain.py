@@ -158,6 +158,7 @@ def test_an_explanation_as_data() -> None:
         "input_quality",
         "unit",
         "expected_quality",
+        "unused",
         "modules",
         "best_move",
     ]
