@@ -120,21 +120,26 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 def totals(text: str) -> tuple[float, ...]:
     """An option type: T,T,... totals >= 0, at most `MAX_TIME_POINTS` of them."""
+    parts = [part for part in text.split(",") if part.strip()]
+    if not parts:
+        raise argparse.ArgumentTypeError("expected at least one total")
+    if len(parts) > MAX_TIME_POINTS:
+        raise argparse.ArgumentTypeError(
+            f"{len(parts):,} totals, more than the limit of {MAX_TIME_POINTS:,}"
+        )
+    return tuple(_total(part, text) for part in parts)
+
+
+def _total(part: str, text: str) -> float:
     try:
-        values = tuple(float(part) for part in text.split(",") if part.strip())
+        value = float(part)
     except ValueError:
         raise argparse.ArgumentTypeError(
             f"expected totals separated by commas, got {text!r}"
         ) from None
-    if not values:
-        raise argparse.ArgumentTypeError("expected at least one total")
-    if not all(math.isfinite(t) and t >= 0 for t in values):
+    if not (math.isfinite(value) and value >= 0):
         raise argparse.ArgumentTypeError(f"expected finite totals >= 0, got {text!r}")
-    if len(values) > MAX_TIME_POINTS:
-        raise argparse.ArgumentTypeError(
-            f"{len(values):,} totals, more than the limit of {MAX_TIME_POINTS:,}"
-        )
-    return values
+    return value
 
 
 def run_parse(args: argparse.Namespace) -> int:

@@ -35,20 +35,13 @@ def files(tmp_path: Path) -> tuple[Path, Path]:
     return schemas, library
 
 
+#: The grids of every run: totals 0 to 80 (twice the profiles' longest time), three qualities.
+GRIDS = ("--time-grid", "0:80:10", "--input-quality", "0,0.5,1", "--no-plugins")
+
+
 def compile_p(cli: Cli, files: tuple[Path, Path], *options: str) -> tuple[int, str, str]:
     schemas, library = files
-    return cli(
-        "compile",
-        str(schemas),
-        "--profiles",
-        str(library),
-        "--no-plugins",
-        "--time-grid",
-        "0:80:10",
-        "--input-quality",
-        "0,0.5,1",
-        *options,
-    )
+    return cli("compile", str(schemas), "--profiles", str(library), *GRIDS, *options)
 
 
 EXPLAINED = """\

@@ -165,38 +165,38 @@ def test_a_companion_outside_the_files_directory_is_refused(pair: Path) -> None:
     )
 
 
-def test_a_companion_whose_shapes_are_not_the_headers_is_refused(pair: Path) -> None:
+FIVE_TIMES = {"probability": [2, 5, 4], "mean": [2, 5], "samples": [2, 5]}
+
+
+@pytest.mark.parametrize(
+    ("mean_times", "shapes", "message"),
+    [
+        (  # the header says 6 times, the companion holds 5
+            6,
+            None,
+            "tables.shapes.probability: expected numbers of shape [2, 6, 4] (the header's),"
+            " got float64 of shape [2, 5, 4] in the companion 'plan.npz'",
+        ),
+        (  # the header agrees with the companion, but the time grid has 6 times
+            5,
+            FIVE_TIMES,
+            "probability: expected shape [2, 6, 4] (one per map quality, one per time, one per"
+            " quality bin), got [2, 5, 4] in the companion",
+        ),
+    ],
+)
+def test_a_companion_of_other_shapes_is_refused(
+    pair: Path, mean_times: int, shapes: dict[str, list[int]] | None, message: str
+) -> None:
     rng = np.random.default_rng(0)
     digest = _write_npz(
         pair.with_name("plan.npz"),
         probability=rng.dirichlet(np.ones(4), size=(2, 5)),
-        mean=np.zeros((2, 6)),
-        samples=np.ones((2, 6)),
+        mean=np.zeros((2, mean_times)),
+        samples=np.ones((2, mean_times)),
     )
-    _edit_header(pair, sha256=digest)
-    assert _refused(pair) == (
-        "tables.shapes.probability: expected numbers of shape [2, 6, 4] (the header's),"
-        " got float64 of shape [2, 5, 4] in the companion 'plan.npz'"
-    )
-
-
-def test_a_companion_that_does_not_fit_the_grids_is_refused(pair: Path) -> None:
-    rng = np.random.default_rng(0)
-    digest = _write_npz(
-        pair.with_name("plan.npz"),
-        probability=rng.dirichlet(np.ones(4), size=(2, 5)),
-        mean=np.zeros((2, 5)),
-        samples=np.ones((2, 5)),
-    )
-    _edit_header(
-        pair,
-        sha256=digest,
-        shapes={"probability": [2, 5, 4], "mean": [2, 5], "samples": [2, 5]},
-    )
-    assert _refused(pair) == (
-        "probability: expected shape [2, 6, 4] (one per map quality, one per time, one per"
-        " quality bin), got [2, 5, 4] in the companion"
-    )
+    _edit_header(pair, sha256=digest, **({"shapes": shapes} if shapes else {}))
+    assert _refused(pair) == message
 
 
 def test_a_companion_missing_a_table_the_header_names_is_refused(pair: Path) -> None:
