@@ -28,6 +28,10 @@ def _one(ctx: Context, a: Any) -> Iterator[Result]:
     yield Result(None, 0.0)
 
 
+def _none(ctx: Context) -> Iterator[Result]:
+    yield Result(None, 0.0)
+
+
 def chain(a: float, b: float, *, input_grid: bool = False) -> AnytimeLibrary:
     """m1: 1 - exp(-a t) (of x's quality when `input_grid`); m2: q (1 - exp(-b t)), linear in
     its input quality, so its interpolation is exact."""
@@ -169,3 +173,22 @@ def test_an_explanation_as_data() -> None:
 def test_explain_is_public_for_users_and_plugins() -> None:
     for module in (anytime, anytime.plugin):
         assert {"explain", "Explanation", "ModuleMargin", "Move"} <= set(module.__all__)
+
+
+def test_a_kept_smaller_split_leaves_time_unused_and_says_so() -> None:
+    """A module whose quality falls after 20 ticks: from then on the table keeps the split of
+    20 and leaves the rest unused, and more time to either module loses."""
+    registry = Registry()
+    rises_then_falls = tabulate(lambda t: np.where(t <= 20, t / 20, 1 - (t - 20) / 40), TIME)
+    interruptible("m", inputs=(), profile=rises_then_falls, registry=registry)(_none)
+    program = parse_schemas("(defschema p () (m))", "p.any")["p"]
+    compiled = compile_program(program, AnytimeLibrary([RegistrySource(registry)]), TIME)
+    (explanation,) = anytime.explain(compiled, [30])
+    assert explanation.unused == 10
+    (margin,) = explanation.modules
+    assert (margin.share, margin.note) == (20, "more time lowers the expected quality")
+    assert margin.gain == pytest.approx(-5 / 40, abs=1e-12)
+    text = anytime.compiler.explain.format_explanations(compiled, [explanation])
+    assert (
+        "  T = 30 ticks: expected quality 1.00000 (10 ticks unused: a smaller total's split" in text
+    )
