@@ -45,7 +45,7 @@ Large tables go into a binary companion beside the file (`NAME.npz` for `NAME.ya
 uncompressed archive, read with pickles refused); the file then has `tables: {file, sha256,
 shapes}` in their place, and a companion whose digest or shapes are not the header's is an
 error, as is a table given in both. Writers add it when the tables hold more than
-`COMPANION_THRESHOLD` numbers: a million-cell table loads in a second instead of a minute.
+`COMPANION_THRESHOLD` numbers: a million-cell table loads in under a second, not a minute.
 
 Writing uses repr precision for floats (integral values as integers), so save -> load gives
 back an equal profile. A profile whose probabilities are exactly the point masses of its `mean`
