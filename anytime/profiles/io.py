@@ -56,6 +56,7 @@ as a `PerformanceProfile`.
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import io
 import os
@@ -70,7 +71,7 @@ import yaml
 from numpy.typing import NDArray
 
 from anytime.errors import ProfileError
-from anytime.files import MAX_PROFILE_BYTES, read_input, write_atomic
+from anytime.files import MAX_PROFILE_BYTES, OutputFileError, read_input, write_atomic
 from anytime.profiles.profile import (
     Array,
     ConditionalPerformanceProfile,
@@ -716,6 +717,10 @@ def save_profile(
 def _write_companion(tables: Mapping[str, Array], path: Path) -> dict[str, Any]:
     """Write `tables` as the companion of the file `path`; the file's `tables` field."""
     target = path.with_name(f"{path.stem}.npz")
+    if target.name == path.name:  # the header would overwrite its own companion
+        raise OutputFileError(
+            errno.EINVAL, "a profile with a companion cannot itself be named .npz", str(path)
+        )
     buffer = io.BytesIO()
     arrays = {key: np.asarray(table, dtype=np.float64) for key, table in tables.items()}
     cast(Any, np.savez)(buffer, **arrays)  # numpy's stubs take the names for its keywords

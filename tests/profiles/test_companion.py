@@ -332,3 +332,13 @@ def test_messages_and_positions_are_the_pure_loaders(
     with pytest.raises(ProfileError) as pure:
         load_profile(path)
     assert str(fast.value) == str(pure.value)
+
+
+def test_a_profile_with_a_companion_cannot_be_named_npz(tmp_path: Path) -> None:
+    with pytest.raises(OSError) as caught:
+        save_profile(_stochastic(), tmp_path / "plan.npz", companion=True)
+    assert str(caught.value) == (
+        f"cannot write '{tmp_path / 'plan.npz'}': a profile with a companion cannot itself be"
+        " named .npz"
+    )
+    assert list(tmp_path.iterdir()) == []
