@@ -342,3 +342,10 @@ def test_a_profile_with_a_companion_cannot_be_named_npz(tmp_path: Path) -> None:
         " named .npz"
     )
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_fast_loader_is_libyamls_where_pyyaml_has_it() -> None:
+    if yaml.__with_libyaml__:
+        assert profile_io.FAST_LOADER is yaml.CSafeLoader
+    else:
+        assert profile_io.FAST_LOADER is yaml.SafeLoader
