@@ -32,6 +32,16 @@ BENCHMARKS = [
         " for a batch of 100,000 points against asking one point at a time.",
     ),
     (
+        "bench_loading.py",
+        ["--quick", "--repeats", "1"],
+        "Loading profile files",
+        "Load time and peak memory of `expected:` and `probability:` profiles of 10^4 to 10^6"
+        " numbers: the YAML text with PyYAML's pure loader and with libyaml's C loader, and the"
+        " YAML header with its binary companion (target: 10^6 numbers in at most 2 s); and the"
+        " navigation schema's compilation split into reading its profiles and compiling."
+        " `--quick` skips the pure loader at 10^6 numbers (about a minute a table).",
+    ),
+    (
         "bench_compiler.py",
         ["--quick"],
         "Compiler",

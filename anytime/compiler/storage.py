@@ -28,9 +28,13 @@ from anytime.compiler.model import CompileError, IfNode, LoopNode, ModuleNode, b
 from anytime.dsl import format_program, parse_schemas
 from anytime.dsl.program import Program, SchemaFile
 from anytime.errors import AnytimeError
-from anytime.files import MAX_PROFILE_BYTES, read_input
 from anytime.library import AnytimeLibrary
-from anytime.profiles.io import load_profile, profile_from_dict, profile_to_dict, save_profile
+from anytime.profiles.io import (
+    profile_from_dict,
+    profile_to_dict,
+    read_profile_file,
+    save_profile,
+)
 from anytime.profiles.profile import ConditionalPerformanceProfile
 
 #: The compile result's fields that are plain data, as the file carries them.
@@ -70,8 +74,7 @@ def load_compiled(path: str | os.PathLike[str], library: AnytimeLibrary) -> Comp
             module missing or changed since), or its tables do not fit its program.
     """
     filename = os.fspath(path)
-    profile = load_profile(path)
-    data = yaml.safe_load(read_input(path, limit=MAX_PROFILE_BYTES, kind="profile files"))
+    profile, data = read_profile_file(path)  # the file read once, by the fast loader
     document = data.get("compiled")
     if not isinstance(document, Mapping) or not isinstance(document.get("schema"), str):
         raise CompileError(
