@@ -36,6 +36,7 @@ from anytime.cli.common import (
 from anytime.clocks import Clock, Unit, WallClock, WorkClock
 from anytime.compiler import compile_file, compile_program
 from anytime.compiler.compile import CompiledProgram, default_time_grid
+from anytime.compiler.explain import Explanation, ModuleMargin, Move, explain
 from anytime.dsl import SchemaFile, load_schemas, parse_schemas
 from anytime.errors import AnytimeError, ProfileError
 from anytime.files import InputFileError, atomic_path, read_input, write_atomic
@@ -88,13 +89,16 @@ __all__ = [
     "Deadline",
     "DeadlineValue",
     "EventLog",
+    "Explanation",
     "InputError",
     "InputFileError",
     "Instance",
     "LibraryEntry",
     "MISSING",
     "Measurement",
+    "ModuleMargin",
     "Monitor",
+    "Move",
     "ProgramRecord",
     "Plugin",
     "ProblemSet",
@@ -119,6 +123,7 @@ __all__ = [
     "deadline_from",
     "default_time_grid",
     "elementary",
+    "explain",
     "float_in_range",
     "format_table",
     "int_in_range",

@@ -32,6 +32,16 @@ BENCHMARKS = [
         " for a batch of 100,000 points against asking one point at a time.",
     ),
     (
+        "bench_loading.py",
+        ["--quick", "--repeats", "1"],
+        "Loading profile files",
+        "Load time and peak memory of `expected:` and `probability:` profiles of 10^4 to 10^6"
+        " numbers: the YAML text with PyYAML's pure loader and with libyaml's C loader, and the"
+        " YAML header with its binary companion (target: 10^6 numbers in at most 2 s); and the"
+        " navigation schema's compilation split into reading its profiles and compiling."
+        " `--quick` skips the pure loader at 10^6 numbers (about a minute a table).",
+    ),
+    (
         "bench_compiler.py",
         ["--quick"],
         "Compiler",
@@ -100,6 +110,17 @@ BENCHMARKS = [
         "Expected quality of the best alternative for the same time stock T_d under the"
         " compiled split, Romanenko's proportional split and an equal split (target: the"
         " compiled split never worse).",
+    ),
+    (
+        "bench_loops.py",
+        ["--random", "40"],
+        "Loops: splitting a map's time among its calls",
+        "For K = 1..4 calls of one module on items of different qualities, the mean expected"
+        " quality under the run-time split (equal shares, the marginal-value rule or dynamic"
+        " programming, by the calls' curves) against the best split by exhaustive search over"
+        " the K calls and an equal split, per budget; then random situations: the gap (target:"
+        " within 0.5% for K <= 4), the marginal-value rule used alone, and the time of one"
+        " split against one exhaustive search.",
     ),
     (
         "bench_overcoming.py",

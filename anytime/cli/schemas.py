@@ -4,6 +4,7 @@ profiles out."""
 from __future__ import annotations
 
 import argparse
+import math
 from collections.abc import Sequence
 
 from anytime.cli.common import (
@@ -33,6 +34,12 @@ from anytime.compiler.compile import (
     DEFAULT_INPUT_QUALITY,
     default_time_grid,
     memory_bytes,
+)
+from anytime.compiler.explain import (
+    Explanation,
+    explain,
+    explanation_to_dict,
+    format_explanations,
 )
 from anytime.dsl import SchemaFile, format_programs, graph_to_dot, load_schemas, program_to_json
 from anytime.library import AnytimeLibrary
@@ -112,6 +119,16 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     compile_.add_argument("-o", "--output", metavar="OUT.yaml", help="write the compiled profile")
     compile_.add_argument("--json", action="store_true", help="print the report as JSON")
+    compile_.add_argument(
+        "--explain",
+        nargs="?",
+        const=(),
+        type=totals,
+        metavar="T,T,...",
+        help="also say why the splits: at these totals of the time grid (default: a quarter, "
+        "half and all of the way up), each module's share and the change in expected quality "
+        "one lattice unit more or less for it makes (in --json: the explain list)",
+    )
     library_options(compile_)
     compile_.set_defaults(run=run_compile)
 
@@ -122,6 +139,30 @@ def memory_size(text: str) -> int:
         return memory_bytes(text)
     except CompileError as error:
         raise argparse.ArgumentTypeError(str(error).removeprefix("memory: ")) from None
+
+
+def totals(text: str) -> tuple[float, ...]:
+    """An option type: T,T,... totals >= 0, at most `MAX_TIME_POINTS` of them."""
+    parts = [part for part in text.split(",") if part.strip()]
+    if not parts:
+        raise argparse.ArgumentTypeError("expected at least one total")
+    if len(parts) > MAX_TIME_POINTS:
+        raise argparse.ArgumentTypeError(
+            f"{len(parts):,} totals, more than the limit of {MAX_TIME_POINTS:,}"
+        )
+    return tuple(_total(part, text) for part in parts)
+
+
+def _total(part: str, text: str) -> float:
+    try:
+        value = float(part)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected totals separated by commas, got {text!r}"
+        ) from None
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"expected finite totals >= 0, got {text!r}")
+    return value
 
 
 def run_parse(args: argparse.Namespace) -> int:
@@ -176,14 +217,37 @@ def run_compile(args: argparse.Namespace) -> int:
             save_compiled(wanted[0], args.output)
         except OSError as error:
             raise InputError(f"cannot write '{args.output}': {error.strerror}") from None
+    explained = {c.name: explain_totals(c, args.explain, args.file) for c in wanted}
     if args.json:
         reports = [compiled_to_dict(c) for c in wanted]
+        if args.explain is not None:
+            for report, c in zip(reports, wanted, strict=True):
+                report["explain"] = [explanation_to_dict(e) for e in explained[c.name]]
         print(json_text(reports[0] if len(reports) == 1 else {"schemas": reports}))
     else:
-        print("\n".join(format_report(c) for c in wanted), end="")
+        texts = [format_report(c) for c in wanted]
+        if args.explain is not None:
+            texts = [
+                t + "\n" + format_explanations(c, explained[c.name])
+                for t, c in zip(texts, wanted, strict=True)
+            ]
+        print("\n".join(texts), end="")
         if args.output is not None:
             print(f"wrote {args.output}")
     return EXIT_OK
+
+
+def explain_totals(
+    compiled: CompiledProgram, chosen: Sequence[float] | None, filename: str
+) -> list[Explanation]:
+    """The explanations `--explain` asks for (none without it); a total off the time grid is
+    an input error naming the file."""
+    if chosen is None:
+        return []
+    try:
+        return list(explain(compiled, chosen or None))
+    except CompileError as error:
+        raise InputError(f"schema '{compiled.name}': {error}", where=filename) from None
 
 
 def check_schema_name(schemas: SchemaFile, name: str | None) -> None:

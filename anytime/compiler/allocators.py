@@ -41,6 +41,7 @@ from anytime.compiler.model import (
     CompileModel,
     ElementaryNode,
     IfNode,
+    LoopNode,
     ModuleNode,
     TestNode,
 )
@@ -131,12 +132,12 @@ def row_bytes(model: CompileModel) -> int:
                 for plan in node.branches
             )
             work = out * (len(sizes) + 6)
-        elif isinstance(node, ModuleNode):
+        elif isinstance(node, ModuleNode | LoopNode):
             if not node.deterministic:
                 out = node.profile.n_bins
                 work = combos * (len(sizes) + 6 + 4 * node.profile.n_bins)
             # A call that may not be made, or a profile that records no result: one more value.
-            out += node.step > 0 or node.profile.no_result_table is not None or out < combos
+            out += _step(node) > 0 or node.profile.no_result_table is not None or out < combos
         if out > MAX_SUPPORT:
             out = len(FOLD_GRID) + 1
         support[node.index] = out
@@ -391,7 +392,7 @@ class Proportional:
         return allocation, expected_in_chunks(evaluator, quality, allocation * dt, self.memory)
 
 
-def _step(node: ModuleNode | IfNode) -> float:
+def _step(node: ModuleNode | IfNode | LoopNode) -> float:
     """The part of a node's share it reserves for its last step (see `ModuleNode.run_time`)."""
     return node.step if isinstance(node, ModuleNode) else 0.0
 
@@ -446,7 +447,7 @@ class DynamicProgramming:
         and its subtrees), and their values for one input-quality cell at a time."""
         top = int(units.max(initial=0))
         parts = [
-            (1 if isinstance(node, ModuleNode) else 0)
+            (1 if isinstance(node, ModuleNode | LoopNode) else 0)
             + sum(slot.kind == "node" for slot in node.slots)
             for node in evaluator.model.nodes
             if not isinstance(node, TestNode | IfNode)
@@ -490,7 +491,7 @@ class DynamicProgramming:
                 continue
             split = splits[node.index][choice[node.index][inverse, budget[node.index]]]
             column = 0
-            if isinstance(node, ModuleNode):
+            if isinstance(node, ModuleNode | LoopNode):
                 allocation[:, node.time_index] = split[:, 0]
                 column = 1
             for slot in node.slots:
@@ -501,7 +502,7 @@ class DynamicProgramming:
 
     @staticmethod
     def _node(
-        node: ModuleNode | ElementaryNode | ChoiceNode,
+        node: ModuleNode | ElementaryNode | ChoiceNode | LoopNode,
         best: dict[int, Array],
         cells: Array,
         top: int,
@@ -509,7 +510,7 @@ class DynamicProgramming:
         budgets: np.ndarray | None,
         memory: int,
     ) -> tuple[Array, np.ndarray, np.ndarray]:
-        parts = (1 if isinstance(node, ModuleNode) else 0) + sum(
+        parts = (1 if isinstance(node, ModuleNode | LoopNode) else 0) + sum(
             s.kind == "node" for s in node.slots
         )
         # Every split of every budget up to `top` (or of `budgets` only): the own time first,
@@ -542,7 +543,7 @@ class DynamicProgramming:
 
     @staticmethod
     def _values(
-        node: ModuleNode | ElementaryNode | ChoiceNode,
+        node: ModuleNode | ElementaryNode | ChoiceNode | LoopNode,
         best: dict[int, Array],
         cells: Array,
         rows: slice,
@@ -553,7 +554,7 @@ class DynamicProgramming:
         cells = cells[rows]
         n_cells, n_rows = len(cells), len(candidates)
         qualities = []
-        column = 1 if isinstance(node, ModuleNode) else 0
+        column = 1 if isinstance(node, ModuleNode | LoopNode) else 0
         for slot in node.slots:
             if slot.kind == "node":
                 qualities.append(best[slot.index][rows][:, candidates[:, column]])
@@ -566,7 +567,7 @@ class DynamicProgramming:
         # A subtree cannot spend a budget it has no use for (no anytime module): -inf there.
         infeasible = np.isneginf(q).any(axis=-1)
         q = np.where(np.isneginf(q), 0.0, q)
-        if isinstance(node, ModuleNode):
+        if isinstance(node, ModuleNode | LoopNode):
             t = np.broadcast_to(node.run_time(candidates[:, 0] * dt), (n_cells, n_rows))
             step = max(1, CHUNK // max(n_cells, 1))  # bounds the interpolation's memory
             value = (

@@ -32,8 +32,16 @@ from anytime.compiler.allocators import (
     equal_split,
     row_bytes,
 )
-from anytime.compiler.evaluate import Dist, Evaluator
-from anytime.compiler.model import CompileError, CompileModel, IfNode, ModuleNode, build_model
+from anytime.compiler.evaluate import Dist, Evaluator, binned_profile
+from anytime.compiler.loops import loop_profiles
+from anytime.compiler.model import (
+    CompileError,
+    CompileModel,
+    IfNode,
+    ModuleNode,
+    Timed,
+    build_model,
+)
 from anytime.compiler.multistart import MultiStart
 from anytime.dsl.program import Call, Program, SchemaCall, SchemaFile
 from anytime.dsl.source import Source
@@ -42,7 +50,6 @@ from anytime.profiles.profile import (
     Array,
     ConditionalPerformanceProfile,
     default_bins,
-    new_profile,
 )
 
 #: The default grid of program input qualities: 0, 0.1, ..., 1.
@@ -233,7 +240,13 @@ def compile_program(
             memory=cap,
         )
 
-    model = build_model(program, library, source, compile_branch, callees)
+    def compile_loop(
+        call: ModuleNode, most: int, name: str
+    ) -> tuple[ConditionalPerformanceProfile, ...]:
+        """A loop's profiles, on every lattice time up to the largest total."""
+        return loop_profiles(call, most, np.asarray(lattice, dtype=np.float64), name)
+
+    model = build_model(program, library, source, compile_branch, callees, compile_loop)
     m = len(model.quality_inputs)
     cell_shape = (len(q_grid),) * m + (len(time),)
     if m:
@@ -256,9 +269,7 @@ def compile_program(
     except CompileError as error:
         raise CompileError(f"schema '{program.name}': {error}", where=filename) from None
     approximations = []
-    stochastic = [
-        n for n in model.anytime_nodes if not isinstance(n, ModuleNode) or not n.deterministic
-    ]
+    stochastic = [n for n in model.anytime_nodes if isinstance(n, IfNode) or not n.deterministic]
     if model.graph.shape == "dag" and stochastic:
         approximations.append(
             "the program is a DAG: a shared result makes later inputs correlated, and "
@@ -312,18 +323,28 @@ def _outside_input_grids(model: CompileModel, seen: Mapping[int, list[Dist]]) ->
             continue
         names = profile.inputs or tuple(f"input {i + 1}" for i in range(profile.n_inputs))
         for name, grid, dist in zip(names, profile.input_grids, seen[node.index], strict=False):
-            reached = dist.values[(dist.probs > 1e-9) & (dist.values >= 0)]  # not no result
-            if not len(reached):
+            present = (dist.probs > 1e-9) & (dist.values >= 0)  # not no result
+            if not present.any():
                 continue
+            reached = dist.values[present]
             low, high = float(reached.min()), float(reached.max())
-            if low >= grid[0] - 1e-9 and high <= grid[-1] + 1e-9:
+            outside = present & ((dist.values < grid[0] - 1e-9) | (dist.values > grid[-1] + 1e-9))
+            if not outside.any():
                 continue
+            # The worst cell: how often an input falls outside, given its share of the time.
+            share = float(np.where(outside, dist.probs, 0.0).sum(axis=1).max())
             warnings.append(
                 f"module '{node.name}': input '{name}' receives qualities {low:.3g} to"
-                f" {high:.3g}, but its profile was measured on {grid[0]:g} to {grid[-1]:g}:"
-                " outside that range the profile is clamped to its nearest end"
+                f" {high:.3g}, but its profile was measured on {grid[0]:g} to {grid[-1]:g};"
+                f" outside that range (up to {_percent(share)} of its inputs at some total)"
+                " the profile is clamped to its nearest end"
             )
     return tuple(warnings)
+
+
+def _percent(p: float) -> str:
+    """A probability as a percentage with two significant digits (at least 0.01%)."""
+    return f"{max(p, 1e-4) * 100:.2g}%" if p < 0.995 else "100%"
 
 
 def compile_file(
@@ -471,43 +492,21 @@ def _never_worse_with_more_time(
 def _compiled_profile(
     model: CompileModel, output: Dist, q_grid: Array, time: Array, cell_shape: tuple[int, ...]
 ) -> ConditionalPerformanceProfile:
-    """The output distributions binned (on the output module's bins, or ten equal bins), with
-    the exact expected quality kept as the profile's mean, each bin's exact mean, and the
-    probability of no result (in the lowest bin's mass, as a measured profile has it)."""
+    """The output distributions binned (on the output module's bins, or ten equal bins) into
+    the program's profile (see `binned_profile`)."""
     bins = default_bins()
     if model.output.kind == "node":
         node = model.node(model.output.index)
-        if isinstance(node, ModuleNode | IfNode):
+        if isinstance(node, Timed):
             bins = node.profile.bins
-    k = np.clip(np.searchsorted(bins, output.values, side="right") - 1, 0, len(bins) - 2)
-    probability = np.zeros((len(output.values), len(bins) - 1))
-    rows = np.broadcast_to(np.arange(len(k))[:, None], k.shape)
-    np.add.at(probability, (rows, k), output.probs)
-    moments = np.zeros_like(probability)
-    np.add.at(moments, (rows, k), output.probs * np.maximum(output.values, 0.0))
-    total = probability.sum(axis=1, keepdims=True)
-    probability /= total
-    lower, upper = bins[:-1], bins[1:]
-    bin_mean = np.divide(
-        moments / total,
-        probability,
-        out=np.broadcast_to((lower + upper) / 2, probability.shape).copy(),
-        where=probability > 1e-15,
-    )
-    bin_mean = np.clip(bin_mean, lower, upper)
-    mean = np.clip(output.expected(), 0.0, 1.0)
-    no_result = np.minimum(output.missing(), probability[:, 0])
-    return new_profile(
+    return binned_profile(
+        output,
+        bins,
         input_grids=[q_grid] * len(model.quality_inputs),
         time=time,
-        bins=bins,
-        probability=probability.reshape(*cell_shape, len(bins) - 1),
-        mean=mean.reshape(cell_shape),
-        bin_mean=bin_mean.reshape(*cell_shape, len(bins) - 1),
-        no_result_table=no_result.reshape(cell_shape) if np.any(no_result > 0) else None,
+        cell_shape=cell_shape,
         inputs=model.quality_inputs,
         module=model.program.name,
-        kind="contract",
         time_unit=model.time_unit,
     )
 
@@ -546,7 +545,7 @@ def _resolution(time: Array, resolution: float | None, filename: str) -> float:
             f"(allocations are whole multiples of it), got {time[off][0]:g}",
             where=filename,
         )
-    return resolution
+    return float(resolution)
 
 
 def _check_quality_grid(grid: ArrayLike, filename: str) -> Array:

@@ -16,6 +16,8 @@ approximation for DAGs, where a shared result makes later inputs correlated.
   of independent variables (the product of their CDFs), computed exactly on the joint support.
 - An `if` is the mixture of its branches' compiled output distributions, weighted by the
   branches' probabilities.
+- A loop (`map`, `repeat`) is looked up in its own compiled profile for the count it is planned
+  for (`anytime.compiler.loops`), as a module is in its profile.
 
 When a support grows past `MAX_SUPPORT` values it is folded onto a fixed grid by splitting each
 value's mass between its two neighbouring grid points, which keeps the mean exact.
@@ -23,7 +25,7 @@ value's mass between its two neighbouring grid points, which keeps the mean exac
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 from attrs import frozen
@@ -35,11 +37,12 @@ from anytime.compiler.model import (
     CompileNode,
     ElementaryNode,
     IfNode,
+    LoopNode,
     ModuleNode,
     Slot,
     TestNode,
 )
-from anytime.profiles.profile import Array, ConditionalPerformanceProfile
+from anytime.profiles.profile import Array, ConditionalPerformanceProfile, new_profile
 
 MAX_SUPPORT = 64
 FOLD_GRID = np.linspace(0.0, 1.0, 41)
@@ -169,7 +172,7 @@ class Evaluator:
                 if module is None or not module.accepts_missing:
                     values = np.where(missing, NO_RESULT, values)
                 out = Dist(values.reshape(batch, -1), p.reshape(batch, -1))
-            case ModuleNode():
+            case ModuleNode() | LoopNode():  # a loop: its profile for the count planned
                 t = np.broadcast_to(
                     alloc[:, node.time_index].reshape((batch,) + (1,) * (p.ndim - 1)), p.shape
                 )
@@ -324,3 +327,51 @@ def _combinations(inputs: list[Dist], batch: int) -> tuple[Array, Array]:
     for extra in probs[1:]:
         p = p * extra
     return q, np.broadcast_to(p, q.shape[:-1])
+
+
+def binned_profile(
+    output: Dist,
+    bins: Array,
+    *,
+    input_grids: Sequence[Array],
+    time: Array,
+    cell_shape: tuple[int, ...],
+    inputs: Sequence[str],
+    module: str,
+    time_unit: str,
+) -> ConditionalPerformanceProfile:
+    """A contract profile from output distributions, one row per cell (time fastest), binned
+    on `bins`, with the exact expected quality kept as the profile's mean, each bin's exact
+    mean, and the probability of no result (in the lowest bin's mass, as a measured profile
+    has it). A compiled program's profile and a loop's are made so."""
+    k = np.clip(np.searchsorted(bins, output.values, side="right") - 1, 0, len(bins) - 2)
+    probability = np.zeros((len(output.values), len(bins) - 1))
+    rows = np.broadcast_to(np.arange(len(k))[:, None], k.shape)
+    np.add.at(probability, (rows, k), output.probs)
+    moments = np.zeros_like(probability)
+    np.add.at(moments, (rows, k), output.probs * np.maximum(output.values, 0.0))
+    total = probability.sum(axis=1, keepdims=True)
+    probability /= total
+    lower, upper = bins[:-1], bins[1:]
+    bin_mean = np.divide(
+        moments / total,
+        probability,
+        out=np.broadcast_to((lower + upper) / 2, probability.shape).copy(),
+        where=probability > 1e-15,
+    )
+    bin_mean = np.clip(bin_mean, lower, upper)
+    mean = np.clip(output.expected(), 0.0, 1.0)
+    no_result = np.minimum(output.missing(), probability[:, 0])
+    return new_profile(
+        input_grids=list(input_grids),
+        time=time,
+        bins=bins,
+        probability=probability.reshape(*cell_shape, len(bins) - 1),
+        mean=mean.reshape(cell_shape),
+        bin_mean=bin_mean.reshape(*cell_shape, len(bins) - 1),
+        no_result_table=no_result.reshape(cell_shape) if np.any(no_result > 0) else None,
+        inputs=inputs,
+        module=module,
+        kind="contract",
+        time_unit=time_unit,
+    )

@@ -4,7 +4,8 @@ A `CompileModel` resolves every node of a program's dataflow graph against the a
 one class per kind of node: a `ModuleNode` (an interruptible or contract module, or a compiled
 schema) gets a share of the time and is described by its conditional performance profile; an
 `ElementaryNode` takes no time and combines its inputs' qualities (min by default); a `TestNode`
-is a best-of's precondition, a `ChoiceNode` the best-of itself, an `IfNode` a conditional. For
+is a best-of's precondition, a `ChoiceNode` the best-of itself, an `IfNode` a conditional, a
+`LoopNode` a map or a repeat (its time split among its calls at run time). For
 each quality-carrying input of a node, a `Slot` says where its quality comes from: another node,
 a quality-carrying program input, or a constant (a literal argument has quality 1).
 """
@@ -23,7 +24,19 @@ from numpy.typing import ArrayLike
 
 from anytime.dsl.graph import DataflowGraph, InputRef, NodeRef, Source
 from anytime.dsl.normalize import count
-from anytime.dsl.program import BestOf, Call, If, Program, SchemaCall, Step, Var, variables, walk
+from anytime.dsl.program import (
+    BestOf,
+    Call,
+    If,
+    Map,
+    Program,
+    Repeat,
+    SchemaCall,
+    Step,
+    Var,
+    variables,
+    walk,
+)
 from anytime.dsl.program import Literal as LiteralArg
 from anytime.dsl.source import Source as SourceText
 from anytime.errors import AnytimeError, Diagnostic, SchemaError
@@ -194,10 +207,62 @@ class IfNode:
     name: str = "if"
 
 
-CompileNode = ModuleNode | ElementaryNode | TestNode | ChoiceNode | IfNode
+@frozen(eq=False)
+class LoopNode:
+    """A map or a repeat: one node that gets time, which the runtime splits among its calls
+    (`anytime.compiler.loops`); its quality is the mean of theirs.
+
+    Attributes:
+        name: "map F" or "repeat F".
+        kind: "map" or "repeat".
+        slots: the sources of the call's quality-carrying inputs (a map's collection stands
+            for each item), in the call's profile-axis order.
+        call: the module called, as a node of its own (not in the model: its time is the
+            loop's), with the same slots.
+        item_axes: the axes of the call's profile that the item fills (none for a repeat).
+        profiles: the loop's compiled profile for each count 0, 1, ..., the most compiled for
+            (a map's `:max`, a repeat's count).
+        count: the count the program's table is planned for (the most compiled for); a run
+            that finds a map's collection of another size re-plans with that count's profile
+            (`with_count`; a count above the most uses the most's profile).
+    """
+
+    index: int
+    name: str
+    kind: Literal["map", "repeat"]
+    slots: tuple[Slot, ...]
+    call: ModuleNode
+    item_axes: tuple[int, ...]
+    profiles: tuple[ConditionalPerformanceProfile, ...]
+    count: int
+    time_index: int
+    within: Within | None = None
+    accepts_missing: bool = False  # no collection (or argument), no loop
+
+    @property
+    def profile(self) -> ConditionalPerformanceProfile:
+        return self.profiles[min(self.count, len(self.profiles) - 1)]
+
+    @property
+    def deterministic(self) -> bool:
+        return self.call.deterministic
+
+    @property
+    def most(self) -> int:
+        return len(self.profiles) - 1
+
+    def run_time(self, share: ArrayLike) -> Array:
+        """The loop runs with its whole share (each call keeps its own step back)."""
+        return np.maximum(np.asarray(share, dtype=np.float64), 0.0)
+
+    def starts(self, share: ArrayLike) -> Array:
+        return np.ones(np.shape(share), dtype=bool)
+
+
+CompileNode = ModuleNode | ElementaryNode | TestNode | ChoiceNode | IfNode | LoopNode
 
 #: The kinds of node that get a share of the time.
-Timed = ModuleNode | IfNode
+Timed = ModuleNode | IfNode | LoopNode
 
 
 @frozen(eq=False)
@@ -212,7 +277,7 @@ class CompileModel:
     time_unit: str
 
     @property
-    def anytime_nodes(self) -> tuple[ModuleNode | IfNode, ...]:
+    def anytime_nodes(self) -> tuple[ModuleNode | IfNode | LoopNode, ...]:
         """The nodes that get time, in allocation-vector order."""
         return tuple(n for n in self.nodes if isinstance(n, Timed))
 
@@ -223,6 +288,14 @@ class CompileModel:
     def node(self, index: int) -> CompileNode:
         """The node with this graph index."""
         return next(n for n in self.nodes if n.index == index)
+
+    def with_count(self, index: int, count: int) -> CompileModel:
+        """The model with the loop at graph index `index` planned for `count` calls."""
+        nodes = tuple(
+            attrs.evolve(n, count=count) if n.index == index and isinstance(n, LoopNode) else n
+            for n in self.nodes
+        )
+        return attrs.evolve(self, nodes=nodes)
 
     def alternative_modules(self, choice: int, alternative: int) -> tuple[int, ...]:
         """The allocation-vector positions of the nodes that get time inside one alternative
@@ -301,12 +374,17 @@ def _call_mismatch(entry: LibraryEntry, n_args: int, keywords: Sequence[str]) ->
     return None
 
 
+#: Makes a loop's profiles: (the call, the most calls, the loop's name) -> one per count 0..most.
+LoopCompiler = Callable[[ModuleNode, int, str], tuple[ConditionalPerformanceProfile, ...]]
+
+
 def build_model(
     program: Program,
     library: AnytimeLibrary,
     source: SourceText | None = None,
     compile_branch: Callable[[Program], Any] | None = None,
     callees: Mapping[str, Any] | None = None,
+    compile_loop: LoopCompiler | None = None,
 ) -> CompileModel:
     """Resolve `program` against `library` (and its schema calls against `callees`, the
     compiled schemas of its file, by name); errors are placed in `source`, the program's file.
@@ -314,7 +392,8 @@ def build_model(
     A best-of becomes a node whose quality is the maximum of its alternatives' (they run side
     by side, sharing the time); an if becomes one node that gets time, whose branches are
     compiled as programs of their own by `compile_branch` (the calls inside them are not
-    nodes of this model), its profile the mixture of theirs.
+    nodes of this model), its profile the mixture of theirs; a map or a repeat becomes one node
+    that gets time, its profile for each count made by `compile_loop`.
 
     Raises:
         SchemaError: a call to an unknown function, to a module without a profile, or whose
@@ -322,7 +401,7 @@ def build_model(
         CompileError: profiles in different time units.
     """
     source = source if source is not None else SourceText("<schema>", "")
-    resolver = _Resolver(program, library, source, compile_branch, callees or {})
+    resolver = _Resolver(program, library, source, compile_branch, callees or {}, compile_loop)
     return resolver.model()
 
 
@@ -336,9 +415,11 @@ class _Resolver:
         source: SourceText,
         compile_branch: Callable[[Program], Any] | None,
         callees: Mapping[str, Any],
+        compile_loop: LoopCompiler | None = None,
     ) -> None:
         self.program, self.library, self.source = program, library, source
         self.compile_branch, self.callees = compile_branch, callees
+        self.compile_loop = compile_loop
         self.graph = program.graph
         self.diagnostics: list[Diagnostic] = []
         self.quality_inputs: dict[str, int] = {}
@@ -403,6 +484,8 @@ class _Resolver:
                     built = self.best_of(index, choice)
                 case If() as conditional:
                     built = self.conditional(index, conditional)
+                case Map() | Repeat() as loop:
+                    built = self.loop(index, loop)
                 case _:
                     raise AssertionError(node)
             if isinstance(built, str):
@@ -444,20 +527,31 @@ class _Resolver:
 
     def call(self, index: int, call: Call) -> CompileNode | str:
         node = self.graph.nodes[index]
-        entry = self.library.get(call.function)
+        built = self.resolve_call(index, call.target, call.function, node.args, node.keywords)
+        return built if isinstance(built, str) else built[0]
+
+    def resolve_call(
+        self,
+        index: int,
+        target: str,
+        function: str,
+        args: Sequence[Source],
+        keywords: Sequence[tuple[str, Source]],
+    ) -> tuple[CompileNode, list[Source]] | str:
+        """The node of a call of `function` with these arguments, and the arguments that carry
+        its inputs' qualities (in its profile-axis order), or why it cannot be compiled."""
+        entry = self.library.get(function)
         if entry is None:
-            return (
-                f"unknown function '{call.function}'{suggest(call.function, self.library.names())}"
-            )
-        mismatch = _call_mismatch(entry, len(node.args), [name for name, _ in node.keywords])
+            return f"unknown function '{function}'{suggest(function, self.library.names())}"
+        mismatch = _call_mismatch(entry, len(args), [name for name, _ in keywords])
         if mismatch is not None:
             return mismatch
-        sources = _quality_sources(node.args, entry, node_variables(self.graph, node.args))
+        sources = _quality_sources(args, entry, node_variables(self.graph, args))
         if isinstance(sources, str):
             return sources
         slots = tuple(self.slot(s) for s in sources)
-        within = self.within[call.target]
-        if call.target in self.tests:
+        within = self.within[target]
+        if target in self.tests:
             if entry.kind != "elementary":
                 article = "an" if entry.kind == "interruptible" else "a"
                 return (
@@ -465,11 +559,12 @@ class _Resolver:
                     f"no time), but it is {article} {entry.kind} module"
                 )
             assert within is not None
-            return TestNode(index, entry.name, slots, entry, within)
+            return TestNode(index, entry.name, slots, entry, within), sources
         if entry.kind == "elementary":
             assert entry.module is not None
             combine, monotone = _vector_combine(entry.module.combine)
-            return ElementaryNode(index, entry.name, slots, combine, monotone, entry, within)
+            elementary = ElementaryNode(index, entry.name, slots, combine, monotone, entry, within)
+            return elementary, sources
         try:
             profile = entry.profile
         except AnytimeError as error:
@@ -480,7 +575,7 @@ class _Resolver:
                 "the compiler cannot allocate time to it"
             )
         module = entry.module
-        return ModuleNode(
+        built = ModuleNode(
             index,
             entry.name,
             slots,
@@ -491,6 +586,32 @@ class _Resolver:
             within=within,
             step=float(entry.step or 0.0),
             accepts_missing=module is not None and module.accepts_missing,
+        )
+        return built, sources
+
+    def loop(self, index: int, step: Map | Repeat) -> CompileNode | str:
+        """A map's or a repeat's call resolved as a module call (its time the loop's), and the
+        loop's profile for every count up to its most."""
+        word: Literal["map", "repeat"] = "map" if isinstance(step, Map) else "repeat"
+        args = self.graph.nodes[index].args  # a map's collection first: it fills the item
+        built = self.resolve_call(index, step.target, step.function, args, ())
+        if isinstance(built, str):
+            return built
+        call, sources = built
+        if not isinstance(call, ModuleNode):
+            return (
+                f"{word} applies an anytime module, but '{step.function}' is an elementary "
+                "function (it takes no time): call it on the results instead"
+            )
+        if self.compile_loop is None:
+            return f"a {word} can only be compiled by compile_program"
+        # Identity, not equality: the item is the call's first argument, not an equal one.
+        items = tuple(i for i, s in enumerate(sources) if isinstance(step, Map) and s is args[0])
+        most = step.max_items if isinstance(step, Map) else step.count
+        name = f"{word} {step.function}"
+        profiles = self.compile_loop(call, most, f"{self.program.name}/{step.target}")
+        return LoopNode(
+            index, name, word, call.slots, call, items, profiles, most, call.time_index, call.within
         )
 
     def schema_call(self, index: int, call: SchemaCall) -> CompileNode | str:

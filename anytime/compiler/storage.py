@@ -23,13 +23,18 @@ import numpy as np
 import yaml
 
 from anytime.compiler.compile import CompiledProgram
-from anytime.compiler.model import CompileError, ModuleNode, build_model
+from anytime.compiler.loops import loop_profiles
+from anytime.compiler.model import CompileError, IfNode, LoopNode, ModuleNode, build_model
 from anytime.dsl import format_program, parse_schemas
 from anytime.dsl.program import Program, SchemaFile
 from anytime.errors import AnytimeError
-from anytime.files import MAX_PROFILE_BYTES, read_input
 from anytime.library import AnytimeLibrary
-from anytime.profiles.io import load_profile, profile_from_dict, profile_to_dict, save_profile
+from anytime.profiles.io import (
+    profile_from_dict,
+    profile_to_dict,
+    read_profile_file,
+    save_profile,
+)
 from anytime.profiles.profile import ConditionalPerformanceProfile
 
 #: The compile result's fields that are plain data, as the file carries them.
@@ -69,8 +74,7 @@ def load_compiled(path: str | os.PathLike[str], library: AnytimeLibrary) -> Comp
             module missing or changed since), or its tables do not fit its program.
     """
     filename = os.fspath(path)
-    profile = load_profile(path)
-    data = yaml.safe_load(read_input(path, limit=MAX_PROFILE_BYTES, kind="profile files"))
+    profile, data = read_profile_file(path)  # the file read once, by the fast loader
     document = data.get("compiled")
     if not isinstance(document, Mapping) or not isinstance(document.get("schema"), str):
         raise CompileError(
@@ -101,7 +105,7 @@ def _document(compiled: CompiledProgram) -> dict[str, Any]:
     document["baselines"] = {k: _plain(v) for k, v in compiled.baselines.items()}
     document["profiles"] = {
         node.name: fingerprint(node.profile)
-        for node in compiled.model.anytime_nodes
+        for node in _modules_of(compiled.model.anytime_nodes)
         if isinstance(node, ModuleNode) and node.callee is None
     }
     nested = {}
@@ -113,7 +117,7 @@ def _document(compiled: CompiledProgram) -> dict[str, Any]:
     branches = {
         plan.compiled.name: _nested(plan.compiled)
         for node in compiled.model.anytime_nodes
-        if not isinstance(node, ModuleNode)
+        if isinstance(node, IfNode)
         for plan in node.branches
     }
     if branches:
@@ -181,7 +185,14 @@ class _Loader:
         def branch(sub: Program) -> CompiledProgram:
             return self.nested(sub, branches_doc.get(sub.name), f"{field}.branches.{sub.name}")
 
-        model = build_model(program, self.library, self.schemas.source, branch, callees)
+        # A loop's profiles are computed again from its call's (checked below) on the lattice.
+        dt = float(document.get("resolution") or 1.0)
+        lattice = np.arange(int(np.rint(profile.time[-1] / dt)) + 1, dtype=np.float64) * dt
+
+        def loop(call: ModuleNode, most: int, name: str) -> tuple[Any, ...]:
+            return loop_profiles(call, most, lattice, name)
+
+        model = build_model(program, self.library, self.schemas.source, branch, callees, loop)
         if list(document.get("modules") or []) != list(model.module_names):
             raise self.fail(
                 f"{field}.modules",
@@ -196,7 +207,7 @@ class _Loader:
                 f"expected shape {(*cells, len(model.module_names))}, got {allocation.shape}",
             )
         printed = _mapping(document.get("profiles", {}))
-        for node in model.anytime_nodes:
+        for node in _modules_of(model.anytime_nodes):
             if isinstance(node, ModuleNode) and node.callee is None:
                 if printed.get(node.name) != fingerprint(node.profile):
                     raise self.fail(
@@ -233,6 +244,11 @@ class _Loader:
         except AnytimeError as error:
             raise self.fail(f"{field}.profile", str(error)) from None
         return self.program(program, profile, document, field)
+
+
+def _modules_of(nodes: Any) -> list[Any]:
+    """The nodes that get time, a loop's call in the loop's place (its profile is the call's)."""
+    return [node.call if isinstance(node, LoopNode) else node for node in nodes]
 
 
 def _mapping(value: Any) -> Mapping[str, Any]:

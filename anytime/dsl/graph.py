@@ -27,7 +27,9 @@ from anytime.dsl.program import (
     Call,
     If,
     Literal,
+    Map,
     Program,
+    Repeat,
     SchemaCall,
     Step,
     Var,
@@ -61,7 +63,9 @@ class Node:
 
     A call's sources are its positional `args` and its `keywords`; a choice's are labelled
     keywords: a best-of's ("when 1", ...) for its preconditions' results and ("alternative 1",
-    ...) for its alternatives' values, an if's "condition", "then" and "else". `variable`
+    ...) for its alternatives' values, an if's "condition", "then" and "else". A loop's
+    (`function` "map F" or "repeat F") are its calls' arguments, a map's collection first, and
+    the literal keyword "max" (a map's largest compiled count) or "count" (a repeat's). `variable`
     names the result in the program; neither it nor `step` takes part in equality.
     """
 
@@ -149,6 +153,12 @@ class DataflowGraph:
                         strict=True,
                     )
                     node = Node("if", (), tuple((k, source(v)) for k, v in parts))
+                case Map(function=function, items=items, args=args, max_items=most):
+                    sources = tuple(source(a) for a in (items, *args))
+                    node = Node(f"map {function}", sources, (("max", Literal(most)),))
+                case Repeat(function=function, count=n, args=args):
+                    sources = tuple(source(a) for a in args)
+                    node = Node(f"repeat {function}", sources, (("count", Literal(n)),))
             nodes.append(attrs.evolve(node, variable=variable, step=step))
         output = source(Var(program.output))
         assert not isinstance(output, Literal)

@@ -2,7 +2,8 @@
 
 Positions never take part in equality: two forms that differ only in layout are the same form.
 These nodes are what the parser builds; `normalize` turns them into `Program`s.
-New forms of the language (conditionals, choices among alternatives) are new node classes here.
+New forms of the language (conditionals, choices among alternatives, loops) are new node classes
+here.
 """
 
 from __future__ import annotations
@@ -72,8 +73,18 @@ class IfForm(_Form):
     """`(if CONDITION THEN ELSE [:p P])`."""
 
 
-SpecialForm = BestOfForm | WhenForm | IfForm
-Expr = Symbol | Number | String | Call | BestOfForm | WhenForm | IfForm
+@frozen
+class MapForm(_Form):
+    """`(map FUNCTION ITEMS ARG... [:max K])`: FUNCTION applied to each item of ITEMS."""
+
+
+@frozen
+class RepeatForm(_Form):
+    """`(repeat N (FUNCTION ARG...))`: the call made N times."""
+
+
+SpecialForm = BestOfForm | WhenForm | IfForm | MapForm | RepeatForm
+Expr = Symbol | Number | String | Call | BestOfForm | WhenForm | IfForm | MapForm | RepeatForm
 
 
 @frozen
@@ -85,6 +96,12 @@ class Setf:
 
 
 Form = Setf | Expr
+
+
+def expr_span(expr: Form) -> Span:
+    """Where a form is named in errors: a call's or a special form's function word, else the
+    whole form."""
+    return expr.function_span if isinstance(expr, Call | _Form) else expr.span
 
 
 @frozen

@@ -16,7 +16,9 @@ from anytime.dsl.nodes import (
     Call,
     Expr,
     IfForm,
+    MapForm,
     Number,
+    RepeatForm,
     SchemaDef,
     Setf,
     SourceFile,
@@ -24,15 +26,19 @@ from anytime.dsl.nodes import (
     String,
     Symbol,
     WhenForm,
+    expr_span,
 )
 from anytime.dsl.program import (
+    DEFAULT_MAX_ITEMS,
     Alternative,
     Arg,
     BestOf,
     Branch,
     If,
     Literal,
+    Map,
     Program,
+    Repeat,
     SchemaCall,
     SchemaFile,
     Step,
@@ -46,7 +52,7 @@ from anytime.errors import Diagnostic, SchemaError
 from anytime.text import suggest as suggest  # re-exported: the compiler imports it from here
 
 #: The special forms' reserved words (each form has its own grammar rule and syntax node).
-SPECIAL_FORMS = ("best-of", "if", "when")
+SPECIAL_FORMS = ("best-of", "if", "when", "map", "repeat")
 
 
 def _word(form: SpecialForm) -> str:
@@ -58,6 +64,10 @@ def _word(form: SpecialForm) -> str:
             return "if"
         case WhenForm():
             return "when"
+        case MapForm():
+            return "map"
+        case RepeatForm():
+            return "repeat"
 
 
 #: Known functions: a name -> arity mapping (None: any number of arguments), or just names.
@@ -122,6 +132,12 @@ class _Checker:
                         self.check_schema_call(step, schema_arity[step.schema])
                     case CallStep() if known_functions is not None:
                         self.check_library_call(step, known_functions, schema_arity)
+                    case Map() | Repeat() if known_functions is not None:
+                        args = (step.items, *step.args) if isinstance(step, Map) else step.args
+                        call = CallStep(
+                            step.target, step.function, args, (), step.span, step.function_span
+                        )
+                        self.check_library_call(call, known_functions, schema_arity)
 
     def check_schema_call(self, step: SchemaCall, arity: int) -> None:
         if len(step.args) != arity:
@@ -261,6 +277,10 @@ class _ProgramBuilder:
                 return self.best_of(expr, name)
             case IfForm():
                 return self.conditional(expr, name)
+            case MapForm():
+                return self.mapping(expr, name)
+            case RepeatForm():
+                return self.repeat(expr, name)
             case WhenForm():
                 self.checker.error(
                     expr.function_span,
@@ -399,19 +419,126 @@ class _ProgramBuilder:
             else:
                 p = float(keyword.value.value)
         if len(call.args) != 3:
-            error(
+            return self.malformed(
                 call.span,
                 "if takes a condition, a then expression and an else expression: "
                 f"(if CONDITION THEN ELSE [:p P]), got {count(len(call.args))}",
+                call.args,
+                target,
             )
-            self.quiet_dead_code = True  # the uses inside it are not read
-            for arg in call.args:
-                self.expression(arg, None)
-            return Var(target)
         condition = self.expression(call.args[0], None)
         then = Branch(*self.nested(lambda: self.expression(call.args[1], None)))
         other = Branch(*self.nested(lambda: self.expression(call.args[2], None)))
         self.steps.append(If(target, condition, then, other, p, call.span, call.function_span))
+        return Var(target)
+
+    def mapping(self, form: MapForm, name: str | None) -> Var:
+        """`(map FUNCTION ITEMS ARG... [:max K])`: FUNCTION is named, not evaluated; ITEMS and
+        the other arguments are computed before the loop."""
+        error = self.checker.error
+        target = name if name is not None else self.fresh()
+        most = DEFAULT_MAX_ITEMS
+        for keyword in form.keywords:
+            if keyword.name != "max":
+                error(
+                    keyword.span,
+                    "map takes only the keyword :max, the most items its profile is compiled "
+                    f"for (got :{keyword.name})",
+                )
+            elif _whole(keyword.value) is None:
+                error(
+                    expr_span(keyword.value),
+                    "the :max of map must be a whole number >= 1 (the most items its profile "
+                    f"is compiled for), got {_describe(keyword.value)}",
+                )
+            else:
+                most = _whole(keyword.value) or most
+        if len(form.args) < 2:
+            return self.malformed(
+                form.span,
+                "map takes a function and a collection: (map FUNCTION ITEMS ARG... "
+                f"[:max K]), got {count(len(form.args))}",
+                form.args[1:],
+                target,
+            )
+        function = form.args[0]
+        if not isinstance(function, Symbol):
+            return self.malformed(
+                expr_span(function),
+                f"the function of 'map' must be the name of a module, not {_describe(function)}",
+                form.args[1:],
+                target,
+            )
+        if function.name in self.schemas:
+            error(
+                function.span,
+                f"map applies a module of the library, not the schema '{function.name}'",
+            )
+        items, *args = (self.expression(arg, None) for arg in form.args[1:])
+        if isinstance(items, Literal):
+            error(
+                expr_span(form.args[1]),
+                "the collection of 'map' must be a variable or a call, not a constant",
+            )
+        self.steps.append(
+            Map(target, function.name, items, tuple(args), most, form.span, function.span)
+        )
+        return Var(target)
+
+    def repeat(self, form: RepeatForm, name: str | None) -> Var:
+        """`(repeat N (FUNCTION ARG...))`: N a whole number written in the schema; the call's
+        arguments are computed before the loop."""
+        error = self.checker.error
+        target = name if name is not None else self.fresh()
+        for keyword in form.keywords:
+            error(keyword.span, f"repeat takes no keyword arguments (got :{keyword.name})")
+        if len(form.args) != 2:
+            return self.malformed(
+                form.span,
+                "repeat takes a count and a call: (repeat N (FUNCTION ARG...)), "
+                f"got {count(len(form.args))}",
+                form.args,
+                target,
+            )
+        number, body = form.args
+        n = _whole(number)
+        if n is None:
+            hint = " (for a count known only at run time, map over a collection)"
+            error(
+                expr_span(number),
+                f"the count of 'repeat' must be a whole number >= 1, got {_describe(number)}"
+                + (hint if isinstance(number, Symbol | Call) else ""),
+            )
+        if not isinstance(body, Call) or body.function in self.schemas or body.keywords:
+            if not isinstance(body, Call):
+                what = _describe(body)
+                message = f"the body of 'repeat' must be one call of a module, not {what}"
+            elif body.keywords:
+                message = (
+                    "the call inside 'repeat' takes no keyword arguments "
+                    f"(got :{body.keywords[0].name})"
+                )
+            else:
+                message = f"repeat calls a module of the library, not the schema '{body.function}'"
+            return self.malformed(expr_span(body), message, (body,), target)
+        args = tuple(self.expression(arg, None) for arg in body.args)
+        self.steps.append(
+            Repeat(target, n or 1, body.function, args, form.span, body.function_span)
+        )
+        return Var(target)
+
+    def malformed(self, span: Span, message: str, inside: Iterable[Expr], target: str) -> Var:
+        """Report a malformed form; what it holds is flattened only to report the errors in
+        it (its uses are not read, so no dead-code errors follow)."""
+        self.checker.error(span, message)
+        self.quiet_dead_code = True
+
+        def flatten() -> Arg:
+            for expr in inside:
+                self.expression(expr, None)
+            return Literal(0)
+
+        self.nested(flatten)
         return Var(target)
 
     def lookup(self, symbol: Symbol) -> Arg:
@@ -446,6 +573,27 @@ class _ProgramBuilder:
                     self.assigned_at[step.target],
                     f"variable '{step.target}' is assigned but never used",
                 )
+
+
+def _whole(expr: Expr) -> int | None:
+    """The value of a whole-number literal >= 1, else None."""
+    if isinstance(expr, Number) and isinstance(expr.value, int) and expr.value >= 1:
+        return expr.value
+    return None
+
+
+def _describe(expr: Expr) -> str:
+    """How an error names what was written: a number as written, else its kind."""
+    match expr:
+        case Number(value=value):
+            return format(value)
+        case Symbol(name=name):
+            return f"the variable '{name}'"
+        case String():
+            return "a string"
+        case Call():
+            return "a call"
+    return f"a {_word(expr)} form"
 
 
 def count(n: int) -> str:

@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 import re
 from functools import cache
-from typing import Any
+from typing import Any, TypeVar
 
 from lark import Lark, Token, Transformer, v_args
 from lark.exceptions import (
@@ -28,20 +28,24 @@ from anytime.dsl.nodes import (
     BestOfForm,
     Call,
     Expr,
-    Form,
     IfForm,
     KeywordArg,
+    MapForm,
     Number,
+    RepeatForm,
     SchemaDef,
     Setf,
     SourceFile,
-    SpecialForm,
     String,
     Symbol,
     WhenForm,
+    _Form,
+    expr_span,
 )
 from anytime.dsl.source import Source, Span
 from anytime.errors import Diagnostic, SchemaSyntaxError
+
+FormT = TypeVar("FormT", bound=_Form)  # the special forms' base class
 
 #: Deeper nesting than this is refused with a clear error (real schemas nest a few levels).
 MAX_NESTING = 100
@@ -239,7 +243,8 @@ def _translate(error: UnexpectedInput, source: Source) -> SchemaSyntaxError:
         return _error_at(
             source,
             error.token.start_pos or 0,
-            f"'{word}' is a reserved word (best-of, if, when): it cannot name a variable or "
+            f"'{word}' is a reserved word (best-of, if, when, map, repeat): it cannot name a "
+            "variable or "
             "a parameter, and it opens its form: (" + _RESERVED[error.token.type] + ")",
         )
     message = error.match_examples(
@@ -255,6 +260,8 @@ _RESERVED = {
     "BEST_OF": "best-of (when PRECONDITION EXPR) ... EXPR",
     "WHEN": "when PRECONDITION EXPR",
     "IF": "if CONDITION THEN ELSE [:p P]",
+    "MAP": "map FUNCTION ITEMS ARG... [:max K]",
+    "REPEAT": "repeat N (FUNCTION ARG...)",
 }
 
 _TOKEN_WORDS = {
@@ -269,6 +276,8 @@ _TOKEN_WORDS = {
     "BEST_OF": "'best-of'",
     "WHEN": "'when'",
     "IF": "'if'",
+    "MAP": "'map'",
+    "REPEAT": "'repeat'",
     "$END": "the end of the file",
 }
 
@@ -339,16 +348,24 @@ class _ToNodes(Transformer[Token, tuple[SchemaDef, ...]]):
         return Call(function.lower(), args, keywords, _span(meta), _span(function))
 
     def best_of(self, meta: Meta, children: list[Any]) -> BestOfForm:
-        head, *rest = children
-        return BestOfForm(*self._arguments(rest), _span(meta), _span(head))
+        return self._form(BestOfForm, meta, children)
 
     def when(self, meta: Meta, children: list[Any]) -> WhenForm:
-        head, *rest = children
-        return WhenForm(*self._arguments(rest), _span(meta), _span(head))
+        return self._form(WhenForm, meta, children)
 
     def if_(self, meta: Meta, children: list[Any]) -> IfForm:
+        return self._form(IfForm, meta, children)
+
+    def map_(self, meta: Meta, children: list[Any]) -> MapForm:
+        return self._form(MapForm, meta, children)
+
+    def repeat(self, meta: Meta, children: list[Any]) -> RepeatForm:
+        return self._form(RepeatForm, meta, children)
+
+    def _form(self, kind: type[FormT], meta: Meta, children: list[Any]) -> FormT:
+        """A special form: its reserved word, then its arguments as a call's."""
         head, *rest = children
-        return IfForm(*self._arguments(rest), _span(meta), _span(head))
+        return kind(*self._arguments(rest), _span(meta), _span(head))
 
     def _arguments(self, items: list[Any]) -> tuple[tuple[Expr, ...], tuple[KeywordArg, ...]]:
         """Positional arguments, then keyword arguments, each keyword once."""
@@ -361,7 +378,7 @@ class _ToNodes(Transformer[Token, tuple[SchemaDef, ...]]):
                 keywords.append(item)
             elif keywords:
                 raise self._fail(
-                    _expr_span(item), "a positional argument cannot follow keyword arguments"
+                    expr_span(item), "a positional argument cannot follow keyword arguments"
                 )
             else:
                 args.append(item)
@@ -388,7 +405,3 @@ class _ToNodes(Transformer[Token, tuple[SchemaDef, ...]]):
     def string(self, meta: Meta, children: list[Token]) -> String:
         # Lisp escapes: a backslash makes the next character literal.
         return String(re.sub(r"\\(.)", r"\1", children[0][1:-1], flags=re.DOTALL), _span(meta))
-
-
-def _expr_span(expr: Form) -> Span:
-    return expr.function_span if isinstance(expr, Call | SpecialForm) else expr.span

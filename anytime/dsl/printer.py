@@ -7,7 +7,20 @@ from collections.abc import Iterable
 from typing import Any
 
 from anytime.dsl.graph import DataflowGraph, InputRef, Node, NodeRef, Source
-from anytime.dsl.program import Arg, BestOf, Call, If, Literal, Program, SchemaCall, Step, Var
+from anytime.dsl.program import (
+    DEFAULT_MAX_ITEMS,
+    Arg,
+    BestOf,
+    Call,
+    If,
+    Literal,
+    Map,
+    Program,
+    Repeat,
+    SchemaCall,
+    Step,
+    Var,
+)
 
 INDENT = "  "
 
@@ -42,6 +55,12 @@ def format_step(step: Step) -> str:
             parts += [_nested(then.steps, then.value), _nested(other.steps, other.value)]
             if p is not None:
                 parts.append(f":p {format_literal(p)}")
+        case Map(function=function, items=items, args=args, max_items=most):
+            parts = ["map", function, *(format_arg(a) for a in (items, *args))]
+            if most != DEFAULT_MAX_ITEMS:
+                parts.append(f":max {most}")
+        case Repeat(function=function, count=n, args=args):
+            parts = ["repeat", str(n), "(" + " ".join([function, *map(format_arg, args)]) + ")"]
     return "(" + " ".join(parts) + ")"
 
 
@@ -99,7 +118,8 @@ def arg_to_json(arg: Arg) -> Any:
 def step_to_json(step: Step) -> dict[str, Any]:
     """A step by its kind: a call's `function`, `args` and `keywords`; a schema call's
     `schema` and `args`; a best-of's `alternatives` [{"when", "steps", "value"}]; an if's
-    `condition`, `then` and `else` ({"steps", "value"}) and `p`."""
+    `condition`, `then` and `else` ({"steps", "value"}) and `p`; a map's `function`, `items`,
+    `args` and `max`; a repeat's `count`, `function` and `args`."""
     out: dict[str, Any] = {"target": step.target}
     match step:
         case Call(function=function, args=args, keywords=keywords):
@@ -128,6 +148,21 @@ def step_to_json(step: Step) -> dict[str, Any]:
                 "then": _branch_to_json(then.steps, then.value),
                 "else": _branch_to_json(other.steps, other.value),
                 "p": p,
+            }
+        case Map(function=function, items=items, args=args, max_items=most):
+            out |= {
+                "kind": "map",
+                "function": function,
+                "items": arg_to_json(items),
+                "args": [arg_to_json(a) for a in args],
+                "max": most,
+            }
+        case Repeat(function=function, count=n, args=args):
+            out |= {
+                "kind": "repeat",
+                "count": n,
+                "function": function,
+                "args": [arg_to_json(a) for a in args],
             }
     return out
 
@@ -159,7 +194,8 @@ def graph_to_dot(graphs: Iterable[DataflowGraph]) -> str:
     """One digraph with a cluster per program: inputs as ellipses, calls as boxes
     (schema calls with a double border), choices (`best-of`, `if`) as diamonds whose incoming
     edges say what they carry (`when 1`, `alternative 1`, ...; `condition`, `then`, `else`),
-    other edges labelled with the variable they carry."""
+    loops (`map`, `repeat`) as stacked boxes (a map's collection edge says `items`), other
+    edges labelled with the variable they carry."""
     out = ["digraph schemas {", "  rankdir=LR;", '  node [fontname="Helvetica"];']
     for number, graph in enumerate(graphs):
         prefix = f"s{number}_"
@@ -175,7 +211,13 @@ def graph_to_dot(graphs: Iterable[DataflowGraph]) -> str:
             constants = [f"{slot}={_source_text(s)}" for slot, s in _literals(node.sources())]
             label = node.function + ("\\n" + ", ".join(constants) if constants else "")
             border = ", peripheries=2" if isinstance(node.step, SchemaCall) else ""
-            shape = "diamond" if isinstance(node.step, BestOf | If) else "box"
+            shape = (
+                "diamond"
+                if isinstance(node.step, BestOf | If)
+                else "box3d"
+                if isinstance(node.step, Map | Repeat)
+                else "box"
+            )
             out.append(f'    {ident(NodeRef(index))} [shape={shape}{border}, label="{label}"];')
         for edge in graph.edges:
             role = _edge_role(graph.nodes[edge.target], edge.slot)
@@ -192,9 +234,12 @@ def graph_to_dot(graphs: Iterable[DataflowGraph]) -> str:
 
 def _edge_role(target: Node, slot: int | str) -> str | None:
     """What an argument of a choice is: its label ("when 1", "alternative 1"; "condition",
-    "then", "else"); a call's arguments are labelled by the variable alone."""
+    "then", "else"), and a map's collection "items"; a call's arguments are labelled by the
+    variable alone."""
     if isinstance(target.step, BestOf | If) and isinstance(slot, str):
         return slot
+    if isinstance(target.step, Map) and slot == 0:
+        return "items"
     return None
 
 

@@ -5,10 +5,12 @@ Zilberstein & Russell compile straight-line programs, "a sequence of expressions
 variables"; nested calls map one-to-one onto such code. Every schema is normalised into this form
 (see `normalize`), so the compiler and the runtime see one shape only.
 
-A step is one of four kinds, one class each, matched structurally (`match step:`) by every pass:
+A step is one of six kinds, one class each, matched structurally (`match step:`) by every pass:
 a `Call` of a function of the anytime library, a `SchemaCall` of another schema of the file, a
-`BestOf` choice among alternatives, and an `If`. The steps of an alternative or a branch are
-nested inside it, so which choice a step belongs to is where it is, never a tag to decode.
+`BestOf` choice among alternatives, an `If`, and the loops `Map` (a module applied to each item
+of a collection known at run time) and `Repeat` (a call made a fixed number of times). The steps
+of an alternative or a branch are nested inside it, so which choice a step belongs to is where
+it is, never a tag to decode.
 """
 
 from __future__ import annotations
@@ -108,13 +110,47 @@ class If:
     function_span: Span | None = field(default=None, eq=False, repr=False)
 
 
-Step = Call | SchemaCall | BestOf | If
+#: The largest count a map's table is compiled for when its form gives no `:max`.
+DEFAULT_MAX_ITEMS = 4
+
+
+@frozen
+class Map:
+    """`(map FUNCTION ITEMS ARG... [:max K])`: `(FUNCTION item ARG...)` for each item of the
+    collection ITEMS, whose size is known only at run time; the loop's profile is compiled for
+    0 to `max_items` items. The result is the list of the calls' results."""
+
+    target: str
+    function: str
+    items: Arg
+    args: tuple[Arg, ...] = ()
+    max_items: int = DEFAULT_MAX_ITEMS
+    span: Span | None = field(default=None, eq=False, repr=False)
+    function_span: Span | None = field(default=None, eq=False, repr=False)
+
+
+@frozen
+class Repeat:
+    """`(repeat N (FUNCTION ARG...))`: the call made `count` times (a count fixed in the
+    schema, as Nakamura et al.'s `for`). The result is the list of the calls' results."""
+
+    target: str
+    count: int
+    function: str
+    args: tuple[Arg, ...] = ()
+    span: Span | None = field(default=None, eq=False, repr=False)
+    function_span: Span | None = field(default=None, eq=False, repr=False)
+
+
+Loop = Map | Repeat
+Step = Call | SchemaCall | BestOf | If | Map | Repeat
 
 
 def reads(step: Step) -> tuple[Arg, ...]:
     """What a step itself reads, in evaluation order: a call's arguments (positional, then
     keyword values); a best-of's preconditions' results, then its alternatives' values; an
-    if's condition, then and else values."""
+    if's condition, then and else values; a map's collection, then the other arguments of its
+    calls; a repeat's arguments of its call."""
     match step:
         case Call(args=args, keywords=keywords):
             return (*args, *(value for _, value in keywords))
@@ -125,6 +161,10 @@ def reads(step: Step) -> tuple[Arg, ...]:
             return (*tests, *(a.value for a in alternatives))
         case If(condition=condition, then=then, else_=other):
             return (condition, then.value, other.value)
+        case Map(items=items, args=args):
+            return (items, *args)
+        case Repeat(args=args):
+            return args
 
 
 def variables(step: Step) -> Iterator[str]:

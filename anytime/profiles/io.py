@@ -34,11 +34,18 @@ returned (interruptible), or past its allocation (contract); a file without it (
 written before it existed) has an unknown step, None. A bad `step` names its line and column.
 `inputs` may be left out when the input axes have no names; when given it names every axis.
 
-Files are read with `yaml.safe_load` only: a tag that would construct a Python object is
-refused, never run. Every problem is a `ProfileError` saying
-`FILE: field: what is wrong (expected ..., got ...)`; YAML syntax errors add the line and
-column (`FILE:LINE:COL: ...`). YAML 1.1 reads `1e-3` and `1.0e3` as strings: give such numbers
-a dot and a signed exponent, `1.0e-3` and `1.0e+3`.
+Files are read by a safe loader only, libyaml's (`yaml.CSafeLoader`) where PyYAML has it, else
+the pure one: a tag that would construct a Python object is refused, never run. A file the fast
+loader refuses is read again by the pure one, so a message is the same with either. Every
+problem is a `ProfileError` saying `FILE: field: what is wrong (expected ..., got ...)`; YAML
+syntax errors add the line and column (`FILE:LINE:COL: ...`). YAML 1.1 reads `1e-3` and `1.0e3`
+as strings: give such numbers a dot and a signed exponent, `1.0e-3` and `1.0e+3`.
+
+Large tables go into a binary companion beside the file (`NAME.npz` for `NAME.yaml`, numpy's
+uncompressed archive, read with pickles refused); the file then has `tables: {file, sha256,
+shapes}` in their place, and a companion whose digest or shapes are not the header's is an
+error, as is a table given in both. Writers add it when the tables hold more than
+`COMPANION_THRESHOLD` numbers: a million-cell table loads in under a second, not a minute.
 
 Writing uses repr precision for floats (integral values as integers), so save -> load gives
 back an equal profile. A profile whose probabilities are exactly the point masses of its `mean`
@@ -49,8 +56,12 @@ as a `PerformanceProfile`.
 
 from __future__ import annotations
 
+import errno
+import hashlib
+import io
 import os
 import re
+import zipfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, NoReturn, cast
@@ -60,7 +71,7 @@ import yaml
 from numpy.typing import NDArray
 
 from anytime.errors import ProfileError
-from anytime.files import MAX_PROFILE_BYTES, read_input, write_atomic
+from anytime.files import MAX_PROFILE_BYTES, OutputFileError, read_input, write_atomic
 from anytime.profiles.profile import (
     Array,
     ConditionalPerformanceProfile,
@@ -75,7 +86,8 @@ FORMAT = "anytime-profile/1"
 
 #: Every field a file may have, in the order they are written. A compiled program's file adds
 #: `modules`, `allocation` (its time-allocation table) and `compiled` (the rest of the compile
-#: result, see `anytime.compiler.storage`); reading it as a profile skips them.
+#: result, see `anytime.compiler.storage`); reading it as a profile skips them. A file whose
+#: tables are in a binary companion has `tables` in their place (`read_profile_file`).
 FIELDS = (
     "format",
     "module",
@@ -101,6 +113,21 @@ FIELDS = (
 KINDS = ("interruptible", "contract")
 TIME_UNITS = ("ticks", "seconds")
 
+#: The tables of a profile, in the order they are written; a companion can hold any of them,
+#: and the time grid when it is longer than `LONG_GRID`.
+TABLES = ("probability", "expected", "mean", "std", "samples", "bin_mean", "no_result")
+LONG_GRID = 1_000
+
+#: A profile whose tables hold more numbers than this is written with a binary companion.
+COMPANION_THRESHOLD = 100_000
+#: The largest companion read: every table and the time grid at the largest size a file may
+#: describe.
+MAX_COMPANION_BYTES = (len(TABLES) + 1) * 8 * 10_000_000 + (1 << 20)
+
+#: libyaml's loader where PyYAML was built with it (ten times faster), else the pure one; both
+#: construct plain data only (the safe constructor).
+FAST_LOADER: Any = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
 #: A file describing more cells than this is refused before its tables are read: YAML aliases
 #: can make a small file stand for an enormous table.
 MAX_CELLS = 10_000_000
@@ -115,6 +142,14 @@ _TAG = re.compile(r"could not determine a constructor for the tag '([^']*)'")
 
 def load_profile(path: str | os.PathLike[str]) -> ConditionalPerformanceProfile:
     """Read and validate a profile file; every problem is a `ProfileError` naming the file."""
+    return read_profile_file(path)[0]
+
+
+def read_profile_file(
+    path: str | os.PathLike[str],
+) -> tuple[ConditionalPerformanceProfile, Mapping[Any, Any]]:
+    """The validated profile of a file and the file's mapping, the tables of its companion (if
+    it has one) in it as arrays: what a reader of the fields beyond the profile's needs."""
     filename = os.fspath(path)
     try:
         data = read_input(path, limit=MAX_PROFILE_BYTES, kind="profile files")
@@ -127,10 +162,18 @@ def load_profile(path: str | os.PathLike[str]) -> ConditionalPerformanceProfile:
         ) from None
     except OSError as exc:
         raise ProfileError(f"{filename}: cannot read the file: {exc.strerror or exc}") from None
-    return _Reader(filename, text).read(_parse_yaml(text, filename))
+    reader = _Reader(filename, text)
+    fields = reader.fields(reader.with_companion(_parse_yaml(text, filename)))
+    return reader.profile(fields), fields
 
 
 def _parse_yaml(text: str, filename: str) -> object:
+    """The document, read by the fast loader; a document it refuses is read again by the pure
+    one, whose messages (and marks) are the ones the format documents."""
+    try:
+        return yaml.load(text, Loader=FAST_LOADER)  # a safe loader: plain data only
+    except yaml.YAMLError:
+        pass
     try:
         return yaml.safe_load(text)
     except yaml.MarkedYAMLError as exc:
@@ -160,7 +203,7 @@ def _parse_yaml(text: str, filename: str) -> object:
 
 def _field_at(text: str, index: int) -> str:
     """The top-level field whose value holds character `index` (composing builds no objects)."""
-    root = yaml.compose(text, Loader=yaml.SafeLoader)
+    root = yaml.compose(text, Loader=yaml.SafeLoader)  # the marks of the pure loader's message
     if isinstance(root, yaml.MappingNode):
         for key, value in root.value:
             if value.start_mark.index <= index <= value.end_mark.index:
@@ -198,6 +241,78 @@ class _Reader:
     def read(self, data: object) -> ConditionalPerformanceProfile:
         return self.profile(self.fields(data))
 
+    def with_companion(self, data: object) -> object:
+        """`data` with the tables of the companion its `tables` field names read into it as
+        arrays, once the companion is the one this header was written with."""
+        if not isinstance(data, Mapping) or "tables" not in data:
+            return data
+        header = data["tables"]
+        if not isinstance(header, Mapping) or sorted(header) != ["file", "sha256", "shapes"]:
+            self.fail(
+                "tables",
+                "expected a mapping of file, sha256 and shapes (the companion written with"
+                f" the profile), got {_describe(header)}",
+            )
+        name, shapes = header["file"], header["shapes"]
+        if not isinstance(name, str) or not name.endswith(".npz") or Path(name).name != name:
+            self.fail(
+                "tables.file",
+                f"expected the name of a .npz file beside this one, got {_describe(name)}",
+            )
+        if not isinstance(shapes, Mapping) or not shapes:
+            self.fail(
+                "tables.shapes", f"expected a mapping of table -> shape, got {_describe(shapes)}"
+            )
+        for key, shape in shapes.items():
+            if key not in (*TABLES, "time"):
+                self.fail(
+                    f"tables.shapes.{key}",
+                    f"expected one of {', '.join(TABLES)}, time; got {_describe(key)}",
+                )
+            if key in data:
+                self.fail(key, "given both in this file and in its companion (expected one)")
+            if not isinstance(shape, list) or not all(_is_count(n) for n in shape):
+                self.fail(
+                    f"tables.shapes.{key}",
+                    f"expected a list of axis lengths, got {_describe(shape)}",
+                )
+        arrays = self.companion(name, str(header["sha256"]))
+        if sorted(arrays) != sorted(shapes):
+            self.fail(
+                "tables.shapes",
+                f"expected the companion '{name}' to hold {', '.join(sorted(shapes))},"
+                f" got {', '.join(sorted(arrays)) or 'nothing'}",
+            )
+        for key, array in arrays.items():
+            if list(array.shape) != shapes[key] or array.dtype.kind not in "fiu":
+                self.fail(
+                    f"tables.shapes.{key}",
+                    f"expected numbers of shape {shapes[key]} (the header's), got"
+                    f" {array.dtype} of shape {list(array.shape)} in the companion '{name}'",
+                )
+        rest = {key: value for key, value in data.items() if key != "tables"}
+        return {**rest, **{key: a.astype(np.float64) for key, a in arrays.items()}}
+
+    def companion(self, name: str, sha256: str) -> dict[str, Array]:
+        """The arrays of the companion `name` beside the file, if its digest is `sha256`."""
+        path = Path(self.filename).parent / name
+        try:
+            raw = read_input(path, limit=MAX_COMPANION_BYTES, kind="profile companions")
+        except OSError as exc:
+            self.fail("tables.file", f"cannot read the companion '{name}': {exc.strerror or exc}")
+        digest = hashlib.sha256(raw).hexdigest()
+        if digest != sha256:
+            self.fail(
+                "tables.sha256",
+                f"the companion '{name}' is not the one this file was written with (expected"
+                f" sha256 {sha256}, got {digest}): write the profile again",
+            )
+        try:
+            with np.load(io.BytesIO(raw), allow_pickle=False) as archive:
+                return {key: archive[key] for key in archive.files}
+        except (OSError, ValueError, zipfile.BadZipFile) as exc:
+            self.fail("tables.file", f"the companion '{name}' is not an archive of arrays: {exc}")
+
     def fields(self, data: object) -> Mapping[Any, Any]:
         """The top-level mapping, once the version, the field names and the choices are right."""
         if not isinstance(data, Mapping):
@@ -209,6 +324,8 @@ class _Reader:
                 "format",
                 f"unknown format version (expected {FORMAT!r}, got {_describe(data['format'])})",
             )
+        if "tables" in data:  # `with_companion` reads them into the mapping
+            self.fail("tables", "a companion is read with its file (load_profile), not here")
         for key in data:
             if key not in FIELDS:
                 hint = did_you_mean(str(key), FIELDS, separator=", ")
@@ -371,17 +488,16 @@ class _Reader:
         ]
 
     def grid(self, field: str, value: object, *, minimum: int, quality: bool) -> Array:
-        """A 1-D list of numbers; the class checks that it increases."""
+        """A 1-D list of numbers (or a companion's array); the class checks that it increases."""
+        if isinstance(value, np.ndarray) and value.ndim == 1 and len(value) >= minimum:
+            return self.checked(field, value, quality)
         if not isinstance(value, list) or len(value) < minimum:
             self.fail(
                 field,
                 f"expected a list of at least {_count(minimum, 'number')}, got {_describe(value)}",
             )
         grid = np.array([self.number(f"{field}[{i}]", x) for i, x in enumerate(value)])
-        self.non_negative(field, grid)
-        if quality:
-            self.in_unit_interval(field, grid)
-        return grid
+        return self.checked(field, grid, quality)
 
     def table(
         self,
@@ -392,7 +508,19 @@ class _Reader:
         *,
         quality: bool = False,
     ) -> Array:
-        """A nested list of exactly `shape`; the first deviation is named by its index."""
+        """A nested list of exactly `shape` (or a companion's array); the first deviation is
+        named by its index."""
+        if isinstance(value, np.ndarray):  # from the companion, whose shapes the header gave
+            if value.shape != shape:
+                self.fail(
+                    field,
+                    f"expected shape {list(shape)} ({', '.join(axes)}), got {list(value.shape)}"
+                    " in the companion",
+                )
+            return self.checked(field, value, quality)
+        fast = _plain_table(value, shape)
+        if fast is not None:
+            return self.checked(field, fast, quality)
         flat: list[float] = []
 
         def walk(node: object, depth: int, where: str) -> None:
@@ -407,7 +535,9 @@ class _Reader:
                 walk(item, depth + 1, f"{where}[{i}]")
 
         walk(value, 0, field)
-        table = np.array(flat, dtype=np.float64).reshape(shape)
+        return self.checked(field, np.array(flat, dtype=np.float64).reshape(shape), quality)
+
+    def checked(self, field: str, table: Array, quality: bool) -> Array:
         self.non_negative(field, table)
         if quality:
             self.in_unit_interval(field, table)
@@ -437,7 +567,7 @@ class _Reader:
 def _value_mark(text: str, field: str) -> yaml.Mark | None:
     """Where the value of the top-level `field` starts (composing builds no objects)."""
     try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
+        root = yaml.compose(text, Loader=FAST_LOADER)
     except yaml.YAMLError:  # cannot happen for text that loaded; kept as a safety net
         return None
     if isinstance(root, yaml.MappingNode):
@@ -445,6 +575,28 @@ def _value_mark(text: str, field: str) -> yaml.Mark | None:
             if isinstance(key, yaml.ScalarNode) and key.value == field:
                 return cast(yaml.Mark, value.start_mark)
     return None
+
+
+def _plain_table(value: object, shape: tuple[int, ...]) -> Array | None:
+    """`value` as an array when it is a nested list of exactly `shape` whose cells are all
+    plain numbers, in a few passes over the cells instead of a walk; None when it is not, for
+    the walk to name the first problem."""
+    if not isinstance(value, list):
+        return None
+    try:
+        cells = np.array(value, dtype=object)
+    except ValueError:  # ragged
+        return None
+    if cells.shape != shape or not {type(x) for x in cells.flat} <= {int, float}:
+        return None
+    try:
+        return cells.astype(np.float64)
+    except OverflowError:  # an integer beyond float
+        return None
+
+
+def _is_count(n: object) -> bool:
+    return isinstance(n, int) and not isinstance(n, bool) and n >= 0
 
 
 def _count(n: int, noun: str) -> str:
@@ -484,6 +636,12 @@ def _describe(value: object) -> str:
 
 def profile_to_dict(profile: ConditionalPerformanceProfile) -> dict[str, Any]:
     """The file's mapping for `profile`: plain lists, floats exact, integral values as ints."""
+    header, tables = _split(profile)
+    return {**header, **{key: _plain(table) for key, table in tables.items()}}
+
+
+def _split(profile: ConditionalPerformanceProfile) -> tuple[dict[str, Any], dict[str, Array]]:
+    """The file's mapping for `profile` without its tables, and the tables, in field order."""
     data: dict[str, Any] = {"format": FORMAT}
     if profile.module:
         data["module"] = profile.module
@@ -497,35 +655,47 @@ def profile_to_dict(profile: ConditionalPerformanceProfile) -> dict[str, Any]:
     data["input_quality"] = [_plain(grid) for grid in profile.input_grids]
     data["time"] = _plain(profile.time)
     data["quality_bins"] = _plain(profile.bins)
+    tables: dict[str, Array | None] = {}
     if _is_point_mass(profile):
-        data["expected"] = _plain(cast(Array, profile.mean))
+        tables["expected"] = profile.mean
     else:
-        data["probability"] = _plain(profile.probability)
-        if profile.mean is not None:
-            data["mean"] = _plain(profile.mean)
-    if profile.std is not None:
-        data["std"] = _plain(profile.std)
-    if profile.samples is not None:
-        data["samples"] = _plain(profile.samples)
-    if profile.bin_mean is not None:
-        data["bin_mean"] = _plain(profile.bin_mean)
-    if profile.no_result_table is not None:  # never all zeros: the profile keeps that as None
-        data["no_result"] = _plain(profile.no_result_table)
-    return data
+        tables["probability"] = profile.probability
+        tables["mean"] = profile.mean
+    tables["std"] = profile.std
+    tables["samples"] = profile.samples
+    tables["bin_mean"] = profile.bin_mean
+    tables["no_result"] = profile.no_result_table  # never all zeros: the profile keeps None
+    return data, {key: table for key, table in tables.items() if table is not None}
 
 
 def save_profile(
     profile: ConditionalPerformanceProfile,
     path: str | os.PathLike[str],
     extra: Mapping[str, Any] | None = None,
+    *,
+    companion: bool | None = None,
 ) -> None:
     """Write `profile` to `path` in the `anytime-profile/1` format, atomically (a temporary
     file renamed over `path`; OSError if it cannot).
 
     `extra` adds fields a reader of profiles skips (a compiled program's `modules`,
     `allocation` and `compiled`); arrays in it are written like the profile's tables.
+    `companion` writes the tables into a binary companion beside `path` (`NAME.npz` for
+    `NAME.yaml`), which the file names with its digest; by default, when they hold more than
+    `COMPANION_THRESHOLD` numbers. The companion is written (atomically) before the file, so
+    an interrupted write leaves the old pair or a file whose digest tells the companion is not
+    its own, never a file read with the wrong tables.
     """
-    data = profile_to_dict(profile)
+    data, tables = _split(profile)
+    if companion is None:
+        companion = sum(table.size for table in tables.values()) > COMPANION_THRESHOLD
+    if companion:
+        if len(profile.time) > LONG_GRID:  # read as fast as the tables it indexes
+            del data["time"]
+            tables = {"time": profile.time, **tables}
+        data["tables"] = _write_companion(tables, Path(path))
+    else:
+        data.update((key, _plain(table)) for key, table in tables.items())
     for key, value in (extra or {}).items():
         if key not in ("modules", "allocation", "compiled"):
             raise ValueError(f"not a field a profile file may carry: {key!r}")
@@ -542,6 +712,25 @@ def save_profile(
         width=1_000_000,  # one row of a table per line, however many bins
     )
     write_atomic(path, text)
+
+
+def _write_companion(tables: Mapping[str, Array], path: Path) -> dict[str, Any]:
+    """Write `tables` as the companion of the file `path`; the file's `tables` field."""
+    target = path.with_name(f"{path.stem}.npz")
+    if target.name == path.name:  # the header would overwrite its own companion
+        raise OutputFileError(
+            errno.EINVAL, "a profile with a companion cannot itself be named .npz", str(path)
+        )
+    buffer = io.BytesIO()
+    arrays = {key: np.asarray(table, dtype=np.float64) for key, table in tables.items()}
+    cast(Any, np.savez)(buffer, **arrays)  # numpy's stubs take the names for its keywords
+    raw = buffer.getvalue()
+    write_atomic(target, raw)
+    return {
+        "file": target.name,
+        "sha256": hashlib.sha256(raw).hexdigest(),
+        "shapes": {key: list(table.shape) for key, table in tables.items()},
+    }
 
 
 def _is_point_mass(profile: ConditionalPerformanceProfile) -> bool:

@@ -5,7 +5,12 @@ record and never loses its best result), with its share of the total from the co
 allocation table (`CompiledProgram.allocation_at`). A call to another schema runs that schema's
 compiled program the same way with the call's share; a best-of evaluates its preconditions,
 re-splits its alternatives' time among the applicable ones and answers with the best of their
-results; an if runs the compiled branch its condition selects with the if's time.
+results; an if runs the compiled branch its condition selects with the if's time; a loop (map,
+repeat) splits its time among its calls by the rule it was compiled with
+(`anytime.compiler.loops`), each call's curve at its own item's quality, and answers with the
+list of their results, its quality their mean. When a map's collection is not of the size the
+table was planned for, the time left is re-split among the calls still to run with that count's
+profile of the loop (as in adaptive mode).
 
 In **adaptive** mode, each time a module finishes the time that is left is re-allocated among
 the modules still to run, given the quality its result was *observed* to have: the compiled
@@ -36,11 +41,13 @@ from anytime.clocks import Clock, WorkClock
 from anytime.compiler.allocators import reallocate
 from anytime.compiler.compile import CompiledProgram
 from anytime.compiler.evaluate import NO_RESULT
+from anytime.compiler.loops import run_time_split
 from anytime.compiler.model import (
     ChoiceNode,
     CompileNode,
     ElementaryNode,
     IfNode,
+    LoopNode,
     ModuleNode,
     TestNode,
     Within,
@@ -162,6 +169,7 @@ class _Execution:
         self.applicable: dict[int, list[bool]] = {}  # each best-of's, once decided
 
     def run(self) -> ProgramRecord:
+        self.count_input_collections()
         for node in self.model.nodes:
             if not self.active(node):
                 continue
@@ -204,6 +212,8 @@ class _Execution:
                 return self.best_of(node)
             case IfNode():
                 return self.conditional(node)
+            case LoopNode():
+                return self.loop(node)
         skipped = self.not_run(node)
         if skipped is not None:
             return _no_result(node.name, skipped)
@@ -284,6 +294,110 @@ class _Execution:
         given = self.budget(node)
         return self.subprogram(plan.compiled, inputs, given, f"if -> {plan.compiled.name}")
 
+    def loop(self, node: LoopNode) -> RunRecord:
+        """A map's or a repeat's calls, one after another, each with its share of the loop's
+        time; the result is the list of their results (`MISSING` for a call without one),
+        its quality their mean (1 for no calls)."""
+        skipped = self.not_run(node)
+        if skipped is not None:
+            return _no_result(node.name, skipped)
+        module = node.call.entry.module if node.call.entry is not None else None
+        if module is None:
+            raise ExecutionError(
+                f"schema '{self.model.program.name}': '{node.call.name}' is known only by its "
+                "profile (no code to run)"
+            )
+        calls, qualities = self.loop_calls(node, module)
+        if len(calls) != node.count:
+            self.model = self.model.with_count(node.index, len(calls))
+            self.replan()
+        share = self.budget(node)
+        shares = run_time_split(node.call, qualities, share, self.compiled.resolution)
+        start = self.clock.now()
+        records = []
+        for i, args in enumerate(calls):
+            left = share - (self.clock.now() - start) - float(shares[i + 1 :].sum())
+            given = min(float(shares[i]), max(0.0, left))
+            if not node.call.starts(given):
+                records.append(
+                    _no_result(
+                        module.name,
+                        f"not run: its share ({given:g}) is less "
+                        f"than its step ({node.call.step:g})",
+                    )
+                )
+                continue
+            allocation = float(node.call.run_time(given))
+            records.append(
+                run(
+                    module,
+                    args,
+                    {},
+                    allocation=allocation,
+                    clock=self.clock,
+                    stop=self.stop,
+                    hard=self.hard,
+                )
+            )
+        self.inner.extend(records)
+        quality = float(np.mean([r.quality for r in records])) if records else 1.0
+        value = [r.result.value if r.result is not None else MISSING for r in records]
+        failed = any(r.status == Status.FAILED for r in records)
+        return RunRecord(
+            node.name,
+            Status.FAILED if failed else Status.COMPLETED,
+            Result(value, quality),
+            self.clock.now() - start,
+            share,
+            registered=1,
+        )
+
+    def count_input_collections(self) -> None:
+        """The maps over program inputs know their counts from the start: where one is not the
+        count planned for, the whole time is re-planned with that count's profile."""
+        planned = self.model
+        for node in planned.nodes:
+            if not isinstance(node, LoopNode) or node.kind != "map":
+                continue
+            source = planned.graph.nodes[node.index].args[0]
+            if isinstance(source, InputRef):
+                items = _plain(self.values[source.name])
+                if _is_collection(items) and len(items) != node.count:
+                    self.model = self.model.with_count(node.index, len(items))
+        if self.model is not planned:
+            self.replan()
+
+    def loop_calls(self, node: LoopNode, module: AnytimeModule) -> tuple[list[list[Any]], Array]:
+        """Each call's arguments and the qualities of its quality-carrying inputs (c, m): a
+        map's item first, at its own quality (a `Result`'s, else the collection's); a repeat's
+        calls all alike."""
+        sources = self.model.graph.nodes[node.index].args
+        carrying = {module.parameters.index(name) for name in module.inputs}
+        judged = _judged_inputs(node.call, self.judged, self.qualities)
+        rest = [self.argument(s, i in carrying) for i, s in enumerate(sources)]
+        if node.kind == "repeat":
+            n = node.most
+            return [list(rest) for _ in range(n)], np.tile(judged, (n, 1)).reshape(n, -1)
+        collection = self.value(sources[0])
+        items = _plain(collection)
+        if not _is_collection(items):
+            variable = self.model.graph.nodes[node.index].variable
+            raise ExecutionError(
+                f"schema '{self.model.program.name}': the collection of map '{variable}' must "
+                f"be a sequence (a list or a tuple), got {type(items).__name__}"
+            )
+        outer = _quality(collection)
+        calls, qualities = [], []
+        for item in items:
+            if 0 in carrying:  # a plain item has the collection's quality
+                item = item if isinstance(item, Result) else Result(item, outer)
+            calls.append([_passed(item, 0 in carrying), *rest[1:]])
+            quality = list(judged)
+            for axis in node.item_axes:
+                quality[axis] = item.quality if isinstance(item, Result) else outer
+            qualities.append(quality)
+        return calls, np.asarray(qualities, dtype=np.float64).reshape(len(calls), len(judged))
+
     def subprogram(
         self,
         compiled: CompiledProgram,
@@ -315,7 +429,7 @@ class _Execution:
         q = np.asarray(_judged_inputs(node, self.judged, self.qualities)).reshape(1, -1)
         return bool(node.profile.no_result(q, np.asarray([allocation]))[0] >= 1.0 - 1e-12)
 
-    def budget(self, node: ModuleNode | IfNode) -> float:
+    def budget(self, node: ModuleNode | IfNode | LoopNode) -> float:
         """The time a node gets: its planned share (re-planned first in adaptive mode), less
         whatever earlier calls used past theirs (a module may overshoot by its last step), so
         that the calls still to run keep their planned time and the program its contract."""
@@ -406,7 +520,7 @@ class _Execution:
             return self.values[source.name]
         return self.results.get(source.index, MISSING)
 
-    def not_run(self, node: ModuleNode | ElementaryNode | TestNode) -> str | None:
+    def not_run(self, node: ModuleNode | ElementaryNode | TestNode | LoopNode) -> str | None:
         """Why a call is not made (an input has no result and its module does not accept
         that), or None when it runs."""
         graph = self.model.graph
@@ -417,7 +531,8 @@ class _Execution:
                 missing.append(f"from '{graph.nodes[source.index].function}'")
             elif isinstance(source, InputRef) and self.values[source.name] is MISSING:
                 missing.append(f"'{source.name}'")
-        module = node.entry.module if node.entry is not None else None
+        entry = node.call.entry if isinstance(node, LoopNode) else node.entry
+        module = entry.module if entry is not None else None
         if not missing or (module is not None and module.accepts_missing):
             return None
         plural = "s" if len(missing) > 1 else ""
@@ -443,17 +558,13 @@ class _Execution:
         else:
             positions = {module.parameters.index(name) for name in module.inputs}
 
-        def argument(source: Source, carries_quality: bool) -> Any:
-            value = self.value(source)
-            if value is MISSING:
-                return MISSING  # only for a module that accepts it (see `not_run`)
-            if carries_quality:
-                return _wrapped(value)
-            return value.value if isinstance(value, Result) else value
-
-        args = [argument(source, i in positions) for i, source in enumerate(call.args)]
-        kwargs = {name: argument(source, False) for name, source in call.keywords}
+        args = [self.argument(source, i in positions) for i, source in enumerate(call.args)]
+        kwargs = {name: self.argument(source, False) for name, source in call.keywords}
         return module, args, kwargs  # type: ignore[return-value]
+
+    def argument(self, source: Source, carries_quality: bool) -> Any:
+        """What a call is passed for an argument (see `arguments`)."""
+        return _passed(self.value(source), carries_quality)
 
     def judge(self, node: CompileNode, record: RunRecord) -> float:
         """The quality decisions go by for a node's answer: a best-of's is its chosen
@@ -555,6 +666,23 @@ def _quality(value: Any) -> float:
 
 def _wrapped(value: Any) -> Result:
     return value if isinstance(value, Result) else Result(value, 1.0)
+
+
+def _plain(value: Any) -> Any:
+    return value.value if isinstance(value, Result) else value
+
+
+def _is_collection(value: Any) -> bool:
+    """What a map iterates over: a sequence (a list, a tuple), not a string."""
+    return isinstance(value, Sequence) and not isinstance(value, str | bytes)
+
+
+def _passed(value: Any, carries_quality: bool) -> Any:
+    """A value as a call is passed it: a `Result` where the argument carries quality, else the
+    plain value (`MISSING` as it is: only for a module that accepts it, see `not_run`)."""
+    if value is MISSING:
+        return MISSING
+    return _wrapped(value) if carries_quality else _plain(value)
 
 
 def _truth(value: Any) -> bool:

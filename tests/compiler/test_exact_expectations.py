@@ -108,7 +108,8 @@ def test_qualities_outside_a_profiles_input_grid_are_a_warning() -> None:
     compiled = compile_program(program, library, TIME)
     assert compiled.warnings == (
         "module 'refine': input 'x' receives qualities 0 to 1, but its profile was measured on"
-        " 0.5 to 1: outside that range the profile is clamped to its nearest end",
+        " 0.5 to 1; outside that range (up to 100% of its inputs at some total) the profile is"
+        " clamped to its nearest end",
     )
     within = compile_program(program, _library(), TIME)
     assert within.warnings == ()

@@ -223,8 +223,8 @@ def test_the_special_forms_words_are_reserved(
     assert (diagnostic.line, diagnostic.column, diagnostic.message) == (
         1,
         column,
-        f"'{word}' is a reserved word (best-of, if, when): it cannot name a variable or a "
-        f"parameter, and it opens its form: ({shape})",
+        f"'{word}' is a reserved word (best-of, if, when, map, repeat): it cannot name a "
+        f"variable or a parameter, and it opens its form: ({shape})",
     )
 
 

@@ -1,0 +1,126 @@
+"""Running loops: a map's calls each get the run-time split of the loop's share at its own item's
+quality, the result is the list of their results with their mean quality; a repeat's calls get
+equal shares; a collection of another size than planned re-plans the time left; bad
+collections are clear errors; and a program with a loop plots."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from loop_modules import loop_library
+
+from anytime.compiler import CompiledProgram, compile_file
+from anytime.compiler.loops import run_time_split
+from anytime.compiler.model import LoopNode
+from anytime.dsl import parse_schemas
+from anytime.modules import Result
+from anytime.runtime import ExecutionError, Status, run_program
+
+LOOPS = """
+(defschema tours (depots) (map tour depots))
+(defschema triple (x) (repeat 3 (tour x)))
+(defschema plan (sensor depots)
+  (setf world (sense sensor))
+  (best-of (map tour depots :max 3) world))
+(defschema climbs (depots) (map climb depots :max 3))
+(defschema deliver (sensor depots)
+  (setf world (sense sensor))
+  (map route depots world :max 3))
+(defschema deliver-one (sensor depots)
+  (setf world (sense sensor))
+  (map route depots world :max 1))
+"""
+
+
+def compiled(name: str) -> CompiledProgram:
+    schemas = parse_schemas(LOOPS)
+    return compile_file(schemas, loop_library(), range(0, 41, 4), schema=name, resolution=1.0)[-1]
+
+
+def test_a_map_runs_one_call_per_item_with_the_run_time_split() -> None:
+    run = run_program(compiled("tours"), [["a", "b", Result("c", 0.5)]], 30)
+    assert run.status == Status.COMPLETED
+    assert [r.module for r in run.records] == ["map tour", "tour", "tour", "tour"]
+    assert [r.allocation for r in run.records] == [30.0, 12.0, 12.0, 6.0]
+    assert run.result is not None
+    assert run.result.value == [("a", 12.0), ("b", 12.0), ("c", 6.0)]
+    calls = [r.quality for r in run.records[1:]]
+    assert run.quality == pytest.approx(np.mean(calls))
+    assert calls[2] == pytest.approx(0.5 * -np.expm1(-0.6))
+
+
+def test_the_items_quality_is_the_collections_unless_it_has_its_own() -> None:
+    run = run_program(compiled("tours"), [Result(["a", Result("b", 1.0)], 0.5)], 30)
+    shares = run_time_split(
+        next(n for n in compiled("tours").model.nodes if isinstance(n, LoopNode)).call,
+        np.array([[0.5], [1.0]]),
+        30.0,
+        1.0,
+    )
+    assert [r.allocation for r in run.records[1:]] == list(shares)
+    assert shares[0] < shares[1]
+
+
+def test_a_map_over_no_items_has_an_empty_result_of_quality_one() -> None:
+    run = run_program(compiled("tours"), [[]], 20)
+    assert run.status == Status.COMPLETED
+    assert run.result == Result([], 1.0)
+    assert [r.module for r in run.records] == ["map tour"]
+
+
+def test_a_call_given_no_time_counts_in_the_mean() -> None:
+    """Two climbs with 16 units: all to the first; the second answers at once, with nothing."""
+    run = run_program(compiled("climbs"), [["a", "b"]], 16)
+    assert run.result == Result([("a", 16.0), ("b", 0.0)], 0.5)
+    assert [r.allocation for r in run.records] == [16.0, 16.0, 0.0]
+
+
+def test_a_repeat_gives_its_calls_equal_shares() -> None:
+    run = run_program(compiled("triple"), ["x"], 24)
+    assert [r.allocation for r in run.records] == [24.0, 8.0, 8.0, 8.0]
+    assert run.quality == pytest.approx(-np.expm1(-0.8))
+
+
+def test_a_collection_of_another_size_than_planned_re_plans_the_time() -> None:
+    """Planned for three items, a run over one splits the time as the table compiled for one
+    item does: the loop needs less, sensing gets more."""
+    deliver, one = compiled("deliver"), compiled("deliver-one")
+    assert list(deliver.allocation_at([1.0], 12)) == [6.0, 6.0]
+    assert list(one.allocation_at([1.0], 12)) == [7.0, 5.0]
+    run = run_program(deliver, [0, ["a"]], 12)
+    assert [(r.module, r.allocation) for r in run.records] == [
+        ("sense", 7.0),
+        ("map route", 5.0),
+        ("route", 5.0),
+    ]
+    assert run.allocations == (7.0, 5.0)
+
+
+def test_a_collection_that_is_not_a_sequence_is_an_error() -> None:
+    with pytest.raises(ExecutionError) as raised:
+        run_program(compiled("tours"), [42], 20)
+    assert str(raised.value) == (
+        "schema 'tours': the collection of map 't1' must be a sequence (a list or a tuple), got int"
+    )
+
+
+def test_a_program_with_a_loop_plots(tmp_path: Path) -> None:
+    pytest.importorskip("matplotlib")
+    from anytime.plot import plot_compiled
+
+    path = tmp_path / "plan.png"
+    plot_compiled(compiled("plan"), path)
+    assert path.stat().st_size > 0
+
+
+@pytest.mark.parametrize("total", [8, 16, 40])
+def test_what_runs_is_what_was_compiled_even_on_a_coarse_lattice(total: int) -> None:
+    """Four items at quality 1, a lattice of 8: equal shares of the whole share, at compile
+    time as at run time."""
+    schemas = parse_schemas(LOOPS)
+    tours = compile_file(schemas, loop_library(), range(0, 41, 8), schema="tours")[-1]
+    run = run_program(tours, [["a", "b", "c", "d"]], total)
+    assert [r.allocation for r in run.records[1:]] == [total / 4] * 4
+    assert run.quality == pytest.approx(tours.expected[-1][total // 8])
