@@ -5,7 +5,11 @@ improvement on TSPLIB instances against their optimal lengths.
    the compiled table: the compiled expectation against the mean true quality of runs on fresh
    problems (mean +- standard error), fixed and adaptive, and the most time any run used.
    Target: |realised - compiled| <= max(0.01, 2 se) at every budget, no run over its budget.
-2. `plan-tours` (nearest neighbour, then best-improvement 2-opt / Or-opt, one tick a batch of
+2. The time to measure each module's profile with `anytime profile`'s builder, the plugin's own
+   problem sets on their full grids with a few trials per cell: 1 worker process, 2, and a
+   local Dask cluster of 2 single-threaded worker processes (started beforehand, not timed);
+   and whether the three give the same profile (the seed fixes it, whatever runs the trials).
+3. `plan-tours` (nearest neighbour, then best-improvement 2-opt / Or-opt, one tick a batch of
    moves) on TSPLIB instances with one depot: optimal length / length after so many ticks, and
    at convergence. Target: within 5% of the optimum.
 
@@ -21,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 from anytime_routing.domain import Clustering
-from anytime_routing.modules import plan_tours
+from anytime_routing.modules import PROBLEM_SETS, plan_tours
 from anytime_routing.program import (
     SCHEMAS,
     compiled_program,
@@ -30,11 +34,18 @@ from anytime_routing.program import (
 )
 from tables import machine, table
 
-from anytime import Context, Result
+from anytime import AnytimeLibrary, Context, Result
+from anytime.profiles.builder import ProfileRequest, profile_module
 
 DATA = Path(__file__).resolve().parent / "data" / "tsplib"
 #: (instance, optimal length): TSPLIB's published optima (data/tsplib/README.md).
-TSPLIB = (("st70", 675), ("kroA100", 21282))
+TSPLIB = (
+    ("berlin52", 7542),
+    ("st70", 675),
+    ("kroA100", 21282),
+    ("pr152", 73682),
+    ("rat195", 2323),
+)
 SEED = 20_250_115  # fresh problems, apart from the profile builder's seeds and the tests'
 
 
@@ -64,9 +75,62 @@ def promises(worlds: int) -> None:
         print(f"\nwithin max(0.01, 2 se) and no overrun at {met} of {len(rows)} budgets\n")
 
 
+#: Trials per cell for the timing (the shipped profiles use 300-2000).
+TIMING_TRIALS = {"estimate-demand": 40, "cluster-stops": 8, "plan-tours": 3, "insert-tours": 3}
+
+
+def profile_times() -> None:
+    from dask.distributed import LocalCluster
+
+    library = AnytimeLibrary.default()
+    rows = []
+    with LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster:
+        for name, trials in TIMING_TRIALS.items():
+            entry = library.get(name)
+            assert entry is not None and entry.module is not None
+            module = entry.module
+            requests = [
+                ProfileRequest(trials=trials, workers=1, quiet=True),
+                ProfileRequest(trials=trials, workers=2, quiet=True),
+                ProfileRequest(trials=trials, scheduler=cluster.scheduler_address, quiet=True),
+            ]
+            seconds, tables = [], []
+            for request in requests:
+                started = time.perf_counter()
+                build = profile_module(module, request, measurement=PROBLEM_SETS[name])
+                seconds.append(time.perf_counter() - started)
+                tables.append(build.profile.probability)
+            same = all(np.array_equal(tables[0], t) for t in tables[1:])
+            cells = "x".join(str(n) for n in build.profile.cell_shape)
+            rows.append(
+                [
+                    name,
+                    f"{trials} x {cells}",
+                    *(f"{s:.1f}" for s in seconds),
+                    *(f"{seconds[0] / s:.2f}" for s in seconds[1:]),
+                    "yes" if same else "NO",
+                ]
+            )
+    print("**Measuring the profiles** (seconds, and speed-up over 1 worker):\n")
+    header = [
+        "module",
+        "trials x cells",
+        "1 worker (s)",
+        "2 workers (s)",
+        "Dask, 2 workers (s)",
+        "2 workers",
+        "Dask",
+        "same profile",
+    ]
+    print(table(header, rows))
+    print()
+
+
 def read_tsplib(name: str) -> np.ndarray:
     lines = (DATA / f"{name}.tsp").read_text().splitlines()
-    start = lines.index("NODE_COORD_SECTION") + 1
+    start = [line.strip() for line in lines].index("NODE_COORD_SECTION") + 1
     coords = [line.split()[1:3] for line in lines[start:] if line.strip() not in ("", "EOF")]
     return np.array(coords, dtype=float)
 
@@ -107,6 +171,7 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="100 problems per budget (400)")
     args = parser.parse_args()
     promises(100 if args.quick else 400)
+    profile_times()
     tsplib()
     print(f"\n{machine()}")
 

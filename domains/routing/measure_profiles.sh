@@ -14,4 +14,4 @@ measure() {  # MODULE TRIALS
 measure estimate-demand "${DEMAND_TRIALS:-2000}"
 measure cluster-stops "${CLUSTER_TRIALS:-500}"
 measure plan-tours "${TOUR_TRIALS:-300}"
-measure insert-tours "${TOUR_TRIALS:-300}"
+measure insert-tours "${INSERT_TRIALS:-100}"

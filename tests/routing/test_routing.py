@@ -17,6 +17,9 @@ from anytime_routing.domain import (
     clustering_quality,
     demand_quality,
     random_world,
+    reference_clustering,
+    reference_delivery,
+    reference_length,
     run_kmeans,
 )
 from anytime_routing.modules import (
@@ -112,6 +115,21 @@ def test_the_self_estimate_of_plan_tours_is_a_bound_on_its_own_clustering() -> N
             assert result.quality <= optimum / result.value.length + 1e-9
 
 
+def test_the_reference_delivery_is_no_longer_than_the_reference_clusterings_tours() -> None:
+    """The tours' reference is the best of many candidate clusterings, exact: never longer than
+    the optimal tours of the reference k-means clustering (one of its candidates), and no
+    converged `plan-tours` run on the reference clustering beats it."""
+    rng = np.random.default_rng([SEED, 4])
+    for _ in range(5):
+        world = random_world(rng)
+        length, clustering = reference_delivery(world)
+        _, kmeans = reference_clustering(world.points, world.shares, world.depots)
+        assert length <= reference_length(kmeans) + 1e-9
+        assert length == pytest.approx(reference_length(clustering))
+        *_, tours = plan_tours(Context(), Result(kmeans, 1.0))
+        assert tours.value.length >= length - 1e-9
+
+
 # --- problem sets ---------------------------------------------------------------------------
 
 
@@ -127,8 +145,8 @@ def test_a_demand_input_of_quality_q_is_estimate_demands_answer(q: float) -> Non
 def test_a_clustering_input_of_quality_q_is_cluster_stops_answer(q: float) -> None:
     rng = np.random.default_rng([SEED, 3])
     for _ in range(5):
-        world, clustering, reference = clustering_of_quality(rng, q)
-        best = G.kmeans_cost(world.points, world.shares, reference.centres, reference.labels)
+        world, clustering = clustering_of_quality(rng, q)
+        best, _ = reference_clustering(world.points, world.shares, world.depots)
         assert abs(clustering_quality(clustering.value, world.shares, best) - q) <= 0.01
 
 
@@ -152,14 +170,22 @@ def test_every_module_passes_the_catalogue(name: str) -> None:
 # --- promises -------------------------------------------------------------------------------
 
 
-def _check_promises(schema: str, worlds: int, every: int, adaptive: bool = False) -> list[str]:
-    """At every `every`-th total of the compiled grid from 0 up, on `worlds` fresh problems:
-    |realised mean - compiled expectation| <= max(0.01, 2 standard errors), and no run over
-    its total on the work clock. Returns the failures."""
+#: The compiled expectation's own error, which the runs' standard error does not see: the tour
+#: profiles' sampling error (300 trials a cell, about 0.004) and their interpolation.
+PROFILE_ERROR = 0.003
+
+
+def _check_promises(
+    schema: str, worlds: int, every: int, adaptive: bool = False
+) -> tuple[list[str], list[str], list[str]]:
+    """At every `every`-th total of the compiled grid from 0 up, on `worlds` fresh problems, the
+    realised mean against the compiled expectation. Returns the totals outside max(0.01, 2 se),
+    those outside max(0.015, 3 se), se counting PROFILE_ERROR too, and the runs over their
+    total on the work clock."""
     program = compiled_program(schema)
     rng = np.random.default_rng([SEED, SCHEMAS.index(schema)])
     problems = fresh_problems(rng, worlds)
-    failures = []
+    outside_2, outside_3, overruns = [], [], []
     for j in range(0, len(program.profile.time), every):
         total = float(program.profile.time[j])
         qualities, used = [], []
@@ -169,25 +195,35 @@ def _check_promises(schema: str, worlds: int, every: int, adaptive: bool = False
             qualities.append(run.quality)
             used.append(run.record.time_used)
         mean = float(np.mean(qualities))
-        se = float(np.std(qualities, ddof=1) / math.sqrt(worlds))
+        se = math.hypot(float(np.std(qualities, ddof=1) / math.sqrt(worlds)), PROFILE_ERROR)
         promised = float(program.expected[j])
+        line = f"T={total:g}: compiled {promised:.4f}, realised {mean:.4f} (se {se:.4f})"
         if abs(mean - promised) > max(0.01, 2 * se):
-            failures.append(f"T={total:g}: compiled {promised:.4f}, realised {mean:.4f} ({se:.4f})")
+            outside_2.append(line)
+        if abs(mean - promised) > max(0.015, 3 * se):
+            outside_3.append(line)
         if max(used) > total:
-            failures.append(f"T={total:g}: a run used {max(used):g}")
-    return failures
+            overruns.append(f"T={total:g}: a run used {max(used):g}")
+    return outside_2, outside_3, overruns
 
 
 @pytest.mark.parametrize("schema", SCHEMAS)
 def test_each_total_delivers_what_the_compiler_expects(schema: str) -> None:
-    assert _check_promises(schema, worlds=100, every=3) == []
+    """Within max(0.01, 2 se) at every sampled total but one (one in 20 falls outside by chance
+    alone, and the totals share their problems, so their errors go together), within
+    max(0.015, 3 se) at all, and no run over its total."""
+    outside_2, outside_3, overruns = _check_promises(schema, worlds=100, every=3)
+    assert len(outside_2) <= 1, outside_2
+    assert (outside_3, overruns) == ([], [])
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("adaptive", [False, True])
 @pytest.mark.parametrize("schema", SCHEMAS)
 def test_every_total_delivers_what_the_compiler_expects(schema: str, adaptive: bool) -> None:
-    assert _check_promises(schema, worlds=400, every=1, adaptive=adaptive) == []
+    outside_2, outside_3, overruns = _check_promises(schema, 400, every=1, adaptive=adaptive)
+    assert len(outside_2) <= 2, outside_2
+    assert (outside_3, overruns) == ([], [])
 
 
 # --- anytime deliver ------------------------------------------------------------------------

@@ -17,6 +17,7 @@ from .geometry import (
     kmeans_cost,
     kmeans_plus_plus_step,
     lloyd_step,
+    local_optimum,
     tour_length,
 )
 
@@ -37,6 +38,7 @@ __all__ = [
     "optimal_length",
     "random_world",
     "reference_clustering",
+    "reference_delivery",
     "reference_length",
     "run_kmeans",
     "tour_quality",
@@ -54,6 +56,9 @@ BATCH = 20
 EXACT_NODES = 18
 #: Restarts of the reference clustering (the modules get far fewer in their time).
 REFERENCE_RESTARTS = 30
+#: The reference delivery solves this many of its candidate clusterings exactly (the ones whose
+#: 2-opt/Or-opt tours are shortest).
+EXACT_CANDIDATES = 3
 
 
 class ReferenceUnavailable(Exception):
@@ -176,7 +181,8 @@ def clustering_quality(clustering: Clustering | None, shares: FloatArray, best: 
 
 
 def tour_quality(tours: Tours | None, reference: float) -> float:
-    """The reference length over this one's (clipped at 1); 0 for no tours."""
+    """The reference length (`reference_delivery`'s) over this one's (clipped at 1: a run may
+    find a clustering the reference's candidates missed); 0 for no tours."""
     if tours is None:
         return 0.0
     length = tours.length
@@ -235,3 +241,25 @@ def optimal_length(nodes: FloatArray) -> float:
 def reference_length(clustering: Clustering) -> float:
     """The optimal tours of a clustering, summed over its depots."""
     return sum(optimal_length(clustering.nodes(k)) for k in range(len(clustering.centres)))
+
+
+def reference_delivery(world: World) -> tuple[float, Clustering]:
+    """The shortest delivery found offline, and its clustering: the tours' reference. The depots
+    serve whichever customers make the tours shortest, and a tour's length does not depend on
+    demand, so the candidates are the distinct clusterings of REFERENCE_RESTARTS k-means runs on
+    the true shares and as many on uniform weights (the depots at plain centroids); each is
+    screened by its 2-opt/Or-opt tours, and the EXACT_CANDIDATES shortest are solved exactly
+    (Held-Karp; LKH for depots with more than EXACT_NODES - 1 customers)."""
+    uniform = np.full(len(world.shares), 1.0 / max(len(world.shares), 1))
+    candidates: dict[tuple[int, bytes], Clustering] = {}
+    for kind, weights in enumerate((world.shares, uniform)):
+        for r in range(REFERENCE_RESTARTS):
+            _, clustering = run_kmeans(world.points, weights, world.depots, seed=10_000 + r)
+            candidates.setdefault((kind, clustering.labels.tobytes()), clustering)
+
+    def screened(clustering: Clustering) -> float:
+        tours = (distance_matrix(clustering.nodes(k)) for k in range(len(clustering.centres)))
+        return sum(tour_length(dist, local_optimum(dist)) for dist in tours)
+
+    shortlist = sorted(candidates.values(), key=screened)[:EXACT_CANDIDATES]
+    return min(((reference_length(c), c) for c in shortlist), key=lambda pair: pair[0])

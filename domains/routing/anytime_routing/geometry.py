@@ -24,6 +24,7 @@ __all__ = [
     "kmeans_cost",
     "kmeans_plus_plus_step",
     "lloyd_step",
+    "local_optimum",
     "nearest_neighbour",
     "one_tree_bound",
     "tour_length",
@@ -135,6 +136,21 @@ def best_or_opt(
         if gain > best[0]:
             best = (gain, start, length, edge, bool(flipped[start, edge] < plain[start, edge]))
     return best
+
+
+def local_optimum(dist: FloatArray) -> IntArray:
+    """Nearest neighbour from node 0, then the best 2-opt or (when none improves) Or-opt move
+    until neither improves: `plan-tours` run to the end, without the clock."""
+    tour = nearest_neighbour(dist)
+    while True:
+        gain, i, j = best_two_opt(dist, tour)
+        if gain > EPS:
+            tour = apply_two_opt(tour, i, j)
+            continue
+        gain, start, length, edge, reverse = best_or_opt(dist, tour)
+        if gain <= EPS:
+            return tour
+        tour = apply_or_opt(tour, start, length, edge, reverse)
 
 
 def apply_or_opt(tour: IntArray, start: int, length: int, edge: int, reverse: bool) -> IntArray:

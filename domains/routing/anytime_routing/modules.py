@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from functools import cache
 from typing import Any
 
 import numpy as np
@@ -38,7 +39,7 @@ from .domain import (
     estimate_shares,
     random_world,
     reference_clustering,
-    reference_length,
+    reference_delivery,
     tour_quality,
 )
 from .geometry import (
@@ -58,6 +59,7 @@ from .geometry import (
     one_tree_bound,
     tour_length,
 )
+from .program import SCHEMAS, compiled_program
 
 __all__ = [
     "MODULES",
@@ -76,11 +78,11 @@ DEMAND_TIME = list(range(0, 41, 2))
 CLUSTER_TIME = list(range(0, 25, 2))
 TOUR_TIME = list(range(0, 49, 2))
 #: Input-quality grids, finest where the upstream module's qualities lie (see README.md).
-DEMAND_GRID = [0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9]
-CLUSTER_GRID = [0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95, 0.98, 1.0]
-#: The `cluster-stops` allocations drawn for clusterings of quality below 0.8 (see
-#: `clustering_of_quality`): the only ones that give them, often enough.
-LOW_CLUSTER_TIME = [4, 6, 8, 10, 12]
+DEMAND_GRID = [0.25, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9]
+CLUSTER_GRID = [0.4, 0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95, 0.98, 1.0]
+#: Clusterings of quality below 0.8 come (often enough) only from `cluster-stops` runs of at
+#: most this many ticks (see `clustering_of_quality`).
+LOW_CLUSTER_TICKS = 12
 #: Most Lloyd iterations of one k-means restart.
 MAX_ITERATIONS = 30
 
@@ -307,12 +309,14 @@ MAX_DRAWS = 20_000
 
 def demand_of_quality(rng: np.random.Generator, q: float) -> tuple[World, Result]:
     """A world and an `estimate-demand` answer of true quality within TOLERANCE of `q`, made
-    by the module itself: draw a world and an allocation on its grid, run it, keep the first
-    whose quality is close enough (rejection sampling: the answer is distributed as the
-    module's real answers of that quality)."""
+    by the module itself: draw a world and an allocation on its grid (below quality 0.4 the
+    uniform prior's, 0 ticks: the only one that gives them), run it, keep the first whose
+    quality is close enough (rejection sampling: the answer is distributed as the module's
+    real answers of that quality)."""
+    times = DEMAND_TIME if q >= 0.4 else [0]
     for _ in range(MAX_DRAWS):
         world = random_world(rng)
-        allocation = float(rng.choice(DEMAND_TIME))
+        allocation = float(rng.choice(times))
         result = estimate_demand(Context(allocation), world.orders)
         assert result is not None
         if abs(demand_quality(result.value, world.shares) - q) <= TOLERANCE:
@@ -336,39 +340,64 @@ class DemandInputs:
         return clustering_quality(value, shares, cost)
 
 
-def clustering_of_quality(rng: np.random.Generator, q: float) -> tuple[World, Result, Clustering]:
-    """A world, a `cluster-stops` answer of true quality within TOLERANCE of `q` and the
-    reference clustering, made by the two upstream modules themselves: draw a world, then (up
-    to 20 times on it) an allocation for each on its grid (for `cluster-stops`, below quality
-    0.8, the grid times at which such qualities occur: 4 to 12 ticks), run `estimate-demand` and
-    `cluster-stops` with them, and keep the first answer close enough."""
-    times = LOW_CLUSTER_TIME if q < 0.8 else CLUSTER_TIME
+@cache
+def upstream_times() -> tuple[tuple[float, float], ...]:
+    """The (`estimate-demand`, `cluster-stops`) allocations the packaged programs (`deliver`
+    and `deliver-best`) give at their compiled budgets under the installed profiles, those at
+    which `cluster-stops` runs: the clusterings a program actually hands to the tour planners
+    are made with these."""
+    pairs = set()
+    for schema in SCHEMAS:
+        program = compiled_program(schema)
+        demand, clusters = (program.modules.index(m) for m in ("estimate-demand", "cluster-stops"))
+        quality = [1.0] * program.profile.n_inputs
+        for total in program.profile.time:
+            split = program.allocation_at(quality, float(total))
+            if split[clusters]:
+                pairs.add((float(split[demand]), float(split[clusters])))
+    return tuple(sorted(pairs))
+
+
+def clustering_of_quality(rng: np.random.Generator, q: float) -> tuple[World, Result]:
+    """A world and a `cluster-stops` answer of true quality within TOLERANCE of `q`, made by
+    the two upstream modules themselves: draw a world, then (up to 20 times on it) one of the
+    allocations the compiled programs give them (`upstream_times`; below quality 0.8 those with
+    at most LOW_CLUSTER_TICKS for `cluster-stops`, the only ones at which such clusterings occur
+    often), run `estimate-demand` and `cluster-stops` with it, and keep the first answer close
+    enough. At one quality, a clustering of uniform demand run to convergence gives shorter
+    tours than one of good demand stopped early (see README.md): drawing the allocations the
+    programs use makes the mix the one they meet."""
+    times = upstream_times()
+    if q < 0.8:
+        times = tuple(t for t in times if t[1] <= LOW_CLUSTER_TICKS)
     for _ in range(MAX_DRAWS // 20):
         world = random_world(rng)
-        best, reference = reference_clustering(world.points, world.shares, world.depots)
+        best, _ = reference_clustering(world.points, world.shares, world.depots)
         for _ in range(20):
-            demand = estimate_demand(Context(float(rng.choice(DEMAND_TIME))), world.orders)
+            demand_time, cluster_time = times[int(rng.integers(len(times)))]
+            demand = estimate_demand(Context(demand_time), world.orders)
             assert demand is not None
             answer = None
-            for result in cluster_stops(Context(float(rng.choice(times))), demand, world.sites):
+            for result in cluster_stops(Context(cluster_time), demand, world.sites):
                 answer = result
             if answer is None:  # no result: not an input (the module would not be called)
                 continue
             if abs(clustering_quality(answer.value, world.shares, best) - q) <= TOLERANCE:
-                return world, answer, reference
+                return world, answer
     raise RuntimeError(f"cluster-stops gave no answer of quality {q} in {MAX_DRAWS} draws")
 
 
 class ClusteringInputs:
     """Problems for `plan-tours` and `insert-tours`: a clustering of the quality asked for
-    (`clustering_of_quality`); the truth is the optimal tours of the reference clustering
-    (Held-Karp, exact)."""
+    (`clustering_of_quality`); the truth is the world's reference delivery (`reference_delivery`:
+    the shortest optimal tours over many candidate clusterings, exact)."""
 
     def instance(self, rng: np.random.Generator, input_qualities: tuple[float, ...]) -> Instance:
         (q,) = input_qualities
-        _, clustering, reference = clustering_of_quality(rng, q)
+        world, clustering = clustering_of_quality(rng, q)
         given = Result(clustering.value, q)  # the grid's quality, as the builder asks
-        return Instance(args=(given,), reference=reference_length(reference))
+        length, _ = reference_delivery(world)
+        return Instance(args=(given,), reference=length)
 
     def score(self, instance: Instance, value: Any) -> float:
         return tour_quality(value, instance.reference)

@@ -25,7 +25,7 @@ from .domain import (
     World,
     random_world,
     reference_clustering,
-    reference_length,
+    reference_delivery,
     tour_quality,
 )
 from .resources import load_schema_file
@@ -43,11 +43,10 @@ __all__ = [
 
 #: The packaged schemas: the chain and the DAG with a best-of.
 SCHEMAS = ("deliver", "deliver-best")
-#: The compiled totals (ticks) and the allocation lattice of each schema: the chain on the
-#: profiles' time step; the DAG (four modules: the exhaustive search grows as the lattice's
-#: cube) on every other one.
+#: The compiled totals (ticks) and the allocation lattice of each schema, both on the
+#: profiles' time step (the DAG's four modules are searched by the multi-start allocator).
 TIME_GRIDS = {"deliver": tuple(range(0, 101, 4)), "deliver-best": tuple(range(0, 65, 4))}
-RESOLUTIONS = {"deliver": 2.0, "deliver-best": 4.0}
+RESOLUTIONS = {"deliver": 2.0, "deliver-best": 2.0}
 
 
 @cache
@@ -85,13 +84,15 @@ class Delivery:
 
 
 def reference_for(world: World) -> tuple[Clustering, float | None]:
-    """The world's reference clustering and the length of its optimal tours (None where a
-    depot has more stops than Held-Karp takes and LKH is not installed)."""
-    _, reference = reference_clustering(world.points, world.shares, world.depots)
+    """The world's reference delivery: its clustering and the length of its optimal tours
+    (`reference_delivery`; None, with the reference k-means clustering, where a depot has more
+    stops than Held-Karp takes and LKH is not installed)."""
     try:
-        return reference, reference_length(reference)
+        length, clustering = reference_delivery(world)
+        return clustering, length
     except ReferenceUnavailable:
-        return reference, None
+        _, clustering = reference_clustering(world.points, world.shares, world.depots)
+        return clustering, None
 
 
 def fresh_problems(
