@@ -328,6 +328,15 @@ class _Execution:
                 )
                 continue
             allocation = float(node.call.run_time(given))
+            if self.certainly_nothing(node.call, allocation, qualities[i]):
+                records.append(
+                    _no_result(
+                        module.name,
+                        f"not run: with {allocation:g} of its share of {given:g} its profile"
+                        " gives it no result",
+                    )
+                )
+                continue
             records.append(
                 run(
                     module,
@@ -422,11 +431,14 @@ class _Execution:
 
     # --- time --------------------------------------------------------------------------------
 
-    def certainly_nothing(self, node: ModuleNode, allocation: float) -> bool:
+    def certainly_nothing(
+        self, node: ModuleNode, allocation: float, inputs: Array | None = None
+    ) -> bool:
         """Whether the module's profile says it has no result with this allocation, at the
-        qualities its inputs were judged to have: then it is not started (it could only use
-        time, past its share when that is less than its step)."""
-        q = np.asarray(_judged_inputs(node, self.judged, self.qualities)).reshape(1, -1)
+        qualities `inputs` (default: those its inputs were judged to have): then it is not
+        started (it could only use time, past its share when that is less than its step)."""
+        judged = _judged_inputs(node, self.judged, self.qualities) if inputs is None else inputs
+        q = np.asarray(judged, dtype=np.float64).reshape(1, -1)
         return bool(node.profile.no_result(q, np.asarray([allocation]))[0] >= 1.0 - 1e-12)
 
     def budget(self, node: ModuleNode | IfNode | LoopNode) -> float:

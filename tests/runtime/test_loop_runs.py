@@ -5,17 +5,24 @@ collections are clear errors; and a program with a loop plots."""
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
+import attrs
 import numpy as np
 import pytest
 from loop_modules import loop_library
 
+from anytime.clocks import WorkClock
 from anytime.compiler import CompiledProgram, compile_file
 from anytime.compiler.loops import run_time_split
 from anytime.compiler.model import LoopNode
 from anytime.dsl import parse_schemas
-from anytime.modules import Result
+from anytime.library import AnytimeLibrary, LibraryEntry
+from anytime.modules import Context, Registry, Result, interruptible
+from anytime.profiles.builder import build_profile
+from anytime.profiles.trials import Instance
 from anytime.runtime import ExecutionError, Status, run_program
 
 LOOPS = """
@@ -124,3 +131,43 @@ def test_what_runs_is_what_was_compiled_even_on_a_coarse_lattice(total: int) -> 
     run = run_program(tours, [["a", "b", "c", "d"]], total)
     assert [r.allocation for r in run.records[1:]] == [total / 4] * 4
     assert run.quality == pytest.approx(tours.expected[-1][total // 8])
+
+
+LATE = Registry()
+
+
+@interruptible("late", inputs=["depot"], registry=LATE, step=0)
+def late(ctx: Context, depot: Result) -> Iterator[Result]:
+    """Nothing for 10 ticks, then its input's quality; it stops when its time is up (step 0)."""
+    for _ in range(10):
+        if ctx.expired:
+            return
+        ctx.tick(1)
+    yield Result(depot.value, depot.quality)
+
+
+class LateProblems:
+    def instance(self, rng: np.random.Generator, input_qualities: tuple[float, ...]) -> Instance:
+        return Instance((Result("x", input_qualities[0]),), input_qualities[0])
+
+    def score(self, instance: Instance, value: Any) -> float:
+        return float(instance.reference)
+
+
+def test_a_call_its_profile_gives_no_result_is_not_started() -> None:
+    """Two items, 12 ticks: one call gets the 10 it needs, the other what is left that could
+    help it, nothing. Its profile gives it no result with that, so it is not started (as a
+    module call of a program is not), and its record says why."""
+    profile = build_profile(
+        late, LateProblems(), time=[0, 2, 10, 12], input_grids=[[0.0, 1.0]], trials=4
+    ).profile
+    library = AnytimeLibrary()
+    library.add(LibraryEntry.of_module(attrs.evolve(late, profile_source=profile)))
+    schemas = parse_schemas("(defschema lates (depots) (map late depots :max 2))")
+    lates = compile_file(schemas, library, [0, 12], schema="lates", resolution=1.0)[-1]
+    run = run_program(lates, [["a", "b"]], 12, clock=WorkClock())
+    ran, skipped = sorted(run.records[1:], key=lambda r: r.status == Status.NO_RESULT)
+    assert (ran.result is not None, ran.allocation) == (True, 10.0)
+    assert (skipped.status, skipped.time_used) == (Status.NO_RESULT, 0.0)
+    assert skipped.error == "not run: with 0 of its share of 0 its profile gives it no result"
+    assert (run.quality, run.time_used) == (0.5, 10.0)
