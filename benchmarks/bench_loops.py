@@ -19,26 +19,22 @@ Run: .venv/bin/python benchmarks/bench_loops.py [--random N] [--seed N]
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from collections.abc import Callable
-from pathlib import Path
 
 import numpy as np
+from tables import table  # benchmarks/tables.py: a script's own folder is on sys.path
 
-sys.path.insert(0, str(Path(__file__).parent))
-from tables import table  # noqa: E402
-
-from anytime.compiler.allocators import compositions  # noqa: E402
-from anytime.compiler.loops import (  # noqa: E402
+from anytime.compiler.allocators import compositions
+from anytime.compiler.loops import (
     call_curves,
     concave,
     identical_concave,
     marginal_units,
     run_time_split,
 )
-from anytime.compiler.model import ModuleNode  # noqa: E402
-from anytime.profiles import Exponential, VisionHyperbola, tabulate  # noqa: E402
+from anytime.compiler.model import ModuleNode
+from anytime.profiles import Exponential, VisionHyperbola, tabulate
 
 HORIZON = 40
 LATTICE = np.arange(HORIZON + 1, dtype=np.float64)
