@@ -1,0 +1,441 @@
+"""Quality traces and dynamic performance profiles: how a run's quality moves, not only where
+it is on average.
+
+A static profile gives, per input quality and time, the distribution of output quality over all
+runs. Deciding *when to stop* a run needs more: given what this run shows now, where will it
+be later? Hansen & Zilberstein ("Monitoring and control of anytime algorithms: a dynamic
+programming approach", AIJ 2001) model it with a *dynamic* performance profile, the transition
+probabilities P(q_{t+dt} | q_t) between quality levels from one time step to the next, and, for
+an algorithm whose true quality cannot be seen while it runs, P(true quality | observed
+feature, t).
+
+`QualityTraces` are what the profile builder records of each trial: the scored (true) quality
+at every grid time, whether the run had a result there, and the module's own report of its
+quality (`Result.quality`) where that is an estimate. `DynamicProfile.from_traces` derives the
+model from them. The model's *state* is what a monitor can see of a running module, binned:
+
+- a module that reports its true quality: that quality;
+- one that reports an estimate: the estimate, with `observation` P(true quality bin | estimate
+  bin, t) to say what it is worth;
+- one that reports nothing: one state only (the monitor sees nothing), so `observation` is the
+  distribution of true quality at each time, the static profile again.
+
+Tables (cells are the input-quality grid, as in a static profile; m grid times, K bins):
+
+- `occupancy (*cells, m, K)`: P(state k at time j), from the trials;
+- `transition (*cells, m - 1, K, K)`: P(state l at time j + 1 | state k at time j); a state no
+  trial was in at time j stays where it is (the identity row), so every row is a distribution;
+- `observation (*cells, m, K, K)`: P(true quality bin b | state k at time j) (None: the state
+  is the true quality); rows of states no trial was in are the time's distribution of true
+  quality;
+- `quality_mean (*cells, m, K)`: the mean true quality of the trials in each true-quality bin at
+  each time (the bin's midpoint where none is), so a stopped run's value is evaluated at the
+  qualities the trials had, not at bin midpoints.
+
+Transitions over more than one step are products of one-step ones (the Markov assumption of the
+dynamic profile); `transition_over` computes them. Bins default to quantiles of the observed
+qualities (`quantile_bins`), so that a module whose quality lives in [0.9, 1] still gets K
+states that tell runs apart.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Literal, NoReturn
+
+import numpy as np
+from attrs import cmp_using, field, frozen
+from numpy.typing import ArrayLike, NDArray
+
+from anytime.errors import ProfileError
+from anytime.profiles.profile import (
+    SUM_TOLERANCE,
+    Array,
+    TimeUnit,
+    _array_field,
+    _check_grid,
+    _frozen_array,
+    _frozen_grids,
+    _grids_eq,
+    _names,
+    _optional_array,
+    _optional_eq,
+)
+
+Observed = Literal["true", "estimate", "none"]
+OBSERVED: tuple[Observed, ...] = ("true", "estimate", "none")
+
+#: Default number of states of a dynamic profile.
+DEFAULT_STATES = 20
+
+
+def _bool_array(value: ArrayLike) -> NDArray[np.bool_]:
+    return _frozen_array(value, dtype=np.bool_)
+
+
+@frozen
+class QualityTraces:
+    """Every trial's quality at every grid time.
+
+    Attributes:
+        module: the module's name.
+        time: the grid times (increasing, >= 0).
+        quality: `(*cells, trials, m)` the scored (true) quality of the run's answer at each
+            time; 0 where it had none.
+        scored: `(*cells, trials, m)` whether the run had a result at each time.
+        estimate: `(*cells, trials, m)` the quality the module reported of its answer at each
+            time (0 where it had none), for a module that reports an estimate; None for one
+            that reports its true quality (then the report is `quality`) or nothing.
+        reports: what the module's `Result.quality` is: "true", "estimate" or "none".
+        input_grids, inputs: the input-quality grid of the cells, as in a static profile.
+        time_unit: "ticks" or "seconds".
+    """
+
+    module: str
+    scored: NDArray[np.bool_] = field(
+        converter=_bool_array, eq=cmp_using(eq=np.array_equal), hash=False
+    )
+    time: Array = _array_field()
+    quality: Array = _array_field()
+    estimate: Array | None = field(
+        default=None, converter=_optional_array, eq=cmp_using(eq=_optional_eq), hash=False
+    )
+    reports: Observed = "true"
+    input_grids: tuple[Array, ...] = field(
+        default=(), converter=_frozen_grids, eq=cmp_using(eq=_grids_eq), hash=False
+    )
+    inputs: tuple[str, ...] = field(default=(), converter=_names)
+    time_unit: TimeUnit = "ticks"
+
+    def __attrs_post_init__(self) -> None:
+        _validate_traces(self)
+
+    @property
+    def cell_shape(self) -> tuple[int, ...]:
+        return tuple(len(g) for g in self.input_grids)
+
+    @property
+    def trials(self) -> int:
+        return int(self.quality.shape[-2])
+
+    @property
+    def observed(self) -> Array:
+        """What a monitor sees of each run at each time: the quality it reports (its true
+        quality, or its estimate), or 0 for a module that reports nothing."""
+        if self.reports == "estimate":
+            assert self.estimate is not None
+            return self.estimate
+        if self.reports == "none":
+            return np.zeros(self.quality.shape)
+        return self.quality
+
+    def select(self, trials: ArrayLike) -> QualityTraces:
+        """The traces of some trials only (an index or mask on the trial axis): to split
+        training and test traces."""
+        index = np.asarray(trials)
+
+        chosen = np.flatnonzero(index) if index.dtype == bool else index
+
+        def take(table: Array) -> Array:
+            return np.take(table, chosen, axis=-2)
+
+        return QualityTraces(
+            module=self.module,
+            time=self.time,
+            quality=take(self.quality),
+            scored=np.take(self.scored, chosen, axis=-2),
+            estimate=None if self.estimate is None else take(self.estimate),
+            reports=self.reports,
+            input_grids=self.input_grids,
+            inputs=self.inputs,
+            time_unit=self.time_unit,
+        )
+
+
+def _validate_traces(t: QualityTraces) -> None:
+    name = t.module or "traces"
+
+    def fail(field_name: str, problem: str) -> NoReturn:
+        raise ProfileError(f"{name}: {field_name}: {problem}")
+
+    _check_grid(t.time, "time", fail, unit_interval=False)
+    for i, grid in enumerate(t.input_grids):
+        _check_grid(grid, f"input_quality[{i}]", fail, unit_interval=True)
+    if len(t.inputs) not in (0, len(t.input_grids)):
+        fail(
+            "inputs",
+            f"expected one name per input grid ({len(t.input_grids)}), got {len(t.inputs)}",
+        )
+    if t.reports not in OBSERVED:
+        fail("reports", f"expected one of {', '.join(OBSERVED)}, got {t.reports!r}")
+    if t.time_unit not in ("ticks", "seconds"):
+        fail("time_unit", f"expected 'ticks' or 'seconds', got {t.time_unit!r}")
+    trials = t.quality.shape[-2] if t.quality.ndim == len(t.cell_shape) + 2 else -1
+    expected = (*t.cell_shape, trials, len(t.time))  # -1: any number of trials
+    if t.quality.shape != expected or trials < 1:
+        fail(
+            "quality",
+            f"expected shape {list(expected)} with trials >= 1, got {list(t.quality.shape)}",
+        )
+    tables = (("quality", t.quality), ("estimate", t.estimate))
+    for field_name, table in tables:
+        if table is None:
+            continue
+        if table.shape != expected:
+            fail(field_name, f"expected shape {list(expected)}, got {list(table.shape)}")
+        bad = ~np.isfinite(table) | (table < 0) | (table > 1)
+        if np.any(bad):
+            index = tuple(int(i) for i in np.argwhere(bad)[0])
+            fail(
+                field_name + "".join(f"[{i}]" for i in index),
+                f"expected a quality in [0, 1], got {table[index]:.10g}",
+            )
+    if t.scored.shape != expected:
+        fail("scored", f"expected shape {list(expected)}, got {list(t.scored.shape)}")
+    if (t.estimate is None) != (t.reports != "estimate"):
+        fail(
+            "estimate",
+            "expected a table of estimates exactly when the module reports an estimate"
+            f" (reports: {t.reports}), got {'none' if t.estimate is None else 'one'}",
+        )
+
+
+def quantile_bins(qualities: ArrayLike, states: int = DEFAULT_STATES) -> Array:
+    """Bin edges on [0, 1] at quantiles of `qualities`, at most `states` bins: each holds about
+    as many observations as another, and equal qualities are never split."""
+    q = np.asarray(qualities, dtype=np.float64).reshape(-1)
+    if q.size == 0:
+        return np.array([0.0, 1.0])
+    inner = np.quantile(q, np.linspace(0, 1, states + 1)[1:-1])
+    # An edge is a bin's lower end: put it just above a quality shared by many observations.
+    edges = np.unique(np.round(np.concatenate(([0.0], inner, [1.0])), 12))
+    edges = edges[(edges > 0) & (edges < 1)]
+    return np.concatenate(([0.0], edges, [1.0]))
+
+
+def _bin_of(quality: Array, bins: Array) -> NDArray[np.intp]:
+    """The bin holding each quality, as `point_mass` places it (1.0 in the last bin)."""
+    index: NDArray[np.intp] = np.clip(
+        np.searchsorted(bins, quality, side="right") - 1, 0, len(bins) - 2
+    )
+    return index
+
+
+def _counts(index: NDArray[np.intp], k: int) -> Array:
+    """`(*cells, trials, m)` bin indices -> `(*cells, m, k)` counts (one-hot summed over trials)."""
+    counts: Array = np.eye(k)[index].sum(axis=-3)
+    return counts
+
+
+@frozen
+class DynamicProfile:
+    """A module's dynamic performance profile (see the module docstring).
+
+    Attributes:
+        module: the module's name.
+        time: the grid times, m of them.
+        bins: K+1 edges of the states' quality bins (the same bins for true quality).
+        occupancy: `(*cells, m, K)` P(state at each time).
+        transition: `(*cells, m - 1, K, K)` P(state at time j + 1 | state at time j).
+        quality_mean: `(*cells, m, K)` mean true quality of each true-quality bin at each time.
+        observation: `(*cells, m, K, K)` P(true quality bin | state) at each time, or None when
+            the state is the true quality.
+        observed: what the state is: the module's "true" quality, its "estimate", or "none".
+        samples: the trials behind each cell.
+        input_grids, inputs, time_unit: as in a static profile.
+    """
+
+    module: str
+    time: Array = _array_field()
+    bins: Array = _array_field()
+    occupancy: Array = _array_field()
+    transition: Array = _array_field()
+    quality_mean: Array = _array_field()
+    observation: Array | None = field(
+        default=None, converter=_optional_array, eq=cmp_using(eq=_optional_eq), hash=False
+    )
+    observed: Observed = "true"
+    samples: int = 0
+    input_grids: tuple[Array, ...] = field(
+        default=(), converter=_frozen_grids, eq=cmp_using(eq=_grids_eq), hash=False
+    )
+    inputs: tuple[str, ...] = field(default=(), converter=_names)
+    time_unit: TimeUnit = "ticks"
+
+    def __attrs_post_init__(self) -> None:
+        _validate_dynamic(self)
+
+    @property
+    def n_states(self) -> int:
+        return len(self.bins) - 1
+
+    @property
+    def cell_shape(self) -> tuple[int, ...]:
+        return tuple(len(g) for g in self.input_grids)
+
+    @classmethod
+    def from_traces(
+        cls, traces: QualityTraces, bins: ArrayLike | None = None, states: int = DEFAULT_STATES
+    ) -> DynamicProfile:
+        """The dynamic profile of recorded traces, on `bins` (default: `states` quantile bins
+        of what the monitor observes)."""
+        observed = traces.observed
+        if bins is not None:
+            edges = np.asarray(bins, dtype=np.float64)
+        elif traces.reports == "none":
+            edges = np.array([0.0, 1.0])  # the monitor sees nothing: one state
+        else:
+            edges = quantile_bins(observed, states)
+        k = len(edges) - 1
+        state = _bin_of(observed, edges)  # (*cells, N, m)
+        true = _bin_of(traces.quality, edges)
+        n = traces.trials
+        occupancy = _counts(state, k) / n
+        # Pair counts of consecutive states: (*cells, m - 1, K, K), summed over trials.
+        pair = state[..., :-1] * k + state[..., 1:]
+        pairs = np.eye(k * k)[pair].sum(axis=-3).reshape((*pair.shape[:-2], pair.shape[-1], k, k))
+        seen = pairs.sum(axis=-1, keepdims=True)
+        transition = np.where(seen > 0, pairs / np.maximum(seen, 1), np.eye(k))
+        true_counts = _counts(true, k)  # (*cells, m, K)
+        sums = (np.eye(k)[true] * traces.quality[..., None]).sum(axis=-3)
+        midpoints = (edges[:-1] + edges[1:]) / 2
+        quality_mean = np.where(true_counts > 0, sums / np.maximum(true_counts, 1), midpoints)
+        quality_mean = np.clip(quality_mean, np.r_[0.0, edges[1:-1]], np.r_[edges[1:-1], 1.0])
+        observation = None
+        if traces.reports != "true":
+            joint = (
+                np.eye(k * k)[state * k + true]
+                .sum(axis=-3)
+                .reshape((*state.shape[:-2], state.shape[-1], k, k))
+            )
+            given = joint.sum(axis=-1, keepdims=True)
+            marginal = true_counts[..., None, :] / n
+            observation = np.where(given > 0, joint / np.maximum(given, 1), marginal)
+        return cls(
+            module=traces.module,
+            time=traces.time,
+            bins=edges,
+            occupancy=occupancy,
+            transition=transition,
+            quality_mean=quality_mean,
+            observation=observation,
+            observed=traces.reports,
+            samples=n,
+            input_grids=traces.input_grids,
+            inputs=traces.inputs,
+            time_unit=traces.time_unit,
+        )
+
+    def at(self, input_qualities: Sequence[float] = ()) -> DynamicProfile:
+        """The profile at one point of the input-quality grid, without input axes: each table
+        interpolated multilinearly between the grid's cells (clamped at its ends), so its rows
+        stay distributions."""
+        q = [float(x) for x in input_qualities]
+        if len(q) != len(self.input_grids):
+            raise ProfileError(
+                f"{self.module or 'dynamic profile'}: expected {len(self.input_grids)} input"
+                f" qualit{'y' if len(self.input_grids) == 1 else 'ies'}, got {len(q)}"
+            )
+        weights = np.ones(())
+        for grid, x in zip(self.input_grids, q, strict=True):
+            w = np.array([np.interp(x, grid, corner) for corner in np.eye(len(grid))])
+            weights = np.multiply.outer(weights, w)
+        axes = len(self.input_grids)
+
+        def mix(table: Array) -> Array:
+            return np.tensordot(weights, table, axes=axes) if axes else table
+
+        return DynamicProfile(
+            module=self.module,
+            time=self.time,
+            bins=self.bins,
+            occupancy=mix(self.occupancy),
+            transition=mix(self.transition),
+            quality_mean=mix(self.quality_mean),
+            observation=None if self.observation is None else mix(self.observation),
+            observed=self.observed,
+            samples=self.samples,
+            time_unit=self.time_unit,
+        )
+
+    def transition_over(self, start: int, end: int) -> Array:
+        """P(state at time index `end` | state at `start`), `(*cells, K, K)`: the product of the
+        one-step transitions between them (the identity for end == start)."""
+        if not 0 <= start <= end < len(self.time):
+            raise ProfileError(
+                f"{self.module or 'dynamic profile'}: expected 0 <= start <= end <"
+                f" {len(self.time)}, got start {start}, end {end}"
+            )
+        product = np.broadcast_to(np.eye(self.n_states), (*self.cell_shape, *(2 * [self.n_states])))
+        for j in range(start, end):  # one matrix product per time step, not per cell
+            product = product @ self.transition[..., j, :, :]
+        return np.array(product)
+
+    def true_quality(self) -> tuple[Array, Array]:
+        """What each state at each time says of the true quality: `(P, q)` with P `(*cells, m,
+        K, K)` = P(true bin b | state k, time j) and q `(*cells, m, K)` the mean true quality of
+        bin b at time j, so E[f(true quality) | state k, time j] = sum_b P[..., j, k, b] f(q[...,
+        j, b])."""
+        if self.observation is not None:
+            return self.observation, self.quality_mean
+        identity = np.broadcast_to(np.eye(self.n_states), (*self.occupancy.shape, self.n_states))
+        return np.array(identity), self.quality_mean
+
+
+def _validate_dynamic(p: DynamicProfile) -> None:
+    name = p.module or "dynamic profile"
+
+    def fail(field_name: str, problem: str) -> NoReturn:
+        raise ProfileError(f"{name}: {field_name}: {problem}")
+
+    _check_grid(p.time, "time", fail, unit_interval=False)
+    _check_grid(p.bins, "quality_bins", fail, unit_interval=True, minimum=2)
+    if p.bins[0] != 0 or p.bins[-1] != 1:
+        fail("quality_bins", f"expected edges from 0 to 1, got {p.bins[0]:g} to {p.bins[-1]:g}")
+    for i, grid in enumerate(p.input_grids):
+        _check_grid(grid, f"input_quality[{i}]", fail, unit_interval=True)
+    if len(p.inputs) not in (0, len(p.input_grids)):
+        fail(
+            "inputs",
+            f"expected one name per input grid ({len(p.input_grids)}), got {len(p.inputs)}",
+        )
+    if p.observed not in OBSERVED:
+        fail("observed", f"expected one of {', '.join(OBSERVED)}, got {p.observed!r}")
+    if p.time_unit not in ("ticks", "seconds"):
+        fail("time_unit", f"expected 'ticks' or 'seconds', got {p.time_unit!r}")
+    if not isinstance(p.samples, int) or isinstance(p.samples, bool) or p.samples < 0:
+        fail("samples", f"expected an integer >= 0, got {p.samples!r}")
+    cells, m, k = p.cell_shape, len(p.time), p.n_states
+    shapes = {
+        "occupancy": (p.occupancy, (*cells, m, k), True),
+        "transition": (p.transition, (*cells, m - 1, k, k), True),
+        "quality_mean": (p.quality_mean, (*cells, m, k), False),
+        "observation": (p.observation, (*cells, m, k, k), True),
+    }
+    for field_name, (table, shape, distribution) in shapes.items():
+        if table is None:
+            continue
+        if table.shape != shape:
+            fail(field_name, f"expected shape {list(shape)}, got {list(table.shape)}")
+        bad = ~np.isfinite(table) | (table < 0) | (table > 1 + SUM_TOLERANCE)
+        if np.any(bad):
+            index = tuple(int(i) for i in np.argwhere(bad)[0])
+            fail(
+                field_name + "".join(f"[{i}]" for i in index),
+                f"expected a number in [0, 1], got {table[index]:.10g}",
+            )
+        if distribution and table.size:
+            sums = table.sum(axis=-1)
+            worst = np.unravel_index(np.argmax(np.abs(sums - 1)), sums.shape)
+            if abs(sums[worst] - 1) > SUM_TOLERANCE:
+                fail(
+                    field_name + "".join(f"[{int(i)}]" for i in worst),
+                    f"expected a row summing to 1 (within {SUM_TOLERANCE:g}), got"
+                    f" {sums[worst]:.10g}",
+                )
+    if (p.observation is None) != (p.observed == "true"):
+        fail(
+            "observation",
+            "expected a table exactly when the state is not the true quality"
+            f" (observed: {p.observed}), got {'none' if p.observation is None else 'one'}",
+        )
