@@ -293,8 +293,11 @@ class Exhaustive:
 
     name = "exhaustive"
 
-    def __init__(self, memory: int = DEFAULT_MEMORY) -> None:
+    def __init__(self, memory: int = DEFAULT_MEMORY, limit: int | None = None) -> None:
         self.memory = memory
+        # The most allocations it evaluates (None: `EXHAUSTIVE_LIMIT`; a benchmark's reference
+        # may raise it).
+        self.limit = limit
 
     @staticmethod
     def rows(units: np.ndarray, n: int) -> int:
@@ -318,10 +321,11 @@ class Exhaustive:
         if n == 0:
             return nothing_to_allocate(evaluator, quality, units)
         rows = self.rows(units, n)
-        if rows > EXHAUSTIVE_LIMIT:
+        limit = EXHAUSTIVE_LIMIT if self.limit is None else self.limit
+        if rows > limit:
             raise CompileError(
                 f"exhaustive search would evaluate {rows:,} allocations (more than "
-                f"{EXHAUSTIVE_LIMIT:,}); use dp or hill-climbing, or a coarser time grid"
+                f"{limit:,}); use dp or hill-climbing, or a coarser time grid"
             )
         allocation = np.zeros((len(units), n), dtype=np.int64)
         best = np.full(len(units), -np.inf)
@@ -434,13 +438,24 @@ def dp_obstacle(model: CompileModel) -> str | None:
     return None
 
 
+def relaxable(model: CompileModel) -> bool:
+    """Whether relaxed dp can run on the program: it has no if (whose output is a mixture)."""
+    return not any(isinstance(node, IfNode) for node in model.nodes)
+
+
 class DynamicProgramming:
     """Local compilation by dynamic programming over budgets, for monotone deterministic trees."""
 
     name = "dp"
 
-    def __init__(self, memory: int = DEFAULT_MEMORY) -> None:
+    def __init__(self, memory: int = DEFAULT_MEMORY, relaxed: bool = False) -> None:
+        """With `relaxed`, dp also runs where it is not exact but can run (a DAG, stochastic
+        or non-monotone modules; not an if): a shared result is planned as if each reader had
+        its own copy, and its time is the largest any reader gives it. The allocations are
+        then a heuristic (a seed for a search), and their qualities the tree's, not the
+        program's."""
         self.memory = memory
+        self.relaxed = relaxed
 
     def memory_needed(self, evaluator: Evaluator, units: np.ndarray) -> int:
         """The largest node's candidate splits (every split of every budget among its own run
@@ -459,7 +474,7 @@ class DynamicProgramming:
     ) -> tuple[np.ndarray, Array]:
         model = evaluator.model
         reason = dp_obstacle(model)
-        if reason is not None:
+        if reason is not None and not (self.relaxed and relaxable(model)):
             raise CompileError(f"dp does not apply: {reason}")
         cells, inverse = np.unique(quality, axis=0, return_inverse=True)
         inverse = inverse.reshape(-1)
@@ -495,8 +510,10 @@ class DynamicProgramming:
                 allocation[:, node.time_index] = split[:, 0]
                 column = 1
             for slot in node.slots:
-                if slot.kind == "node":
-                    budget[slot.index] = split[:, column]
+                if slot.kind == "node":  # a shared result (relaxed): the largest budget given
+                    given = budget.get(slot.index)
+                    share = split[:, column]
+                    budget[slot.index] = share if given is None else np.maximum(given, share)
                     column += 1
         return allocation, value
 

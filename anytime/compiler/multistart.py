@@ -32,6 +32,7 @@ import numpy as np
 from anytime.compiler.allocators import (
     DEFAULT_MEMORY,
     IMPROVEMENT,
+    DynamicProgramming,
     Evaluates,
     HillClimbing,
     Proportional,
@@ -42,13 +43,16 @@ from anytime.compiler.allocators import (
     expected_in_chunks,
     least_climbing_memory,
     proportional_split,
+    relaxable,
     row_bytes,
 )
+from anytime.compiler.evaluate import Evaluator
 from anytime.profiles.profile import Array
 
 SEED_POINTS = 1500  # points of the coarse lattice a cell evaluates, at most
 SEEDS = 3  # of which the best few are climbed
 ROUNDS = 3  # rounds of starts from the neighbouring totals' allocations
+DP_UNITS = 50  # the finest lattice of the relaxed dp seed, in units
 
 
 class MultiStart:
@@ -81,6 +85,11 @@ class MultiStart:
             starts.append(proportional)
             steps.append(first)
             owners.append(np.arange(len(units)))
+            seed = _relaxed_dp(evaluator, quality, units, dt, self.memory)
+            if seed is not None:
+                starts.append(seed)
+                steps.append(first)
+                owners.append(np.arange(len(units)))
         grid, spacing, owner = self._coarse_seeds(evaluator, quality, units, dt)
         starts.append(grid)
         steps.append(spacing)
@@ -153,6 +162,24 @@ class MultiStart:
             spacing.append(np.full(top.size, max(g, 1) if total > 0 else 0))
             owner.append(np.repeat(cells, keep))
         return np.concatenate(seeds), np.concatenate(spacing), np.concatenate(owner)
+
+
+def _relaxed_dp(
+    evaluator: Evaluates, quality: Array, units: np.ndarray, dt: float, memory: int
+) -> np.ndarray | None:
+    """dp's allocations on the program taken as a tree (a seed: exact for a tree of
+    deterministic monotone modules, near the optimum for few shared results), moved onto
+    each total; None where relaxed dp cannot run or would not fit the memory cap."""
+    if not isinstance(evaluator, Evaluator) or not relaxable(evaluator.model):
+        return None
+    # On a lattice of at most `DP_UNITS` units: dp costs (units)^(k+1) at a node of k
+    # children, and a seed needs only to land in the right basin; the climbs refine it.
+    coarse = max(1, -(-int(units.max(initial=0)) // DP_UNITS))
+    dp = DynamicProgramming(memory, relaxed=True)
+    if dp.memory_needed(evaluator, units // coarse) > memory:
+        return None
+    allocation, _ = dp.allocate(evaluator, quality, units // coarse, dt * coarse)
+    return _moved(allocation * coarse, units)
 
 
 def coarse_parts(total: int, n: int) -> int:
