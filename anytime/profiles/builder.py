@@ -36,8 +36,9 @@ reports an estimate (`reports="estimate"`) the `Result.quality` of its result th
 Reproducibility: trial i at input-quality cell c draws from `SeedSequence(seed, spawn_key=(c,
 i))`, the stream `SeedSequence(seed).spawn(...)` would hand it, whichever worker runs it and in
 whatever order chunks come back. The same instance (same seed) is used at every time of the
-grid, so a cell's curve over time compares like with like. With the work clock the profile is
-therefore identical for any number of workers, any chunk size and any executor, and so are its traces.
+grid, so a cell's curve over time compares like with like. With the work clock the profile
+(and its traces) is therefore identical for any number of workers, any chunk size and any
+executor.
 """
 
 from __future__ import annotations
