@@ -371,6 +371,21 @@ class DynamicProfile:
             product = product @ self.transition[..., j, :, :]
         return np.array(product)
 
+    def expected_quality(self) -> Array:
+        """E[true quality | state k at time j], `(*cells, m, K)`."""
+        probability, quality = self.true_quality()
+        expected: Array = np.einsum("...kb,...b->...k", probability, quality)
+        return expected
+
+    def expected_gain(self) -> Array:
+        """The expected gain in true quality of one more step, `(*cells, m - 1, K)`:
+        E[true quality at j + 1 | state k at j] - E[true quality at j | state k at j] (for a
+        state no trial was in at time j, what staying in it gains)."""
+        now = self.expected_quality()
+        later = np.einsum("...jkl,...jl->...jk", self.transition, now[..., 1:, :])
+        gain: Array = later - now[..., :-1, :]
+        return gain
+
     def true_quality(self) -> tuple[Array, Array]:
         """What each state at each time says of the true quality: `(P, q)` with P `(*cells, m,
         K, K)` = P(true bin b | state k, time j) and q `(*cells, m, K)` the mean true quality of
