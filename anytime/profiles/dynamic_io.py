@@ -12,6 +12,7 @@ A dynamic profile, `anytime-dynamic-profile/1` (`DynamicProfile`; K states, m ti
     format: anytime-dynamic-profile/1   # required
     module: approach                    # default: the file's name without .dynamic.yaml
     observed: true                      # what the state is: true, estimate or none (true)
+                                        # (a bare YAML true is read as the word)
     time_unit: ticks                    # or seconds (ticks)
     samples: 60                         # trials behind each cell (0)
     inputs: [x]                         # the input axes' names, as in a profile
@@ -139,7 +140,7 @@ def load_dynamic_profile(path: str | os.PathLike[str]) -> DynamicProfile:
     }
     data = reader.header(document, DYNAMIC_FORMAT, DYNAMIC_FIELDS, required, "load_dynamic_profile")
     axes = _Axes.read(reader, data, DYNAMIC_SUFFIX)
-    observed = cast(Observed, reader.choice("observed", data.get("observed", "true"), OBSERVED))
+    observed = cast(Observed, reader.choice("observed", _word(data, "observed"), OBSERVED))
     samples = _whole(reader, "samples", data.get("samples", 0), least=0)
     bins = reader.grid("quality_bins", data["quality_bins"], minimum=2, quality=True)
     m, k = len(axes.time), len(bins) - 1
@@ -191,7 +192,7 @@ def load_traces(path: str | os.PathLike[str]) -> QualityTraces:
     }
     data = reader.header(document, TRACES_FORMAT, TRACES_FIELDS, required, "load_traces")
     axes = _Axes.read(reader, data, TRACES_SUFFIX)
-    reports = cast(Observed, reader.choice("reports", data.get("reports", "true"), OBSERVED))
+    reports = cast(Observed, reader.choice("reports", _word(data, "reports"), OBSERVED))
     trials = _whole(reader, "trials", data["trials"], least=1)
     shape = (*axes.cells, trials, len(axes.time))
     _check_size(reader, "quality", shape)
@@ -246,6 +247,13 @@ class _Axes:
         inputs = reader.inputs(data["inputs"], len(grids)) if "inputs" in data else ()
         time = reader.grid("time", data["time"], minimum=1, quality=False)
         return cls(module, cast(TimeUnit, time_unit), grids, inputs, time)
+
+
+def _word(data: Mapping[Any, Any], field: str) -> object:
+    """The value of `observed` or `reports` ("true" when not given): YAML 1.1 reads a bare
+    `true` as a boolean, which here stands for the word."""
+    value = data.get(field, "true")
+    return "true" if value is True else value
 
 
 def _whole(reader: _Reader, field: str, value: object, least: int) -> int:
