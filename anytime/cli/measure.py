@@ -103,7 +103,8 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     profile.add_argument(
         "--traces",
         metavar="FILE",
-        help="also write every trial's quality at every time to FILE (NAME.traces.yaml)",
+        help="also write every trial's quality at every time to FILE (as NAME.traces.yaml, a"
+        " profile directory does not read it as a profile)",
     )
     profile.add_argument("--json", action="store_true", help="print a JSON summary")
     library_options(profile)
