@@ -277,13 +277,11 @@ def save_dynamic_profile(
     """Write `profile` to `path` in the `anytime-dynamic-profile/1` format, atomically; the
     tables go into a companion beside it when `companion` says so, by default when they hold
     more than `COMPANION_THRESHOLD` numbers (as `save_profile`)."""
-    data: dict[str, Any] = {"format": DYNAMIC_FORMAT}
-    if profile.module:
-        data["module"] = profile.module
-    data["observed"] = profile.observed
-    data["time_unit"] = profile.time_unit
-    data["samples"] = profile.samples
-    data.update(_axes(profile.inputs, profile.input_grids, profile.time))
+    data = _header(
+        DYNAMIC_FORMAT,
+        profile,
+        {"observed": profile.observed, "time_unit": profile.time_unit, "samples": profile.samples},
+    )
     data["quality_bins"] = plain(profile.bins)
     tables = {
         "occupancy": profile.occupancy,
@@ -300,25 +298,29 @@ def save_traces(
 ) -> None:
     """Write `traces` to `path` in the `anytime-traces/1` format, atomically; the tables go
     into a companion as `save_dynamic_profile` says."""
-    data: dict[str, Any] = {"format": TRACES_FORMAT}
-    if traces.module:
-        data["module"] = traces.module
-    data["reports"] = traces.reports
-    data["time_unit"] = traces.time_unit
-    data["trials"] = traces.trials
-    data.update(_axes(traces.inputs, traces.input_grids, traces.time))
+    data = _header(
+        TRACES_FORMAT,
+        traces,
+        {"reports": traces.reports, "time_unit": traces.time_unit, "trials": traces.trials},
+    )
     tables = {"quality": traces.quality, "scored": traces.scored.astype(np.float64)}
     if traces.estimate is not None:
         tables["estimate"] = traces.estimate
     _write(data, tables, path, companion)
 
 
-def _axes(inputs: tuple[str, ...], grids: tuple[Array, ...], time: Array) -> dict[str, Any]:
-    data: dict[str, Any] = {}
-    if len(inputs) == len(grids):  # unnamed input axes are left unnamed
-        data["inputs"] = list(inputs)
-    data["input_quality"] = [plain(grid) for grid in grids]
-    data["time"] = plain(time)
+def _header(
+    version: str, tables: DynamicProfile | QualityTraces, fields: Mapping[str, Any]
+) -> dict[str, Any]:
+    """The fields before the tables: the format, the module, `fields`, the axes."""
+    data: dict[str, Any] = {"format": version}
+    if tables.module:
+        data["module"] = tables.module
+    data.update(fields)
+    if len(tables.inputs) == len(tables.input_grids):  # unnamed input axes are left unnamed
+        data["inputs"] = list(tables.inputs)
+    data["input_quality"] = [plain(grid) for grid in tables.input_grids]
+    data["time"] = plain(tables.time)
     return data
 
 

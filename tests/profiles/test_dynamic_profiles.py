@@ -2,7 +2,7 @@
 workers), `from_traces` counts transitions right, and both file formats round-trip exactly and
 refuse bad files with their reason."""
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -330,12 +330,17 @@ def test_the_good_files_load(tmp_path: Path) -> None:
 def test_a_bad_dynamic_profile_is_refused_with_its_reason(
     tmp_path: Path, old: str, new: str, message: str
 ) -> None:
-    path = tmp_path / "walk.dynamic.yaml"
     assert old in DYNAMIC
-    path.write_text(DYNAMIC.replace(old, new))
+    path = tmp_path / "walk.dynamic.yaml"
+    assert refused(path, DYNAMIC.replace(old, new), load_dynamic_profile) == f": {message}"
+
+
+def refused(path: Path, text: str, load: Callable[[Path], object]) -> str:
+    """The message of loading `text` from `path`, without the file's name."""
+    path.write_text(text)
     with pytest.raises(ProfileError) as error:
-        load_dynamic_profile(path)
-    assert str(error.value) == f"{path}: {message}"
+        load(path)
+    return str(error.value).removeprefix(str(path))
 
 
 @pytest.mark.parametrize(
@@ -368,13 +373,10 @@ def test_a_bad_dynamic_profile_is_refused_with_its_reason(
 def test_bad_traces_are_refused_with_their_reason(
     tmp_path: Path, old: str, new: str, message: str
 ) -> None:
-    path = tmp_path / "walk.traces.yaml"
     assert old in TRACES
-    path.write_text(TRACES.replace(old, new))
-    with pytest.raises(ProfileError) as error:
-        load_traces(path)
-    where = f"{path}:5:8" if message.startswith("not YAML") else str(path)
-    assert str(error.value) == f"{where}: {message}"
+    where = ":5:8" if message.startswith("not YAML") else ""  # a YAML error's line and column
+    path = tmp_path / "walk.traces.yaml"
+    assert refused(path, TRACES.replace(old, new), load_traces) == f"{where}: {message}"
 
 
 def test_a_companion_that_is_not_the_files_own_is_refused(tmp_path: Path) -> None:
