@@ -187,12 +187,13 @@ def run_profile(args: argparse.Namespace) -> int:
     module, library = _runnable(args)
     grid = library.measurement(module.name).grid
     cells = math.prod(grid.cell_shape)
-    size = 8 * args.trials * cells * len(grid.time)  # the builder's table of qualities
+    tables = 2 if module.reports == "estimate" and (args.dynamic or args.traces) else 1
+    size = 8 * tables * args.trials * cells * len(grid.time)  # qualities (and estimates)
     if size > MAX_TABLE_BYTES:
         raise UsageError(
-            f"--trials {args.trials}: {cells} cells x {len(grid.time)}"
-            f" times make a table of {format_size(size)}, more than the limit of"
-            f" {format_size(MAX_TABLE_BYTES)}; give fewer --trials"
+            f"--trials {args.trials}: {cells} cells x {len(grid.time)} times make"
+            f" {'tables' if tables > 1 else 'a table'} of {format_size(size)}, more than the"
+            f" limit of {format_size(MAX_TABLE_BYTES)}; give fewer --trials"
         )
     request = ProfileRequest(
         trials=args.trials,

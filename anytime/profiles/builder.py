@@ -358,7 +358,9 @@ def build_profile(
     ]
     quality = np.zeros((total, len(grid.time)))
     scored = np.ones(quality.shape, dtype=np.bool_)
-    reported = np.zeros(quality.shape)
+    # The module's reports are kept only where they are traces' estimates (a "true" report is
+    # the score itself, and "none" says nothing).
+    estimate = np.zeros(quality.shape) if traces and module.reports == "estimate" else None
     failures = overruns = 0
     step = 0.0
     first: tuple[int, str] | None = None
@@ -368,8 +370,8 @@ def build_profile(
             rows = slice(done.start, done.start + len(done.quality))
             if done.scored is not None:
                 scored[rows] = done.scored
-            if done.reported is not None:
-                reported[rows] = done.reported
+            if estimate is not None and done.reported is not None:
+                estimate[rows] = done.reported
             failures += done.failures
             overruns += done.overruns
             step = max(step, done.step)
@@ -377,11 +379,7 @@ def build_profile(
                 first = done.first_failure
             bar.update(len(done.quality))
     shape = (*grid.cell_shape, trials, len(grid.time))
-    quality, scored, reported = (
-        quality.reshape(shape),
-        scored.reshape(shape),
-        reported.reshape(shape),
-    )
+    quality, scored = quality.reshape(shape), scored.reshape(shape)
     return ProfileBuild(
         profile=_tabulate(module, grid, quality, ~scored, clock, step),
         trials=trials,
@@ -391,7 +389,7 @@ def build_profile(
         first_failure=None if first is None else first[1],
         seed=entropy,
         seconds=_time.perf_counter() - started,
-        traces=_traces(module, grid, quality, scored, reported, clock) if traces else None,
+        traces=_traces(module, grid, quality, scored, estimate, clock) if traces else None,
     )
 
 
@@ -400,18 +398,17 @@ def _traces(
     grid: Grid,
     quality: Array,
     scored: NDArray[np.bool_],
-    reported: Array,
+    estimate: Array | None,
     clock: str,
 ) -> QualityTraces:
-    """The build's tables as traces (`reported` is 0 where a run had no result); the module's
-    reports are kept only where they are an estimate (a "true" report is the score itself, and
-    "none" says nothing)."""
+    """The build's tables as traces; `estimate` (flat, one row per trial) is 0 where a run had
+    no result."""
     return QualityTraces(
         module=module.name,
         time=grid.time,
         quality=quality,
         scored=scored,
-        estimate=reported if module.reports == "estimate" else None,
+        estimate=None if estimate is None else estimate.reshape(quality.shape),
         reports=module.reports,
         input_grids=grid.input_grids,
         inputs=module.inputs,
