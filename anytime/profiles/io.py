@@ -52,6 +52,10 @@ back an equal profile. A profile whose probabilities are exactly the point masse
 is written as `expected:`, so a hand-written `expected:` file keeps its form. A profile without
 a module name takes the file's name when loaded back; a profile without input axes comes back
 as a `PerformanceProfile`.
+
+The formats of dynamic profiles and quality traces (`anytime.profiles.dynamic_io`) are of the
+same family: they share this module's reader (`read_document`, `_Reader.header`), companion
+(`place_tables`) and writer (`write_document`).
 """
 
 from __future__ import annotations
