@@ -222,6 +222,35 @@ def test_traces_and_their_dynamic_profile_round_trip_exactly(
     assert load_dynamic_profile(tmp_path / "t.dynamic.yaml") == profile
 
 
+@ROUND_TRIPS
+@given(traces=random_traces(), states=st.integers(1, 5))
+def test_from_traces_is_a_trial_by_trial_tally(traces: QualityTraces, states: int) -> None:
+    p = DynamicProfile.from_traces(traces, states=states)
+    k, m, n = p.n_states, len(traces.time), traces.trials
+    cells = int(np.prod(p.cell_shape))
+    state = np.clip(np.searchsorted(p.bins, traces.observed, side="right") - 1, 0, k - 1)
+    true = np.clip(np.searchsorted(p.bins, traces.quality, side="right") - 1, 0, k - 1)
+    state, true = state.reshape(cells, n, m), true.reshape(cells, n, m)
+    occupancy, pairs = np.zeros((cells, m, k)), np.zeros((cells, max(m - 1, 0), k, k))
+    joint = np.zeros((cells, m, k, k))
+    for c in range(cells):  # the reference: one trial and time at a time
+        for i in range(n):
+            for j in range(m):
+                occupancy[c, j, state[c, i, j]] += 1 / n
+                joint[c, j, state[c, i, j], true[c, i, j]] += 1
+                if j < m - 1:
+                    pairs[c, j, state[c, i, j], state[c, i, j + 1]] += 1
+    seen = pairs.sum(axis=-1, keepdims=True)
+    transition = np.where(seen > 0, pairs / np.maximum(seen, 1), np.eye(k))
+    np.testing.assert_allclose(p.occupancy.reshape(cells, m, k), occupancy, atol=1e-12)
+    np.testing.assert_allclose(p.transition.reshape(transition.shape), transition, atol=1e-12)
+    if p.observation is not None:
+        given_state = joint.sum(axis=-1, keepdims=True)
+        rows = np.broadcast_to(given_state > 0, joint.shape)
+        observed = p.observation.reshape(joint.shape)
+        np.testing.assert_allclose(observed[rows], (joint / np.maximum(given_state, 1))[rows])
+
+
 def test_large_tables_go_to_the_companion(tmp_path: Path) -> None:
     traces = QualityTraces(
         module="big",
