@@ -33,6 +33,13 @@ from attrs import field, frozen
 from anytime.errors import AnytimeError, ProfileError
 from anytime.modules import REGISTRY, AnytimeModule, Registry
 from anytime.profiles.builder import Measurement, registered_measurements, registered_problems
+from anytime.profiles.dynamic import DynamicProfile
+from anytime.profiles.dynamic_io import (
+    DYNAMIC_SUFFIX,
+    TRACES_SUFFIX,
+    dynamic_profile_path,
+    load_dynamic_profile,
+)
 from anytime.profiles.io import load_profile
 from anytime.profiles.profile import ConditionalPerformanceProfile
 from anytime.text import suggest
@@ -70,6 +77,8 @@ class LibraryEntry:
         profile_source: the profile, the path of its file, or None.
         profile_file: the file the profile comes from, if it is not built in memory.
         step: (a property) the module's step, declared or else measured (see `step`).
+        dynamic_profile: (a property) its dynamic profile, the file `NAME.dynamic.yaml` beside
+            its profile file `NAME.yaml`, or None.
     """
 
     name: str
@@ -82,6 +91,7 @@ class LibraryEntry:
     profile_source: ConditionalPerformanceProfile | Path | None = None
     profile_file: Path | None = None
     _cache: dict[str, ConditionalPerformanceProfile] = field(factory=dict, init=False, repr=False)
+    _dynamic: list[DynamicProfile | None] = field(factory=list, init=False, repr=False)
 
     @classmethod
     def of_module(cls, module: AnytimeModule, origin: str | None = None) -> LibraryEntry:
@@ -131,6 +141,41 @@ class LibraryEntry:
             cached = self._load()
             self._cache["profile"] = cached
         return cached
+
+    @property
+    def dynamic_profile(self) -> DynamicProfile | None:
+        """The dynamic profile, the file `NAME.dynamic.yaml` beside the profile file `NAME.yaml`
+        (in a profile directory or a plugin's package data), read on first use; None when the
+        profile is not a file or has no such file beside it.
+
+        Raises:
+            ProfileError: the file is malformed or does not describe this module (another
+                module's name, other inputs); the message names the file.
+        """
+        if not self._dynamic:  # read once, even when there is none
+            self._dynamic.append(self._load_dynamic())
+        return self._dynamic[0]
+
+    def _load_dynamic(self) -> DynamicProfile | None:
+        if self.profile_file is None:
+            return None
+        path = dynamic_profile_path(self.profile_file)
+        if not path.is_file():
+            return None
+        dynamic = load_dynamic_profile(path)
+        if dynamic.module.lower() != self.name:
+            raise ProfileError(
+                f"{path}: module: expected '{self.name}' (the module it is the dynamic profile"
+                f" of), got '{dynamic.module}'"
+            )
+        if len(dynamic.input_grids) != len(self.inputs) or (
+            dynamic.inputs and dynamic.inputs != self.inputs
+        ):
+            given = list(dynamic.inputs) or f"{len(dynamic.input_grids)} unnamed"
+            raise ProfileError(
+                f"{path}: inputs: expected the module's inputs {list(self.inputs)}, got {given}"
+            )
+        return dynamic
 
     @property
     def declared_step(self) -> float | None:
@@ -322,7 +367,9 @@ class RegistrySource:
 
 
 class ProfileDirectory:
-    """The profile files `*.yaml` in a directory, each a profile-only entry.
+    """The profile files `*.yaml` in a directory, each a profile-only entry; a module's dynamic
+    profile `NAME.dynamic.yaml` and traces `NAME.traces.yaml` are not profiles (the entry of
+    `NAME.yaml` finds its dynamic profile beside it).
 
     Files are read when the source loads, since a file's `module` field names its entry; a
     malformed file raises its `ProfileError` then.
@@ -339,7 +386,11 @@ class ProfileDirectory:
             raise LibraryError(f"profile directory '{self.path}' does not exist")
         if not self.path.is_dir():
             raise LibraryError(f"profile directory '{self.path}' is not a directory")
-        files = sorted(self.path.glob("*.yaml"))
+        files = sorted(
+            f
+            for f in self.path.glob("*.yaml")
+            if not f.name.endswith((DYNAMIC_SUFFIX, TRACES_SUFFIX))
+        )
         return Loaded(tuple(LibraryEntry.of_profile(load_profile(f), f) for f in files))
 
 

@@ -18,6 +18,8 @@ from anytime.cli.common import (
 )
 from anytime.errors import ProfileError
 from anytime.library import LibraryEntry
+from anytime.profiles.dynamic import DynamicProfile
+from anytime.profiles.dynamic_io import dynamic_profile_path
 from anytime.profiles.profile import ConditionalPerformanceProfile
 
 
@@ -44,7 +46,9 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "show",
         help="one module: its declaration, profile axes and expected quality",
         description="Show one module: kind, origin, parameters and inputs, its profile's axes "
-        "and a table of expected output quality by input quality and time.",
+        "and a table of expected output quality by input quality and time; and, when it has "
+        "one (NAME.dynamic.yaml beside its profile), what its dynamic profile observes and the "
+        "expected gain of one more step by quality state and time.",
     )
     show.add_argument("name", metavar="NAME", help="the module's name (case-insensitive)")
     show.add_argument("--json", action="store_true", help="print JSON")
@@ -89,8 +93,10 @@ def run_library_list(args: argparse.Namespace) -> int:
 def run_library_show(args: argparse.Namespace) -> int:
     entry = open_library(args)[args.name]
     profile = entry.profile
+    dynamic = entry.dynamic_profile
     if args.json:
         data = _entry_json(entry, profile, full=True)
+        data["dynamic_profile"] = None if dynamic is None else _dynamic_facts(entry, dynamic)
         print(json_text(data))
         return EXIT_OK
     kind = entry.kind if entry.module is not None else f"{entry.kind} (profile only)"
@@ -111,7 +117,7 @@ def run_library_show(args: argparse.Namespace) -> int:
     if profile is None:
         fields.append(["profile:", "none"])
         print(format_table(fields), end="")
-        return EXIT_OK
+        return EXIT_OK  # a dynamic profile is found beside a profile file only
     file = entry.profile_file
     fields.append(["profile:", str(file) if file is not None else "in memory"])
     axes = [
@@ -129,8 +135,85 @@ def run_library_show(args: argparse.Namespace) -> int:
         axes.append(["no result", f"in {cells}, probability up to {missing.max():.3g}"])
     lines = [format_table(fields) + "axes:", *format_table(axes, indent=2).splitlines(), ""]
     lines.extend(_expected_table(profile))
+    if dynamic is not None:
+        lines.extend(["", *_dynamic_lines(entry, dynamic)])
     print("\n".join(lines))
     return EXIT_OK
+
+
+#: At most this many states (rows) in `library show`'s table of a dynamic profile.
+SHOWN_STATES = 5
+
+_OBSERVED = {
+    "true": "the module's true quality (it reports it)",
+    "estimate": "the module's own estimate of its quality, with P(true quality | estimate)",
+    "none": "nothing (the module reports no quality): one state",
+}
+
+
+def _dynamic_lines(entry: LibraryEntry, dynamic: DynamicProfile) -> list[str]:
+    """What the dynamic profile observes, its axes, and the expected one-step gain of a few
+    states at a few times, at the input-quality grid's highest point."""
+    facts = _dynamic_facts(entry, dynamic)
+    unit = dynamic.time_unit
+    fields = [
+        ["observed", _OBSERVED[dynamic.observed]],
+        ["states", f"{dynamic.n_states} quality bins: {_numbers(dynamic.bins, '.3g')}"],
+        [f"time ({unit})", _numbers(dynamic.time)],
+        ["samples", f"{dynamic.samples} trials per cell"],
+    ]
+    if facts["input_qualities"]:
+        cell = ", ".join(f"{name}={q:g}" for name, q in facts["input_qualities"].items())
+        fields.append(["shown at", f"{cell} (the highest input qualities)"])
+    agreement = facts["estimate_in_true_bin"]
+    if agreement is not None:
+        fields.append(["estimate right", f"{agreement:.0%} of runs (in the true quality's bin)"])
+    lines = [f"dynamic profile: {facts['file']}", *format_table(fields, indent=2).splitlines()]
+    gain = np.array(facts["expected_gain"], dtype=float)  # null (unoccupied) -> nan
+    if gain.size == 0:
+        return lines
+    steps = _spread(gain.shape[0], SHOWN_TIMES)
+    states = _spread(gain.shape[1], SHOWN_STATES)
+    edges = dynamic.bins
+    rows = [["state \\ from time", *(f"{dynamic.time[j]:g}" for j in steps)]]
+    for k in states:
+        label = f"[{edges[k]:.3g}, {edges[k + 1]:.3g}{']' if k == dynamic.n_states - 1 else ')'}"
+        rows.append([label, *("-" if np.isnan(g) else f"{g:+.3f}" for g in gain[steps, k])])
+    title = (
+        f"  expected gain in true quality of the next step (rows: state; columns: time in {unit}):"
+    )
+    return [*lines, title, *format_table(rows, indent=4).splitlines()]
+
+
+def _spread(n: int, most: int) -> np.ndarray[Any, Any]:
+    """At most `most` indices spread evenly over range(n), both ends included."""
+    return np.unique(np.round(np.linspace(0, n - 1, min(n, most)))).astype(int)
+
+
+def _dynamic_facts(entry: LibraryEntry, dynamic: DynamicProfile) -> dict[str, Any]:
+    """The facts `library show` gives of a dynamic profile, at the highest input qualities."""
+    top = [float(grid[-1]) for grid in dynamic.input_grids]
+    here = dynamic.at(top)
+    occupied = here.occupancy[:-1] > 0
+    gain = np.where(occupied, np.round(here.expected_gain(), 12), np.nan)
+    agreement = None
+    if here.observation is not None and here.observed == "estimate":
+        right = np.diagonal(here.observation, axis1=-2, axis2=-1)  # (m, K)
+        agreement = round(float(np.mean(np.sum(here.occupancy * right, axis=-1))), 12)
+    names = list(dynamic.inputs) or [f"#{i + 1}" for i in range(len(top))]
+    file = entry.profile_file
+    return {
+        "file": None if file is None else str(dynamic_profile_path(file)),
+        "observed": dynamic.observed,
+        "states": dynamic.n_states,
+        "quality_bins": dynamic.bins.tolist(),
+        "time": dynamic.time.tolist(),
+        "time_unit": dynamic.time_unit,
+        "samples": dynamic.samples,
+        "input_qualities": dict(zip(names, top, strict=True)),
+        "expected_gain": [[None if np.isnan(g) else float(g) for g in row] for row in gain],
+        "estimate_in_true_bin": agreement,
+    }
 
 
 def _step_line(entry: LibraryEntry, profile: ConditionalPerformanceProfile | None) -> str | None:
@@ -250,5 +333,5 @@ def _expected_table(profile: ConditionalPerformanceProfile) -> list[str]:
     return [title, *format_table(rows, indent=2).splitlines()]
 
 
-def _numbers(values: np.ndarray[Any, Any]) -> str:
-    return ", ".join(f"{v:g}" for v in values)
+def _numbers(values: np.ndarray[Any, Any], spec: str = "g") -> str:
+    return ", ".join(f"{v:{spec}}" for v in values)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 from anytime.cli.common import (
@@ -13,6 +14,7 @@ from anytime.cli.common import (
     InputError,
     UsageError,
     float_in_range,
+    int_in_range,
     json_text,
     library_options,
     open_library,
@@ -27,6 +29,8 @@ from anytime.profiles.builder import (
     ProfileRequest,
     profile_module,
 )
+from anytime.profiles.dynamic import DEFAULT_STATES, DynamicProfile
+from anytime.profiles.dynamic_io import dynamic_profile_path, save_dynamic_profile, save_traces
 from anytime.profiles.io import load_profile, save_profile
 from anytime.profiles.progress import timed_progress
 from anytime.runtime.calibrate import calibrate, convert_profile
@@ -38,6 +42,8 @@ MAX_TABLE_BYTES = 1 << 30
 MAX_CHECK_RUNS = 100_000
 #: The longest calibration (seconds).
 MAX_CALIBRATION_SECONDS = 3600
+#: The most states of a dynamic profile `anytime profile --dynamic` derives.
+MAX_STATES = 100
 
 
 def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -81,9 +87,28 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     profile.add_argument(
         "-o", "--output", metavar="FILE", help="where to write the profile (MODULE.yaml)"
     )
+    profile.add_argument(
+        "--dynamic",
+        action="store_true",
+        help="also write the module's dynamic profile (how a run's quality moves from one time"
+        " to the next) beside the profile, as NAME.dynamic.yaml for NAME.yaml",
+    )
+    profile.add_argument(
+        "--states",
+        type=int_in_range(1, MAX_STATES),
+        metavar="K",
+        help=f"quality states of the dynamic profile ({DEFAULT_STATES}; at most {MAX_STATES};"
+        " with --dynamic)",
+    )
+    profile.add_argument(
+        "--traces",
+        metavar="FILE",
+        help="also write every trial's quality at every time to FILE (as NAME.traces.yaml, a"
+        " profile directory does not read it as a profile)",
+    )
     profile.add_argument("--json", action="store_true", help="print a JSON summary")
     library_options(profile)
-    profile.set_defaults(run=run_profile)
+    profile.set_defaults(run=run_profile, usage_error=profile.error)
 
     calibrate_ = commands.add_parser(
         "calibrate",
@@ -157,15 +182,18 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 
 def run_profile(args: argparse.Namespace) -> int:
+    if args.states is not None and not args.dynamic:
+        args.usage_error("--states K goes with --dynamic")
     module, library = _runnable(args)
     grid = library.measurement(module.name).grid
     cells = math.prod(grid.cell_shape)
-    size = 8 * args.trials * cells * len(grid.time)  # the builder's table of qualities
+    tables = 2 if module.reports == "estimate" and (args.dynamic or args.traces) else 1
+    size = 8 * tables * args.trials * cells * len(grid.time)  # qualities (and estimates)
     if size > MAX_TABLE_BYTES:
         raise UsageError(
-            f"--trials {args.trials}: {cells} cells x {len(grid.time)}"
-            f" times make a table of {format_size(size)}, more than the limit of"
-            f" {format_size(MAX_TABLE_BYTES)}; give fewer --trials"
+            f"--trials {args.trials}: {cells} cells x {len(grid.time)} times make"
+            f" {'tables' if tables > 1 else 'a table'} of {format_size(size)}, more than the"
+            f" limit of {format_size(MAX_TABLE_BYTES)}; give fewer --trials"
         )
     request = ProfileRequest(
         trials=args.trials,
@@ -174,19 +202,41 @@ def run_profile(args: argparse.Namespace) -> int:
         scheduler=args.scheduler,
         clock=args.clock,
         quiet=args.quiet,
+        traces=args.dynamic or args.traces is not None,
     )
     build = profile_module(module, request, measurement=library.measurement(module.name))
     output = Path(args.output if args.output is not None else f"{module.name}.yaml")
-    try:
-        save_profile(build.profile, output)
-    except OSError as error:
-        raise InputError(f"cannot write '{output}': {error.strerror}") from None
+    written = {"file": output}
+    _save(output, lambda path: save_profile(build.profile, path))
+    traces = build.traces
+    if args.dynamic:
+        assert traces is not None  # asked for with the dynamic profile
+        written["dynamic_file"] = dynamic_profile_path(output)
+        dynamic = DynamicProfile.from_traces(traces, states=args.states or DEFAULT_STATES)
+        _save(written["dynamic_file"], lambda path: save_dynamic_profile(dynamic, path))
+    if args.traces is not None:
+        assert traces is not None
+        written["traces_file"] = Path(args.traces)
+        _save(written["traces_file"], lambda path: save_traces(traces, path))
     if args.json:
-        print(json_text({"module": module.name, "file": str(output)} | build.to_dict()))
+        files = {key: str(written[key]) if key in written else None for key in FILE_KEYS}
+        print(json_text({"module": module.name} | files | build.to_dict()))
     else:
         print(build.summary())
-        print(f"wrote {output}")
+        print(f"wrote {', '.join(str(path) for path in written.values())}")
     return EXIT_OK
+
+
+#: The files `anytime profile --json` names (null: not written).
+FILE_KEYS = ("file", "dynamic_file", "traces_file")
+
+
+def _save(path: Path, write: Callable[[Path], None]) -> None:
+    """`write(path)`; a file that cannot be written is an `InputError` naming it."""
+    try:
+        write(path)
+    except OSError as error:
+        raise InputError(f"cannot write '{path}': {error.strerror}") from None
 
 
 def _runnable(args: argparse.Namespace) -> tuple[AnytimeModule, AnytimeLibrary]:
@@ -224,10 +274,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
         calibration = calibrate(module, args.seconds, measurement=plan, seed=args.seed)
     if profile is not None:
         converted = convert_profile(profile, calibration.ticks_per_second, to=args.to)
-        try:
-            save_profile(converted, args.output)
-        except OSError as error:
-            raise InputError(f"cannot write '{args.output}': {error.strerror}") from None
+        _save(Path(args.output), lambda path: save_profile(converted, path))
     if args.json:
         print(json_text(calibration.to_dict() | {"file": args.output}))
     else:

@@ -1,5 +1,13 @@
-"""Performance profiles: the data model, analytic families, file format and profile builder."""
+"""Performance profiles: the data model, analytic families, file format and profile builder;
+dynamic profiles and the quality traces they are derived from."""
 
+from anytime.profiles.dynamic import DynamicProfile, QualityTraces, quantile_bins
+from anytime.profiles.dynamic_io import (
+    load_dynamic_profile,
+    load_traces,
+    save_dynamic_profile,
+    save_traces,
+)
 from anytime.profiles.families import (
     Constant,
     DiscreteVariants,
@@ -22,10 +30,17 @@ __all__ = [
     "Exponential",
     "PerformanceProfile",
     "DiscreteVariants",
+    "DynamicProfile",
+    "QualityTraces",
     "Step",
     "VisionHyperbola",
     "default_bins",
+    "load_dynamic_profile",
+    "load_traces",
     "new_profile",
     "point_mass",
+    "quantile_bins",
+    "save_dynamic_profile",
+    "save_traces",
     "tabulate",
 ]

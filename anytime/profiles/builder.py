@@ -28,11 +28,17 @@ the ticks a module reports and does not depend on how busy the machine is.
   are counted and the first one's traceback is kept; they never stop the build. A contract run
   that uses more than its allocation keeps its result and is counted as an overrun.
 
+With `traces=True` the build also keeps what the profile is tabulated from, every trial's
+scored quality at every grid time and whether it had a result there, and for a module that
+reports an estimate (`reports="estimate"`) the `Result.quality` of its result there
+(`ProfileBuild.traces`, a `QualityTraces`): a dynamic profile is derived from them.
+
 Reproducibility: trial i at input-quality cell c draws from `SeedSequence(seed, spawn_key=(c,
 i))`, the stream `SeedSequence(seed).spawn(...)` would hand it, whichever worker runs it and in
 whatever order chunks come back. The same instance (same seed) is used at every time of the
-grid, so a cell's curve over time compares like with like. With the work clock the profile is
-therefore identical for any number of workers, any chunk size and any executor.
+grid, so a cell's curve over time compares like with like. With the work clock the profile
+(and its traces) is therefore identical for any number of workers, any chunk size and any
+executor.
 """
 
 from __future__ import annotations
@@ -53,6 +59,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from anytime.errors import AnytimeError, ProfileError
 from anytime.modules import AnytimeModule
+from anytime.profiles.dynamic import QualityTraces
 from anytime.profiles.profile import (
     Array,
     ConditionalPerformanceProfile,
@@ -172,6 +179,8 @@ class ProfileBuild:
         first_failure: the first failed run (in trial order) and its traceback, or None.
         seed: the seed the trials' random streams derive from (pass it again to reproduce).
         seconds: wall time of the whole build.
+        traces: every trial's quality at every grid time, when asked for (`traces=True`), else
+            None: what `DynamicProfile.from_traces` derives a dynamic profile from.
     """
 
     profile: ConditionalPerformanceProfile
@@ -182,6 +191,7 @@ class ProfileBuild:
     first_failure: str | None
     seed: int
     seconds: float
+    traces: QualityTraces | None = None
 
     @property
     def rate(self) -> float:
@@ -228,6 +238,7 @@ class ProfileRequest:
         clock: "work" (ticks the module reports; reproducible) or "wall" (seconds).
         quiet: no progress bar even on a terminal.
         chunk_size: trials per task (default: enough tasks to keep every worker busy).
+        traces: keep every trial's quality trace (`ProfileBuild.traces`).
     """
 
     trials: int = 100
@@ -237,6 +248,7 @@ class ProfileRequest:
     clock: ClockName = "work"
     quiet: bool = False
     chunk_size: int | None = None
+    traces: bool = False
 
 
 def profile_module(
@@ -262,6 +274,7 @@ def profile_module(
             clock=request.clock,
             progress=False if request.quiet else None,
             chunk_size=request.chunk_size,
+            traces=request.traces,
         )
 
 
@@ -313,6 +326,7 @@ def build_profile(
     clock: ClockName = "work",
     progress: bool | None = None,
     chunk_size: int | None = None,
+    traces: bool = False,
 ) -> ProfileBuild:
     """Measure `module`'s conditional performance profile on `problems`.
 
@@ -329,6 +343,8 @@ def build_profile(
         clock: "work" (default, reproducible) or "wall".
         progress: draw a progress bar on standard error (None: only on a terminal).
         chunk_size: trials per task; it changes the overhead, never the result.
+        traces: also keep every trial's scored quality at every grid time, and for a module
+            that reports an estimate its `Result.quality` there (`ProfileBuild.traces`).
     """
     started = _time.perf_counter()
     grid = _check(module, time, input_grids, bins, trials, seed, workers, clock, chunk_size)
@@ -342,29 +358,30 @@ def build_profile(
     ]
     quality = np.zeros((total, len(grid.time)))
     scored = np.ones(quality.shape, dtype=np.bool_)
+    # The module's reports are kept only where they are traces' estimates (a "true" report is
+    # the score itself, and "none" says nothing).
+    estimate = np.zeros(quality.shape) if traces and module.reports == "estimate" else None
     failures = overruns = 0
     step = 0.0
     first: tuple[int, str] | None = None
     with ProgressBar(total, label=module.name, enabled=progress) as bar:
         for done in _run(chunks, executor, workers):
             quality[done.start : done.start + len(done.quality)] = done.quality
+            rows = slice(done.start, done.start + len(done.quality))
             if done.scored is not None:
-                scored[done.start : done.start + len(done.quality)] = done.scored
+                scored[rows] = done.scored
+            if estimate is not None and done.reported is not None:
+                estimate[rows] = done.reported
             failures += done.failures
             overruns += done.overruns
             step = max(step, done.step)
             if done.first_failure is not None and (first is None or done.first_failure < first):
                 first = done.first_failure
             bar.update(len(done.quality))
+    shape = (*grid.cell_shape, trials, len(grid.time))
+    quality, scored = quality.reshape(shape), scored.reshape(shape)
     return ProfileBuild(
-        profile=_tabulate(
-            module,
-            grid,
-            quality.reshape((*grid.cell_shape, trials, -1)),
-            ~scored.reshape((*grid.cell_shape, trials, -1)),
-            clock,
-            step,
-        ),
+        profile=_tabulate(module, grid, quality, ~scored, clock, step),
         trials=trials,
         runs=total * (len(grid.time) if module.kind == "contract" else 1),
         failures=failures,
@@ -372,6 +389,30 @@ def build_profile(
         first_failure=None if first is None else first[1],
         seed=entropy,
         seconds=_time.perf_counter() - started,
+        traces=_traces(module, grid, quality, scored, estimate, clock) if traces else None,
+    )
+
+
+def _traces(
+    module: AnytimeModule,
+    grid: Grid,
+    quality: Array,
+    scored: NDArray[np.bool_],
+    estimate: Array | None,
+    clock: str,
+) -> QualityTraces:
+    """The build's tables as traces; `estimate` (flat, one row per trial) is 0 where a run had
+    no result."""
+    return QualityTraces(
+        module=module.name,
+        time=grid.time,
+        quality=quality,
+        scored=scored,
+        estimate=None if estimate is None else estimate.reshape(quality.shape),
+        reports=module.reports,
+        input_grids=grid.input_grids,
+        inputs=module.inputs,
+        time_unit=CLOCKS[clock][1],
     )
 
 

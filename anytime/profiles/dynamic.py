@@ -221,10 +221,18 @@ def _bin_of(quality: Array, bins: Array) -> NDArray[np.intp]:
     return index
 
 
-def _counts(index: NDArray[np.intp], k: int) -> Array:
-    """`(*cells, trials, m)` bin indices -> `(*cells, m, k)` counts (one-hot summed over trials)."""
-    counts: Array = np.eye(k)[index].sum(axis=-3)
-    return counts
+def _counts(index: NDArray[np.intp], k: int, weights: Array | None = None) -> Array:
+    """`(*cells, trials, m)` indices in [0, k) -> `(*cells, m, k)` counts over the trials (or
+    sums of `weights`), by one `bincount` over every cell and time (a one-hot table would take
+    k times the memory of the traces)."""
+    moved = np.moveaxis(index, -2, -1)  # (*cells, m, trials)
+    lead = moved.shape[:-1]
+    offsets = np.arange(int(np.prod(lead)), dtype=np.intp).reshape((*lead, 1)) * k
+    flat_weights = None if weights is None else np.moveaxis(weights, -2, -1).ravel()
+    counts = np.bincount(
+        (moved + offsets).ravel(), weights=flat_weights, minlength=int(np.prod(lead)) * k
+    )
+    return counts.astype(np.float64).reshape((*lead, k))
 
 
 @frozen
@@ -293,21 +301,17 @@ class DynamicProfile:
         occupancy = _counts(state, k) / n
         # Pair counts of consecutive states: (*cells, m - 1, K, K), summed over trials.
         pair = state[..., :-1] * k + state[..., 1:]
-        pairs = np.eye(k * k)[pair].sum(axis=-3).reshape((*pair.shape[:-2], pair.shape[-1], k, k))
+        pairs = _counts(pair, k * k).reshape((*pair.shape[:-2], pair.shape[-1], k, k))
         seen = pairs.sum(axis=-1, keepdims=True)
         transition = np.where(seen > 0, pairs / np.maximum(seen, 1), np.eye(k))
         true_counts = _counts(true, k)  # (*cells, m, K)
-        sums = (np.eye(k)[true] * traces.quality[..., None]).sum(axis=-3)
+        sums = _counts(true, k, weights=traces.quality)
         midpoints = (edges[:-1] + edges[1:]) / 2
         quality_mean = np.where(true_counts > 0, sums / np.maximum(true_counts, 1), midpoints)
         quality_mean = np.clip(quality_mean, np.r_[0.0, edges[1:-1]], np.r_[edges[1:-1], 1.0])
         observation = None
         if traces.reports != "true":
-            joint = (
-                np.eye(k * k)[state * k + true]
-                .sum(axis=-3)
-                .reshape((*state.shape[:-2], state.shape[-1], k, k))
-            )
+            joint = _counts(state * k + true, k * k).reshape((*true_counts.shape, k))
             given = joint.sum(axis=-1, keepdims=True)
             marginal = true_counts[..., None, :] / n
             observation = np.where(given > 0, joint / np.maximum(given, 1), marginal)
@@ -370,6 +374,21 @@ class DynamicProfile:
         for j in range(start, end):  # one matrix product per time step, not per cell
             product = product @ self.transition[..., j, :, :]
         return np.array(product)
+
+    def expected_quality(self) -> Array:
+        """E[true quality | state k at time j], `(*cells, m, K)`."""
+        probability, quality = self.true_quality()
+        expected: Array = np.einsum("...kb,...b->...k", probability, quality)
+        return expected
+
+    def expected_gain(self) -> Array:
+        """The expected gain in true quality of one more step, `(*cells, m - 1, K)`:
+        E[true quality at j + 1 | state k at j] - E[true quality at j | state k at j] (for a
+        state no trial was in at time j, what staying in it gains)."""
+        now = self.expected_quality()
+        later = np.einsum("...jkl,...jl->...jk", self.transition, now[..., 1:, :])
+        gain: Array = later - now[..., :-1, :]
+        return gain
 
     def true_quality(self) -> tuple[Array, Array]:
         """What each state at each time says of the true quality: `(P, q)` with P `(*cells, m,

@@ -52,6 +52,10 @@ back an equal profile. A profile whose probabilities are exactly the point masse
 is written as `expected:`, so a hand-written `expected:` file keeps its form. A profile without
 a module name takes the file's name when loaded back; a profile without input axes comes back
 as a `PerformanceProfile`.
+
+The formats of dynamic profiles and quality traces (`anytime.profiles.dynamic_io`) are of the
+same family: they share this module's reader (`read_document`, `_Reader.header`), companion
+(`place_tables`) and writer (`write_document`).
 """
 
 from __future__ import annotations
@@ -150,9 +154,20 @@ def read_profile_file(
 ) -> tuple[ConditionalPerformanceProfile, Mapping[Any, Any]]:
     """The validated profile of a file and the file's mapping, the tables of its companion (if
     it has one) in it as arrays: what a reader of the fields beyond the profile's needs."""
+    reader, data = read_document(path)
+    fields = reader.fields(data)
+    return reader.profile(fields), fields
+
+
+def read_document(
+    path: str | os.PathLike[str], tables: Sequence[str] = TABLES, kind: str = "profile files"
+) -> tuple[_Reader, object]:
+    """The parsed YAML document of a file of this format's family (a profile, a dynamic
+    profile, traces), with the arrays of its companion, which may hold `tables`, read into it;
+    and the reader that names the file (and the lines of its fields) in messages."""
     filename = os.fspath(path)
     try:
-        data = read_input(path, limit=MAX_PROFILE_BYTES, kind="profile files")
+        data = read_input(path, limit=MAX_PROFILE_BYTES, kind=kind)
         text = data.decode("utf-8-sig").replace("\r\n", "\n").replace("\r", "\n")
     except UnicodeDecodeError as exc:
         bad = exc.object[exc.start : exc.start + 1].hex()
@@ -162,9 +177,8 @@ def read_profile_file(
         ) from None
     except OSError as exc:
         raise ProfileError(f"{filename}: cannot read the file: {exc.strerror or exc}") from None
-    reader = _Reader(filename, text)
-    fields = reader.fields(reader.with_companion(_parse_yaml(text, filename)))
-    return reader.profile(fields), fields
+    reader = _Reader(filename, text, tables)
+    return reader, reader.with_companion(_parse_yaml(text, filename))
 
 
 def _parse_yaml(text: str, filename: str) -> object:
@@ -224,9 +238,12 @@ def profile_from_dict(
 class _Reader:
     """Reads one file's mapping, field by field, failing at the first problem."""
 
-    def __init__(self, filename: str, text: str | None = None) -> None:
+    def __init__(
+        self, filename: str, text: str | None = None, tables: Sequence[str] = TABLES
+    ) -> None:
         self.filename = filename
         self.text = text  # the file's text, when there is one: messages can then say where
+        self.tables = tuple(tables)  # the tables a companion may hold (and the time grid)
 
     def fail(self, field: str, problem: str, *, at_line: bool = False) -> NoReturn:
         """Raise the `ProfileError`; with `at_line`, at the line and column of the value of the
@@ -264,10 +281,10 @@ class _Reader:
                 "tables.shapes", f"expected a mapping of table -> shape, got {_describe(shapes)}"
             )
         for key, shape in shapes.items():
-            if key not in (*TABLES, "time"):
+            if key not in (*self.tables, "time"):
                 self.fail(
                     f"tables.shapes.{key}",
-                    f"expected one of {', '.join(TABLES)}, time; got {_describe(key)}",
+                    f"expected one of {', '.join(self.tables)}, time; got {_describe(key)}",
                 )
             if key in data:
                 self.fail(key, "given both in this file and in its companion (expected one)")
@@ -313,30 +330,45 @@ class _Reader:
         except (OSError, ValueError, zipfile.BadZipFile) as exc:
             self.fail("tables.file", f"the companion '{name}' is not an archive of arrays: {exc}")
 
-    def fields(self, data: object) -> Mapping[Any, Any]:
-        """The top-level mapping, once the version, the field names and the choices are right."""
+    def header(
+        self,
+        data: object,
+        version: str,
+        fields: Sequence[str],
+        required: Mapping[str, str],
+        loader: str,
+    ) -> Mapping[Any, Any]:
+        """The top-level mapping, once its format is `version`, every field one of `fields` and
+        every field of `required` (name -> what it holds) given; `loader` is the function that
+        reads such a file with its companion."""
         if not isinstance(data, Mapping):
             self.fail("top level", f"expected a mapping of fields, got {_describe(data)}")
         if "format" not in data:
-            self.fail("format", f"missing field (expected {FORMAT!r}, got nothing)")
-        if data["format"] != FORMAT:
+            self.fail("format", f"missing field (expected {version!r}, got nothing)")
+        if data["format"] != version:
             self.fail(
                 "format",
-                f"unknown format version (expected {FORMAT!r}, got {_describe(data['format'])})",
+                f"unknown format version (expected {version!r}, got {_describe(data['format'])})",
             )
         if "tables" in data:  # `with_companion` reads them into the mapping
-            self.fail("tables", "a companion is read with its file (load_profile), not here")
+            self.fail("tables", f"a companion is read with its file ({loader}), not here")
         for key in data:
-            if key not in FIELDS:
-                hint = did_you_mean(str(key), FIELDS, separator=", ")
+            if key not in fields:
+                hint = did_you_mean(str(key), fields, separator=", ")
                 self.fail(
                     str(key),
-                    f"unknown field{hint} (expected one of {', '.join(FIELDS)};"
+                    f"unknown field{hint} (expected one of {', '.join(fields)};"
                     f" got {_describe(key)})",
                 )
-        for key, what in (("time", "a list of times"), ("quality_bins", "a list of bin edges")):
+        for key, what in required.items():
             if key not in data:
                 self.fail(key, f"missing field (expected {what}, got nothing)")
+        return data
+
+    def fields(self, data: object) -> Mapping[Any, Any]:
+        """The top-level mapping, once the version, the field names and the choices are right."""
+        required = {"time": "a list of times", "quality_bins": "a list of bin edges"}
+        data = self.header(data, FORMAT, FIELDS, required, "load_profile")
         if "probability" in data and "expected" in data:
             self.fail("probability", "expected exactly one of probability and expected, got both")
         if "probability" not in data and "expected" not in data:
@@ -413,8 +445,12 @@ class _Reader:
                 bin_mean=bin_mean,
             )
         except ProfileError as exc:  # the class's own invariants: re-prefix with the file
-            message = str(exc).removeprefix(f"{module or 'profile'}: ")
-            raise ProfileError(f"{self.filename}: {message}") from None
+            self.refile(exc, module or "profile")
+
+    def refile(self, error: ProfileError, name: str) -> NoReturn:
+        """Raise `error`, an invariant of a class named `name` in its messages, as this file's."""
+        message = str(error).removeprefix(f"{name}: ")
+        raise ProfileError(f"{self.filename}: {message}") from None
 
     # --- scalars -------------------------------------------------------------------------
 
@@ -637,7 +673,7 @@ def _describe(value: object) -> str:
 def profile_to_dict(profile: ConditionalPerformanceProfile) -> dict[str, Any]:
     """The file's mapping for `profile`: plain lists, floats exact, integral values as ints."""
     header, tables = _split(profile)
-    return {**header, **{key: _plain(table) for key, table in tables.items()}}
+    return {**header, **{key: plain(table) for key, table in tables.items()}}
 
 
 def _split(profile: ConditionalPerformanceProfile) -> tuple[dict[str, Any], dict[str, Array]]:
@@ -652,9 +688,9 @@ def _split(profile: ConditionalPerformanceProfile) -> tuple[dict[str, Any], dict
         data["step"] = int(step) if step.is_integer() and abs(step) < 2**53 else step
     if len(profile.inputs) == profile.n_inputs:  # unnamed input axes are left unnamed
         data["inputs"] = list(profile.inputs)
-    data["input_quality"] = [_plain(grid) for grid in profile.input_grids]
-    data["time"] = _plain(profile.time)
-    data["quality_bins"] = _plain(profile.bins)
+    data["input_quality"] = [plain(grid) for grid in profile.input_grids]
+    data["time"] = plain(profile.time)
+    data["quality_bins"] = plain(profile.bins)
     tables: dict[str, Array | None] = {}
     if _is_point_mass(profile):
         tables["expected"] = profile.mean
@@ -688,23 +724,41 @@ def save_profile(
     """
     data, tables = _split(profile)
     if companion is None:
-        companion = sum(table.size for table in tables.values()) > COMPANION_THRESHOLD
-    if companion:
-        if len(profile.time) > LONG_GRID:  # read as fast as the tables it indexes
-            del data["time"]
-            tables = {"time": profile.time, **tables}
-        data["tables"] = _write_companion(tables, Path(path))
-    else:
-        data.update((key, _plain(table)) for key, table in tables.items())
+        companion = is_large(tables)
+    if companion and len(profile.time) > LONG_GRID:  # read as fast as the tables it indexes
+        del data["time"]
+        tables = {"time": profile.time, **tables}
+    place_tables(data, tables, Path(path), companion)
     for key, value in (extra or {}).items():
         if key not in ("modules", "allocation", "compiled"):
             raise ValueError(f"not a field a profile file may carry: {key!r}")
         if key == "allocation":
-            data[key] = _plain(np.asarray(value))
+            data[key] = plain(np.asarray(value))
         else:
             data[key] = dict(value) if key == "compiled" else list(value)
+    write_document(data, path)
+
+
+def is_large(tables: Mapping[str, Array]) -> bool:
+    """Whether `tables` hold more numbers than `COMPANION_THRESHOLD`: a companion's job."""
+    return sum(table.size for table in tables.values()) > COMPANION_THRESHOLD
+
+
+def place_tables(
+    data: dict[str, Any], tables: Mapping[str, Array], path: Path, companion: bool
+) -> None:
+    """Add `tables` to the mapping `data` of the file `path`: as plain lists, or (`companion`)
+    written into the binary companion beside it, which `data` then names with its digest."""
+    if companion:
+        data["tables"] = _write_companion(tables, path)
+    else:
+        data.update((key, plain(table)) for key, table in tables.items())
+
+
+def write_document(data: Mapping[str, Any], path: str | os.PathLike[str]) -> None:
+    """Write the mapping `data` to `path` as YAML, atomically, in the order of its keys."""
     text = yaml.dump(
-        data,
+        dict(data),
         Dumper=_Dumper,
         sort_keys=False,
         default_flow_style=False,
@@ -744,15 +798,15 @@ def _is_point_mass(profile: ConditionalPerformanceProfile) -> bool:
     )
 
 
-def _plain(array: Array) -> Any:
+def plain(array: Array) -> Any:
     """Nested lists of Python numbers; floats keep full precision, integral ones print as ints."""
 
-    def plain(x: Any) -> Any:
+    def number(x: Any) -> Any:
         if isinstance(x, list):
-            return [plain(item) for item in x]
+            return [number(item) for item in x]
         return int(x) if x.is_integer() and abs(x) < 2**53 else x
 
-    return plain(array.tolist())
+    return number(array.tolist())
 
 
 class _Dumper(yaml.SafeDumper):

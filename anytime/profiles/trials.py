@@ -128,6 +128,9 @@ class Done:
     step: float = 0.0  # the largest step of the chunk's runs (see `_interruptible`, `_contract`)
     # (stop - start, len(time)): whether the run had a result at each grid time (None: always)
     scored: NDArray[np.bool_] | None = None
+    # (stop - start, len(time)): the quality the module reported of its result at each grid time
+    # (its `Result.quality`; 0 where it had none), or None: not recorded
+    reported: Array | None = None
 
 
 def measure_chunk(chunk: Chunk) -> Done:
@@ -135,6 +138,7 @@ def measure_chunk(chunk: Chunk) -> Done:
     grid = chunk.grid
     quality = np.zeros((chunk.stop - chunk.start, len(grid.time)))
     scored = np.zeros(quality.shape, dtype=np.bool_)  # no result until one is scored
+    reported = np.zeros(quality.shape)
     failures = overruns = 0
     step = 0.0
     first: tuple[int, str] | None = None
@@ -151,14 +155,31 @@ def measure_chunk(chunk: Chunk) -> Done:
             CLOCKS[chunk.clock][0],
             f"trial {instance} at input qualities {list(qualities)}",
         )
-        failed, overran, longest = measure(trial, grid.time, quality[row], scored[row])
+        failed, overran, longest = measure(
+            trial, grid.time, Row(quality[row], scored[row], reported[row])
+        )
         overruns += overran
         step = max(step, longest)
         failures += len(failed)
         if failed and first is None:
             headline, details = failed[0]
             first = (flat, f"{headline} ({trial.where})\n{details}".rstrip())
-    return Done(chunk.start, quality, failures, overruns, first, step, scored)
+    return Done(chunk.start, quality, failures, overruns, first, step, scored, reported)
+
+
+@frozen(eq=False)
+class Row:
+    """Where one trial's measurements go, one entry per grid time: the score of its result,
+    whether it had one, and the quality it reported of it (`Result.quality`)."""
+
+    quality: Array
+    scored: NDArray[np.bool_]
+    reported: Array
+
+    def record(self, where: slice | int, score: float, reported: float) -> None:
+        self.quality[where] = score
+        self.scored[where] = True
+        self.reported[where] = reported
 
 
 @frozen(eq=False)
@@ -243,11 +264,10 @@ def _arguments(
 Failures = list[tuple[str, str]]  # (headline, traceback) of each failed run
 
 
-def _interruptible(
-    trial: Trial, time: Array, out: Array, scored: NDArray[np.bool_]
-) -> tuple[Failures, int, float]:
-    """One run up to the last grid time; `out[j]` becomes the score of the answer at `time[j]`
-    and `scored[j]` true where there is one (before its first result the run has none).
+def _interruptible(trial: Trial, time: Array, out: Row) -> tuple[Failures, int, float]:
+    """One run up to the last grid time; `out` records at each `time[j]` the score of the
+    answer there and the quality the module reported of it, where there is one (before its
+    first result the run has none).
 
     Also returns the run's step: the largest gap between the moments it gave control back (its
     start, every yield, the end of the run), so the gap to a yield past the last grid time (the
@@ -263,7 +283,7 @@ def _interruptible(
     allocation = float(time[-1])
     clock = _Watch(trial.clock())
     ctx = Context(allocation=allocation, clock=clock)
-    answers: list[tuple[int, Any]] = []  # (first grid index it answers for, value)
+    answers: list[tuple[int, Result]] = []  # (first grid index it answers for, the result)
     failed: Failures = []
     last = step = 0.0  # the last moment it gave control back, and the largest gap so far
     cut = False  # the run was ended here, at a yield past the last grid time
@@ -288,9 +308,9 @@ def _interruptible(
                 break
             first = int(np.searchsorted(time, at, side="left"))  # the grid times >= at
             if answers and answers[-1][0] == first:
-                answers[-1] = (first, item.value)  # superseded before the next grid time
+                answers[-1] = (first, item)  # superseded before the next grid time
             else:
-                answers.append((first, item.value))
+                answers.append((first, item))
     finally:
         try:
             generator.close()
@@ -305,9 +325,8 @@ def _interruptible(
     # at all (the first came after the last grid time, as a slow wall clock can make it) leaves
     # the row at quality 0, without a result.
     ends = [first for first, _ in answers[1:]] + [len(time)] if answers else []
-    for (first, value), end in zip(answers, ends, strict=True):
-        out[first:end] = trial.score(instance, value)
-        scored[first:end] = True
+    for (first, result), end in zip(answers, ends, strict=True):
+        out.record(slice(first, end), trial.score(instance, result.value), result.quality)
     return failed, 0, step
 
 
@@ -342,12 +361,10 @@ class _Watch:
         return self.reports > 0 and self.began < deadline - slack <= self.previous
 
 
-def _contract(
-    trial: Trial, time: Array, out: Array, scored: NDArray[np.bool_]
-) -> tuple[Failures, int, float]:
-    """One run per grid time on the same instance, with that time as its allocation; `out[j]`
-    is the score of its result, and `scored[j]` true where it returned one (a run that raised
-    or returned None has none).
+def _contract(trial: Trial, time: Array, out: Row) -> tuple[Failures, int, float]:
+    """One run per grid time on the same instance, with that time as its allocation; `out`
+    records at `time[j]` the score of its result and the quality it reported, where it
+    returned one (a run that raised or returned None has none).
 
     Also returns the step: the most any of the runs used past its allocation (0 if none did),
     whether it returned a result, none, or raised.
@@ -374,6 +391,5 @@ def _contract(
             continue
         if used > allocation:  # counted as a plain int (a numpy bool would make it int64)
             overruns += 1
-        out[j] = trial.score(instance, result.value)
-        scored[j] = True
+        out.record(j, trial.score(instance, result.value), result.quality)
     return failed, overruns, step
