@@ -361,6 +361,7 @@ def build_profile(
     # The module's reports are kept only where they are traces' estimates (a "true" report is
     # the score itself, and "none" says nothing).
     estimate = np.zeros(quality.shape) if traces and module.reports == "estimate" else None
+    finished = np.full(total, float(grid.time[-1]))
     failures = overruns = 0
     step = 0.0
     first: tuple[int, str] | None = None
@@ -372,6 +373,8 @@ def build_profile(
                 scored[rows] = done.scored
             if estimate is not None and done.reported is not None:
                 estimate[rows] = done.reported
+            if done.finished is not None:
+                finished[rows] = done.finished
             failures += done.failures
             overruns += done.overruns
             step = max(step, done.step)
@@ -389,7 +392,9 @@ def build_profile(
         first_failure=None if first is None else first[1],
         seed=entropy,
         seconds=_time.perf_counter() - started,
-        traces=_traces(module, grid, quality, scored, estimate, clock) if traces else None,
+        traces=_traces(module, grid, quality, scored, estimate, finished, clock)
+        if traces
+        else None,
     )
 
 
@@ -399,6 +404,7 @@ def _traces(
     quality: Array,
     scored: NDArray[np.bool_],
     estimate: Array | None,
+    finished: Array,
     clock: str,
 ) -> QualityTraces:
     """The build's tables as traces; `estimate` (flat, one row per trial) is 0 where a run had
@@ -409,6 +415,7 @@ def _traces(
         quality=quality,
         scored=scored,
         estimate=None if estimate is None else estimate.reshape(quality.shape),
+        finished=finished.reshape(quality.shape[:-1]),
         reports=module.reports,
         input_grids=grid.input_grids,
         inputs=module.inputs,

@@ -89,6 +89,10 @@ class QualityTraces:
         reports: what the module's `Result.quality` is: "true", "estimate" or "none".
         input_grids, inputs: the input-quality grid of the cells, as in a static profile.
         time_unit: "ticks" or "seconds".
+        finished: `(*cells, trials)` when each run ended: the time it returned (or failed) by
+            itself, or the last grid time if it was still running there; None: not known
+            (traces made before it was recorded). A run that ends by itself ends its trace: a
+            monitor has nothing more to decide.
     """
 
     module: str
@@ -106,6 +110,9 @@ class QualityTraces:
     )
     inputs: tuple[str, ...] = field(default=(), converter=_names)
     time_unit: TimeUnit = "ticks"
+    finished: Array | None = field(
+        default=None, converter=_optional_array, eq=cmp_using(eq=_optional_eq), hash=False
+    )
 
     def __attrs_post_init__(self) -> None:
         _validate_traces(self)
@@ -149,7 +156,19 @@ class QualityTraces:
             input_grids=self.input_grids,
             inputs=self.inputs,
             time_unit=self.time_unit,
+            finished=None if self.finished is None else np.take(self.finished, chosen, axis=-1),
         )
+
+    def end_index(self) -> NDArray[np.intp]:
+        """`(*cells, trials)` the grid index at which each run's trace ends: the first grid
+        time at or after it finished (the last grid time where that is not known)."""
+        last = len(self.time) - 1
+        if self.finished is None:
+            return np.full(self.quality.shape[:-1], last, dtype=np.intp)
+        index: NDArray[np.intp] = np.minimum(
+            np.searchsorted(self.time, self.finished * (1 - 1e-12), side="left"), last
+        )
+        return index
 
 
 def _validate_traces(t: QualityTraces) -> None:
@@ -192,6 +211,17 @@ def _validate_traces(t: QualityTraces) -> None:
             )
     if t.scored.shape != expected:
         fail("scored", f"expected shape {list(expected)}, got {list(t.scored.shape)}")
+    if t.finished is not None:
+        if t.finished.shape != expected[:-1]:
+            fail("finished", f"expected shape {list(expected[:-1])}, got {list(t.finished.shape)}")
+        bad = ~np.isfinite(t.finished) | (t.finished < 0) | (t.finished > t.time[-1])
+        if np.any(bad):
+            index = tuple(int(i) for i in np.argwhere(bad)[0])
+            fail(
+                "finished" + "".join(f"[{i}]" for i in index),
+                f"expected a time from 0 to the last grid time {t.time[-1]:g}, got"
+                f" {t.finished[index]:.10g}",
+            )
     if (t.estimate is None) != (t.reports != "estimate"):
         fail(
             "estimate",

@@ -39,6 +39,8 @@ Quality traces, `anytime-traces/1` (`QualityTraces`; N trials)::
     scored: ...                         # required: (*cells, N, m) 1 where the run had a result
     estimate: ...                       # (*cells, N, m) reported quality, exactly when reports
                                         # is estimate
+    finished: ...                       # (*cells, N) when each run ended: by itself, or at
+                                        # the last grid time (optional: not known)
 
 Traces follow the profile's companion rule rather than always going to a companion: the traces
 of a small measurement (tens of trials on a few cells) stay one readable file that a review
@@ -106,7 +108,7 @@ DYNAMIC_FIELDS = (
     "quality_bins",
     *DYNAMIC_TABLES,
 )
-TRACES_TABLES = ("quality", "scored", "estimate")
+TRACES_TABLES = ("quality", "scored", "estimate", "finished")
 TRACES_FIELDS = (
     "format",
     "module",
@@ -203,6 +205,9 @@ def load_traces(path: str | os.PathLike[str]) -> QualityTraces:
     estimate = None
     if "estimate" in data:
         estimate = reader.table("estimate", data["estimate"], shape, names, quality=True)
+    finished = None
+    if "finished" in data:
+        finished = reader.table("finished", data["finished"], shape[:-1], names[:-1], quality=False)
     try:
         return QualityTraces(
             module=axes.module,
@@ -210,6 +215,7 @@ def load_traces(path: str | os.PathLike[str]) -> QualityTraces:
             quality=quality,
             scored=scored.astype(np.bool_),
             estimate=estimate,
+            finished=finished,
             reports=reports,
             input_grids=axes.grids,
             inputs=axes.inputs,
@@ -306,6 +312,8 @@ def save_traces(
     tables = {"quality": traces.quality, "scored": traces.scored.astype(np.float64)}
     if traces.estimate is not None:
         tables["estimate"] = traces.estimate
+    if traces.finished is not None:
+        tables["finished"] = traces.finished
     _write(data, tables, path, companion)
 
 

@@ -131,6 +131,9 @@ class Done:
     # (stop - start, len(time)): the quality the module reported of its result at each grid time
     # (its `Result.quality`; 0 where it had none), or None: not recorded
     reported: Array | None = None
+    # (stop - start,): when each run ended, by itself or at the last grid time (see `Row`), or
+    # None: not recorded
+    finished: Array | None = None
 
 
 def measure_chunk(chunk: Chunk) -> Done:
@@ -139,6 +142,7 @@ def measure_chunk(chunk: Chunk) -> Done:
     quality = np.zeros((chunk.stop - chunk.start, len(grid.time)))
     scored = np.zeros(quality.shape, dtype=np.bool_)  # no result until one is scored
     reported = np.zeros(quality.shape)
+    finished = np.full(len(quality), float(grid.time[-1]))
     failures = overruns = 0
     step = 0.0
     first: tuple[int, str] | None = None
@@ -156,7 +160,7 @@ def measure_chunk(chunk: Chunk) -> Done:
             f"trial {instance} at input qualities {list(qualities)}",
         )
         failed, overran, longest = measure(
-            trial, grid.time, Row(quality[row], scored[row], reported[row])
+            trial, grid.time, Row(quality[row], scored[row], reported[row], finished[row : row + 1])
         )
         overruns += overran
         step = max(step, longest)
@@ -164,7 +168,7 @@ def measure_chunk(chunk: Chunk) -> Done:
         if failed and first is None:
             headline, details = failed[0]
             first = (flat, f"{headline} ({trial.where})\n{details}".rstrip())
-    return Done(chunk.start, quality, failures, overruns, first, step, scored, reported)
+    return Done(chunk.start, quality, failures, overruns, first, step, scored, reported, finished)
 
 
 @frozen(eq=False)
@@ -175,6 +179,9 @@ class Row:
     quality: Array
     scored: NDArray[np.bool_]
     reported: Array
+    # When the run ended: by itself (an interruptible module that returned or failed before the
+    # last grid time), else at the last grid time; one entry.
+    finished: Array
 
     def record(self, where: slice | int, score: float, reported: float) -> None:
         self.quality[where] = score
@@ -317,6 +324,8 @@ def _interruptible(trial: Trial, time: Array, out: Row) -> tuple[Failures, int, 
         except Exception as exc:
             failed.append(_failure(exc))
         end = ctx.elapsed
+        if not cut and end < allocation:  # it returned (or failed) by itself, before the end
+            out.finished[0] = end
         stretch = end - last
         if not cut and clock.spent_by_last_report(ctx.start + allocation):
             stretch = max(clock.longest, clock.now() - clock.previous)

@@ -125,6 +125,37 @@ def test_one_and_two_workers_and_any_chunk_size_give_the_same_traces() -> None:
     assert traces_of(climb, seed=4, **kwargs) != one
 
 
+@interruptible("settle", inputs=["x"], registry=TOYS)
+def settle(ctx: Context, x: Result, rng: np.random.Generator) -> Iterator[Result]:
+    """Rises by 0.25 every 10 ticks and returns once it has reached its input's quality."""
+    q = 0.0
+    while not ctx.expired and q < x.quality:
+        ctx.tick(10)
+        q = min(x.quality, q + 0.25)
+        yield Result(q, q)
+
+
+def test_the_traces_say_when_each_run_ended() -> None:
+    """A run that returns by itself ends its trace there; one still going at the last grid
+    time (input 1.0 takes 40 ticks, its allocation) ends there."""
+    traces = traces_of(settle, input_grids=[[0.5, 1.0]], trials=2)
+    assert traces.finished is not None
+    np.testing.assert_array_equal(traces.finished, [[20, 20], [40, 40]])
+    np.testing.assert_array_equal(traces.end_index(), [[2, 2], [3, 3]])
+    unknown = attrs.evolve(traces, finished=None)
+    np.testing.assert_array_equal(unknown.end_index(), [[3, 3], [3, 3]])
+    honest_traces = traces_of(honest, trials=2)  # never returns before its time is up
+    assert honest_traces.finished is not None and np.all(honest_traces.finished == 40)
+
+
+def test_a_finish_after_the_last_grid_time_is_refused() -> None:
+    with pytest.raises(ProfileError) as raised:
+        attrs.evolve(hand_made(), finished=[1.0, 2.5])
+    assert str(raised.value) == (
+        "hand: finished[1]: expected a time from 0 to the last grid time 2, got 2.5"
+    )
+
+
 def test_a_request_for_traces_gets_them() -> None:
     plan = Measurement.of(ValueIsQuality(), time=TIME)
     build = profile_module(honest, ProfileRequest(trials=3, traces=True), measurement=plan)
@@ -192,10 +223,13 @@ def random_traces(draw: st.DrawFn) -> QualityTraces:
     if rounded:
         quality = np.round(quality, 1)
     reports = draw(st.sampled_from(OBSERVED))
+    time = np.cumsum(rng.integers(1, 5, m)) - 1.0
+    finished = rng.uniform(0, time[-1], shape[:-1]) if draw(st.booleans()) else None
     return QualityTraces(
         module="random",
-        time=np.cumsum(rng.integers(1, 5, m)) - 1.0,
+        time=time,
         quality=quality,
+        finished=finished,
         scored=rng.random(shape) < 0.8,
         estimate=rng.random(shape) if reports == "estimate" else None,
         reports=reports,
