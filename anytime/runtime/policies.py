@@ -261,7 +261,8 @@ class FixedStopping(_GridPolicy):
 
     def _curve(self, last: int) -> Array:
         m = self.model
-        return np.einsum("jk,jk->j", m.marginal[: last + 1], m.stop_utility[: last + 1])
+        curve: Array = np.einsum("jk,jk->j", m.marginal[: last + 1], m.stop_utility[: last + 1])
+        return curve
 
     def _start(self) -> Decision:
         curve = self._curve(self.last)
@@ -305,7 +306,8 @@ class MyopicStopping(_GridPolicy):
         """`(m - 1, K)` the expected gain of one more step in each state at each time."""
         m = self.model
         ahead = np.einsum("jkl,jl->jk", m.profile.transition, m.stop_utility[1:])
-        return ahead - m.stop_utility[:-1] - self.monitoring_cost
+        gain: Array = ahead - m.stop_utility[:-1] - self.monitoring_cost
+        return gain
 
     def stops(self) -> Array:
         """`(m, K)` where the rule stops (always at the last grid time)."""
@@ -476,7 +478,8 @@ class ProjectedStopping(_GridPolicy):
         m, n = self.model, self.last + 1
         t = m.time[:n]
         if len(self._seen) < self.points:
-            return np.einsum("jk,jk->j", m.marginal[:n], m.expected_true[:n])
+            expected: Array = np.einsum("jk,jk->j", m.marginal[:n], m.expected_true[:n])
+            return expected
         seen_t, seen_q = np.array(self._seen).T
         span = max(float(t[-1] - t[0]), 1e-12)
         rates = self.RATES[:, None] / span
@@ -487,13 +490,14 @@ class ProjectedStopping(_GridPolicy):
         a = seen_q.mean() + b * basis.mean(axis=1)
         error = ((a[:, None] - b[:, None] * basis - seen_q) ** 2).sum(axis=1)
         best = int(np.argmin(error))
-        curve = np.clip(a[best] - b[best] * np.exp(-rates[best, 0] * t), 0.0, 1.0)
+        curve: Array = np.clip(a[best] - b[best] * np.exp(-rates[best, 0] * t), 0.0, 1.0)
         if m.profile.observed == "true":
             return curve
         # A projected estimate is worth what the observation model says its state is worth.
         bins = m.profile.bins
         index = np.clip(np.searchsorted(bins, curve, side="right") - 1, 0, len(bins) - 2)
-        return m.expected_true[np.arange(n), index]
+        worth: Array = m.expected_true[np.arange(n), index]
+        return worth
 
     def observe(self, time: float, quality: float | None) -> Decision:
         j = self.model.index(time, self.last)
