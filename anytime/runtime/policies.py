@@ -446,6 +446,19 @@ class OptimalStopping(_GridPolicy):
         return Decision.later(at, float(self.model.time[self.last]), reason)
 
 
+def _saturating_fit(time: Array, quality: Array, rates: Array) -> tuple[float, float, float]:
+    """The least-squares fit of q(t) = a - b exp(-c t) with c among `rates` (given c, a and b
+    are a linear fit, solved for every c at once)."""
+    basis = np.exp(-rates[:, None] * time)  # (C, points)
+    centred = basis - basis.mean(axis=1, keepdims=True)
+    spread = np.maximum((centred**2).sum(axis=1), 1e-300)
+    b = -(centred @ (quality - quality.mean())) / spread
+    a = quality.mean() + b * basis.mean(axis=1)
+    error = ((a[:, None] - b[:, None] * basis - quality) ** 2).sum(axis=1)
+    best = int(np.argmin(error))
+    return float(a[best]), float(b[best]), float(rates[best])
+
+
 class ProjectedStopping(_GridPolicy):
     """Look at every grid time, fit the run's own qualities so far to q(t) = a - b exp(-c t),
     and stop once the projected best stopping time argmax_t U(q_hat(t), t) has come. With fewer
@@ -482,15 +495,11 @@ class ProjectedStopping(_GridPolicy):
             return expected
         seen_t, seen_q = np.array(self._seen).T
         span = max(float(t[-1] - t[0]), 1e-12)
-        rates = self.RATES[:, None] / span
-        basis = np.exp(-rates * seen_t)  # (C, points)
-        centred = basis - basis.mean(axis=1, keepdims=True)
-        spread = np.maximum((centred**2).sum(axis=1), 1e-300)
-        b = -(centred @ (seen_q - seen_q.mean())) / spread
-        a = seen_q.mean() + b * basis.mean(axis=1)
-        error = ((a[:, None] - b[:, None] * basis - seen_q) ** 2).sum(axis=1)
-        best = int(np.argmin(error))
-        curve: Array = np.clip(a[best] - b[best] * np.exp(-rates[best, 0] * t), 0.0, 1.0)
+        coarse = self.RATES / span
+        a, b, rate = _saturating_fit(seen_t, seen_q, coarse)
+        ratio = coarse[1] / coarse[0]  # then finer, between the coarse neighbours of the best
+        a, b, rate = _saturating_fit(seen_t, seen_q, rate * np.geomspace(1 / ratio, ratio, 33))
+        curve: Array = np.clip(a - b * np.exp(-rate * t), 0.0, 1.0)
         if m.profile.observed == "true":
             return curve
         # A projected estimate is worth what the observation model says its state is worth.
