@@ -161,14 +161,14 @@ def run(
         if police.stopped:  # stopped before it started
             return RunRecord(module.name, Status.STOPPED, None, 0.0, float(allocation))
     if not hard:
-        ctx = Context(allocation=allocation, clock=clock, stop=caller_stop)
+        ctx = _context(allocation, clock, caller_stop, police)
         slot = _Slot(threaded=False, latest=_keeps_latest(module))
         outcome = _drive(module, ctx, args, kwargs or {}, slot, police)
         return _record(module, ctx, slot, outcome, police)
     # At the deadline the module's `ctx.expired` turns true by itself (its clock has reached
     # the allocation), so the caller's stop event is never set here: one run's deadline must
     # not stop what the caller runs next.
-    ctx = Context(allocation=allocation, clock=clock, stop=caller_stop)
+    ctx = _context(allocation, clock, caller_stop, police)
     slot = _Slot(threaded=True, latest=_keeps_latest(module))
     finished = threading.Event()
     box: list[_Outcome] = []
@@ -190,6 +190,16 @@ def run(
             status = Status.STOPPED
         return _record(module, ctx, slot, _Outcome(status), police)
     return _record(module, ctx, slot, box[0], police)
+
+
+def _context(
+    allocation: float, clock: Clock, stop: threading.Event, police: _Police | None
+) -> Context:
+    """The module's context; with a policy, its allocation is the policy's stop time."""
+    ctx = Context(allocation=allocation, clock=clock, stop=stop)
+    if police is not None:
+        police.watch(ctx)
+    return ctx
 
 
 def _checked_policy(module: AnytimeModule, policy: StoppingPolicy) -> StoppingPolicy:
@@ -221,14 +231,23 @@ def _at_or_after(elapsed: float, time: float) -> bool:
 
 class _Police:
     """A stopping policy's part in one run: when it looks next, when the run stops, how many
-    looks it took, and its decisions in the log."""
+    looks it took, and its decisions in the log.
+
+    The module's context is given the policy's stop time as its allocation, so that a module
+    that watches its time (or a contract made interruptible, which starts no contract that
+    cannot end in time) ends there by itself."""
 
     def __init__(self, policy: StoppingPolicy, log: EventLog | None, allocation: float) -> None:
         self.policy, self.log, self.allocation = policy, log, allocation
+        self.ctx: Context | None = None
         self.looks = 0
         self.stopped = False
         self.look_at = self.stop_at = math.inf
         self.follow(0.0, None, policy.start(allocation))
+
+    def watch(self, ctx: Context) -> None:
+        self.ctx = ctx
+        ctx.allocation = min(self.allocation, self.stop_at)
 
     def follow(self, time: float, quality: float | None, decision: Decision) -> None:
         if not isinstance(decision, Decision):
@@ -239,6 +258,8 @@ class _Police:
         self.look_at = decision.look_at
         # Stopping at the allocation is the allocation running out, not the policy's doing.
         self.stop_at = decision.stop_at if decision.stop_at < self.allocation else math.inf
+        if self.ctx is not None:
+            self.ctx.allocation = min(self.allocation, self.stop_at)
         if self.log is not None:
             self.log.record(
                 time,
@@ -288,11 +309,10 @@ def _wait(
     soft mode awaits it (otherwise a contract given 0 ticks would race its own start)."""
     wall = ctx.clock.unit == "seconds"
     while not finished.is_set():
-        deadline = ctx.allocation if police is None else min(ctx.allocation, police.stop_at)
-        spent = ctx.elapsed >= deadline if wall else _late(ctx.elapsed, deadline)
+        spent = ctx.elapsed >= ctx.allocation if wall else _late(ctx.elapsed, ctx.allocation)
         if caller_stop.is_set() or spent:
             return
-        remaining = deadline - ctx.elapsed
+        remaining = ctx.allocation - ctx.elapsed
         finished.wait(min(remaining, 0.01) if wall else min(remaining, poll))
 
 
@@ -353,7 +373,7 @@ def _interruptible(
     # mode the best result is kept in locals and handed to the slot when the run ends; in hard
     # mode every result is published at once, for the caller to take at the deadline.
     clock, start, stop = ctx.clock, ctx.start, ctx.stop
-    allocation = ctx.allocation
+    allocation = ctx.allocation if police is None else police.allocation  # the run's own
     limit = allocation + 1e-9 * max(1.0, abs(allocation))  # past it, a result is late
     publish = slot.offer if slot.threaded else None
     latest = slot.latest
@@ -454,7 +474,7 @@ def _record(
         status=status,
         result=best,
         time_used=ctx.elapsed,
-        allocation=ctx.allocation,
+        allocation=ctx.allocation if police is None else police.allocation,
         registered=count,
         error=outcome.error,
         traceback=outcome.traceback,
