@@ -44,7 +44,7 @@ from numpy.typing import ArrayLike
 from anytime.errors import AnytimeError
 from anytime.profiles.dynamic import DynamicProfile, Observed
 from anytime.profiles.profile import Array
-from anytime.runtime.monitor import TIE_TOLERANCE, CostModel, ValueModel
+from anytime.runtime.monitor import TIE_TOLERANCE, CostModel, Monitor, ValueModel
 
 #: How many state paths `evaluate` enumerates at most.
 MAX_PATHS = 200_000
@@ -120,23 +120,10 @@ class Utility:
         t = np.asarray(time, dtype=np.float64).reshape(-1, 1)
         q = np.asarray(quality, dtype=np.float64)
         q = q.reshape(len(t), -1)
-        value = self._answer("value", self.value_model.value(self.state, t, q), q.shape)
-        cost = self._answer("cost", self.cost_model.cost(self.state, t, q), q.shape)
-        return value - cost
-
-    @staticmethod
-    def _answer(name: str, answer: ArrayLike, shape: tuple[int, ...]) -> Array:
-        array = np.asarray(answer, dtype=np.float64)
-        try:
-            array = np.broadcast_to(array, shape)
-        except ValueError:
-            raise PolicyError(
-                f"stopping: the {name} model answered with shape {list(array.shape)}, which"
-                f" does not broadcast to (times, qualities) {list(shape)}"
-            ) from None
-        if not np.all(np.isfinite(array)):
-            raise PolicyError(f"stopping: the {name} model answered with NaN or infinity")
-        return array
+        value = Monitor._evaluate("value", self.value_model.value(self.state, t, q), q.shape)
+        cost = Monitor._evaluate("cost", self.cost_model.cost(self.state, t, q), q.shape)
+        answer: Array = value - cost
+        return answer
 
 
 @frozen

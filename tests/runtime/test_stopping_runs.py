@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
-from typing import Any
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from stopping_models import Linear
 
 from anytime.modules import Context, Registry, Result, contract, interruptible
 from anytime.profiles import Exponential, tabulate
@@ -84,17 +84,6 @@ class Script:
 
 def later(look_at: float, stop_at: float = math.inf) -> Decision:
     return Decision.later(look_at, stop_at, "told to")
-
-
-class Linear:
-    def __init__(self, worth: float, rate: float) -> None:
-        self.worth, self.rate = worth, rate
-
-    def value(self, state: Any, contract: np.ndarray, quality: np.ndarray) -> np.ndarray:
-        return self.worth * quality
-
-    def cost(self, state: Any, contract: np.ndarray, quality: np.ndarray) -> np.ndarray:
-        return self.rate * contract
 
 
 def climb_profile() -> DynamicProfile:
