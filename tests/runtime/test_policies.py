@@ -259,3 +259,20 @@ def test_a_profile_over_input_qualities_is_read_at_the_given_ones() -> None:
     with pytest.raises(Exception) as error:
         OptimalStopping(profile, model, model)
     assert str(error.value) == "walk: expected 1 input quality, got 0"
+
+
+def test_watching_a_module_that_reports_nothing_is_worth_no_more_than_not_looking() -> None:
+    recorded = traces(2, 5, 30)
+    blind = QualityTraces(
+        module="walk",
+        time=recorded.time,
+        quality=recorded.quality,
+        scored=recorded.scored,
+        reports="none",
+    )
+    profile = DynamicProfile.from_traces(blind)
+    model = Linear(10, 0.1)
+    assert profile.n_states == 1
+    assert OptimalStopping(profile, model, model).expected_utility() == pytest.approx(
+        FixedStopping(profile, model, model).expected_utility()
+    )

@@ -8,13 +8,14 @@ allocation; its decisions go to the event log; a module that cannot be watched i
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Iterator
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from stopping_models import Linear
+from stopping_models import Linear, traces
 
 from anytime.modules import Context, Registry, Result, contract, interruptible
 from anytime.profiles import Exponential, tabulate
@@ -231,3 +232,46 @@ def test_a_policy_must_read_what_the_module_reports() -> None:
         "run: policy 'optimal' reads the true quality, but module 'guess' reports an estimate"
         " of the quality"
     )
+
+
+@interruptible("noisy", inputs=[], registry=TOYS, reports="estimate")
+def noisy(ctx: Context, level: float) -> Iterator[Result]:
+    """Reports an estimate of its quality every 10 ticks."""
+    for k in range(1, 100):
+        ctx.tick(10)
+        yield Result(k, min(1.0, level * k))
+
+
+@HARD
+def test_a_module_that_reports_an_estimate_is_watched_through_the_observation_model(
+    hard: bool,
+) -> None:
+    profile = DynamicProfile.from_traces(traces(3, 5, 40, "estimate"), states=3)
+    model = Linear(10, 0.05)
+    policy = OptimalStopping(profile, model, model)
+    log = EventLog()
+    record = run(noisy, [0.2], allocation=40, policy=policy, log=log, hard=hard)
+    assert record.status in (Status.STOPPED, Status.INTERRUPTED)
+    assert record.looks == len(log) - 1 >= 1
+    assert [e.data["quality"] for e in log[1:]] == [0.2 * (k + 1) for k in range(record.looks)]
+
+
+@interruptible("grind", inputs=[], registry=TOYS)
+def grind(ctx: Context) -> Iterator[Result]:
+    """Yields once, then works for 50 ticks without yielding (nor looking at its context)."""
+    ctx.tick()
+    yield Result("first", 0.3)
+    for _ in range(50):
+        time.sleep(0.002)
+        ctx.tick()
+    yield Result("late", 0.9)
+
+
+def test_hard_interruption_cuts_a_stuck_module_at_the_policys_stop_time() -> None:
+    record = run(grind, [], allocation=100, policy=Script(later(math.inf, 5)), hard=True)
+    assert (record.status, record.result, record.allocation) == (
+        Status.STOPPED,
+        Result("first", 0.3),
+        100,
+    )
+    assert record.time_used < 51
