@@ -23,22 +23,18 @@ from anytime.runtime.monitor import (
     MonitorEvent,
     ValueModel,
 )
+from anytime.runtime.offline import Evaluation, Replay, clairvoyant, evaluate, replay
 from anytime.runtime.policies import (
     Decision,
-    Evaluation,
     FixedStopping,
     MyopicStopping,
     OptimalStopping,
     PolicyError,
     ProjectedStopping,
-    Replay,
     StoppingModel,
     StoppingPlan,
     StoppingPolicy,
     Utility,
-    clairvoyant,
-    evaluate,
-    replay,
 )
 from anytime.runtime.program import ExecutionError, ProgramRecord, program_module, run_program
 

@@ -26,9 +26,7 @@ the next look (`look_at`, infinite: never look again) and the time to stop at wi
   projected best stopping time has come.
 
 A policy never stops after the allocation: its grid ends at the last grid time within it.
-`evaluate` computes any policy's expected utility exactly on a profile's Markov model (by
-enumerating the model's state paths, for small models), `replay` runs a policy on a recorded
-trace, and `clairvoyant` gives the best utility a trace allowed.
+`anytime.runtime.offline` evaluates policies on recorded traces and on the model.
 """
 
 from __future__ import annotations
@@ -45,9 +43,6 @@ from anytime.errors import AnytimeError
 from anytime.profiles.dynamic import DynamicProfile, Observed
 from anytime.profiles.profile import Array
 from anytime.runtime.monitor import TIE_TOLERANCE, CostModel, Monitor, ValueModel
-
-#: How many state paths `evaluate` enumerates at most.
-MAX_PATHS = 200_000
 
 
 class PolicyError(AnytimeError, ValueError):
@@ -182,7 +177,7 @@ class StoppingModel:
         return int(np.clip(np.searchsorted(bins, q, side="right") - 1, 0, len(bins) - 2))
 
 
-def _allocation(name: str, allocation: float) -> float:
+def check_allocation(name: str, allocation: float) -> float:
     value = float(allocation)
     if math.isnan(value) or value < 0:
         raise PolicyError(f"{name}: allocation must be a number >= 0, got {allocation!r}")
@@ -219,7 +214,7 @@ class _GridPolicy:
         self.last = len(self.model.time) - 1
 
     def start(self, allocation: float) -> Decision:
-        self.allocation = _allocation(self.name, allocation)
+        self.allocation = check_allocation(self.name, allocation)
         self.last = self.model.last(self.allocation)
         if self.last < 0:
             return Decision.now("no grid time within the allocation")
@@ -241,9 +236,10 @@ class FixedStopping(_GridPolicy):
     """Stop at the grid time of best expected utility, without looking."""
 
     name = "fixed"
+    _stop_at = math.inf
 
     def expected_utility(self, allocation: float = math.inf) -> float:
-        last = self.model.last(_allocation(self.name, allocation))
+        last = self.model.last(check_allocation(self.name, allocation))
         return float(self._curve(last).max()) if last >= 0 else 0.0
 
     def _curve(self, last: int) -> Array:
@@ -256,10 +252,11 @@ class FixedStopping(_GridPolicy):
         _, j = _best(curve[None, :])
         at = float(self.model.time[int(j[0])])
         reason = f"best expected utility {curve[int(j[0])]:.6g} at {at:g}"
+        self._stop_at = at
         return Decision.later(math.inf, at, reason)
 
     def observe(self, time: float, quality: float | None) -> Decision:
-        return Decision.later(math.inf, float(self.model.time[self.last]), "does not look")
+        return Decision.later(math.inf, self._stop_at, "does not look")
 
 
 def _every_step_value(
@@ -287,7 +284,7 @@ class MyopicStopping(_GridPolicy):
 
     def __init__(self, *args: Any, monitoring_cost: float = 0.0, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.monitoring_cost = _monitoring_cost(self.name, monitoring_cost)
+        self.monitoring_cost = check_monitoring_cost(self.name, monitoring_cost)
 
     def gain(self) -> Array:
         """`(m - 1, K)` the expected gain of one more step in each state at each time."""
@@ -301,7 +298,7 @@ class MyopicStopping(_GridPolicy):
         return np.vstack([self.gain() < 0, np.ones((1, self.model.profile.n_states), bool)])
 
     def expected_utility(self, allocation: float = math.inf) -> float:
-        last = self.model.last(_allocation(self.name, allocation))
+        last = self.model.last(check_allocation(self.name, allocation))
         if last < 0:
             return 0.0
         return _every_step_value(self.model, self.stops(), last, self.monitoring_cost)
@@ -319,7 +316,7 @@ class MyopicStopping(_GridPolicy):
         return self._look_next(j, f"one more step is expected to gain {gain:.6g}")
 
 
-def _monitoring_cost(name: str, cost: float) -> float:
+def check_monitoring_cost(name: str, cost: float) -> float:
     value = float(cost)
     if not (math.isfinite(value) and value >= 0):
         raise PolicyError(f"{name}: monitoring_cost must be a finite number >= 0, got {cost!r}")
@@ -395,12 +392,12 @@ class OptimalStopping(_GridPolicy):
 
     def __init__(self, *args: Any, monitoring_cost: float = 0.0, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.monitoring_cost = _monitoring_cost(self.name, monitoring_cost)
+        self.monitoring_cost = check_monitoring_cost(self.name, monitoring_cost)
         self._plans: dict[int, StoppingPlan] = {}
 
     def plan(self, allocation: float = math.inf) -> StoppingPlan:
         """The solution for a deadline (computed once per deadline)."""
-        last = self.model.last(_allocation(self.name, allocation))
+        last = self.model.last(check_allocation(self.name, allocation))
         if last < 0:
             raise PolicyError(f"{self.name}: no grid time within the allocation {allocation:g}")
         if last not in self._plans:
@@ -509,115 +506,3 @@ class ProjectedStopping(_GridPolicy):
                 f"the projected best stopping time {self.model.time[at]:g} has come"
             )
         return self._look_next(j, f"the projected best stopping time is {self.model.time[at]:g}")
-
-
-# --- offline evaluation -------------------------------------------------------------------------
-
-
-@frozen
-class Replay:
-    """Where a policy stopped a recorded trace: the grid index and how many looks it took."""
-
-    stop_index: int
-    looks: int
-
-
-def replay(
-    policy: StoppingPolicy,
-    time: ArrayLike,
-    observed: ArrayLike,
-    allocation: float | None = None,
-    scored: ArrayLike | None = None,
-) -> Replay:
-    """Run `policy` on one recorded trace, as the executor would: it is consulted at the first
-    grid time at or after each `look_at` and stops there, or at the first grid time at or after
-    `stop_at`, never after `allocation` (default: the trace's last time).
-
-    Args:
-        time: the trace's grid times (m,).
-        observed: the quality the module reported at each (m,).
-        scored: whether it had an answer there (default: everywhere).
-    """
-    t = np.asarray(time, dtype=np.float64)
-    q = np.asarray(observed, dtype=np.float64)
-    had = np.ones(len(t), bool) if scored is None else np.asarray(scored, dtype=bool)
-    if q.shape != t.shape or had.shape != t.shape or t.ndim != 1 or len(t) == 0:
-        raise PolicyError(
-            f"replay: expected time, observed and scored of one shape (m,), got"
-            f" {list(t.shape)}, {list(q.shape)} and {list(had.shape)}"
-        )
-    deadline = float(t[-1]) if allocation is None else float(allocation)
-    last = int(np.searchsorted(t, deadline * (1 + 1e-12), side="right")) - 1
-    decision = policy.start(deadline)
-    looks = 0
-    if decision.stop or last < 0:
-        return Replay(0, 0)
-    for j in range(last + 1):  # one step of the run per grid time
-        if t[j] >= decision.look_at:
-            decision = policy.observe(float(t[j]), float(q[j]) if had[j] else None)
-            looks += 1
-            if decision.stop:
-                return Replay(j, looks)
-        if t[j] >= decision.stop_at:
-            return Replay(j, looks)
-    return Replay(last, looks)
-
-
-@frozen
-class Evaluation:
-    """A policy's expected utility (looks paid for) and expected number of looks on a model."""
-
-    expected_utility: float
-    expected_looks: float
-
-
-def evaluate(
-    policy: StoppingPolicy,
-    model: StoppingModel,
-    allocation: float = math.inf,
-    monitoring_cost: float = 0.0,
-    max_paths: int = MAX_PATHS,
-) -> Evaluation:
-    """The exact expected utility of any policy on `model`'s Markov chain: every state path up
-    to the deadline with its probability, replayed (a state is reported as its mean true quality
-    when the state is the true quality, else as its bin's midpoint). For small models only."""
-    c = _monitoring_cost("evaluate", monitoring_cost)
-    last = model.last(_allocation("evaluate", allocation))
-    if last < 0:
-        return Evaluation(0.0, 0.0)
-    k, n = model.profile.n_states, last + 1
-    if k**n > max_paths:
-        raise PolicyError(
-            f"evaluate: the model has {k}^{n} state paths, more than max_paths ({max_paths})"
-        )
-    paths = np.stack(np.unravel_index(np.arange(k**n), (k,) * n), axis=1)  # (P, n)
-    probability = model.marginal[0][paths[:, 0]]
-    for j in range(n - 1):
-        probability = probability * model.profile.transition[j][paths[:, j], paths[:, j + 1]]
-    keep = probability > 0
-    paths, probability = paths[keep], probability[keep]
-    bins = model.profile.bins
-    shown = (
-        model.profile.quality_mean[:n]
-        if model.profile.observed == "true"
-        else np.broadcast_to((bins[:-1] + bins[1:]) / 2, (n, k))
-    )
-    t = model.time[:n]
-    utility = np.empty(len(paths))
-    looks = np.empty(len(paths))
-    for p, path in enumerate(paths):  # a policy may read the whole history: replay each path
-        result = replay(policy, t, shown[np.arange(n), path], allocation=min(allocation, t[-1]))
-        utility[p] = model.stop_utility[result.stop_index, path[result.stop_index]]
-        looks[p] = result.looks
-    expected_looks = float(probability @ looks)
-    return Evaluation(float(probability @ utility) - c * expected_looks, expected_looks)
-
-
-def clairvoyant(time: ArrayLike, true_quality: ArrayLike, utility: Utility) -> Array:
-    """The best utility each trace allowed: max over its grid times of U(q_j, t_j), for traces
-    `true_quality` (..., m) at `time` (m,)."""
-    t = np.asarray(time, dtype=np.float64)
-    q = np.asarray(true_quality, dtype=np.float64)
-    flat = q.reshape(-1, len(t))
-    best: Array = utility(t, flat.T).max(axis=0).reshape(q.shape[:-1])
-    return best
