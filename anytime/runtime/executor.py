@@ -15,6 +15,11 @@ a slot; at the deadline the caller takes the slot's best result, asks the module
 `ctx.expired` turns true) and returns at once, so a module stuck in a long computation cannot
 make the caller late. Python cannot kill a thread: a stuck module keeps its (daemon) thread until
 it next looks at its context or finishes, and its late results are ignored.
+
+An interruptible module may run under a stopping policy (`anytime.runtime.policies`): the policy
+is asked before the run and at the first result registered at or after each time it asks to
+look, and ends the run at its word or at the time it names (status `stopped`), which the module's
+context shows as its allocation.
 """
 
 from __future__ import annotations

@@ -52,6 +52,16 @@ class PolicyError(AnytimeError, ValueError):
 # --- decisions and the protocol -------------------------------------------------------------
 
 
+def _time(name: str) -> Any:
+    """An attrs validator: a time >= 0 (infinite: never)."""
+
+    def check(instance: object, attribute: object, value: float) -> None:
+        if not value >= 0:  # NaN too
+            raise PolicyError(f"decision: {name} must be a time >= 0, got {value!r}")
+
+    return check
+
+
 @frozen
 class Decision:
     """What a policy says at a look.
@@ -64,8 +74,8 @@ class Decision:
     """
 
     stop: bool
-    look_at: float = math.inf
-    stop_at: float = math.inf
+    look_at: float = field(default=math.inf, converter=float, validator=_time("look_at"))
+    stop_at: float = field(default=math.inf, converter=float, validator=_time("stop_at"))
     reason: str = ""
 
     @classmethod

@@ -276,3 +276,12 @@ def test_watching_a_module_that_reports_nothing_is_worth_no_more_than_not_lookin
     assert OptimalStopping(profile, model, model).expected_utility() == pytest.approx(
         FixedStopping(profile, model, model).expected_utility()
     )
+
+
+def test_a_decision_names_a_time() -> None:
+    with pytest.raises(PolicyError) as error:
+        Decision.later(math.nan, 10, "why")
+    assert str(error.value) == "decision: look_at must be a time >= 0, got nan"
+    with pytest.raises(PolicyError) as error:
+        Decision(False, stop_at=-1)
+    assert str(error.value) == "decision: stop_at must be a time >= 0, got -1.0"
