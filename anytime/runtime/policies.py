@@ -368,12 +368,12 @@ def solve(model: StoppingModel, last: int, monitoring_cost: float) -> StoppingPl
     looks, stops = np.zeros((k, 0)), np.zeros((k, 0))
     for j in range(n - 2, -1, -1):  # one matrix product per time step
         step = model.profile.transition[j]
-        looks = step @ np.column_stack([value[j + 1], looks])
-        stops = step @ np.column_stack([u[j + 1], stops])
         if c == 0:
-            candidates = np.column_stack([u[j], looks[:, :1]])
+            candidates = np.column_stack([u[j], step @ value[j + 1]])
             kinds, targets = np.array([STOP, LOOK_AT]), np.array([j, j + 1])
         else:
+            looks = step @ np.column_stack([value[j + 1], looks])
+            stops = step @ np.column_stack([u[j + 1], stops])
             later = np.arange(j + 1, n)
             candidates = np.column_stack([u[j], stops, looks - c])
             kinds = np.r_[STOP, np.full(len(later), STOP_AT), np.full(len(later), LOOK_AT)]
