@@ -234,6 +234,11 @@ def _at_or_after(elapsed: float, time: float) -> bool:
     return time != math.inf and elapsed >= time - 1e-9 * max(1.0, abs(time))
 
 
+def _never(time: float) -> float | None:
+    """A time for the log: None for never (JSON has no infinity)."""
+    return None if time == math.inf else time
+
+
 class _Police:
     """A stopping policy's part in one run: when it looks next, when the run stops, how many
     looks it took, and its decisions in the log.
@@ -273,10 +278,10 @@ class _Police:
                     "policy": self.policy.name,
                     "quality": quality,
                     "decision": "stop" if decision.stop else "continue",
-                    "look_at": None
-                    if decision.stop or decision.look_at == math.inf
-                    else decision.look_at,
-                    "stop_at": None if decision.stop else min(decision.stop_at, self.allocation),
+                    "look_at": None if decision.stop else _never(decision.look_at),
+                    "stop_at": None
+                    if decision.stop
+                    else _never(min(decision.stop_at, self.allocation)),
                     "reason": decision.reason,
                 },
             )

@@ -17,6 +17,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from stopping_models import Linear, traces
 
+from anytime import AnytimeLibrary, RegistrySource, compile_file, parse_schemas
 from anytime.modules import Context, Registry, Result, contract, interruptible
 from anytime.profiles import Exponential, tabulate
 from anytime.profiles.dynamic import DynamicProfile, QualityTraces
@@ -275,3 +276,22 @@ def test_hard_interruption_cuts_a_stuck_module_at_the_policys_stop_time() -> Non
         100,
     )
     assert record.time_used < 51
+
+
+def test_the_log_of_an_unbounded_run_is_plain_json() -> None:
+    log = EventLog()
+    run(climb, [0.5], policy=Script(later(3), Decision.now("done")), log=log)
+    assert EventLog.from_jsonl(log.to_jsonl()) == log
+    assert [(e.data["look_at"], e.data["stop_at"]) for e in log] == [(3.0, None), (None, None)]
+
+
+def test_a_compiled_program_made_interruptible_runs_under_a_policy() -> None:
+    (program,) = compile_file(
+        parse_schemas("(defschema once () (solve))"),
+        AnytimeLibrary([RegistrySource(TOYS)]),
+        time_grid=range(0, 41, 2),
+    )
+    anytime_program = make_interruptible(program)
+    record = run(anytime_program, [], allocation=40, policy=Script(later(5), Decision.now("ok")))
+    assert (record.status, record.looks) == (Status.STOPPED, 1)
+    assert record.result is not None and record.result.value == "solved"
