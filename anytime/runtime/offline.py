@@ -45,8 +45,8 @@ def replay(
     scored: ArrayLike | None = None,
 ) -> Replay:
     """Run `policy` on one recorded trace, as the executor would: it is consulted at the first
-    grid time at or after each `look_at` and stops there, or at the first grid time at or after
-    `stop_at`, never after `allocation` (default: the trace's last time).
+    grid time with an answer at or after each `look_at` and stops there, or at the first grid
+    time at or after `stop_at`, never after `allocation` (default: the trace's last time).
 
     Args:
         time: the trace's grid times (m,).
@@ -68,8 +68,8 @@ def replay(
     if decision.stop or last < 0:
         return Replay(0, 0)
     for j in range(last + 1):  # one step of the run per grid time
-        if t[j] >= decision.look_at:
-            decision = policy.observe(float(t[j]), float(q[j]) if had[j] else None)
+        if had[j] and t[j] >= decision.look_at:  # the executor looks at results only
+            decision = policy.observe(float(t[j]), float(q[j]))
             looks += 1
             if decision.stop:
                 return Replay(j, looks)

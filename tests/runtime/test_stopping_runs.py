@@ -25,9 +25,12 @@ from anytime.runtime import (
     Decision,
     EventLog,
     FixedStopping,
+    MyopicStopping,
     OptimalStopping,
     PolicyError,
+    ProjectedStopping,
     Status,
+    replay,
     run,
 )
 from anytime.runtime.conversion import make_interruptible
@@ -295,3 +298,33 @@ def test_a_compiled_program_made_interruptible_runs_under_a_policy() -> None:
     record = run(anytime_program, [], allocation=40, policy=Script(later(5), Decision.now("ok")))
     assert (record.status, record.looks) == (Status.STOPPED, 1)
     assert record.result is not None and record.result.value == "solved"
+
+
+@interruptible("playback", inputs=[], registry=TOYS)
+def playback(ctx: Context, qualities: list[float]) -> Iterator[Result]:
+    """A recorded trace played back: its quality at ticks 10, 20, ..."""
+    for k, q in enumerate(qualities[1:], 1):
+        ctx.tick(10)
+        yield Result(k, q)
+
+
+@given(st.integers(0, 10**6), st.floats(0, 2), st.sampled_from([0.0, 2.0]), st.floats(10, 45))
+@settings(max_examples=40, deadline=None)
+def test_replay_stops_a_trace_where_a_run_of_it_stops(
+    seed: int, rate: float, cost: float, allocation: float
+) -> None:
+    """The answer a run under a policy keeps is the one `replay` stops the trace at."""
+    recorded = traces(seed, 5, 30)
+    profile = DynamicProfile.from_traces(recorded, states=3)
+    model = Linear(10, rate / 10)
+    trace = [float(q) for q in traces(seed + 1, 5, 1).quality[0]]
+    for policy in (
+        OptimalStopping(profile, model, model, monitoring_cost=cost),
+        FixedStopping(profile, model, model),
+        MyopicStopping(profile, model, model, monitoring_cost=cost),
+        ProjectedStopping(profile, model, model),
+    ):
+        offline = replay(policy, profile.time, trace, allocation, scored=[0, 1, 1, 1, 1])
+        record = run(playback, [trace], allocation=allocation, policy=policy)
+        kept = 0 if record.result is None else record.result.value  # the grid index of its answer
+        assert (kept, record.looks) == (offline.stop_index, offline.looks), policy.name
