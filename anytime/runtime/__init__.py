@@ -1,5 +1,5 @@
 """The runtime: executing anytime modules and compiled programs under contracts and
-interruption, the frame monitor, and deadlines from critical events."""
+interruption, the frame monitor, stopping policies, and deadlines from critical events."""
 
 from anytime.runtime.deadline import (
     CostBoundError,
@@ -23,6 +23,19 @@ from anytime.runtime.monitor import (
     MonitorEvent,
     ValueModel,
 )
+from anytime.runtime.offline import Evaluation, Replay, clairvoyant, evaluate, replay
+from anytime.runtime.policies import (
+    Decision,
+    FixedStopping,
+    MyopicStopping,
+    OptimalStopping,
+    PolicyError,
+    ProjectedStopping,
+    StoppingModel,
+    StoppingPlan,
+    StoppingPolicy,
+    Utility,
+)
 from anytime.runtime.program import ExecutionError, ProgramRecord, program_module, run_program
 
 __all__ = [
@@ -34,20 +47,35 @@ __all__ = [
     "Deadline",
     "DeadlineError",
     "DeadlineValue",
+    "Decision",
+    "Evaluation",
     "EventLog",
     "ExecutionError",
+    "FixedStopping",
     "Monitor",
     "MonitorError",
     "MonitorEvent",
+    "MyopicStopping",
+    "OptimalStopping",
+    "PolicyError",
     "ProgramRecord",
+    "ProjectedStopping",
+    "Replay",
     "RunRecord",
     "Status",
+    "StoppingModel",
+    "StoppingPlan",
+    "StoppingPolicy",
     "UnknownEventError",
+    "Utility",
     "ValueModel",
+    "clairvoyant",
     "critical_event",
     "deadline_from",
+    "evaluate",
     "program_module",
     "proportional_split",
+    "replay",
     "run",
     "run_program",
 ]

@@ -15,6 +15,11 @@ a slot; at the deadline the caller takes the slot's best result, asks the module
 `ctx.expired` turns true) and returns at once, so a module stuck in a long computation cannot
 make the caller late. Python cannot kill a thread: a stuck module keeps its (daemon) thread until
 it next looks at its context or finishes, and its late results are ignored.
+
+An interruptible module may run under a stopping policy (`anytime.runtime.policies`): the policy
+is asked before the run and at the first result registered at or after each time it asks to
+look, and ends the run at its word or at the time it names (status `stopped`), which the module's
+context shows as its allocation.
 """
 
 from __future__ import annotations
@@ -31,6 +36,8 @@ from attrs import frozen
 
 from anytime.clocks import Clock, WorkClock
 from anytime.modules import AnytimeModule, Context, Result
+from anytime.runtime.monitor import EventLog
+from anytime.runtime.policies import Decision, PolicyError, StoppingPolicy
 
 
 class Status(StrEnum):
@@ -41,6 +48,7 @@ class Status(StrEnum):
     CONTRACT_EXPIRED = "contract-expired"  # a contract module used more than its allocation
     FAILED = "failed"  # it raised, or broke the protocol (see `error`)
     NO_RESULT = "no-result"  # it ended without registering any result
+    STOPPED = "stopped"  # its stopping policy stopped it (with its best result, if any)
 
 
 @frozen
@@ -58,6 +66,7 @@ class RunRecord:
         registered: how many results the module registered in time.
         error: for a failure, what went wrong, in one line.
         traceback: for a failure raised by the module, its traceback.
+        looks: how many times a stopping policy looked at the run.
     """
 
     module: str
@@ -68,6 +77,7 @@ class RunRecord:
     registered: int = 0
     error: str | None = None
     traceback: str | None = None
+    looks: int = 0
 
     @property
     def quality(self) -> float:
@@ -131,6 +141,8 @@ def run(
     stop: threading.Event | None = None,
     hard: bool = False,
     poll: float = 0.001,
+    policy: StoppingPolicy | None = None,
+    log: EventLog | None = None,
 ) -> RunRecord:
     """Run `module(ctx, *args, **kwargs)` with `allocation` time on `clock` (a fresh
     `WorkClock` by default) and answer with its best registered result.
@@ -141,41 +153,163 @@ def run(
             module does not yield (see the module docstring).
         poll: with `hard` on a clock that is not the wall clock, how often (seconds) the caller
             looks at the clock.
+        policy: a stopping policy for an interruptible module: consulted before the run and at
+            the first result registered at or after each time it asks to look, with the quality
+            of the run's answer then; it may stop the run (status `stopped`).
+        log: where the policy's decisions are recorded (kind "stopping").
     """
     clock = clock if clock is not None else WorkClock()
     caller_stop = stop if stop is not None else threading.Event()
+    police = None
+    if policy is not None:
+        police = _Police(_checked_policy(module, policy), log, float(allocation))
+        if police.stopped:  # stopped before it started
+            return RunRecord(module.name, Status.STOPPED, None, 0.0, float(allocation))
     if not hard:
-        ctx = Context(allocation=allocation, clock=clock, stop=caller_stop)
+        ctx = _context(allocation, clock, caller_stop, police)
         slot = _Slot(threaded=False, latest=_keeps_latest(module))
-        outcome = _drive(module, ctx, args, kwargs or {}, slot)
-        return _record(module, ctx, slot, outcome)
+        outcome = _drive(module, ctx, args, kwargs or {}, slot, police)
+        return _record(module, ctx, slot, outcome, police)
     # At the deadline the module's `ctx.expired` turns true by itself (its clock has reached
     # the allocation), so the caller's stop event is never set here: one run's deadline must
     # not stop what the caller runs next.
-    ctx = Context(allocation=allocation, clock=clock, stop=caller_stop)
+    ctx = _context(allocation, clock, caller_stop, police)
     slot = _Slot(threaded=True, latest=_keeps_latest(module))
     finished = threading.Event()
     box: list[_Outcome] = []
 
     def work() -> None:
         try:
-            box.append(_drive(module, ctx, args, kwargs or {}, slot))
+            box.append(_drive(module, ctx, args, kwargs or {}, slot, police))
         finally:
             finished.set()
 
     worker = threading.Thread(target=work, name=f"anytime:{module.name}", daemon=True)
     worker.start()
-    _wait(finished, ctx, caller_stop, poll)
+    _wait(finished, ctx, caller_stop, poll, police)
     if not finished.is_set():  # the deadline came first: answer now; the module sees expired
         status = Status.CONTRACT_EXPIRED if module.kind == "contract" else Status.INTERRUPTED
         if caller_stop.is_set() and module.kind == "contract":
             status = Status.INTERRUPTED
-        return _record(module, ctx, slot, _Outcome(status))
-    return _record(module, ctx, slot, box[0])
+        if police is not None and not caller_stop.is_set() and police.reached(ctx.elapsed):
+            status = Status.STOPPED
+        return _record(module, ctx, slot, _Outcome(status), police)
+    return _record(module, ctx, slot, box[0], police)
+
+
+def _context(
+    allocation: float, clock: Clock, stop: threading.Event, police: _Police | None
+) -> Context:
+    """The module's context; with a policy, its allocation is the policy's stop time."""
+    ctx = Context(allocation=allocation, clock=clock, stop=stop)
+    if police is not None:
+        police.watch(ctx)
+    return ctx
+
+
+def _checked_policy(module: AnytimeModule, policy: StoppingPolicy) -> StoppingPolicy:
+    """The policy, if it can watch this module."""
+    if module.kind != "interruptible":
+        raise PolicyError(
+            f"run: a stopping policy needs an interruptible module; '{module.name}' is a"
+            f" {module.kind} module (make_interruptible turns a contract into one)"
+        )
+    if policy.observed is not None and policy.observed != module.reports:
+        raise PolicyError(
+            f"run: policy '{policy.name}' reads {_REPORTS[policy.observed]}, but module"
+            f" '{module.name}' reports {_REPORTS[module.reports]}"
+        )
+    return policy
+
+
+_REPORTS = {
+    "true": "the true quality",
+    "estimate": "an estimate of the quality",
+    "none": "nothing of the quality",
+}
+
+
+def _at_or_after(elapsed: float, time: float) -> bool:
+    """Whether `elapsed` has reached `time`, within the rounding of a clock (never infinity)."""
+    return time != math.inf and elapsed >= time - 1e-9 * max(1.0, abs(time))
+
+
+def _never(time: float) -> float | None:
+    """A time for the log: None for never (JSON has no infinity)."""
+    return None if time == math.inf else time
+
+
+class _Police:
+    """A stopping policy's part in one run: when it looks next, when the run stops, how many
+    looks it took, and its decisions in the log.
+
+    The module's context is given the policy's stop time as its allocation, so that a module
+    that watches its time (or a contract made interruptible, which starts no contract that
+    cannot end in time) ends there by itself."""
+
+    def __init__(self, policy: StoppingPolicy, log: EventLog | None, allocation: float) -> None:
+        self.policy, self.log, self.allocation = policy, log, allocation
+        self.ctx: Context | None = None
+        self.looks = 0
+        self.stopped = False
+        self.look_at = self.stop_at = math.inf
+        self.follow(0.0, None, policy.start(allocation))
+
+    def watch(self, ctx: Context) -> None:
+        self.ctx = ctx
+        ctx.allocation = min(self.allocation, self.stop_at)
+
+    def follow(self, time: float, quality: float | None, decision: Decision) -> None:
+        if not isinstance(decision, Decision):
+            raise PolicyError(
+                f"policy '{self.policy.name}' answered with {_describe(decision)}, not a Decision"
+            )
+        self.stopped = decision.stop
+        self.look_at = decision.look_at
+        # Stopping at the allocation is the allocation running out, not the policy's doing.
+        self.stop_at = decision.stop_at if decision.stop_at < self.allocation else math.inf
+        if self.ctx is not None:
+            self.ctx.allocation = min(self.allocation, self.stop_at)
+        if self.log is not None:
+            self.log.record(
+                time,
+                "stopping",
+                {
+                    "policy": self.policy.name,
+                    "quality": quality,
+                    "decision": "stop" if decision.stop else "continue",
+                    "look_at": None if decision.stop else _never(decision.look_at),
+                    "stop_at": None
+                    if decision.stop
+                    else _never(min(decision.stop_at, self.allocation)),
+                    "reason": decision.reason,
+                },
+            )
+
+    def consult(self, elapsed: float, quality: float | None) -> bool:
+        """After a result kept at `elapsed`: look if a look is due; whether the run stops."""
+        if _at_or_after(elapsed, self.look_at):
+            self.looks += 1
+            self.follow(elapsed, quality, self.policy.observe(elapsed, quality))
+        return self.stopped or self.reached(elapsed)
+
+    def reached(self, elapsed: float) -> bool:
+        """Whether the time the policy said to stop at has come."""
+        return _at_or_after(elapsed, self.stop_at)
+
+    def late(self, elapsed: float) -> bool:
+        """Whether a result at `elapsed` comes after the time the policy said to stop at."""
+        return self.stop_at != math.inf and elapsed > self.stop_at + 1e-9 * max(
+            1.0, abs(self.stop_at)
+        )
 
 
 def _wait(
-    finished: threading.Event, ctx: Context, caller_stop: threading.Event, poll: float
+    finished: threading.Event,
+    ctx: Context,
+    caller_stop: threading.Event,
+    poll: float,
+    police: _Police | None = None,
 ) -> None:
     """Until the module finishes, its allocation is spent, or the caller stops it.
 
@@ -198,10 +332,11 @@ def _drive(
     args: Sequence[Any],
     kwargs: Mapping[str, Any],
     slot: _Slot,
+    police: _Police | None = None,
 ) -> _Outcome:
     """Run the module on this thread, offering each result registered in time to `slot`."""
     if module.kind == "interruptible":
-        return _interruptible(module, ctx, args, kwargs, slot)
+        return _interruptible(module, ctx, args, kwargs, slot, police)
     try:
         if module.kind == "elementary":
             value = module(*args, **kwargs)
@@ -238,6 +373,7 @@ def _interruptible(
     args: Sequence[Any],
     kwargs: Mapping[str, Any],
     slot: _Slot,
+    police: _Police | None,
 ) -> _Outcome:
     try:
         generator: Generator[Any, None, None] = module(ctx, *args, **kwargs)
@@ -247,7 +383,7 @@ def _interruptible(
     # mode the best result is kept in locals and handed to the slot when the run ends; in hard
     # mode every result is published at once, for the caller to take at the deadline.
     clock, start, stop = ctx.clock, ctx.start, ctx.stop
-    allocation = ctx.allocation
+    allocation = ctx.allocation if police is None else police.allocation  # the run's own
     limit = allocation + 1e-9 * max(1.0, abs(allocation))  # past it, a result is late
     publish = slot.offer if slot.threaded else None
     latest = slot.latest
@@ -272,12 +408,22 @@ def _interruptible(
                 return _Outcome(Status.INTERRUPTED)
             if type(item) is not Result and not isinstance(item, Result):
                 return _Outcome(Status.FAILED, f"yielded {_describe(item)}, not a Result")
+            if police is not None and police.late(elapsed):  # after the policy's stop time
+                return _Outcome(Status.STOPPED)
             if publish is not None:
                 publish(item)
             else:
                 count += 1
                 if latest or best is None or item.quality >= best.quality:
                     best = item
+            if police is not None:
+                answer = best if publish is None else slot.best
+                try:
+                    stops = police.consult(elapsed, None if answer is None else answer.quality)
+                except Exception as exc:
+                    return _failure(exc, "stopping policy: ")
+                if stops:
+                    return _Outcome(Status.STOPPED)
             if elapsed >= allocation:
                 return _Outcome(Status.INTERRUPTED)
     finally:
@@ -299,8 +445,9 @@ def _quality_of(arg: Any) -> float:
     return arg.quality if isinstance(arg, Result) else 1.0
 
 
-def _failure(exc: BaseException) -> _Outcome:
-    return _Outcome(Status.FAILED, _headline(exc), "".join(traceback.format_exception(exc)))
+def _failure(exc: BaseException, where: str = "") -> _Outcome:
+    trace = "".join(traceback.format_exception(exc))
+    return _Outcome(Status.FAILED, where + _headline(exc), trace)
 
 
 def _headline(exc: BaseException) -> str:
@@ -321,7 +468,13 @@ def _describe(value: Any) -> str:
     return f"{type(value).__name__} {text[:60]}{'...' if len(text) > 60 else ''}"
 
 
-def _record(module: AnytimeModule, ctx: Context, slot: _Slot, outcome: _Outcome) -> RunRecord:
+def _record(
+    module: AnytimeModule,
+    ctx: Context,
+    slot: _Slot,
+    outcome: _Outcome,
+    police: _Police | None = None,
+) -> RunRecord:
     best, count = slot.close()
     status = outcome.status
     if best is None and status in (Status.COMPLETED, Status.INTERRUPTED):
@@ -331,8 +484,9 @@ def _record(module: AnytimeModule, ctx: Context, slot: _Slot, outcome: _Outcome)
         status=status,
         result=best,
         time_used=ctx.elapsed,
-        allocation=ctx.allocation,
+        allocation=ctx.allocation if police is None else police.allocation,
         registered=count,
         error=outcome.error,
         traceback=outcome.traceback,
+        looks=0 if police is None else police.looks,
     )

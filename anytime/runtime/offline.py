@@ -1,0 +1,138 @@
+"""Stopping policies offline: on recorded traces, and exactly on a dynamic profile's model.
+
+`replay` runs a policy on one recorded trace as the executor would run it on the module;
+`clairvoyant` is the best utility a trace allowed (the yardstick of regret); `evaluate` computes
+any policy's expected utility exactly on a profile's Markov chain, by enumerating the chain's
+state paths (for small models: a policy may read the whole history, so nothing smaller is
+exact), which is how the tests check that the optimal policy is optimal on its own model.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from attrs import frozen
+from numpy.typing import ArrayLike
+
+from anytime.profiles.profile import Array
+from anytime.runtime.policies import (
+    PolicyError,
+    StoppingModel,
+    StoppingPolicy,
+    Utility,
+    check_allocation,
+    check_monitoring_cost,
+)
+
+#: How many state paths `evaluate` enumerates at most.
+MAX_PATHS = 200_000
+
+
+@frozen
+class Replay:
+    """Where a policy stopped a recorded trace: the grid index and how many looks it took."""
+
+    stop_index: int
+    looks: int
+
+
+def replay(
+    policy: StoppingPolicy,
+    time: ArrayLike,
+    observed: ArrayLike,
+    allocation: float | None = None,
+    scored: ArrayLike | None = None,
+) -> Replay:
+    """Run `policy` on one recorded trace, as the executor would: it is consulted at the first
+    grid time with an answer at or after each `look_at` and stops there, or at the first grid
+    time at or after `stop_at`, never after `allocation` (default: the trace's last time).
+
+    Args:
+        time: the trace's grid times (m,).
+        observed: the quality the module reported at each (m,).
+        scored: whether it had an answer there (default: everywhere).
+    """
+    t = np.asarray(time, dtype=np.float64)
+    q = np.asarray(observed, dtype=np.float64)
+    had = np.ones(len(t), bool) if scored is None else np.asarray(scored, dtype=bool)
+    if q.shape != t.shape or had.shape != t.shape or t.ndim != 1 or len(t) == 0:
+        raise PolicyError(
+            f"replay: expected time, observed and scored of one shape (m,), got"
+            f" {list(t.shape)}, {list(q.shape)} and {list(had.shape)}"
+        )
+    deadline = float(t[-1]) if allocation is None else float(allocation)
+    last = int(np.searchsorted(t, deadline * (1 + 1e-12), side="right")) - 1
+    decision = policy.start(deadline)
+    looks = 0
+    if decision.stop or last < 0:
+        return Replay(0, 0)
+    for j in range(last + 1):  # one step of the run per grid time
+        if had[j] and t[j] >= decision.look_at:  # the executor looks at results only
+            decision = policy.observe(float(t[j]), float(q[j]))
+            looks += 1
+            if decision.stop:
+                return Replay(j, looks)
+        if t[j] >= decision.stop_at:
+            return Replay(j, looks)
+    return Replay(last, looks)
+
+
+@frozen
+class Evaluation:
+    """A policy's expected utility (looks paid for) and expected number of looks on a model."""
+
+    expected_utility: float
+    expected_looks: float
+
+
+def evaluate(
+    policy: StoppingPolicy,
+    model: StoppingModel,
+    allocation: float = math.inf,
+    monitoring_cost: float = 0.0,
+    max_paths: int = MAX_PATHS,
+) -> Evaluation:
+    """The exact expected utility of any policy on `model`'s Markov chain: every state path up
+    to the deadline with its probability, replayed (a state is reported as its mean true quality
+    when the state is the true quality, else as its bin's midpoint). For small models only."""
+    c = check_monitoring_cost("evaluate", monitoring_cost)
+    last = model.last(check_allocation("evaluate", allocation))
+    if last < 0:
+        return Evaluation(0.0, 0.0)
+    k, n = model.profile.n_states, last + 1
+    if k**n > max_paths:
+        raise PolicyError(
+            f"evaluate: the model has {k}^{n} state paths, more than max_paths ({max_paths})"
+        )
+    paths = np.stack(np.unravel_index(np.arange(k**n), (k,) * n), axis=1)  # (P, n)
+    probability = model.marginal[0][paths[:, 0]]
+    for j in range(n - 1):
+        probability = probability * model.profile.transition[j][paths[:, j], paths[:, j + 1]]
+    keep = probability > 0
+    paths, probability = paths[keep], probability[keep]
+    bins = model.profile.bins
+    shown = (
+        model.profile.quality_mean[:n]
+        if model.profile.observed == "true"
+        else np.broadcast_to((bins[:-1] + bins[1:]) / 2, (n, k))
+    )
+    t = model.time[:n]
+    utility = np.empty(len(paths))
+    looks = np.empty(len(paths))
+    for p, path in enumerate(paths):  # a policy may read the whole history: replay each path
+        result = replay(policy, t, shown[np.arange(n), path], allocation=min(allocation, t[-1]))
+        utility[p] = model.stop_utility[result.stop_index, path[result.stop_index]]
+        looks[p] = result.looks
+    expected_looks = float(probability @ looks)
+    return Evaluation(float(probability @ utility) - c * expected_looks, expected_looks)
+
+
+def clairvoyant(time: ArrayLike, true_quality: ArrayLike, utility: Utility) -> Array:
+    """The best utility each trace allowed: max over its grid times of U(q_j, t_j), for traces
+    `true_quality` (..., m) at `time` (m,)."""
+    t = np.asarray(time, dtype=np.float64)
+    q = np.asarray(true_quality, dtype=np.float64)
+    flat = q.reshape(-1, len(t))
+    best: Array = utility(t, flat.T).max(axis=0).reshape(q.shape[:-1])
+    return best

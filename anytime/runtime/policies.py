@@ -1,0 +1,518 @@
+"""Stopping policies: when to stop an interruptible module, from what it shows while it runs.
+
+The utility of stopping at time t with true quality q is U(q, t) = value(state, t, q) - cost(state,
+t, q), the monitor's `ValueModel` and `CostModel` with the domain's state passed through. A policy
+decides on the time grid of the module's dynamic performance profile (`DynamicProfile`): at each
+look it is given the time and the quality the module reports (its true quality or its estimate,
+as the profile's states are), and answers with a `Decision`: stop now, or go on, with the time of
+the next look (`look_at`, infinite: never look again) and the time to stop at without looking
+(`stop_at`).
+
+- `FixedStopping` never looks: it stops at the time of best expected utility under the profile,
+  the monitor's contract choice on a dynamic profile.
+- `MyopicStopping` looks at every grid time and stops when one more step is expected to lose
+  utility (Hansen & Zilberstein 2001, section 3: the myopic rule).
+- `OptimalStopping` solves the stopping problem by backward induction over the profile's states
+  (Hansen & Zilberstein 2001, sections 3-4), with the observation model P(true quality | state)
+  when the state is an estimate. With a monitoring cost c per look it also chooses how long to run
+  before the next look, or to stop later without looking:
+
+      V(j, s) = max( U_stop(j, s),  max_i [ E V(i, s') - c ],  max_i E U_stop(i, s') ),  i > j,
+
+  E over P(s' at i | s at j), the product of the profile's one-step transitions. Without a
+  monitoring cost it looks at every grid time.
+- `ProjectedStopping` predicts the run's own curve online (Svegliato, Wray & Zilberstein 2018):
+  it fits q(t) = a - b exp(-c t) to the qualities seen so far, by least squares, and stops once the
+  projected best stopping time has come.
+
+A policy never stops after the allocation: its grid ends at the last grid time within it.
+`anytime.runtime.offline` evaluates policies on recorded traces and on the model.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any, Protocol
+
+import numpy as np
+from attrs import field, frozen
+from numpy.typing import ArrayLike
+
+from anytime.errors import AnytimeError
+from anytime.profiles.dynamic import DynamicProfile, Observed
+from anytime.profiles.profile import Array
+from anytime.runtime.monitor import TIE_TOLERANCE, CostModel, Monitor, ValueModel
+
+
+class PolicyError(AnytimeError, ValueError):
+    """A stopping policy was given something out of range; the message says what."""
+
+
+# --- decisions and the protocol -------------------------------------------------------------
+
+
+def _time(name: str) -> Any:
+    """An attrs validator: a time >= 0 (infinite: never)."""
+
+    def check(instance: object, attribute: object, value: float) -> None:
+        if not value >= 0:  # NaN too
+            raise PolicyError(f"decision: {name} must be a time >= 0, got {value!r}")
+
+    return check
+
+
+@frozen
+class Decision:
+    """What a policy says at a look.
+
+    Attributes:
+        stop: stop the run now.
+        look_at: when not stopping, the time of the next look (infinite: never look again).
+        stop_at: when not stopping, the time to stop at without looking (at the latest).
+        reason: a short why, for the event log.
+    """
+
+    stop: bool
+    look_at: float = field(default=math.inf, converter=float, validator=_time("look_at"))
+    stop_at: float = field(default=math.inf, converter=float, validator=_time("stop_at"))
+    reason: str = ""
+
+    @classmethod
+    def now(cls, reason: str) -> Decision:
+        return cls(True, reason=reason)
+
+    @classmethod
+    def later(cls, look_at: float, stop_at: float, reason: str) -> Decision:
+        return cls(False, float(look_at), float(stop_at), reason)
+
+
+class StoppingPolicy(Protocol):
+    """A stopping policy, consulted by `run(..., policy=...)` (and by `replay`).
+
+    Attributes:
+        name: how the event log names it.
+        observed: what the quality it is given must be ("true", "estimate" or "none", as the
+            module's `reports`), or None when any will do.
+    """
+
+    name: str
+    observed: Observed | None
+
+    def start(self, allocation: float) -> Decision:
+        """Before the run, given its allocation (the deadline)."""
+        ...
+
+    def observe(self, time: float, quality: float | None) -> Decision:
+        """At a look: the time since the start and the quality of the run's answer (None: no
+        answer yet)."""
+        ...
+
+
+# --- utility and the Markov model -----------------------------------------------------------
+
+
+@frozen
+class Utility:
+    """U(q, t) = value(state, t, q) - cost(state, t, q) of the monitor's models."""
+
+    value_model: ValueModel[Any]
+    cost_model: CostModel[Any]
+    state: Any = None
+
+    def __call__(self, time: ArrayLike, quality: ArrayLike) -> Array:
+        """Utilities for times (G,) and qualities (G, K): (G, K)."""
+        t = np.asarray(time, dtype=np.float64).reshape(-1, 1)
+        q = np.asarray(quality, dtype=np.float64)
+        q = q.reshape(len(t), -1)
+        value = Monitor._evaluate("value", self.value_model.value(self.state, t, q), q.shape)
+        cost = Monitor._evaluate("cost", self.cost_model.cost(self.state, t, q), q.shape)
+        answer: Array = value - cost
+        return answer
+
+
+@frozen
+class StoppingModel:
+    """A dynamic profile at one input-quality cell, with the utility of stopping in each state.
+
+    Attributes:
+        profile: the profile, without input axes.
+        utility: U(q, t).
+        marginal: `(m, K)` P(state at each time) under the profile's Markov chain, from its
+            occupancy at the first grid time.
+        stop_utility: `(m, K)` E[U(true quality, t_j) | state k at t_j].
+        expected_true: `(m, K)` E[true quality | state k at t_j].
+    """
+
+    profile: DynamicProfile
+    utility: Utility
+    marginal: Array = field(eq=False)
+    stop_utility: Array = field(eq=False)
+    expected_true: Array = field(eq=False)
+
+    @classmethod
+    def of(
+        cls, profile: DynamicProfile, utility: Utility, input_quality: Sequence[float] = ()
+    ) -> StoppingModel:
+        if not isinstance(profile, DynamicProfile):
+            raise PolicyError(f"stopping: expected a DynamicProfile, got {type(profile).__name__}")
+        cell = profile.at(input_quality)
+        given, quality = cell.true_quality()  # (m, K, K), (m, K)
+        stop = np.einsum("jkb,jb->jk", given, utility(cell.time, quality))
+        expected_true = np.einsum("jkb,jb->jk", given, quality)
+        marginal = np.empty_like(cell.occupancy)
+        marginal[0] = cell.occupancy[0]
+        for j in range(len(cell.time) - 1):  # one vector-matrix product per time step
+            marginal[j + 1] = marginal[j] @ cell.transition[j]
+        return cls(cell, utility, marginal, stop, expected_true)
+
+    @property
+    def time(self) -> Array:
+        return self.profile.time
+
+    def last(self, allocation: float) -> int:
+        """The index of the last grid time within `allocation` (-1: none is)."""
+        return int(np.searchsorted(self.time, allocation * (1 + 1e-12), side="right")) - 1
+
+    def index(self, time: float, last: int) -> int:
+        """The grid index a look at `time` is at: the last grid time not after it."""
+        return int(
+            np.clip(np.searchsorted(self.time, time * (1 + 1e-12), side="right") - 1, 0, last)
+        )
+
+    def state(self, quality: float | None) -> int:
+        """The state of a reported quality (no answer: the state of quality 0)."""
+        bins = self.profile.bins
+        q = 0.0 if quality is None or self.profile.observed == "none" else float(quality)
+        return int(np.clip(np.searchsorted(bins, q, side="right") - 1, 0, len(bins) - 2))
+
+
+def check_allocation(name: str, allocation: float) -> float:
+    value = float(allocation)
+    if math.isnan(value) or value < 0:
+        raise PolicyError(f"{name}: allocation must be a number >= 0, got {allocation!r}")
+    return value
+
+
+def _best(candidates: Array) -> tuple[Array, Array]:
+    """Per row, the highest value and the first column within the tie tolerance of it."""
+    best = candidates.max(axis=-1)
+    slack = TIE_TOLERANCE * np.maximum(1.0, np.abs(best))
+    first = np.argmax(candidates >= (best - slack)[..., None], axis=-1)
+    return best, first
+
+
+class _GridPolicy:
+    """What every policy on a dynamic profile shares: its model and the run's deadline."""
+
+    name = "policy"
+
+    def __init__(
+        self,
+        profile: DynamicProfile,
+        value_model: ValueModel[Any],
+        cost_model: CostModel[Any],
+        state: Any = None,
+        *,
+        input_quality: Sequence[float] = (),
+    ) -> None:
+        self.model = StoppingModel.of(
+            profile, Utility(value_model, cost_model, state), input_quality
+        )
+        self.observed: Observed | None = self.model.profile.observed
+        self.allocation = math.inf
+        self.last = len(self.model.time) - 1
+
+    def start(self, allocation: float) -> Decision:
+        self.allocation = check_allocation(self.name, allocation)
+        self.last = self.model.last(self.allocation)
+        if self.last < 0:
+            return Decision.now("no grid time within the allocation")
+        return self._start()
+
+    def _start(self) -> Decision:
+        raise NotImplementedError
+
+    def _look_next(self, j: int, reason: str) -> Decision:
+        """Go on to the next grid time and look there."""
+        t = self.model.time
+        return Decision.later(t[j + 1], min(self.allocation, t[self.last]), reason)
+
+
+# --- the policies -----------------------------------------------------------------------------
+
+
+class FixedStopping(_GridPolicy):
+    """Stop at the grid time of best expected utility, without looking."""
+
+    name = "fixed"
+    _stop_at = math.inf
+
+    def expected_utility(self, allocation: float = math.inf) -> float:
+        last = self.model.last(check_allocation(self.name, allocation))
+        return float(self._curve(last).max()) if last >= 0 else 0.0
+
+    def _curve(self, last: int) -> Array:
+        m = self.model
+        curve: Array = np.einsum("jk,jk->j", m.marginal[: last + 1], m.stop_utility[: last + 1])
+        return curve
+
+    def _start(self) -> Decision:
+        curve = self._curve(self.last)
+        _, j = _best(curve[None, :])
+        at = float(self.model.time[int(j[0])])
+        reason = f"best expected utility {curve[int(j[0])]:.6g} at {at:g}"
+        self._stop_at = at
+        return Decision.later(math.inf, at, reason)
+
+    def observe(self, time: float, quality: float | None) -> Decision:
+        return Decision.later(math.inf, self._stop_at, "does not look")
+
+
+def _every_step_value(
+    model: StoppingModel, stop: Array, last: int, monitoring_cost: float
+) -> float:
+    """The expected utility of looking at every grid time from the first and stopping in the
+    states `stop` (m, K) marks (at `last` in every state), each look costing `monitoring_cost`."""
+    alive = model.marginal[0].copy()
+    total = looks = 0.0
+    for j in range(last + 1):  # forward over time steps, vectorised over states
+        looks += alive.sum()
+        stopping = alive if j == last else alive * stop[j]
+        total += stopping @ model.stop_utility[j]
+        if j < last:
+            alive = (alive - stopping) @ model.profile.transition[j]
+    return float(total - monitoring_cost * looks)
+
+
+class MyopicStopping(_GridPolicy):
+    """Look at every grid time; stop when one more step's expected gain (the utility at the next
+    grid time, from the transition at the state seen, less the cost of looking again) is below
+    zero."""
+
+    name = "myopic"
+
+    def __init__(self, *args: Any, monitoring_cost: float = 0.0, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.monitoring_cost = check_monitoring_cost(self.name, monitoring_cost)
+
+    def gain(self) -> Array:
+        """`(m - 1, K)` the expected gain of one more step in each state at each time."""
+        m = self.model
+        ahead = np.einsum("jkl,jl->jk", m.profile.transition, m.stop_utility[1:])
+        gain: Array = ahead - m.stop_utility[:-1] - self.monitoring_cost
+        return gain
+
+    def stops(self) -> Array:
+        """`(m, K)` where the rule stops (always at the last grid time)."""
+        return np.vstack([self.gain() < 0, np.ones((1, self.model.profile.n_states), bool)])
+
+    def expected_utility(self, allocation: float = math.inf) -> float:
+        last = self.model.last(check_allocation(self.name, allocation))
+        if last < 0:
+            return 0.0
+        return _every_step_value(self.model, self.stops(), last, self.monitoring_cost)
+
+    def _start(self) -> Decision:
+        return Decision.later(self.model.time[0], self.model.time[self.last], "looks every step")
+
+    def observe(self, time: float, quality: float | None) -> Decision:
+        j, s = self.model.index(time, self.last), self.model.state(quality)
+        if j == self.last:
+            return Decision.now("the last grid time within the allocation")
+        gain = float(self.gain()[j, s])
+        if gain < 0:
+            return Decision.now(f"one more step is expected to lose {-gain:.6g}")
+        return self._look_next(j, f"one more step is expected to gain {gain:.6g}")
+
+
+def check_monitoring_cost(name: str, cost: float) -> float:
+    value = float(cost)
+    if not (math.isfinite(value) and value >= 0):
+        raise PolicyError(f"{name}: monitoring_cost must be a finite number >= 0, got {cost!r}")
+    return value
+
+
+@frozen
+class StoppingPlan:
+    """`OptimalStopping`'s solution for one deadline.
+
+    Attributes:
+        value: `(n, K)` V(j, s), the expected utility from a look at grid time j in state s.
+        action: `(n, K)` what to do there: 0 stop now, 1 stop at `target` without looking,
+            2 look again at `target`.
+        target: `(n, K)` the grid index of that later stop or look.
+        expected_utility: the value of the whole run, before any look.
+        first: the start's action (1 stop at, 2 look at) and its grid index.
+    """
+
+    value: Array = field(eq=False)
+    action: Array = field(eq=False)
+    target: Array = field(eq=False)
+    expected_utility: float
+    first: tuple[int, int]
+
+
+STOP, STOP_AT, LOOK_AT = 0, 1, 2
+
+
+def solve(model: StoppingModel, last: int, monitoring_cost: float) -> StoppingPlan:
+    """Backward induction over the model's states up to grid index `last` (see the module
+    docstring); without a monitoring cost the only choice at a look is to stop or look at the
+    next grid time."""
+    c = monitoring_cost
+    n, k = last + 1, model.profile.n_states
+    u = model.stop_utility[:n]
+    value, action, target = u.copy(), np.zeros((n, k), int), np.zeros((n, k), int)
+    # Columns i = j + 1 .. last: E[V(i, s')] and E[U_stop(i, s')] from each state at j.
+    looks, stops = np.zeros((k, 0)), np.zeros((k, 0))
+    for j in range(n - 2, -1, -1):  # one matrix product per time step
+        step = model.profile.transition[j]
+        if c == 0:
+            candidates = np.column_stack([u[j], step @ value[j + 1]])
+            kinds, targets = np.array([STOP, LOOK_AT]), np.array([j, j + 1])
+        else:
+            looks = step @ np.column_stack([value[j + 1], looks])
+            stops = step @ np.column_stack([u[j + 1], stops])
+            later = np.arange(j + 1, n)
+            candidates = np.column_stack([u[j], stops, looks - c])
+            kinds = np.r_[STOP, np.full(len(later), STOP_AT), np.full(len(later), LOOK_AT)]
+            targets = np.r_[j, later, later]
+        value[j], chosen = _best(candidates)
+        action[j], target[j] = kinds[chosen], targets[chosen]
+    # The start sees nothing: the first look's value under the occupancy there.
+    reach = np.einsum("jk,jk->j", model.marginal[:n], value) - c
+    if c == 0:
+        return StoppingPlan(value, action, target, float(reach[0]), (LOOK_AT, 0))
+    blind = np.einsum("jk,jk->j", model.marginal[:n], u)
+    best, chosen = _best(np.concatenate([blind, reach])[None, :])
+    i = int(chosen[0])
+    first = (STOP_AT, i) if i < n else (LOOK_AT, i - n)
+    return StoppingPlan(value, action, target, float(best[0]), first)
+
+
+class OptimalStopping(_GridPolicy):
+    """The optimal stopping policy of the profile's Markov model (see the module docstring).
+
+    Args:
+        monitoring_cost: the utility a look costs (0: look at every grid time).
+    """
+
+    name = "optimal"
+
+    def __init__(self, *args: Any, monitoring_cost: float = 0.0, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.monitoring_cost = check_monitoring_cost(self.name, monitoring_cost)
+        self._plans: dict[int, StoppingPlan] = {}
+
+    def plan(self, allocation: float = math.inf) -> StoppingPlan:
+        """The solution for a deadline (computed once per deadline)."""
+        last = self.model.last(check_allocation(self.name, allocation))
+        if last < 0:
+            raise PolicyError(f"{self.name}: no grid time within the allocation {allocation:g}")
+        if last not in self._plans:
+            self._plans[last] = solve(self.model, last, self.monitoring_cost)
+        return self._plans[last]
+
+    def value_function(self, allocation: float = math.inf) -> Array:
+        return self.plan(allocation).value
+
+    def expected_utility(self, allocation: float = math.inf) -> float:
+        return self.plan(allocation).expected_utility
+
+    def _start(self) -> Decision:
+        plan = self.plan(self.allocation)
+        action, i = plan.first
+        return self._act(action, i, f"expected utility {plan.expected_utility:.6g}")
+
+    def observe(self, time: float, quality: float | None) -> Decision:
+        plan = self.plan(self.allocation)
+        j, s = self.model.index(time, self.last), self.model.state(quality)
+        action, i = int(plan.action[j, s]), int(plan.target[j, s])
+        if action == STOP:
+            return Decision.now(f"stopping now is worth {plan.value[j, s]:.6g}, going on less")
+        return self._act(action, i, f"going on is worth {plan.value[j, s]:.6g}")
+
+    def _act(self, action: int, i: int, reason: str) -> Decision:
+        at = float(self.model.time[i])
+        if action == STOP_AT:
+            return Decision.later(math.inf, at, reason)
+        return Decision.later(at, float(self.model.time[self.last]), reason)
+
+
+def _saturating_fit(time: Array, quality: Array, rates: Array) -> tuple[float, float, float]:
+    """The least-squares fit of q(t) = a - b exp(-c t) with c among `rates` (given c, a and b
+    are a linear fit, solved for every c at once)."""
+    basis = np.exp(-rates[:, None] * time)  # (C, points)
+    centred = basis - basis.mean(axis=1, keepdims=True)
+    spread = np.maximum((centred**2).sum(axis=1), 1e-300)
+    b = -(centred @ (quality - quality.mean())) / spread
+    a = quality.mean() + b * basis.mean(axis=1)
+    error = ((a[:, None] - b[:, None] * basis - quality) ** 2).sum(axis=1)
+    best = int(np.argmin(error))
+    return float(a[best]), float(b[best]), float(rates[best])
+
+
+class ProjectedStopping(_GridPolicy):
+    """Look at every grid time, fit the run's own qualities so far to q(t) = a - b exp(-c t),
+    and stop once the projected best stopping time argmax_t U(q_hat(t), t) has come. With fewer
+    than `points` answers seen it projects the profile's expected curve instead. For a module
+    that reports an estimate, the projected estimate is read through the observation model."""
+
+    name = "projected"
+
+    #: The rates c tried, per unit of the grid's span (the fit is linear in a and b given c).
+    RATES = np.geomspace(0.05, 50, 64)
+
+    def __init__(self, *args: Any, points: int = 3, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        if self.model.profile.observed == "none":
+            raise PolicyError(
+                f"{self.name}: the profile's module reports nothing of its quality; there is"
+                " no trace to project"
+            )
+        if points < 2:
+            raise PolicyError(f"{self.name}: points must be >= 2, got {points!r}")
+        self.points = points
+        self._seen: list[tuple[float, float]] = []
+
+    def _start(self) -> Decision:
+        self._seen = []
+        return Decision.later(self.model.time[0], self.model.time[self.last], "looks every step")
+
+    def projection(self) -> Array:
+        """The projected true quality at each grid time up to the deadline."""
+        m, n = self.model, self.last + 1
+        t = m.time[:n]
+        if len(self._seen) < self.points:
+            expected: Array = np.einsum("jk,jk->j", m.marginal[:n], m.expected_true[:n])
+            return expected
+        seen_t, seen_q = np.array(self._seen).T
+        span = max(float(t[-1] - t[0]), 1e-12)
+        coarse = self.RATES / span
+        a, b, rate = _saturating_fit(seen_t, seen_q, coarse)
+        ratio = coarse[1] / coarse[0]  # then finer, between the coarse neighbours of the best
+        a, b, rate = _saturating_fit(seen_t, seen_q, rate * np.geomspace(1 / ratio, ratio, 33))
+        curve: Array = np.clip(a - b * np.exp(-rate * t), 0.0, 1.0)
+        if m.profile.observed == "true":
+            return curve
+        # A projected estimate is worth what the observation model says its state is worth.
+        bins = m.profile.bins
+        index = np.clip(np.searchsorted(bins, curve, side="right") - 1, 0, len(bins) - 2)
+        worth: Array = m.expected_true[np.arange(n), index]
+        return worth
+
+    def observe(self, time: float, quality: float | None) -> Decision:
+        j = self.model.index(time, self.last)
+        if quality is not None:
+            self._seen.append((float(time), float(quality)))
+        if j == self.last:
+            return Decision.now("the last grid time within the allocation")
+        projected = self.model.utility(self.model.time[: self.last + 1], self.projection()[:, None])
+        _, best = _best(projected[:, 0][None, :])
+        at = int(best[0])
+        if at <= j:
+            return Decision.now(
+                f"the projected best stopping time {self.model.time[at]:g} has come"
+            )
+        return self._look_next(j, f"the projected best stopping time is {self.model.time[at]:g}")

@@ -1,0 +1,283 @@
+"""Stopping policies on dynamic profiles: the optimal policy is optimal on its own model.
+
+Hypothesis draws small dynamic profiles (from random non-decreasing traces, the module
+reporting its true quality or an estimate), a utility (a value per unit of quality less a cost
+per unit of time) and a monitoring cost; every policy's expected utility is computed exactly on
+the profile's Markov chain by `evaluate`, which enumerates the chain's state paths.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from stopping_models import Linear, traces
+
+from anytime.profiles.dynamic import DynamicProfile, QualityTraces
+from anytime.runtime import (
+    Decision,
+    FixedStopping,
+    MonitorError,
+    MyopicStopping,
+    OptimalStopping,
+    PolicyError,
+    ProjectedStopping,
+    Replay,
+    Utility,
+    clairvoyant,
+    evaluate,
+    replay,
+)
+from anytime.runtime.policies import solve
+
+SETTINGS = settings(max_examples=60, deadline=None)
+TOLERANCE = 1e-9
+
+
+@st.composite
+def problems(draw: st.DrawFn) -> tuple[DynamicProfile, Linear, float]:
+    m = draw(st.integers(2, 5))
+    reports = draw(st.sampled_from(["true", "estimate"]))
+    recorded = traces(draw(st.integers(0, 10**6)), m, draw(st.integers(1, 25)), reports)
+    profile = DynamicProfile.from_traces(recorded, states=draw(st.integers(1, 3)))
+    model = Linear(draw(st.floats(0.5, 20)), draw(st.floats(0.0, 0.5)))
+    allocation = draw(st.sampled_from([math.inf, 0.0, 15.0, 20.0, 35.0]))
+    return profile, model, allocation
+
+
+def policies(profile: DynamicProfile, model: Linear, cost: float = 0.0) -> dict[str, Any]:
+    args = (profile, model, model)
+    return {
+        "fixed": FixedStopping(*args),
+        "myopic": MyopicStopping(*args, monitoring_cost=cost),
+        "every step": OptimalStopping(*args),
+        "projected": ProjectedStopping(*args),
+    }
+
+
+@given(problems(), st.one_of(st.just(0.0), st.floats(0.01, 2.0)))
+@SETTINGS
+def test_the_optimal_policy_is_at_least_as_good_as_every_other_on_its_model(
+    problem: tuple[DynamicProfile, Linear, float], cost: float
+) -> None:
+    """Without a monitoring cost against the others; with one, choosing when to look against
+    looking at every step ("every step", myopic, projected) and never looking (fixed)."""
+    profile, model, allocation = problem
+    optimal = OptimalStopping(profile, model, model, monitoring_cost=cost)
+    best = optimal.expected_utility(allocation)
+    exact = evaluate(optimal, optimal.model, allocation, monitoring_cost=cost)
+    assert exact.expected_utility == pytest.approx(best)
+    for name, policy in policies(profile, model, cost).items():
+        other = evaluate(policy, optimal.model, allocation, monitoring_cost=cost)
+        assert other.expected_utility <= best + TOLERANCE * max(1, abs(best)), name
+
+
+@given(problems())
+@SETTINGS
+def test_free_looks_make_looking_every_step_optimal(
+    problem: tuple[DynamicProfile, Linear, float],
+) -> None:
+    """With a vanishing monitoring cost the policy that also chooses when to look (and may stop
+    later without looking) is worth what looking at every grid time is."""
+    profile, model, allocation = problem
+    policy = OptimalStopping(profile, model, model)
+    last = policy.model.last(allocation)
+    every = solve(policy.model, last, 0.0)
+    choosing = solve(policy.model, last, 1e-12)
+    np.testing.assert_allclose(choosing.value, every.value, rtol=1e-9, atol=1e-9)
+    assert choosing.expected_utility == pytest.approx(every.expected_utility, abs=1e-9)
+
+
+@given(problems(), st.floats(0.0, 1.0))
+@SETTINGS
+def test_the_vectorised_expected_utilities_are_the_exact_ones(
+    problem: tuple[DynamicProfile, Linear, float], cost: float
+) -> None:
+    profile, model, allocation = problem
+    for policy in (
+        FixedStopping(profile, model, model),
+        MyopicStopping(profile, model, model, monitoring_cost=cost),
+    ):
+        charged = 0.0 if isinstance(policy, FixedStopping) else cost
+        exact = evaluate(policy, policy.model, allocation, monitoring_cost=charged)
+        assert policy.expected_utility(allocation) == pytest.approx(exact.expected_utility)
+
+
+class Recorder:
+    """Wraps a policy and keeps every decision it makes."""
+
+    def __init__(self, policy: Any) -> None:
+        self.policy, self.name, self.observed = policy, policy.name, policy.observed
+        self.decisions: list[Decision] = []
+
+    def start(self, allocation: float) -> Decision:
+        self.decisions.append(self.policy.start(allocation))
+        return self.decisions[-1]
+
+    def observe(self, time: float, quality: float | None) -> Decision:
+        self.decisions.append(self.policy.observe(time, quality))
+        return self.decisions[-1]
+
+
+@given(problems(), st.floats(0.0, 1.0), st.integers(0, 10**6), st.floats(0, 50))
+@SETTINGS
+def test_a_policy_never_stops_after_the_deadline(
+    problem: tuple[DynamicProfile, Linear, float], cost: float, seed: int, allocation: float
+) -> None:
+    profile, model, _ = problem
+    trace = traces(seed, len(profile.time), 1).quality[0]
+    every = {
+        **policies(profile, model, cost),
+        "optimal": OptimalStopping(profile, model, model, monitoring_cost=cost),
+    }
+    for name, policy in every.items():
+        watched = Recorder(policy)
+        stopped = replay(watched, profile.time, trace, allocation=allocation)
+        assert profile.time[stopped.stop_index] <= max(allocation, profile.time[0]), name
+        going_on = [d for d in watched.decisions if not d.stop]
+        assert all(d.stop_at <= allocation for d in going_on), name
+
+
+def test_replay_follows_the_decisions_on_the_grid() -> None:
+    class Script:
+        name, observed = "script", None
+
+        def start(self, allocation: float) -> Decision:
+            return Decision.later(5, allocation, "look at 5")
+
+        def observe(self, time: float, quality: float | None) -> Decision:
+            return Decision.later(math.inf, 25, "stop at 25 without looking")
+
+    time = [0, 10, 20, 30, 40]
+    result = replay(Script(), time, [0, 0, 0.5, 0.6, 0.7], scored=[0, 0, 1, 1, 1])
+    assert (result.stop_index, result.looks) == (3, 1)  # looked at 20 (the first answer after 5)
+    assert replay(Script(), time, [0.1] * 5, allocation=15) == Replay(1, 1)  # at the deadline
+
+
+def test_the_clairvoyant_utility_is_the_best_point_of_each_trace() -> None:
+    model = Linear(10, 0.1)
+    utility = Utility(model, model)
+    quality = np.array([[0.0, 0.5, 0.9], [0.2, 0.3, 0.35]])
+    np.testing.assert_allclose(clairvoyant([0, 10, 20], quality, utility), [7.0, 2.0])
+
+
+def test_the_projection_fits_a_saturating_curve() -> None:
+    recorded = traces(0, 8, 20)
+    model = Linear(10, 0.05)
+    policy = ProjectedStopping(DynamicProfile.from_traces(recorded, states=4), model, model)
+    policy.start(math.inf)
+    time = recorded.time
+    curve = 0.9 - 0.8 * np.exp(-0.05 * time)
+    for t, q in zip(time[:4], curve[:4], strict=True):
+        policy.observe(float(t), float(q))
+    np.testing.assert_allclose(policy.projection(), curve, atol=1e-3)
+
+
+# --- bad input ----------------------------------------------------------------------------
+
+
+def test_bad_arguments_are_clear_errors() -> None:
+    profile = DynamicProfile.from_traces(traces(0, 3, 5), states=2)
+    model = Linear(1, 0)
+    with pytest.raises(PolicyError) as error:
+        OptimalStopping(profile, model, model, monitoring_cost=-1)
+    assert str(error.value) == "optimal: monitoring_cost must be a finite number >= 0, got -1"
+    with pytest.raises(PolicyError) as error:
+        FixedStopping(profile, model, model).start(-1.0)
+    assert str(error.value) == "fixed: allocation must be a number >= 0, got -1.0"
+    with pytest.raises(PolicyError) as error:
+        MyopicStopping("profile", model, model)  # type: ignore[arg-type]
+    assert str(error.value) == "stopping: expected a DynamicProfile, got str"
+    with pytest.raises(PolicyError) as error:
+        ProjectedStopping(profile, model, model, points=1)
+    assert str(error.value) == "projected: points must be >= 2, got 1"
+    blind = DynamicProfile.from_traces(
+        QualityTraces(
+            module="blind", time=[0, 1], quality=[[0.2, 0.4]], scored=[[1, 1]], reports="none"
+        )
+    )
+    with pytest.raises(PolicyError) as error:
+        ProjectedStopping(blind, model, model)
+    assert str(error.value) == (
+        "projected: the profile's module reports nothing of its quality; there is no trace"
+        " to project"
+    )
+    with pytest.raises(PolicyError) as error:
+        evaluate(
+            FixedStopping(profile, model, model),
+            FixedStopping(profile, model, model).model,
+            max_paths=3,
+        )
+    assert str(error.value) == "evaluate: the model has 2^3 state paths, more than max_paths (3)"
+    with pytest.raises(PolicyError) as error:
+        replay(FixedStopping(profile, model, model), [0, 1], [0.5])
+    assert str(error.value) == (
+        "replay: expected time, observed and scored of one shape (m,), got [2], [1] and [2]"
+    )
+
+
+def test_a_model_of_the_wrong_shape_is_named() -> None:
+    class Wrong:
+        def value(self, state: Any, contract: np.ndarray, quality: np.ndarray) -> np.ndarray:
+            return np.zeros((7, 7))
+
+        def cost(self, state: Any, contract: np.ndarray, quality: np.ndarray) -> np.ndarray:
+            return np.zeros(1)
+
+    profile = DynamicProfile.from_traces(traces(0, 3, 5), states=2)
+    with pytest.raises(MonitorError) as error:
+        OptimalStopping(profile, Wrong(), Wrong())
+    assert str(error.value) == (
+        "monitor: the value model answered with shape [7, 7], which does not broadcast to"
+        " (grid, bins) [3, 2]"
+    )
+
+
+def test_a_profile_over_input_qualities_is_read_at_the_given_ones() -> None:
+    base = traces(1, 3, 10)
+    stacked = QualityTraces(
+        module="walk",
+        time=base.time,
+        quality=np.stack([base.quality * 0.5, base.quality]),
+        scored=np.stack([base.scored, base.scored]),
+        input_grids=[[0.0, 1.0]],
+        inputs=["x"],
+    )
+    profile = DynamicProfile.from_traces(stacked, bins=[0, 0.25, 0.5, 0.75, 1])
+    model = Linear(10, 0.01)
+    low = OptimalStopping(profile, model, model, input_quality=[0.0])
+    high = OptimalStopping(profile, model, model, input_quality=[1.0])
+    assert low.expected_utility() < high.expected_utility()
+    with pytest.raises(Exception) as error:
+        OptimalStopping(profile, model, model)
+    assert str(error.value) == "walk: expected 1 input quality, got 0"
+
+
+def test_watching_a_module_that_reports_nothing_is_worth_no_more_than_not_looking() -> None:
+    recorded = traces(2, 5, 30)
+    blind = QualityTraces(
+        module="walk",
+        time=recorded.time,
+        quality=recorded.quality,
+        scored=recorded.scored,
+        reports="none",
+    )
+    profile = DynamicProfile.from_traces(blind)
+    model = Linear(10, 0.1)
+    assert profile.n_states == 1
+    assert OptimalStopping(profile, model, model).expected_utility() == pytest.approx(
+        FixedStopping(profile, model, model).expected_utility()
+    )
+
+
+def test_a_decision_names_a_time() -> None:
+    with pytest.raises(PolicyError) as error:
+        Decision.later(math.nan, 10, "why")
+    assert str(error.value) == "decision: look_at must be a time >= 0, got nan"
+    with pytest.raises(PolicyError) as error:
+        Decision(False, stop_at=-1)
+    assert str(error.value) == "decision: stop_at must be a time >= 0, got -1.0"
