@@ -43,6 +43,7 @@ def replay(
     observed: ArrayLike,
     allocation: float | None = None,
     scored: ArrayLike | None = None,
+    ended: int | None = None,
 ) -> Replay:
     """Run `policy` on one recorded trace, as the executor would: it is consulted at the first
     grid time with an answer at or after each `look_at` and stops there, or at the first grid
@@ -52,6 +53,8 @@ def replay(
         time: the trace's grid times (m,).
         observed: the quality the module reported at each (m,).
         scored: whether it had an answer there (default: everywhere).
+        ended: the grid index where the run ended by itself (`QualityTraces.end_index`): the
+            run is over there, whatever the policy would do next (default: it never did).
     """
     t = np.asarray(time, dtype=np.float64)
     q = np.asarray(observed, dtype=np.float64)
@@ -68,6 +71,8 @@ def replay(
     if decision.stop or last < 0:
         return Replay(0, 0)
     for j in range(last + 1):  # one step of the run per grid time
+        if ended is not None and j >= ended:
+            return Replay(j, looks)  # the module returned: the run is over
         if had[j] and t[j] >= decision.look_at:  # the executor looks at results only
             decision = policy.observe(float(t[j]), float(q[j]))
             looks += 1
