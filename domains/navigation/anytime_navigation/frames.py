@@ -232,8 +232,10 @@ class _TaskRun:
     def detour(self) -> float:
         return self.walked / self.foreseen if self.foreseen > 0 else 1.0  # start on the goal
 
-    def step(self) -> float:
-        return float(np.mean(self.progress)) if self.progress else float(self.task.radius)
+    def step(self, position: Position) -> float:
+        """The progress expected of a frame planned from `position`: the mean of the frames
+        so far, `TaskModel.first_step` before any."""
+        return float(np.mean(self.progress)) if self.progress else self.model.first_step(position)
 
     def decide(
         self,
@@ -256,7 +258,7 @@ class _TaskRun:
                 now,
                 remaining,
                 speed,
-                self.step(),
+                self.step(position),
                 current is None,
                 current or 0.0,
                 self.detour(),
@@ -405,7 +407,7 @@ class _TaskRun:
                     proposed -= 1
                 if proposed != speed_index and state is not None:
                     at = replace(state, now=start + checkpoint, current=n_cells - done)
-                    if self.pays(at, checkpoint, decision, speeds[proposed]):
+                    if self.pays(at, checkpoint, decision, quality, speeds[proposed]):
                         speed_index = proposed
                 adjustments.append(str(adjustment))
                 speed = speeds[speed_index]
@@ -413,11 +415,14 @@ class _TaskRun:
         energy += float(task.energy(speed)) * (n_cells - done)
         return _Executed(segment, t, energy, speed, adjustments, ()), speed_index
 
-    def pays(self, state: FrameState, elapsed: float, decision: Any, speed: float) -> bool:
+    def pays(
+        self, state: FrameState, elapsed: float, decision: Any, reached: float, speed: float
+    ) -> bool:
         """Whether the task model expects the rest of the task to be worth more at `speed`
-        than at the state's, `elapsed` into the contract of `decision` (the plan being made
-        taken at the contract's expected quality)."""
-        c, q = decision.contract, decision.expected_quality
+        than at the state's, `elapsed` into the contract of `decision`, the plan being made
+        having `reached` its quality so far (it is taken at the better of that and the
+        contract's expected quality: the planner answers with its best plan)."""
+        c, q = decision.contract, max(decision.expected_quality, reached)
         now = replace(state, elapsed=elapsed)
         return self.model.utility(replace(now, speed=speed), c, q) > self.model.utility(now, c, q)
 

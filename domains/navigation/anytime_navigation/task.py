@@ -209,10 +209,7 @@ class TaskModel:
         d = state.remaining * state.detour
         frames = max(1.0, math.ceil(d / max(state.step, 1.0)))
         this = min(d, max(state.step, 1.0))
-        if self.profile is None:
-            later = 1.0 / q
-        else:
-            later = np.interp(c, self.profile.time, self._later)
+        later = 1.0 / q if self.profile is None else self.later_factor(c)
         path = this / q + (d - this) * later
         per_frame = path / frames / state.speed
         if state.waiting:
@@ -221,6 +218,13 @@ class TaskModel:
             wait = np.maximum(c - state.elapsed, state.current / state.speed)
         completion = state.now + wait + (frames - 1) * np.maximum(c, per_frame) + per_frame
         return completion, path + state.current
+
+    def later_factor(self, contract: Array) -> Array:
+        """`R(c)`: how much the later frames' plans stretch the route, contract `c` each
+        (interpolated between the profile's times; needs the profile)."""
+        if self.profile is None:
+            raise ValueError("the task model has no profile: later frames are not modelled")
+        return np.asarray(np.interp(contract, self.profile.time, self._later), dtype=np.float64)
 
     def value(self, state: FrameState, contract: Array, quality: Array) -> Array:
         completion, _ = self._parts(state, contract, quality)
@@ -240,6 +244,18 @@ class TaskModel:
             state, np.asarray(contract, dtype=np.float64), np.asarray(quality, dtype=np.float64)
         )
         return float(completion)
+
+    def first_step(self, position: Position) -> float:
+        """The progress a frame is expected to make before one has been seen: the distance
+        on the prior map (every cell free) that a straight line from `position` toward the
+        goal covers before it leaves the sensor's window (where a frame's segment ends),
+        e.g. `2 r` along the diagonal with 4-connected movement, `r` along an axis."""
+        (x, y), (gx, gy) = position, self.task.world.goal
+        scale = min(1.0, self.task.radius / max(abs(gx - x), abs(gy - y), 1))
+        dx, dy = abs(gx - x) * scale, abs(gy - y) * scale
+        if self.task.world.movement == 8:  # octile
+            return max(1.0, max(dx, dy) + (math.sqrt(2.0) - 1.0) * min(dx, dy))
+        return max(1.0, dx + dy)
 
     def last_speed(self, now: float, cells: float) -> float:
         """The speed of the grid of highest utility for a last segment of `cells` cells to the
