@@ -11,7 +11,9 @@ looks around the point where the current segment ends, which the robot knows in 
 frame lasts `max(next contract, execution time)`; the first frame's planning is not overlapped
 (the robot waits). While a frame runs, the monitor's intra-frame rule (`Monitor.adjust`) is
 checked at a quarter, half and three quarters of the contract, against the plan quality the
-planner had actually reached by then, and moves the speed one step up or down the grid.
+planner had actually reached by then; when it asks for a speed one step up or down the grid,
+the speed moves if `TaskModel` expects the rest of the task to be worth more at it. The last
+segment (no plan to wait for) goes at `TaskModel.last_speed`.
 
 Time is in ticks of the work clock (or, with a wall clock, in tick-equivalents measured with a
 calibrated rate). Quantities:
