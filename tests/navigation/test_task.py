@@ -120,3 +120,16 @@ def test_the_first_frames_progress_is_a_straight_line_to_the_windows_edge(
     world = random_world(32, seed=3)
     task = NavigationTask(attrs.evolve(world, movement=movement), radius=8)
     assert TaskModel(task).first_step(position) == pytest.approx(expected)
+
+
+def test_a_declined_adjustment_keeps_the_speed(program):
+    compiled, trace = program
+    task = NavigationTask(random_world(128, seed=6), radius=32, seed=6)
+    report = run_task(task, compiled, trace)
+    said = [a for r in report.records for a in r.adjustments]
+    assert set(said) <= {"faster", "slower", "hold", "faster declined", "slower declined"}
+    assert "faster declined" in said
+    contracts = report.log.of_kind("contract")
+    for record in report.records[:-1]:  # the next frame's decision chose this one's speed
+        if all(a.endswith(("hold", "declined")) for a in record.adjustments):
+            assert record.speed == contracts[record.index + 1].data["speed"]

@@ -405,11 +405,14 @@ class _TaskRun:
                     proposed += 1
                 elif adjustment is Adjustment.SLOWER and speed_index > 0:
                     proposed -= 1
+                said = str(adjustment)
                 if proposed != speed_index and state is not None:
                     at = replace(state, now=start + checkpoint, current=n_cells - done)
                     if self.pays(at, checkpoint, decision, quality, speeds[proposed]):
                         speed_index = proposed
-                adjustments.append(str(adjustment))
+                    else:
+                        said += " declined"  # the model expects the move not to pay
+                adjustments.append(said)
                 speed = speeds[speed_index]
         t += (n_cells - done) / speed
         energy += float(task.energy(speed)) * (n_cells - done)

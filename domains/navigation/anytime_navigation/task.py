@@ -278,7 +278,9 @@ class FrameRecord:
     `route` the cells the robot moved along in this frame (its first cell is where it stood);
     `predicted_utility` the utility of the whole task the monitor predicted when it chose this
     frame's contract (the energy spent until then plus the expected value minus energy of the
-    rest: the first frame's is the report's `predicted_utility`).
+    rest: the first frame's is the report's `predicted_utility`); `adjustments` what the
+    intra-frame rule said at each check during it ("faster declined", "slower declined": a
+    move the task model expected not to pay, so not made).
     """
 
     index: int
