@@ -7,9 +7,9 @@ ratio U / clairvoyant bound (definitions in `anytime_navigation.task`). Then, fo
 policy, the worlds it predicts worst: what the robot walked and spent there, and the monitor's
 prediction of the whole task's utility frame by frame (`FrameRecord.predicted_utility`), which
 shows when it found out. The prediction made when the task is presented is one number for
-every world (the robot has sensed nothing yet, and every world here has the same start, goal
-and shortest length), so the mean error of the best single number in hindsight bounds what
-any such prediction can reach; it is printed too.
+every world (the robot has sensed nothing yet, and the worlds here share their start, goal
+and size), so the mean error of the best single number in hindsight bounds what any such
+prediction can reach; it is printed too.
 """
 
 from __future__ import annotations
@@ -66,8 +66,8 @@ def main() -> None:
 
 
 def best_single_prediction(utilities: np.ndarray) -> tuple[float, float]:
-    """The one prediction for all worlds of least mean |U - p| / |p| (a weighted median: the
-    optimum is at one of the utilities), and that mean error."""
+    """The one prediction for all worlds of least mean |U - p| / |p|, and that mean error (the
+    optimum is one of the utilities: between two of them the mean error is monotone in p)."""
     p = utilities[np.abs(utilities) > 0]
     errors = np.mean(np.abs(utilities[None, :] - p[:, None]) / np.abs(p[:, None]), axis=1)
     i = int(np.argmin(errors))
@@ -83,7 +83,10 @@ def print_worst(reports: list[TaskReport], n: int) -> None:
         f"{'completion':>12}  prediction frame by frame"
     )
     for r in worst:
-        frames = " ".join(f"{f.predicted_utility:.0f}" for f in r.records)
+        shown = [f"{f.predicted_utility:.0f}" for f in r.records]
+        if len(shown) > 10:  # a long run: its start and its end
+            shown = [*shown[:7], "...", *shown[-2:]]
+        frames = " ".join(shown)
         print(
             f"{r.seed:>4}{r.predicted_utility:>11.1f}{r.utility:>9.1f}"
             f"{100 * r.prediction_error:>7.1f}%{r.route_length:>7.0f}{r.energy:>8.1f}"
@@ -99,10 +102,16 @@ def print_worst(reports: list[TaskReport], n: int) -> None:
             for r in reports
         ]
     )
+    lengths = sorted({r.optimal_length for r in reports})
+    shortest = (
+        f"{lengths[0]:.0f} cells in every world"
+        if len(lengths) == 1
+        else f"{lengths[0]:.0f} to {lengths[-1]:.0f} cells"
+    )
     print(
-        f"(shortest route {worst[0].optimal_length:.0f} in every world: the route is the"
-        f" robot's; best single prediction in hindsight {best:.1f}, mean error"
-        f" {100 * error:.1f}%; the frames' predictions err by {100 * running:.1f}% on average)"
+        f"(shortest routes: {shortest}; the best single prediction for all worlds, in"
+        f" hindsight: {best:.1f}, mean error {100 * error:.1f}%;\n the predictions of every"
+        f" frame, averaged over each world's frames: mean error {100 * running:.1f}%)"
     )
 
 
