@@ -3,7 +3,13 @@
     .venv/bin/python benchmarks/bench_monitor.py [--worlds 30] [--size 128] [--quick]
 
 Per policy: mean utility, mean prediction error |U - predicted| / |predicted| and mean utility
-ratio U / clairvoyant bound (definitions in `anytime_navigation.task`).
+ratio U / clairvoyant bound (definitions in `anytime_navigation.task`). Then, for the monitored
+policy, the worlds it predicts worst: what the robot walked and spent there, and the monitor's
+prediction of the whole task's utility frame by frame (`FrameRecord.predicted_utility`), which
+shows when it found out. The prediction made when the task is presented is one number for
+every world (the robot has sensed nothing yet, and the worlds here share their start, goal
+and size), so the mean error of the best single number in hindsight bounds what any such
+prediction can reach; it is printed too.
 """
 
 from __future__ import annotations
@@ -14,7 +20,7 @@ import time
 import numpy as np
 from anytime_navigation.frame_program import navigation_program
 from anytime_navigation.frames import run_task
-from anytime_navigation.task import NavigationTask
+from anytime_navigation.task import NavigationTask, TaskReport
 from anytime_navigation.world import random_world
 
 from anytime.runtime.monitor import DeadlineValue
@@ -26,6 +32,7 @@ def main() -> None:
     parser.add_argument("--size", type=int, default=128)
     parser.add_argument("--radius", type=int, help="sensor radius (default: a quarter of the side)")
     parser.add_argument("--quick", action="store_true", help="64x64 worlds")
+    parser.add_argument("--worst", type=int, default=5, help="worlds listed by prediction error")
     args = parser.parse_args()
     size = 64 if args.quick else args.size
     radius = args.radius or size // 4
@@ -36,6 +43,7 @@ def main() -> None:
     fixed = [t for t in grid if t <= 1000] + [t for t in grid if t > 1000][1::3]
     policies = [("monitored", None), ("min", None), ("max", None)] + [("fixed", t) for t in fixed]
     rows: dict[str, list[tuple[float, float, float]]] = {}
+    monitored: list[TaskReport] = []
     started = time.perf_counter()
     for seed in range(args.worlds):
         world = random_world(size, seed=seed)
@@ -44,6 +52,8 @@ def main() -> None:
         for policy, contract in policies:
             r = run_task(task, compiled, trace, policy=policy, contract=contract)
             rows.setdefault(r.policy, []).append((r.utility, r.prediction_error, r.utility_ratio))
+            if policy == "monitored":
+                monitored.append(r)
     print(
         f"{args.worlds} worlds {size}x{size}, radius {radius}, "
         f"{time.perf_counter() - started:.0f} s"
@@ -52,6 +62,57 @@ def main() -> None:
     for name, values in rows.items():
         u, e, q = np.mean(np.array(values), axis=0)
         print(f"{name:<12}{u:>10.1f}{100 * e:>12.1f}%{q:>15.3f}")
+    print_worst(monitored, args.worst)
+
+
+def best_single_prediction(utilities: np.ndarray) -> tuple[float, float]:
+    """The one prediction for all worlds of least mean |U - p| / |p|, and that mean error (the
+    optimum is one of the utilities: between two of them the mean error is monotone in p)."""
+    p = utilities[np.abs(utilities) > 0]
+    errors = np.mean(np.abs(utilities[None, :] - p[:, None]) / np.abs(p[:, None]), axis=1)
+    i = int(np.argmin(errors))
+    return float(p[i]), float(errors[i])
+
+
+def print_worst(reports: list[TaskReport], n: int) -> None:
+    """The monitored policy's `n` worst-predicted worlds, and what bounds its error."""
+    worst = sorted(reports, key=lambda r: r.prediction_error, reverse=True)[:n]
+    print(f"\nmonitored, the {len(worst)} worlds predicted worst:")
+    print(
+        f"{'seed':>4}{'predicted':>11}{'utility':>9}{'error':>8}{'route':>7}{'energy':>8}"
+        f"{'completion':>12}  prediction frame by frame"
+    )
+    for r in worst:
+        shown = [f"{f.predicted_utility:.0f}" for f in r.records]
+        if len(shown) > 10:  # a long run: its start and its end
+            shown = [*shown[:7], "...", *shown[-2:]]
+        frames = " ".join(shown)
+        print(
+            f"{r.seed:>4}{r.predicted_utility:>11.1f}{r.utility:>9.1f}"
+            f"{100 * r.prediction_error:>7.1f}%{r.route_length:>7.0f}{r.energy:>8.1f}"
+            f"{r.completion_time:>12.0f}  {frames}"
+        )
+    utilities = np.array([r.utility for r in reports])
+    best, error = best_single_prediction(utilities)
+    running = np.mean(
+        [
+            np.mean(
+                [abs(r.utility - f.predicted_utility) / abs(f.predicted_utility) for f in r.records]
+            )
+            for r in reports
+        ]
+    )
+    lengths = sorted({r.optimal_length for r in reports})
+    shortest = (
+        f"{lengths[0]:.0f} cells in every world"
+        if len(lengths) == 1
+        else f"{lengths[0]:.0f} to {lengths[-1]:.0f} cells"
+    )
+    print(
+        f"(shortest routes: {shortest}; the best single prediction for all worlds, in"
+        f" hindsight: {best:.1f}, mean error {100 * error:.1f}%;\n the predictions of every"
+        f" frame, averaged over each world's frames: mean error {100 * running:.1f}%)"
+    )
 
 
 if __name__ == "__main__":

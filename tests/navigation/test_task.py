@@ -4,11 +4,15 @@ from __future__ import annotations
 
 import math
 
+import attrs
+import numpy as np
 import pytest
 from anytime_navigation.frame_program import navigation_program
 from anytime_navigation.frames import run_task
-from anytime_navigation.task import NavigationTask, optimal_utility
+from anytime_navigation.task import FrameState, NavigationTask, TaskModel, optimal_utility
 from anytime_navigation.world import random_world
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 
 @pytest.fixture(scope="module")
@@ -38,3 +42,94 @@ def test_fixed_policy_needs_a_contract(program):
     compiled, trace = program
     with pytest.raises(ValueError, match="contract"):
         run_task(NavigationTask(random_world(16, seed=0)), compiled, trace, policy="fixed")
+
+
+# --- the monitor's model of the task ------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def model(program):
+    compiled, _ = program
+    return TaskModel(NavigationTask(random_world(32, seed=3), radius=8), compiled.profile)
+
+
+def test_later_frames_are_stretched_by_at_least_the_shortest_route(model):
+    factor = model.later_factor(model.profile.time)
+    assert np.all(factor >= 1.0)
+    assert factor[0] == 1.0 / model.floor  # nothing planned: every plan at the floor
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    remaining=st.floats(1.0, 500.0),
+    step=st.floats(1.0, 64.0),
+    speed=st.sampled_from([0.05, 0.1, 0.15, 0.2]),
+    contract=st.sampled_from([200.0, 600.0, 1000.0]),
+)
+def test_the_plan_being_made_stretches_only_its_own_frame(model, remaining, step, speed, contract):
+    state = FrameState(0.0, remaining, speed, step, waiting=True)
+    c, q = np.array([[contract]]), np.array([[1.0, 0.5]])
+    cost = np.asarray(model.cost(state, c, q)).reshape(-1)
+    this = min(remaining, step)
+    assert math.isclose(cost[1] - cost[0], float(model.task.energy(speed)) * this, rel_tol=1e-9)
+
+
+@settings(max_examples=50, deadline=None)
+@given(now=st.floats(0.0, 3000.0), cells=st.floats(0.0, 200.0))
+def test_the_last_segments_speed_is_the_best_of_the_grid(model, now, cells):
+    task = model.task
+    best = model.last_speed(now, cells)
+    utilities = {
+        v: float(task.value(now + cells / v)) - float(task.energy(v)) * cells for v in task.speeds
+    }
+    assert utilities[best] == max(utilities.values())
+
+
+def test_each_frame_records_the_prediction_its_decision_logged(program):
+    compiled, trace = program
+    task = NavigationTask(random_world(32, seed=3), radius=8, seed=3)
+    report = run_task(task, compiled, trace)
+    logged = [event.data["predicted_utility"] for event in report.log.of_kind("contract")]
+    assert [r.predicted_utility for r in report.records] == logged[: report.frames]
+    assert report.records[0].predicted_utility == report.predicted_utility
+    last = report.records[-1]
+    assert last.speed == TaskModel(task).last_speed(last.exec_start, len(last.route) - 1)
+
+
+def test_the_later_factor_needs_a_profile():
+    model = TaskModel(NavigationTask(random_world(16, seed=0)))
+    with pytest.raises(ValueError) as error:
+        model.later_factor(np.array([600.0]))
+    assert str(error.value) == "the task model has no profile: later frames are not modelled"
+
+
+@pytest.mark.parametrize(
+    ("movement", "position", "expected"),
+    [
+        (4, (0, 0), 16.0),  # toward the far corner: the window's edge is r away on both axes
+        (4, (31, 0), 8.0),  # straight down
+        (4, (28, 29), 5.0),  # the goal is inside the window
+        (8, (0, 0), 8.0 * math.sqrt(2.0)),
+        (4, (31, 31), 1.0),  # on the goal: at least one cell
+    ],
+    ids=["diagonal", "axis", "near-goal", "octile", "on-goal"],
+)
+def test_the_first_frames_progress_is_a_straight_line_to_the_windows_edge(
+    movement, position, expected
+):
+    world = random_world(32, seed=3)
+    task = NavigationTask(attrs.evolve(world, movement=movement), radius=8)
+    assert TaskModel(task).first_step(position) == pytest.approx(expected)
+
+
+def test_a_declined_adjustment_keeps_the_speed(program):
+    compiled, trace = program
+    task = NavigationTask(random_world(128, seed=6), radius=32, seed=6)
+    report = run_task(task, compiled, trace)
+    said = [a for r in report.records for a in r.adjustments]
+    assert set(said) <= {"faster", "slower", "hold", "faster declined", "slower declined"}
+    assert "faster declined" in said
+    contracts = report.log.of_kind("contract")
+    for record in report.records[:-1]:  # the next frame's decision chose this one's speed
+        if all(a.endswith(("hold", "declined")) for a in record.adjustments):
+            assert record.speed == contracts[record.index + 1].data["speed"]

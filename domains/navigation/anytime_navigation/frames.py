@@ -196,7 +196,7 @@ class _TaskRun:
             self.contracts = grid[-1:]
         else:
             self.contracts = grid
-        self.model = TaskModel(task)
+        self.model = TaskModel(task, profile)
         self.log = EventLog()
         self.chooser = Monitor(
             profile, self.model, self.model, grid=self.contracts, input_quality=self.input_quality
@@ -219,24 +219,37 @@ class _TaskRun:
         self.overcome = overcome
         self.counts = {"decisions": 0, "collisions": 0, "evasions": 0}
         # What the monitor learns frame by frame: the progress per frame, and the detour factor
-        # (cells walked over the cells the model predicted for that progress).
+        # (cells walked over the cells the model predicted for that progress), which starts at
+        # 1 with the weight of the start-to-goal distance on the prior map, so that one frame's
+        # detour moves it by its share of the route, not to that frame's own ratio.
         self.progress: list[float] = []
-        self.walked = self.foreseen = 0.0
+        prior = _belief_distance(np.zeros_like(self.truth), world.start, world.goal, world.movement)
+        self.walked = self.foreseen = prior
+        self.predictions: list[float] = []  # the whole task's utility, one per decision
 
     # --- one frame's steps ----------------------------------------------------------------
 
     def detour(self) -> float:
-        return self.walked / self.foreseen if self.foreseen > 0 else 1.0
+        return self.walked / self.foreseen if self.foreseen > 0 else 1.0  # start on the goal
 
-    def step(self) -> float:
-        return float(np.mean(self.progress)) if self.progress else float(self.task.radius)
+    def step(self, position: Position) -> float:
+        """The progress expected of a frame planned from `position`: the mean of the frames
+        so far, `TaskModel.first_step` before any."""
+        return float(np.mean(self.progress)) if self.progress else self.model.first_step(position)
 
     def decide(
-        self, now: float, position: Position, known: BoolGrid, current: float | None
+        self,
+        now: float,
+        position: Position,
+        known: BoolGrid,
+        current: float | None,
+        spent: float = 0.0,
     ) -> tuple[Any, FrameState]:
         """The contract and speed of highest expected utility for the plan made from
         `position` (`current`: the length of the segment executed meanwhile; None: the robot
-        waits for this plan), logged as a "contract" event."""
+        waits for this plan), logged as a "contract" event with the utility of the whole task
+        it predicts: `spent` (the energy of the frames before the current segment) taken
+        from the expected utility of the rest."""
         world = self.world
         remaining = _belief_distance(known, position, world.goal, world.movement)
         best = None
@@ -245,7 +258,7 @@ class _TaskRun:
                 now,
                 remaining,
                 speed,
-                self.step(),
+                self.step(position),
                 current is None,
                 current or 0.0,
                 self.detour(),
@@ -266,8 +279,10 @@ class _TaskRun:
                 "expected_value": decision.expected_value,
                 "expected_cost": decision.expected_cost,
                 "expected_utility": decision.expected_utility,
+                "predicted_utility": decision.expected_utility - spent,
             },
         )
+        self.predictions.append(decision.expected_utility - spent)
         return decision, state
 
     def plan(self, position: Position, known: BoolGrid, contract: float, index: int) -> _Planned:
@@ -349,12 +364,15 @@ class _TaskRun:
         start: float,
         speed_index: int,
         following: tuple[Any, _Planned] | None,
+        state: FrameState | None = None,
     ) -> tuple[_Executed, int]:
         """Walk `segment` from time `start` while the next frame plans (`following`: its
-        decision and planning; None at the last frame). Without obstacles the intra-frame rule
-        is checked at a quarter, half and three quarters of the next contract against the
-        planner's quality so far, and moves the speed one step; with obstacles the speed is
-        kept and the robot decides around them (`among_obstacles`)."""
+        decision and planning, `state` the monitor's state when it chose them; None at the
+        last frame). Without obstacles the intra-frame rule is checked at a quarter, half and
+        three quarters of the next contract against the planner's quality so far, and the
+        speed moves one step when the rule says so and the task model expects the move to pay
+        (`pays`); with obstacles the speed is kept and the robot decides around them
+        (`among_obstacles`)."""
         task, speeds = self.task, self.speeds
         speed = speeds[speed_index]
         n_cells = route_length(segment)
@@ -382,15 +400,34 @@ class _TaskRun:
                 adjustment = self.checker.adjust(
                     checkpoint, quality, done / n_cells, c, now=start + checkpoint
                 )
+                proposed = speed_index
                 if adjustment is Adjustment.FASTER and speed_index < len(speeds) - 1:
-                    speed_index += 1
+                    proposed += 1
                 elif adjustment is Adjustment.SLOWER and speed_index > 0:
-                    speed_index -= 1
-                adjustments.append(str(adjustment))
+                    proposed -= 1
+                said = str(adjustment)
+                if proposed != speed_index and state is not None:
+                    at = replace(state, now=start + checkpoint, current=n_cells - done)
+                    if self.pays(at, checkpoint, decision, quality, speeds[proposed]):
+                        speed_index = proposed
+                    else:
+                        said += " declined"  # the model expects the move not to pay
+                adjustments.append(said)
                 speed = speeds[speed_index]
         t += (n_cells - done) / speed
         energy += float(task.energy(speed)) * (n_cells - done)
         return _Executed(segment, t, energy, speed, adjustments, ()), speed_index
+
+    def pays(
+        self, state: FrameState, elapsed: float, decision: Any, reached: float, speed: float
+    ) -> bool:
+        """Whether the task model expects the rest of the task to be worth more at `speed`
+        than at the state's, `elapsed` into the contract of `decision`, the plan being made
+        having `reached` its quality so far (it is taken at the better of that and the
+        contract's expected quality: the planner answers with its best plan)."""
+        c, q = decision.contract, max(decision.expected_quality, reached)
+        now = replace(state, elapsed=elapsed)
+        return self.model.utility(replace(now, speed=speed), c, q) > self.model.utility(now, c, q)
 
     def learn(
         self, known: BoolGrid, start: Position, end: Position, walked: float, q: float
@@ -438,12 +475,18 @@ class _TaskRun:
             following = None
             next_state = None
             if end != world.goal:
-                next_decision, next_state = self.decide(now, end, known, route_length(segment))
+                next_decision, next_state = self.decide(
+                    now, end, known, route_length(segment), energy
+                )
                 speed_index = self.speeds.index(next_state.speed)
                 next_planned = self.plan(end, known, next_decision.contract, index + 1)
                 following = (next_decision, next_planned)
+            else:  # the last segment: no planning to wait for, the speed is the model's
+                speed_index = self.speeds.index(self.model.last_speed(now, route_length(segment)))
             frame_counts = dict(counts)
-            done, speed_index = self.execute_segment(segment, exec_start, speed_index, following)
+            done, speed_index = self.execute_segment(
+                segment, exec_start, speed_index, following, next_state
+            )
             segment = done.segment
             frame_time = done.time
             if following is not None:
@@ -482,6 +525,7 @@ class _TaskRun:
                     choices=done.choices,
                     decisions=counts["decisions"] - frame_counts["decisions"],
                     collisions=counts["collisions"] - frame_counts["collisions"],
+                    predicted_utility=self.predictions[index],
                 )
             )
             self.learn(known, position, end, route_length(segment), decision.expected_quality)

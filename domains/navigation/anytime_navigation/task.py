@@ -11,7 +11,9 @@ looks around the point where the current segment ends, which the robot knows in 
 frame lasts `max(next contract, execution time)`; the first frame's planning is not overlapped
 (the robot waits). While a frame runs, the monitor's intra-frame rule (`Monitor.adjust`) is
 checked at a quarter, half and three quarters of the contract, against the plan quality the
-planner had actually reached by then, and moves the speed one step up or down the grid.
+planner had actually reached by then; when it asks for a speed one step up or down the grid,
+the speed moves if `TaskModel` expects the rest of the task to be worth more at it. The last
+segment (no plan to wait for) goes at `TaskModel.last_speed`.
 
 Time is in ticks of the work clock (or, with a wall clock, in tick-equivalents measured with a
 calibrated rate). Quantities:
@@ -52,9 +54,9 @@ from collections.abc import Callable
 from typing import Any, Protocol
 
 import numpy as np
-from attrs import field, frozen
+from attrs import Factory, field, frozen
 
-from anytime.plugin import Array, DeadlineValue, EventLog
+from anytime.plugin import Array, ConditionalPerformanceProfile, DeadlineValue, EventLog
 
 from .obstacles import MovingObstacle
 from .world import BoolGrid, Position, World
@@ -132,8 +134,10 @@ class FrameState:
     """What the monitor knows when it chooses a contract: the time now, the remaining distance
     from where the plan will start (shortest route on the robot's map), the speed considered,
     the progress in remaining distance expected per frame, either that the robot waits for
-    this plan (the first frame) or the length of the segment it executes meanwhile, and the
-    detour factor learned so far (see `TaskModel`)."""
+    this plan (the first frame) or the length of the segment it executes meanwhile (what is
+    left of it, at an intra-frame check), the detour factor learned so far (see `TaskModel`),
+    and how much of the plan's contract has already run (at an intra-frame check; 0 when the
+    contract is being chosen)."""
 
     now: float
     remaining: float
@@ -142,6 +146,21 @@ class FrameState:
     waiting: bool
     current: float = 0.0
     detour: float = 1.0
+    elapsed: float = 0.0
+
+
+def _later_route_factor(profile: ConditionalPerformanceProfile | None, floor: float) -> Array:
+    """E[1 / max(q, floor)] over the profile's output quality at each time of its grid (bins at
+    the qualities the monitor evaluates them at: midpoints shifted to the exact means)."""
+    if profile is None:
+        return np.zeros(0)
+    times = profile.time
+    inputs = np.ones((times.size, profile.n_inputs))
+    dist = profile.distribution(inputs, times)
+    shift = profile.expected(inputs, times) - dist @ profile.values
+    quality = np.clip(profile.values[None, :] + shift[:, None], 0.0, 1.0)
+    factor: Array = np.einsum("gk,gk->g", dist, 1.0 / np.maximum(quality, floor))
+    return factor
 
 
 @frozen
@@ -152,38 +171,62 @@ class TaskModel:
     the frames so far walked per cell of progress, over what this model predicted for them,
     1 before any frame; frame by frame the robot plans with only a window of the map known, so
     its route is longer than one plan's quality says, and the monitor learns by how much), `q`
-    the plan quality (optimal / executed length), `c` the contract and `v` the speed, the route
-    left is `d / q` cells in
-    `f = ceil(d / step)` frames of `e = d / (q f v)` ticks each, each overlapped with the next
-    frame's planning (assumed to get the same contract). Before that the robot either waits
-    for the plan (first frame: `c`) or executes its current segment of `n` cells meanwhile
-    (`max(c, n / v)`), so
+    the quality of the plan being made, `c` the contract and `v` the speed, the route left is
+    `L = s / q + (d - s) * R(c)` cells, `s = min(d, step)`: the plan being made covers one
+    frame's progress, and each later frame makes a plan of its own (assumed to get the same
+    contract), so the rest of the route is stretched by the expected `R(c) = E[1 / q]` of the
+    profile at `c`, not by this plan's `1 / q` (charging one plan's quality to the whole route
+    made the monitor expect lateness from a poor first plan and pay for speed it did not
+    need). Without a profile, `R(c)` is taken as `1 / q` (one plan for the whole route). The
+    route takes `f = ceil(d / step)` frames of `e = L / (f v)` ticks each, each overlapped with
+    the next frame's planning. Before that the robot either waits for the plan (first frame:
+    `c`) or executes its current segment, `n` cells left, meanwhile (`max(c - a, n / v)`, `a`
+    the contract time already run), so
 
-        T_hat = now + (c or max(c, n / v)) + (f - 1) * max(c, e) + e,
-        E_hat = energy(v) * (n + d / q),
+        T_hat = now + (c or max(c - a, n / v)) + (f - 1) * max(c, e) + e,
+        E_hat = energy(v) * (n + L),
 
     value `V(T_hat)`, cost `E_hat`. A plan of quality below `floor` is not taken at its word:
-    the robot's obstacle avoidance still follows it toward the goal, so its route is counted as
-    `d / floor` (without a floor, a profile's few failed runs at quality ~0 would dominate the
-    expectation of `d / q`).
+    the robot's obstacle avoidance still follows it toward the goal, so its part of the route
+    is counted as if of quality `floor` (without a floor, a profile's few failed runs at
+    quality ~0 would dominate the expectation of `1 / q`).
     """
 
     task: NavigationTask
+    profile: ConditionalPerformanceProfile | None = None
     floor: float = 0.5
+    _later: Array = field(
+        init=False,
+        eq=False,
+        repr=False,
+        default=Factory(
+            lambda self: _later_route_factor(self.profile, max(self.floor, MIN_QUALITY)),
+            takes_self=True,
+        ),
+    )
 
     def _parts(self, state: FrameState, contract: Array, quality: Array) -> tuple[Array, Array]:
         q = np.maximum(np.asarray(quality, dtype=np.float64), max(self.floor, MIN_QUALITY))
         c = np.asarray(contract, dtype=np.float64)
         d = state.remaining * state.detour
         frames = max(1.0, math.ceil(d / max(state.step, 1.0)))
-        path = d / q
+        this = min(d, max(state.step, 1.0))
+        later = 1.0 / q if self.profile is None else self.later_factor(c)
+        path = this / q + (d - this) * later
         per_frame = path / frames / state.speed
         if state.waiting:
             wait = c
         else:
-            wait = np.maximum(c, state.current / state.speed)
+            wait = np.maximum(c - state.elapsed, state.current / state.speed)
         completion = state.now + wait + (frames - 1) * np.maximum(c, per_frame) + per_frame
         return completion, path + state.current
+
+    def later_factor(self, contract: Array) -> Array:
+        """`R(c)`: how much the later frames' plans stretch the route, contract `c` each
+        (interpolated between the profile's times; needs the profile)."""
+        if self.profile is None:
+            raise ValueError("the task model has no profile: later frames are not modelled")
+        return np.asarray(np.interp(contract, self.profile.time, self._later), dtype=np.float64)
 
     def value(self, state: FrameState, contract: Array, quality: Array) -> Array:
         completion, _ = self._parts(state, contract, quality)
@@ -193,11 +236,35 @@ class TaskModel:
         _, path = self._parts(state, contract, quality)
         return np.asarray(self.task.energy(state.speed) * path, dtype=np.float64)
 
+    def utility(self, state: FrameState, contract: float, quality: float) -> float:
+        """Value minus cost of the rest of the task for one contract and plan quality."""
+        c, q = np.asarray(contract, dtype=np.float64), np.asarray(quality, dtype=np.float64)
+        return float(self.value(state, c, q) - self.cost(state, c, q))
+
     def expected_completion(self, state: FrameState, contract: float, quality: float) -> float:
         completion, _ = self._parts(
             state, np.asarray(contract, dtype=np.float64), np.asarray(quality, dtype=np.float64)
         )
         return float(completion)
+
+    def first_step(self, position: Position) -> float:
+        """The progress a frame is expected to make before one has been seen: the distance
+        on the prior map (every cell free) that a straight line from `position` toward the
+        goal covers before it leaves the sensor's window (where a frame's segment ends),
+        e.g. `2 r` along the diagonal with 4-connected movement, `r` along an axis."""
+        (x, y), (gx, gy) = position, self.task.world.goal
+        scale = min(1.0, self.task.radius / max(abs(gx - x), abs(gy - y), 1))
+        dx, dy = abs(gx - x) * scale, abs(gy - y) * scale
+        if self.task.world.movement == 8:  # octile
+            return max(1.0, max(dx, dy) + (math.sqrt(2.0) - 1.0) * min(dx, dy))
+        return max(1.0, dx + dy)
+
+    def last_speed(self, now: float, cells: float) -> float:
+        """The speed of the grid of highest utility for a last segment of `cells` cells to the
+        goal, started at `now` (no planning left to wait for): `V(now + n / v) - energy(v) n`."""
+        speeds = np.asarray(self.task.speeds, dtype=np.float64)
+        utility = self.task.value(now + cells / speeds) - self.task.energy(speeds) * cells
+        return float(speeds[int(np.argmax(utility))])
 
 
 # --- what a run reports -----------------------------------------------------------------------
@@ -208,7 +275,12 @@ class FrameRecord:
     """One frame: its planning (the program run for it) and its execution.
 
     Times are task times in ticks. `plan` is the program's output (a `MultiPath`, or None);
-    `route` the cells the robot moved along in this frame (its first cell is where it stood).
+    `route` the cells the robot moved along in this frame (its first cell is where it stood);
+    `predicted_utility` the utility of the whole task the monitor predicted when it chose this
+    frame's contract (the energy spent until then plus the expected value minus energy of the
+    rest: the first frame's is the report's `predicted_utility`); `adjustments` what the
+    intra-frame rule said at each check during it ("faster declined", "slower declined": a
+    move the task model expected not to pay, so not made).
     """
 
     index: int
@@ -236,6 +308,7 @@ class FrameRecord:
     choices: tuple[tuple[str, tuple[Position, ...]], ...] = field(default=(), repr=False)
     decisions: int = 0
     collisions: int = 0
+    predicted_utility: float = math.nan
 
 
 @frozen
