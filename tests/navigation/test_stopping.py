@@ -13,17 +13,25 @@ from anytime_navigation.world import random_world
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from anytime.plugin import DeadlineValue
+
 
 @pytest.fixture(scope="module")
 def program():
     return navigation_program()
 
 
+def stuck_task():
+    """A 64 x 64 world of `bench_monitor --quick` where the robot is long boxed in, and planning,
+    not walking, takes a frame's time: the policy stops some planners before their contract."""
+    value = DeadlineValue(1000.0, 3000.0, 0.5)
+    return NavigationTask(random_world(64, seed=11), radius=16, value=value, seed=11)
+
+
 @pytest.fixture(scope="module")
 def report(program):
     compiled, trace = program
-    task = NavigationTask(random_world(128, seed=6), radius=32, seed=6)
-    return run_task(task, compiled, trace, policy="stopping")
+    return run_task(stuck_task(), compiled, trace, policy="stopping")
 
 
 def test_the_planners_dynamic_profile_is_shipped(program):
@@ -72,12 +80,36 @@ def test_a_planner_is_never_stopped_after_its_contract(report):
     assert all(r.stopped_at is None or r.stopped_at <= r.contract + 1e-9 for r in report.records)
 
 
-def test_the_contracts_are_the_monitors(program, report):
+def test_where_the_policy_stops_planners_early(report):
+    stopped = [(r.index, r.contract, r.stopped_at) for r in report.records if r.stopped_at]
+    assert stopped == [
+        (8, 200.0, 113.0),
+        (10, 200.0, 111.0),
+        (12, 200.0, 113.0),
+        (14, 200.0, 111.0),
+    ]
+    reasons = [e.data["reason"] for e in report.log.of_kind("stopping") if e.data["frame"] == 8]
+    assert reasons == [
+        "expected utility 717.419",
+        "going on is worth 717.419",
+        "stopping now is worth 717.419, going on less",
+    ]
+
+
+def test_a_planner_stopped_early_ends_its_frames_planning(program, report):
     compiled, trace = program
-    task = NavigationTask(random_world(128, seed=6), radius=32, seed=6)
-    monitored = run_task(task, compiled, trace, policy="monitored")
-    assert report.records[0].contract == monitored.records[0].contract
+    monitored = run_task(stuck_task(), compiled, trace, policy="monitored")
     assert report.predicted_utility == monitored.predicted_utility
+    assert report.records[0].contract == monitored.records[0].contract
+    # Until the first early stop the two runs are the same. Frame 8's planning overlaps the
+    # execution of frame 7's segment (167 ticks): stopped at 113 ticks, not at the contract of
+    # 200, it no longer makes that frame last longer than the walk.
+    assert [r.start for r in report.records[:9]] == [r.start for r in monitored.records[:9]]
+    walk = report.records[7].exec_end - report.records[7].exec_start
+    assert walk == pytest.approx(500 / 3)
+    assert report.records[7].frame_time == pytest.approx(walk)
+    assert monitored.records[7].frame_time == 200.0
+    assert report.completion_time < monitored.completion_time
 
 
 @pytest.fixture(scope="module")
