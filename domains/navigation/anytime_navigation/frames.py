@@ -44,7 +44,13 @@ from .task import (
 from .vision import Sensor
 from .world import BoolGrid, Position
 
-__all__ = ["WallTicks", "run_task"]
+__all__ = ["NO_DYNAMIC_PROFILE", "WallTicks", "run_task"]
+
+#: Why the `stopping` policy cannot run.
+NO_DYNAMIC_PROFILE = (
+    "the stopping policy needs the planner's dynamic profile (find-path.dynamic.yaml beside"
+    " find-path.yaml; `anytime profile find-path --dynamic` measures it)"
+)
 
 
 class WallTicks:
@@ -203,10 +209,7 @@ class _TaskRun:
             self.contracts = grid
         self.model = TaskModel(task, profile)
         if policy == "stopping" and not trace.dynamic:
-            raise ValueError(
-                "the stopping policy needs the planner's dynamic profile (find-path.dynamic.yaml"
-                " beside find-path.yaml; `anytime profile find-path --dynamic` measures it)"
-            )
+            raise ValueError(NO_DYNAMIC_PROFILE)
         self.log = EventLog()
         self.chooser = Monitor(
             profile, self.model, self.model, grid=self.contracts, input_quality=self.input_quality

@@ -25,7 +25,7 @@ from anytime.plugin import (
 )
 
 from ..frame_program import navigation_program
-from ..frames import run_task
+from ..frames import NO_DYNAMIC_PROFILE, run_task
 from ..movingai import MapError, load_map
 from ..obstacles import MovingObstacle, random_obstacles
 from ..task import POLICIES, NavigationTask, TaskReport
@@ -164,6 +164,8 @@ def run_navigate(args: argparse.Namespace) -> int:
     compiled, trace = navigation_program(args.profiles, warn=warnings.append)
     for warning in warnings:
         print(f"anytime: warning: {warning}", file=sys.stderr)
+    if args.policy == "stopping" and not trace.dynamic:
+        raise InputError(NO_DYNAMIC_PROFILE)
     obstacles: tuple[MovingObstacle, ...] = ()
     if args.moving_obstacles:
         try:
