@@ -85,7 +85,14 @@ def add_command(commands: CommandGroup) -> None:
         metavar="TICKS",
         help="full value until then (default: 6000 * side / 128)",
     )
-    navigate.add_argument("--policy", choices=POLICIES, default="monitored")
+    navigate.add_argument(
+        "--policy",
+        choices=POLICIES,
+        default="monitored",
+        help="monitored (default); fixed, min, max: a fixed contract; stopping: the monitor's"
+        " contract as an upper bound, each frame's planner stopped within it by optimal stopping"
+        " over its dynamic profile",
+    )
     navigate.add_argument(
         "--contract", type=positive_float, metavar="TICKS", help="contract time of --policy fixed"
     )
