@@ -1,4 +1,5 @@
-"""The monitor against fixed contracts and the MIN/MAX policies over seeded worlds.
+"""The monitor against fixed contracts, the MIN/MAX policies and the stopping policy over
+seeded worlds.
 
     .venv/bin/python benchmarks/bench_monitor.py [--worlds 30] [--size 128] [--quick]
 
@@ -6,7 +7,10 @@ Per policy: mean utility, mean prediction error |U - predicted| / |predicted| an
 ratio U / clairvoyant bound (definitions in `anytime_navigation.task`). Then, for the monitored
 policy, the worlds it predicts worst: what the robot walked and spent there, and the monitor's
 prediction of the whole task's utility frame by frame (`FrameRecord.predicted_utility`), which
-shows when it found out. The prediction made when the task is presented is one number for
+shows when it found out. For the `stopping` policy (the monitor's contract as an upper bound,
+the planner stopped within it by optimal stopping over its dynamic profile; it needs
+`find-path.dynamic.yaml`), how often it stopped a planner before the contract and the planning
+time that saved. The prediction made when the task is presented is one number for
 every world (the robot has sensed nothing yet, and the worlds here share their start, goal
 and size), so the mean error of the best single number in hindsight bounds what any such
 prediction can reach; it is printed too.
@@ -41,9 +45,14 @@ def main() -> None:
     # few longer ones.
     grid = [float(t) for t in compiled.profile.time if t > 0]
     fixed = [t for t in grid if t <= 1000] + [t for t in grid if t > 1000][1::3]
-    policies = [("monitored", None), ("min", None), ("max", None)] + [("fixed", t) for t in fixed]
+    stopping = [("stopping", None)] if trace.dynamic else []
+    if not stopping:
+        print("no dynamic profile of find-path: the stopping policy is left out")
+    policies = [("monitored", None), *stopping, ("min", None), ("max", None)]
+    policies += [("fixed", t) for t in fixed]
     rows: dict[str, list[tuple[float, float, float]]] = {}
     monitored: list[TaskReport] = []
+    stopped: list[TaskReport] = []
     started = time.perf_counter()
     for seed in range(args.worlds):
         world = random_world(size, seed=seed)
@@ -54,6 +63,8 @@ def main() -> None:
             rows.setdefault(r.policy, []).append((r.utility, r.prediction_error, r.utility_ratio))
             if policy == "monitored":
                 monitored.append(r)
+            if policy == "stopping":
+                stopped.append(r)
     print(
         f"{args.worlds} worlds {size}x{size}, radius {radius}, "
         f"{time.perf_counter() - started:.0f} s"
@@ -62,7 +73,20 @@ def main() -> None:
     for name, values in rows.items():
         u, e, q = np.mean(np.array(values), axis=0)
         print(f"{name:<12}{u:>10.1f}{100 * e:>12.1f}%{q:>15.3f}")
+    if stopped:
+        print_stops(stopped)
     print_worst(monitored, args.worst)
+
+
+def print_stops(reports: list[TaskReport]) -> None:
+    """How often the stopping policy stopped a planner before its contract, and by how much."""
+    frames = [f for r in reports for f in r.records]
+    early = [f.contract - f.stopped_at for f in frames if f.stopped_at is not None]
+    saved = f", {np.mean(early):.0f} ticks before the contract on average" if early else ""
+    print(
+        f"\nstopping: {len(early)} of {len(frames)} frames' planners stopped before the"
+        f" contract{saved}"
+    )
 
 
 def best_single_prediction(utilities: np.ndarray) -> tuple[float, float]:

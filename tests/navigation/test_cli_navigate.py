@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from anytime_navigation.frames import NO_DYNAMIC_PROFILE
 from conftest import Cli
 
 from anytime.plot import MISSING_MATPLOTLIB
@@ -94,3 +95,22 @@ def test_navigate_out_without_matplotlib_says_so_before_the_run(
     assert (code, out) == (1, "")
     assert err == f"anytime: error: {MISSING_MATPLOTLIB}\n"
     assert not (tmp_path / "o").exists()
+
+
+def test_the_stopping_policy_without_a_dynamic_profile_is_bad_input(
+    cli: Cli, tmp_path: Path
+) -> None:
+    """A profile directory with find-path's profile but not its dynamic profile: one line."""
+    shipped = Path(__file__).parents[2] / "domains/navigation/anytime_navigation/profiles"
+    (tmp_path / "find-path.yaml").write_text((shipped / "find-path.yaml").read_text())
+    args = ("--size", "32", "--quiet", "--policy", "stopping", "--profiles", str(tmp_path))
+    code, out, err = cli("navigate", *args)
+    assert (code, out) == (1, "")
+    assert err == f"anytime: error: {NO_DYNAMIC_PROFILE}\n"
+
+
+def test_the_stopping_policy_runs(cli: Cli) -> None:
+    args = ("--size", "32", "--seed", "3", "--quiet", "--policy", "stopping", "--json")
+    code, out, err = cli("navigate", *args)
+    assert (code, err) == (0, "")
+    assert json.loads(out)["policy"] == "stopping"

@@ -487,7 +487,8 @@ def test_a_module_whose_profile_has_none_beside_it_has_no_dynamic_profile(
 def test_a_plugins_module_looks_beside_its_packaged_profile() -> None:
     entry = AnytimeLibrary.default()["find-path"]
     assert entry.profile_file is not None and entry.profile_file.name == "find-path.yaml"
-    assert entry.dynamic_profile is None  # the plugin ships none
+    dynamic = entry.dynamic_profile  # the plugin ships find-path.dynamic.yaml beside it
+    assert dynamic is not None and dynamic.module == "find-path"
 
 
 def test_another_modules_dynamic_profile_is_refused(tmp_path: Path) -> None:

@@ -12,15 +12,20 @@ import attrs
 import numpy as np
 from attrs import field, frozen
 
+from anytime import StoppingPolicy
 from anytime.plugin import (
     AnytimeLibrary,
+    AnytimeModule,
     CompiledProgram,
     Context,
+    EventLog,
     LibraryEntry,
     Result,
+    Status,
     VisionHyperbola,
     compile_file,
     default_time_grid,
+    run,
     tabulate,
 )
 
@@ -57,19 +62,38 @@ def _stand_in_profiles() -> dict[str, Any]:
     }
 
 
+#: Makes the stopping policy of one planner run from the quality of the map it is given and the
+#: program time at which it starts (the sensing time before it).
+PolicyMaker = Callable[[float, float], StoppingPolicy]
+
+
 @frozen
 class PlanTrace:
     """What the traced planner saw in its last run: the map it was given and the quality of
-    each plan it yielded, with the program time (since the program started) of each."""
+    each plan it yielded, with the program time (since the program started) of each.
+
+    For a run under a stopping policy (`stop_with`): the policy's decisions, at program times
+    (`decisions`), and the program time at which it stopped the planner (`stopped`; empty: it
+    did not). `dynamic` holds the planner's dynamic profile when the library has one."""
 
     domain: list[Any] = field(factory=list)
     qualities: list[tuple[float, float]] = field(factory=list)
     origin: list[float] = field(factory=list)
+    dynamic: list[Any] = field(factory=list)
+    policy: list[PolicyMaker] = field(factory=list)
+    decisions: EventLog = field(factory=EventLog)
+    stopped: list[float] = field(factory=list)
 
     def reset(self, start: float) -> None:
         self.domain.clear()
         self.qualities.clear()
         self.origin[:] = [start]
+        self.decisions.events.clear()
+        self.stopped.clear()
+
+    def stop_with(self, make: PolicyMaker | None) -> None:
+        """Run the planner under the policy `make` builds (None: to its allocation)."""
+        self.policy[:] = [] if make is None else [make]
 
     def quality_at(self, elapsed: float) -> float:
         """The best plan's quality at `elapsed` into the program (0 before the first plan)."""
@@ -103,7 +127,8 @@ def navigation_library(
         assert profile is not None
         function = module.function
         if module.name == "find-path":
-            function = _traced(module.function, trace)
+            function = _traced(module, trace)
+            trace.dynamic[:] = [] if entry.dynamic_profile is None else [entry.dynamic_profile]
         library.add(
             LibraryEntry.of_module(
                 attrs.evolve(
@@ -117,13 +142,42 @@ def navigation_library(
     return library, trace
 
 
-def _traced(function: Callable[..., Any], trace: PlanTrace) -> Callable[..., Any]:
-    def find_path(ctx: Context, start: Position, goal: Position, domain: Result) -> Any:
-        trace.domain[:] = [domain]
+def _traced(module: AnytimeModule, trace: PlanTrace) -> Callable[..., Any]:
+    """`module`'s function recording its plans' qualities in `trace`; under a policy (see
+    `PlanTrace.stop_with`) the planner is run by the runtime executor with that policy, and its
+    best plan is yielded when the policy stops it."""
+
+    def recorded(ctx: Context, start: Position, goal: Position, domain: Result) -> Any:
         origin = trace.origin[0] if trace.origin else ctx.start
-        for result in function(ctx, start, goal, domain):
+        for result in module.function(ctx, start, goal, domain):
             trace.qualities.append((ctx.clock.now() - origin, float(result.quality)))
             yield result
+
+    watched = attrs.evolve(module, function=recorded)
+
+    def find_path(ctx: Context, start: Position, goal: Position, domain: Result) -> Any:
+        trace.domain[:] = [domain]
+        if not trace.policy:
+            yield from recorded(ctx, start, goal, domain)
+            return
+        began = ctx.clock.now() - (trace.origin[0] if trace.origin else ctx.start)
+        policy = trace.policy[0](float(domain.quality), began)
+        log = EventLog()
+        record = run(
+            watched,
+            (start, goal, domain),
+            allocation=ctx.remaining,
+            clock=ctx.clock,
+            stop=ctx.stop,
+            policy=policy,
+            log=log,
+        )
+        for event in log:  # at program times, as the trace's qualities
+            trace.decisions.record(began + event.time, event.kind, event.data)
+        if record.status == Status.STOPPED:
+            trace.stopped[:] = [began + record.time_used]
+        if record.result is not None:
+            yield record.result
 
     return find_path
 

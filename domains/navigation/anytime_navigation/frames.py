@@ -15,6 +15,7 @@ import numpy as np
 from attrs import define, frozen
 from attrs import evolve as replace
 
+from anytime import OptimalStopping, StoppingPolicy
 from anytime.plugin import (
     Adjustment,
     Clock,
@@ -34,6 +35,7 @@ from .task import (
     POLICIES,
     FrameRecord,
     FrameState,
+    FromPlannerStart,
     NavigationTask,
     TaskModel,
     TaskReport,
@@ -42,7 +44,13 @@ from .task import (
 from .vision import Sensor
 from .world import BoolGrid, Position
 
-__all__ = ["WallTicks", "run_task"]
+__all__ = ["NO_DYNAMIC_PROFILE", "WallTicks", "run_task"]
+
+#: Why the `stopping` policy cannot run.
+NO_DYNAMIC_PROFILE = (
+    "the stopping policy needs the planner's dynamic profile (find-path.dynamic.yaml beside"
+    " find-path.yaml; `anytime profile find-path --dynamic` measures it)"
+)
 
 
 class WallTicks:
@@ -105,7 +113,8 @@ def run_task(
     progress bar).
 
     `compiled` and `trace` come from `navigation_program`. Raises ValueError for an unknown
-    policy, a missing contract, or a goal unreachable from the start.
+    policy, a missing contract, the `stopping` policy without the planner's dynamic profile,
+    or a goal unreachable from the start.
 
     With moving `obstacles` (the situation "obstacle overcoming", `overcoming`), each phase in
     which the robot is on the map (waiting for the first plan at the start, executing a
@@ -127,7 +136,8 @@ Choices = tuple[tuple[str, tuple[Position, ...]], ...]
 class _Planned:
     """What one frame's sensing and planning gave: the sensor window, the plan and its quality,
     the sensing time and quality, the robot's map after sensing, the time the program took,
-    and the planner's quality trace (program time, quality)."""
+    the planner's quality trace (program time, quality), and the program time at which a
+    stopping policy stopped the planner (None: it did not)."""
 
     window: tuple[int, int, int, int]
     plan: Any
@@ -137,6 +147,7 @@ class _Planned:
     known: BoolGrid
     spent: float
     trace: tuple[tuple[float, float], ...]
+    stopped: float | None = None
 
 
 @define
@@ -197,6 +208,8 @@ class _TaskRun:
         else:
             self.contracts = grid
         self.model = TaskModel(task, profile)
+        if policy == "stopping" and not trace.dynamic:
+            raise ValueError(NO_DYNAMIC_PROFILE)
         self.log = EventLog()
         self.chooser = Monitor(
             profile, self.model, self.model, grid=self.contracts, input_quality=self.input_quality
@@ -285,9 +298,28 @@ class _TaskRun:
         self.predictions.append(decision.expected_utility - spent)
         return decision, state
 
-    def plan(self, position: Position, known: BoolGrid, contract: float, index: int) -> _Planned:
-        """Sense the window around `position` and plan from it with the compiled program."""
+    def stopper(self, state: FrameState, quality: float, began: float) -> StoppingPolicy:
+        """The planner's stopping policy in the frame the monitor chose `state` for, given a
+        map of `quality` and starting at program time `began`: optimal stopping over its
+        dynamic profile, with the task model's utility (`FromPlannerStart`)."""
+        shifted = FromPlannerStart(self.model, began)
+        dynamic = self.trace.dynamic[0]
+        return OptimalStopping(dynamic, shifted, shifted, state, input_quality=(quality,))
+
+    def plan(
+        self,
+        position: Position,
+        known: BoolGrid,
+        decision: Any,
+        state: FrameState,
+        index: int,
+    ) -> _Planned:
+        """Sense the window around `position` and plan from it with the compiled program
+        under `decision`'s contract (with the `stopping` policy, the planner under a stopping
+        policy for `state`: its decisions go to the event log, at task times from
+        `state.now`, with the frame's index)."""
         task, world = self.task, self.world
+        contract = decision.contract
         window = task.window(position)
         sensor = Sensor(
             self.truth,
@@ -298,9 +330,16 @@ class _TaskRun:
         )
         started = self.run_clock.now()
         self.trace.reset(started)
+        if self.policy == "stopping":
+            self.trace.stop_with(lambda quality, began: self.stopper(state, quality, began))
         inputs = [position, world.goal, sensor]
-        result = run_program(self.compiled, inputs, contract, clock=self.run_clock).result
+        try:
+            result = run_program(self.compiled, inputs, contract, clock=self.run_clock).result
+        finally:
+            self.trace.stop_with(None)
         spent = self.run_clock.now() - started
+        for event in self.trace.decisions:
+            self.log.record(state.now + event.time, event.kind, {**event.data, "frame": index})
         allocation = self.compiled.allocation_at(list(self.input_quality or ()), contract)
         domain = self.trace.domain[0] if self.trace.domain else None
         new_known = np.array(known, dtype=bool)
@@ -316,11 +355,15 @@ class _TaskRun:
             known=new_known,
             spent=spent,
             trace=tuple(self.trace.qualities),
+            stopped=self.trace.stopped[0] if self.trace.stopped else None,
         )
 
     def planning_time(self, decision: Any, planned: _Planned) -> float:
-        """How long a frame's planning takes: its contract (work clock) or the time it took."""
-        return float(decision.contract) if self.clock_kind == "work" else planned.spent
+        """How long a frame's planning takes: its contract (work clock; up to where a stopping
+        policy stopped it) or the time it took."""
+        if self.clock_kind != "work":
+            return planned.spent
+        return float(decision.contract) if planned.stopped is None else planned.stopped
 
     def among_obstacles(
         self, cells: Sequence[Position], start: float, speed: float, hold: float
@@ -453,7 +496,7 @@ class _TaskRun:
 
         decision, state = self.decide(now, position, known, None)
         predicted = decision.expected_utility
-        planned = self.plan(position, known, decision.contract, 0)
+        planned = self.plan(position, known, decision, state, 0)
         planned_at = now
         now += self.planning_time(decision, planned)
         if self.traffic is not None:  # the robot waits for its first plan at the start
@@ -479,7 +522,7 @@ class _TaskRun:
                     now, end, known, route_length(segment), energy
                 )
                 speed_index = self.speeds.index(next_state.speed)
-                next_planned = self.plan(end, known, next_decision.contract, index + 1)
+                next_planned = self.plan(end, known, next_decision, next_state, index + 1)
                 following = (next_decision, next_planned)
             else:  # the last segment: no planning to wait for, the speed is the model's
                 speed_index = self.speeds.index(self.model.last_speed(now, route_length(segment)))
@@ -526,6 +569,7 @@ class _TaskRun:
                     decisions=counts["decisions"] - frame_counts["decisions"],
                     collisions=counts["collisions"] - frame_counts["collisions"],
                     predicted_utility=self.predictions[index],
+                    stopped_at=planned.stopped,
                 )
             )
             self.learn(known, position, end, route_length(segment), decision.expected_quality)

@@ -29,7 +29,13 @@ calibrated rate). Quantities:
 Policies: `monitored` (the monitor's inter-frame rule: contract and speed of highest expected
 utility, see `TaskModel`), `fixed` (a given contract every frame; the speed as the monitor would
 choose for it), `min` and `max` (the smallest and largest contract of the grid, the papers'
-MIN/MAX baselines).
+MIN/MAX baselines), and `stopping`: the monitor's contract and speed as `monitored`, the
+contract an upper bound only: within the frame the planner is run under an `OptimalStopping`
+policy (Hansen & Zilberstein 2001) over its dynamic profile (`find-path.dynamic.yaml`), whose
+utility of stopping `t` into the planner's run with plan quality `q` is the `TaskModel`'s value
+minus cost of the rest of the task with the frame's program ending at sensing time + `t`
+(`FromPlannerStart`), the robot moving meanwhile as in `TaskModel`; the frame's planning then
+lasts until the policy stops it.
 
 Two references:
 
@@ -64,6 +70,7 @@ from .world import BoolGrid, Position, World
 __all__ = [
     "POLICIES",
     "EnergyModel",
+    "FromPlannerStart",
     "FrameRecord",
     "FrameState",
     "NavigationTask",
@@ -73,7 +80,7 @@ __all__ = [
     "optimal_utility",
 ]
 
-POLICIES = ("monitored", "fixed", "min", "max")
+POLICIES = ("monitored", "fixed", "min", "max", "stopping")
 
 #: The schema file of the papers' program.
 
@@ -267,6 +274,23 @@ class TaskModel:
         return float(speeds[int(np.argmax(utility))])
 
 
+@frozen
+class FromPlannerStart:
+    """The task model with time counted from the planner's start, as a stopping policy over
+    the planner's profile reads it: stopping the planner `t` into its run ends the frame's
+    program at `offset + t` (`offset`: the sensing before it), which the model takes as the
+    frame's contract."""
+
+    model: TaskModel
+    offset: float
+
+    def value(self, state: FrameState, time: Array, quality: Array) -> Array:
+        return self.model.value(state, self.offset + np.asarray(time, dtype=np.float64), quality)
+
+    def cost(self, state: FrameState, time: Array, quality: Array) -> Array:
+        return self.model.cost(state, self.offset + np.asarray(time, dtype=np.float64), quality)
+
+
 # --- what a run reports -----------------------------------------------------------------------
 
 
@@ -280,7 +304,9 @@ class FrameRecord:
     frame's contract (the energy spent until then plus the expected value minus energy of the
     rest: the first frame's is the report's `predicted_utility`); `adjustments` what the
     intra-frame rule said at each check during it ("faster declined", "slower declined": a
-    move the task model expected not to pay, so not made).
+    move the task model expected not to pay, so not made); `stopped_at`, under the `stopping`
+    policy, the program time at which the policy stopped the planner (None: it ran to the
+    contract).
     """
 
     index: int
@@ -309,6 +335,7 @@ class FrameRecord:
     decisions: int = 0
     collisions: int = 0
     predicted_utility: float = math.nan
+    stopped_at: float | None = None
 
 
 @frozen

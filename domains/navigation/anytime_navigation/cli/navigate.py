@@ -25,7 +25,7 @@ from anytime.plugin import (
 )
 
 from ..frame_program import navigation_program
-from ..frames import run_task
+from ..frames import NO_DYNAMIC_PROFILE, run_task
 from ..movingai import MapError, load_map
 from ..obstacles import MovingObstacle, random_obstacles
 from ..task import POLICIES, NavigationTask, TaskReport
@@ -85,7 +85,14 @@ def add_command(commands: CommandGroup) -> None:
         metavar="TICKS",
         help="full value until then (default: 6000 * side / 128)",
     )
-    navigate.add_argument("--policy", choices=POLICIES, default="monitored")
+    navigate.add_argument(
+        "--policy",
+        choices=POLICIES,
+        default="monitored",
+        help="monitored (default); fixed, min, max: a fixed contract; stopping: the monitor's"
+        " contract as an upper bound, each frame's planner stopped within it by optimal stopping"
+        " over its dynamic profile",
+    )
     navigate.add_argument(
         "--contract", type=positive_float, metavar="TICKS", help="contract time of --policy fixed"
     )
@@ -164,6 +171,8 @@ def run_navigate(args: argparse.Namespace) -> int:
     compiled, trace = navigation_program(args.profiles, warn=warnings.append)
     for warning in warnings:
         print(f"anytime: warning: {warning}", file=sys.stderr)
+    if args.policy == "stopping" and not trace.dynamic:
+        raise InputError(NO_DYNAMIC_PROFILE)
     obstacles: tuple[MovingObstacle, ...] = ()
     if args.moving_obstacles:
         try:

@@ -1,0 +1,145 @@
+"""The navigation task's `stopping` policy: the monitor's contract as an upper bound, the
+planner stopped within it by optimal stopping over its dynamic profile, with the task model's
+utility."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from anytime_navigation.frame_program import PlanTrace, navigation_program
+from anytime_navigation.frames import _TaskRun, run_task
+from anytime_navigation.task import FrameState, FromPlannerStart, NavigationTask, TaskModel
+from anytime_navigation.world import random_world
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from anytime.plugin import DeadlineValue
+
+
+@pytest.fixture(scope="module")
+def program():
+    return navigation_program()
+
+
+def stuck_task():
+    """A 64 x 64 world of `bench_monitor --quick` where the robot is long boxed in, and planning,
+    not walking, takes a frame's time: the policy stops some planners before their contract."""
+    value = DeadlineValue(1000.0, 3000.0, 0.5)
+    return NavigationTask(random_world(64, seed=11), radius=16, value=value, seed=11)
+
+
+@pytest.fixture(scope="module")
+def report(program):
+    compiled, trace = program
+    return run_task(stuck_task(), compiled, trace, policy="stopping")
+
+
+def test_the_planners_dynamic_profile_is_shipped(program):
+    _, trace = program
+    (dynamic,) = trace.dynamic
+    assert dynamic.module == "find-path"
+    assert dynamic.observed == "estimate"
+    assert dynamic.inputs == ("domain",)
+
+
+def test_the_stopping_policy_needs_a_dynamic_profile(program):
+    compiled, _ = program
+    task = NavigationTask(random_world(16, seed=0))
+    with pytest.raises(ValueError) as error:
+        run_task(task, compiled, PlanTrace(), policy="stopping")
+    assert str(error.value) == (
+        "the stopping policy needs the planner's dynamic profile (find-path.dynamic.yaml beside"
+        " find-path.yaml; `anytime profile find-path --dynamic` measures it)"
+    )
+
+
+def test_the_task_is_done(report):
+    assert report.reached and report.policy == "stopping"
+    assert report.utility == pytest.approx(report.value - report.energy)
+
+
+def test_every_frame_has_its_decisions_in_the_event_log(report):
+    events = report.log.of_kind("stopping")
+    frames = {e.data["frame"] for e in events}
+    assert frames == {r.index for r in report.records}
+    assert {e.data["policy"] for e in events} == {"optimal"}
+    for record in report.records:
+        mine = [e for e in events if e.data["frame"] == record.index]
+        start = report.log.of_kind("contract")[record.index].time
+        # Logged at task times within the frame's planning, the last one saying why it ended.
+        assert all(start <= e.time <= start + record.contract + 1e-9 for e in mine)
+        assert [e.time for e in mine] == sorted(e.time for e in mine)
+        stops = [e for e in mine if e.data["decision"] == "stop"]
+        assert (record.stopped_at is not None) == bool(stops)
+        if record.stopped_at is not None:
+            assert stops == [mine[-1]]
+            assert mine[-1].time == pytest.approx(start + record.stopped_at)
+
+
+def test_a_planner_is_never_stopped_after_its_contract(report):
+    assert all(r.stopped_at is None or r.stopped_at <= r.contract + 1e-9 for r in report.records)
+
+
+def test_where_the_policy_stops_planners_early(report):
+    stopped = [(r.index, r.contract, r.stopped_at) for r in report.records if r.stopped_at]
+    assert stopped == [
+        (8, 200.0, 113.0),
+        (10, 200.0, 111.0),
+        (12, 200.0, 113.0),
+        (14, 200.0, 111.0),
+    ]
+    reasons = [e.data["reason"] for e in report.log.of_kind("stopping") if e.data["frame"] == 8]
+    assert reasons == [
+        "expected utility 717.419",
+        "going on is worth 717.419",
+        "stopping now is worth 717.419, going on less",
+    ]
+
+
+def test_a_planner_stopped_early_ends_its_frames_planning(program, report):
+    compiled, trace = program
+    monitored = run_task(stuck_task(), compiled, trace, policy="monitored")
+    assert report.predicted_utility == monitored.predicted_utility
+    assert report.records[0].contract == monitored.records[0].contract
+    # Until the first early stop the two runs are the same. Frame 8's planning overlaps the
+    # execution of frame 7's segment (167 ticks): stopped at 113 ticks, not at the contract of
+    # 200, it no longer makes that frame last longer than the walk.
+    assert [r.start for r in report.records[:9]] == [r.start for r in monitored.records[:9]]
+    walk = report.records[7].exec_end - report.records[7].exec_start
+    assert walk == pytest.approx(500 / 3)
+    assert report.records[7].frame_time == pytest.approx(walk)
+    assert monitored.records[7].frame_time == 200.0
+    assert report.completion_time < monitored.completion_time
+
+
+@pytest.fixture(scope="module")
+def model(program):
+    compiled, _ = program
+    return TaskModel(NavigationTask(random_world(64, seed=1), radius=16), compiled.profile)
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    offset=st.floats(0, 600),
+    time=st.floats(0, 2000),
+    quality=st.floats(0.0, 1.0),
+    waiting=st.booleans(),
+)
+def test_the_planners_time_is_the_programs_less_the_sensing(model, offset, time, quality, waiting):
+    state = FrameState(100.0, 90.0, 0.1, 30.0, waiting, 12.0, 1.1)
+    shifted = FromPlannerStart(model, offset)
+    t, q = np.array([time]), np.array([quality])
+    assert shifted.value(state, t, q) == model.value(state, offset + t, q)
+    assert shifted.cost(state, t, q) == model.cost(state, offset + t, q)
+
+
+def test_the_policys_utility_is_the_task_models(program):
+    compiled, trace = program
+    task = NavigationTask(random_world(64, seed=1), radius=16, seed=1)
+    run = _TaskRun(task, compiled, trace, "stopping", None, "work", (), None)
+    state = FrameState(0.0, 120.0, 0.1, 30.0, True)
+    policy = run.stopper(state, 0.9, 200.0)
+    times = policy.model.time
+    utility = policy.model.utility(times, np.full((len(times), 1), 0.8))[:, 0]
+    expected = [run.model.utility(state, 200.0 + t, 0.8) for t in times]
+    assert utility == pytest.approx(expected, rel=1e-12)
