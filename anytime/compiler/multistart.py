@@ -39,6 +39,7 @@ from anytime.compiler.allocators import (
     chunk_rows,
     climb,
     compositions,
+    dp_obstacle,
     equal_split,
     expected_in_chunks,
     least_climbing_memory,
@@ -172,9 +173,11 @@ def _relaxed_dp(
     each total; None where relaxed dp cannot run or would not fit the memory cap."""
     if not isinstance(evaluator, Evaluator) or not relaxable(evaluator.model):
         return None
-    # On a lattice of at most `DP_UNITS` units: dp costs (units)^(k+1) at a node of k
-    # children, and a seed needs only to land in the right basin; the climbs refine it.
-    coarse = max(1, -(-int(units.max(initial=0)) // DP_UNITS))
+    # Where dp is exact its answer is the optimum: on the lattice itself. Elsewhere on a
+    # lattice of at most `DP_UNITS` units: dp costs (units)^(k+1) at a node of k children, and
+    # a seed needs only to land in the right basin; the climbs refine it.
+    exact = dp_obstacle(evaluator.model) is None
+    coarse = 1 if exact else max(1, -(-int(units.max(initial=0)) // DP_UNITS))
     dp = DynamicProgramming(memory, relaxed=True)
     if dp.memory_needed(evaluator, units // coarse) > memory:
         return None

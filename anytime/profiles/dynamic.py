@@ -40,7 +40,7 @@ states that tell runs apart.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Literal, NoReturn
 
 import numpy as np
@@ -171,24 +171,33 @@ class QualityTraces:
         return index
 
 
+def _check_axes(
+    time: Array,
+    input_grids: tuple[Array, ...],
+    inputs: tuple[str, ...],
+    time_unit: str,
+    fail: Callable[[str, str], NoReturn],
+) -> None:
+    """What traces and dynamic profiles share: the time grid, the input grids and their names,
+    the time unit."""
+    _check_grid(time, "time", fail, unit_interval=False)
+    for i, grid in enumerate(input_grids):
+        _check_grid(grid, f"input_quality[{i}]", fail, unit_interval=True)
+    if len(inputs) not in (0, len(input_grids)):
+        fail("inputs", f"expected one name per input grid ({len(input_grids)}), got {len(inputs)}")
+    if time_unit not in ("ticks", "seconds"):
+        fail("time_unit", f"expected 'ticks' or 'seconds', got {time_unit!r}")
+
+
 def _validate_traces(t: QualityTraces) -> None:
     name = t.module or "traces"
 
     def fail(field_name: str, problem: str) -> NoReturn:
         raise ProfileError(f"{name}: {field_name}: {problem}")
 
-    _check_grid(t.time, "time", fail, unit_interval=False)
-    for i, grid in enumerate(t.input_grids):
-        _check_grid(grid, f"input_quality[{i}]", fail, unit_interval=True)
-    if len(t.inputs) not in (0, len(t.input_grids)):
-        fail(
-            "inputs",
-            f"expected one name per input grid ({len(t.input_grids)}), got {len(t.inputs)}",
-        )
+    _check_axes(t.time, t.input_grids, t.inputs, t.time_unit, fail)
     if t.reports not in OBSERVED:
         fail("reports", f"expected one of {', '.join(OBSERVED)}, got {t.reports!r}")
-    if t.time_unit not in ("ticks", "seconds"):
-        fail("time_unit", f"expected 'ticks' or 'seconds', got {t.time_unit!r}")
     trials = t.quality.shape[-2] if t.quality.ndim == len(t.cell_shape) + 2 else -1
     expected = (*t.cell_shape, trials, len(t.time))  # -1: any number of trials
     if t.quality.shape != expected or trials < 1:
@@ -437,21 +446,12 @@ def _validate_dynamic(p: DynamicProfile) -> None:
     def fail(field_name: str, problem: str) -> NoReturn:
         raise ProfileError(f"{name}: {field_name}: {problem}")
 
-    _check_grid(p.time, "time", fail, unit_interval=False)
+    _check_axes(p.time, p.input_grids, p.inputs, p.time_unit, fail)
     _check_grid(p.bins, "quality_bins", fail, unit_interval=True, minimum=2)
     if p.bins[0] != 0 or p.bins[-1] != 1:
         fail("quality_bins", f"expected edges from 0 to 1, got {p.bins[0]:g} to {p.bins[-1]:g}")
-    for i, grid in enumerate(p.input_grids):
-        _check_grid(grid, f"input_quality[{i}]", fail, unit_interval=True)
-    if len(p.inputs) not in (0, len(p.input_grids)):
-        fail(
-            "inputs",
-            f"expected one name per input grid ({len(p.input_grids)}), got {len(p.inputs)}",
-        )
     if p.observed not in OBSERVED:
         fail("observed", f"expected one of {', '.join(OBSERVED)}, got {p.observed!r}")
-    if p.time_unit not in ("ticks", "seconds"):
-        fail("time_unit", f"expected 'ticks' or 'seconds', got {p.time_unit!r}")
     if not isinstance(p.samples, int) or isinstance(p.samples, bool) or p.samples < 0:
         fail("samples", f"expected an integer >= 0, got {p.samples!r}")
     cells, m, k = p.cell_shape, len(p.time), p.n_states

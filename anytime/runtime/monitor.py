@@ -147,6 +147,23 @@ def _event_data(data: Mapping[str, Any]) -> dict[str, Any]:
     return plain
 
 
+def model_answer(name: str, answer: ArrayLike, shape: tuple[int, ...]) -> Array:
+    """A value or cost model's answer as an array of `shape` (grid, bins), or a
+    `MonitorError` naming the model when it does not broadcast there or is not finite (the
+    monitor and the stopping policies check their models with it)."""
+    array = np.asarray(answer, dtype=np.float64)
+    try:
+        array = np.broadcast_to(array, shape)
+    except ValueError:
+        raise MonitorError(
+            f"monitor: the {name} model answered with shape {list(array.shape)},"
+            f" which does not broadcast to (grid, bins) {list(shape)}"
+        ) from None
+    if not np.all(np.isfinite(array)):
+        raise MonitorError(f"monitor: the {name} model answered with NaN or infinity")
+    return array
+
+
 @frozen
 class MonitorEvent:
     """One decision of the monitor: when (task time), what kind, and its details.
@@ -356,8 +373,8 @@ class Monitor(Generic[S]):
         shift = expected - dist @ centres  # 0 unless the profile knows exact means
         quality = np.clip(centres[None, :] + shift[:, None], 0.0, 1.0)
         contract = grid[:, None]
-        values = self._evaluate("value", self.value_model.value(state, contract, quality), (g, k))
-        costs = self._evaluate("cost", self.cost_model.cost(state, contract, quality), (g, k))
+        values = model_answer("value", self.value_model.value(state, contract, quality), (g, k))
+        costs = model_answer("cost", self.cost_model.cost(state, contract, quality), (g, k))
         value_curve = np.einsum("gk,gk->g", dist, values)
         cost_curve = np.einsum("gk,gk->g", dist, costs)
         utility = value_curve - cost_curve
@@ -389,20 +406,6 @@ class Monitor(Generic[S]):
                 },
             )
         return decision
-
-    @staticmethod
-    def _evaluate(name: str, answer: ArrayLike, shape: tuple[int, int]) -> Array:
-        array = np.asarray(answer, dtype=np.float64)
-        try:
-            array = np.broadcast_to(array, shape)
-        except ValueError:
-            raise MonitorError(
-                f"monitor: the {name} model answered with shape {list(array.shape)},"
-                f" which does not broadcast to (grid, bins) {list(shape)}"
-            ) from None
-        if not np.all(np.isfinite(array)):
-            raise MonitorError(f"monitor: the {name} model answered with NaN or infinity")
-        return array
 
     def adjust(
         self,

@@ -42,7 +42,7 @@ from numpy.typing import ArrayLike
 from anytime.errors import AnytimeError
 from anytime.profiles.dynamic import DynamicProfile, Observed
 from anytime.profiles.profile import Array
-from anytime.runtime.monitor import TIE_TOLERANCE, CostModel, Monitor, ValueModel
+from anytime.runtime.monitor import TIE_TOLERANCE, CostModel, ValueModel, model_answer
 
 
 class PolicyError(AnytimeError, ValueError):
@@ -125,8 +125,8 @@ class Utility:
         t = np.asarray(time, dtype=np.float64).reshape(-1, 1)
         q = np.asarray(quality, dtype=np.float64)
         q = q.reshape(len(t), -1)
-        value = Monitor._evaluate("value", self.value_model.value(self.state, t, q), q.shape)
-        cost = Monitor._evaluate("cost", self.cost_model.cost(self.state, t, q), q.shape)
+        value = model_answer("value", self.value_model.value(self.state, t, q), q.shape)
+        cost = model_answer("cost", self.cost_model.cost(self.state, t, q), q.shape)
         answer: Array = value - cost
         return answer
 
