@@ -64,7 +64,26 @@ MAPS = (
     / "anytime_navigation"
     / "maps"
 )
-MOVINGAI = ("8room_000", "maze512-1-0", "random512-10-0")
+#: More MovingAI maps, of the kinds the shipped sample lacks (benchmarks/data/movingai/README.md).
+MORE_MAPS = Path(__file__).resolve().parent / "data" / "movingai"
+MOVINGAI = tuple(MAPS / f"{name}.map" for name in ("8room_000", "maze512-1-0", "random512-10-0"))
+
+#: The per-kind table's maps, (kind, map file): the shipped sample's 512 x 512 maps and more.
+KINDS: tuple[tuple[str, Path], ...] = (
+    ("random 10%", MAPS / "random512-10-0.map"),
+    ("rooms of 8", MAPS / "8room_000.map"),
+    ("rooms of 16", MORE_MAPS / "16room_000.map"),
+    ("rooms of 32", MORE_MAPS / "32room_000.map"),
+    ("rooms of 64", MORE_MAPS / "64room_000.map"),
+    ("maze, width 1", MAPS / "maze512-1-0.map"),
+    ("maze, width 2", MORE_MAPS / "maze512-2-0.map"),
+    ("maze, width 4", MORE_MAPS / "maze512-4-0.map"),
+    ("maze, width 8", MORE_MAPS / "maze512-8-0.map"),
+    ("street", MORE_MAPS / "Berlin_0_512.map"),
+    ("street", MORE_MAPS / "Boston_0_512.map"),
+    ("game (Baldur's Gate II)", MORE_MAPS / "AR0011SR.map"),
+    ("game (Dragon Age)", MORE_MAPS / "brc202d.map"),
+)
 
 #: The ATP configurations compared: name -> keyword arguments of `atp`.
 CONFIGS: dict[str, dict[str, Any]] = {
@@ -75,6 +94,10 @@ CONFIGS: dict[str, dict[str, Any]] = {
 #: The papers' result when run to completion, and the issue's target on 512 x 512 maps.
 PAPERS = (0.93, 0.27)
 TARGET = (0.95, 0.15)
+#: Issue 17's targets on every map kind: final quality mean and min at most this fraction of
+#: A*'s time (totals, the pyramid included); the first plan's quality within this fraction.
+KIND_TARGET = (0.97, 0.93, 0.12)
+FIRST_TARGET = (0.85, 0.02)
 
 #: Executing a plan is given up after this many times A*'s time on the problem: on the maze,
 #: obstacle avoidance along the coarse first plan takes a minute or more per problem, hundreds
@@ -150,13 +173,15 @@ def longest(scenarios: list[Scenario], count: int) -> list[Scenario]:
     return sorted(scenarios, key=lambda s: (-s.bucket, -s.optimal))[:count]
 
 
-def movingai_suite(name: str, count: int, repeats: int) -> Suite:
-    blocked, _, _, scenarios = load_problems(MAPS / f"{name}.map")
+def movingai_suite(path: Path, count: int, repeats: int) -> Suite:
+    """The `count` longest problems of a MovingAI map, optimal lengths from A* (the old-style
+    `.scen` files round theirs to 5 digits; the files were checked against A*)."""
+    blocked, _, _, scenarios = load_problems(path)
     chosen = longest(scenarios, count)
-    problems = [Problem(blocked, s.start, s.goal, s.optimal) for s in chosen]
+    problems = [Problem(blocked, s.start, s.goal, None) for s in chosen]
     pyramid = best_of(repeats, lambda: Pyramid.build(blocked))[0]
     buckets = f"buckets {min(s.bucket for s in chosen)}-{max(s.bucket for s in chosen)}"
-    return Suite(f"{name} ({buckets}), 8-connected", 8, problems, True, pyramid)
+    return Suite(f"{path.stem} ({buckets}), 8-connected", 8, problems, True, pyramid)
 
 
 def run_atp(ctx: Context, plans: Iterator[Any]) -> tuple[float, MultiPath, MultiPath, int]:
@@ -172,12 +197,18 @@ def run_atp(ctx: Context, plans: Iterator[Any]) -> tuple[float, MultiPath, Multi
 
 
 def measure_problem(
-    problem: Problem, pyramid: Pyramid, movement: int, repeats: int
+    problem: Problem,
+    pyramid: Pyramid,
+    movement: int,
+    repeats: int,
+    configs: dict[str, dict[str, Any]] = CONFIGS,
+    budget: float = EXECUTION_BUDGET,
 ) -> tuple[float, int, dict[str, AtpRun]]:
-    """A*'s best time and expansions, and each ATP configuration's run, interleaved."""
+    """A*'s best time and expansions, and each ATP configuration's run, interleaved; executing
+    a plan is given up after `budget` times A*'s time."""
     astar_best = math.inf
     astar = None
-    best: dict[str, list[float]] = {name: [math.inf, math.inf] for name in CONFIGS}
+    best: dict[str, list[float]] = {name: [math.inf, math.inf] for name in configs}
     outcome: dict[str, tuple[Context, MultiPath, MultiPath, int]] = {}
     for _ in range(repeats):
         seconds, astar = timed(
@@ -186,7 +217,7 @@ def measure_problem(
             )
         )
         astar_best = min(astar_best, seconds)
-        for name, options in CONFIGS.items():
+        for name, options in configs.items():
             ctx = Context()
 
             def plan(ctx: Context = ctx, options: dict[str, Any] = options) -> Any:
@@ -205,7 +236,7 @@ def measure_problem(
         key = tuple(waypoints(plan))
         if key not in routes:
             try:
-                with time_budget(EXECUTION_BUDGET * astar_best):
+                with time_budget(budget * astar_best):
                     routes[key] = execute(plan, problem.blocked, movement=movement)
             except OverBudget:
                 routes[key] = None
@@ -255,25 +286,46 @@ def quality(length: float, optimal: float) -> float:
     return 1.0 if math.isclose(length, optimal, rel_tol=1e-9) else plan_quality(length, optimal)
 
 
+@frozen
+class Measured:
+    """A suite's measurements: A*'s best time and expansions per problem, and each ATP
+    configuration's runs in the same order."""
+
+    astar_times: list[float]
+    astar_expansions: list[int]
+    runs: dict[str, list[AtpRun]]
+
+
+def measure_suite(
+    suite: Suite,
+    repeats: int,
+    configs: dict[str, dict[str, Any]] = CONFIGS,
+    budget: float = EXECUTION_BUDGET,
+) -> Measured:
+    pyramids: dict[int, Pyramid] = {}
+    measured = Measured([], [], {name: [] for name in configs})
+    for problem in suite.problems:
+        key = id(problem.blocked)
+        if key not in pyramids:
+            pyramids[key] = Pyramid.build(problem.blocked)
+        seconds, expansions, runs = measure_problem(
+            problem, pyramids[key], suite.movement, repeats, configs, budget
+        )
+        measured.astar_times.append(seconds)
+        measured.astar_expansions.append(expansions)
+        for name, run in runs.items():
+            measured.runs[name].append(run)
+    return measured
+
+
 def bench_atp(suites: list[Suite], repeats: int) -> str:
     rows = []
     for suite in suites:
-        pyramids: dict[int, Pyramid] = {}
-        astar_times, astar_expansions = [], []
-        runs: dict[str, list[AtpRun]] = {name: [] for name in CONFIGS}
-        for problem in suite.problems:
-            key = id(problem.blocked)
-            if key not in pyramids:
-                pyramids[key] = Pyramid.build(problem.blocked)
-            seconds, expansions, measured = measure_problem(
-                problem, pyramids[key], suite.movement, repeats
+        measured = measure_suite(suite, repeats)
+        for name, config_runs in measured.runs.items():
+            rows.append(
+                atp_row(suite, name, measured.astar_times, measured.astar_expansions, config_runs)
             )
-            astar_times.append(seconds)
-            astar_expansions.append(expansions)
-            for name, run in measured.items():
-                runs[name].append(run)
-        for name, config_runs in runs.items():
-            rows.append(atp_row(suite, name, astar_times, astar_expansions, config_runs))
     header = [
         "map",
         "ATP",
@@ -309,14 +361,23 @@ def bench_atp(suites: list[Suite], repeats: int) -> str:
     return table(header, rows) + "\n" + note
 
 
-def atp_row(
-    suite: Suite,
-    name: str,
-    astar_times: list[float],
-    astar_expansions: list[int],
-    runs: list[AtpRun],
-) -> list[str]:
-    time_ratios = [r.seconds / a for r, a in zip(runs, astar_times, strict=True)]
+@frozen
+class Summary:
+    """One configuration's runs on a suite, summed up against A*'s."""
+
+    first_quality: str  # the mean; "(k over)": first plans whose execution went over budget
+    first_mean: float | None  # None: every first plan's execution went over budget
+    first_execution: str  # obstacle-avoidance expansions executing the first plans / A*'s
+    first_time: float  # mean over problems of time to the first plan / A* time
+    final_mean: float
+    final_min: float
+    time_mean: float  # mean over problems of ATP time / A* time
+    time_totals: float  # total ATP time / total A* time
+    expansions: float  # total ATP expansions / total A* expansions
+    refinements: float  # mean per problem
+
+
+def summarise(astar_times: list[float], astar_expansions: list[int], runs: list[AtpRun]) -> Summary:
     firsts = [r.first_quality for r in runs if r.first_quality is not None]
     over = len(runs) - len(firsts)
     first_q = f"{statistics.fmean(firsts):.3f}" if firsts else "-"
@@ -328,11 +389,33 @@ def atp_row(
     if over:
         first_q += f" ({over} over)"
         first_exec = f"{first_exec} ({over} over)"
-    first_ratios = [r.first_seconds / a for r, a in zip(runs, astar_times, strict=True)]
     final = [r.final_quality for r in runs]
-    mean_time = statistics.fmean(time_ratios)
+    return Summary(
+        first_quality=first_q,
+        first_mean=statistics.fmean(firsts) if firsts else None,
+        first_execution=first_exec,
+        first_time=statistics.fmean(
+            r.first_seconds / a for r, a in zip(runs, astar_times, strict=True)
+        ),
+        final_mean=statistics.fmean(final),
+        final_min=min(final),
+        time_mean=statistics.fmean(r.seconds / a for r, a in zip(runs, astar_times, strict=True)),
+        time_totals=sum(r.seconds for r in runs) / sum(astar_times),
+        expansions=sum(r.expansions for r in runs) / sum(astar_expansions),
+        refinements=statistics.fmean(r.refinements for r in runs),
+    )
+
+
+def atp_row(
+    suite: Suite,
+    name: str,
+    astar_times: list[float],
+    astar_expansions: list[int],
+    runs: list[AtpRun],
+) -> list[str]:
+    summary = summarise(astar_times, astar_expansions, runs)
     if suite.large:
-        met = statistics.fmean(final) >= TARGET[0] and mean_time <= TARGET[1]
+        met = summary.final_mean >= TARGET[0] and summary.time_mean <= TARGET[1]
         target = "yes" if met else "NO"
     else:
         target = "-"
@@ -340,16 +423,16 @@ def atp_row(
         suite.name,
         name,
         str(len(runs)),
-        first_q,
-        f"{statistics.fmean(final):.3f}",
-        f"{min(final):.3f}",
-        f"{mean_time:.1%}",
-        f"{sum(r.seconds for r in runs) / sum(astar_times):.1%}",
-        f"{statistics.fmean(first_ratios):.1%}",
-        f"{sum(r.expansions for r in runs) / sum(astar_expansions):.1%}",
-        f"{statistics.fmean(r.refinements for r in runs):.0f}",
+        summary.first_quality,
+        f"{summary.final_mean:.3f}",
+        f"{summary.final_min:.3f}",
+        f"{summary.time_mean:.1%}",
+        f"{summary.time_totals:.1%}",
+        f"{summary.first_time:.1%}",
+        f"{summary.expansions:.1%}",
+        f"{summary.refinements:.0f}",
         f"{suite.pyramid_seconds / sum(astar_times):.1%}",
-        first_exec,
+        summary.first_execution,
         target,
     ]
 
@@ -364,7 +447,22 @@ def route_length(path: list[Position]) -> float:
     return len(path) - 1 - diagonals + math.sqrt(2.0) * diagonals
 
 
-def bench_pathfinding(count: int, repeats: int) -> str:
+@frozen
+class PeerRun:
+    """Our A* against `pathfinding`'s on one map's problems, interleaved: the best query time
+    of each per problem, grid resets, optimal counts and the grid's one-off build time."""
+
+    ours: list[float]
+    theirs: list[float]
+    resets: list[float]
+    ours_optimal: int
+    theirs_optimal: int
+    build: float
+
+
+def pathfinding_finder() -> Any | None:
+    """`pathfinding`'s (Grid class, A* finder with the MovingAI movement rule), or None when
+    the optional package is not installed."""
     try:
         from pathfinding.core.diagonal_movement import (  # type: ignore[import-untyped]
             DiagonalMovement,
@@ -372,50 +470,64 @@ def bench_pathfinding(count: int, repeats: int) -> str:
         from pathfinding.core.grid import Grid  # type: ignore[import-untyped]
         from pathfinding.finder.a_star import AStarFinder  # type: ignore[import-untyped]
     except ImportError:
-        return (
-            "our A* against pathfinding's: skipped, the package 'pathfinding' is not installed"
-            " (.venv/bin/pip install pathfinding)"
-        )
+        return None
+    return Grid, AStarFinder(diagonal_movement=DiagonalMovement.only_when_no_obstacle)
+
+
+def race_pathfinding(
+    peer: Any, blocked: BoolGrid, width: int, height: int, chosen: list[Scenario], repeats: int
+) -> PeerRun:
+    grid_class, finder = peer
+    matrix = (~blocked[:height, :width]).astype(np.int8)  # 1: walkable
+    build, grid = timed(partial(grid_class, matrix=matrix))
+    ours, theirs, resets = [], [], []
+    ours_optimal = theirs_optimal = 0
+    for scenario in chosen:
+        (sx, sy), (gx, gy) = scenario.start, scenario.goal
+        best_ours = best_theirs = math.inf
+        for _ in range(repeats):
+            ours_query = partial(
+                find_path, blocked, scenario.start, scenario.goal, movement=8, weight=0.0
+            )
+            seconds, found = timed(ours_query)
+            best_ours = min(best_ours, seconds)
+            reset, _ = timed(grid.cleanup)
+            resets.append(reset)
+            grid.dirty = False  # cleaned above: find_path would clean it again
+            start, goal = grid.node(sx, sy), grid.node(gx, gy)
+            seconds, (path, _) = timed(partial(finder.find_path, start, goal, grid))
+            best_theirs = min(best_theirs, seconds)
+        ours.append(best_ours)
+        theirs.append(best_theirs)
+        ours_optimal += math.isclose(found.length, scenario.optimal, rel_tol=1e-8)
+        their_length = route_length([(node.x, node.y) for node in path])
+        theirs_optimal += math.isclose(their_length, scenario.optimal, rel_tol=1e-8)
+    return PeerRun(ours, theirs, resets, ours_optimal, theirs_optimal, build)
+
+
+NO_PATHFINDING = "the package 'pathfinding' is not installed (.venv/bin/pip install pathfinding)"
+
+
+def bench_pathfinding(count: int, repeats: int) -> str:
+    peer = pathfinding_finder()
+    if peer is None:
+        return f"our A* against pathfinding's: skipped, {NO_PATHFINDING}"
     rows = []
-    for name in MOVINGAI:
-        blocked, width, height, scenarios = load_problems(MAPS / f"{name}.map")
+    for path in MOVINGAI:
+        blocked, width, height, scenarios = load_problems(path)
         chosen = longest(scenarios, count)
-        matrix = (~blocked[:height, :width]).astype(np.int8)  # 1: walkable
-        build, grid = timed(partial(Grid, matrix=matrix))
-        finder = AStarFinder(diagonal_movement=DiagonalMovement.only_when_no_obstacle)
-        ours, theirs, resets = [], [], []
-        ours_optimal = theirs_optimal = 0
-        for scenario in chosen:
-            (sx, sy), (gx, gy) = scenario.start, scenario.goal
-            best_ours = best_theirs = math.inf
-            for _ in range(repeats):
-                ours_query = partial(
-                    find_path, blocked, scenario.start, scenario.goal, movement=8, weight=0.0
-                )
-                seconds, found = timed(ours_query)
-                best_ours = min(best_ours, seconds)
-                reset, _ = timed(grid.cleanup)
-                resets.append(reset)
-                grid.dirty = False  # cleaned above: find_path would clean it again
-                start, goal = grid.node(sx, sy), grid.node(gx, gy)
-                seconds, (path, _) = timed(partial(finder.find_path, start, goal, grid))
-                best_theirs = min(best_theirs, seconds)
-            ours.append(best_ours)
-            theirs.append(best_theirs)
-            ours_optimal += math.isclose(found.length, scenario.optimal, rel_tol=1e-8)
-            their_length = route_length([(node.x, node.y) for node in path])
-            theirs_optimal += math.isclose(their_length, scenario.optimal, rel_tol=1e-8)
+        run = race_pathfinding(peer, blocked, width, height, chosen, repeats)
         n = len(chosen)
         rows.append(
             [
-                name,
+                path.stem,
                 str(n),
-                f"{statistics.fmean(t / o for t, o in zip(theirs, ours, strict=True)):.2f}",
-                f"{sum(theirs) / sum(ours):.2f}",
-                f"{ours_optimal}/{n}",
-                f"{theirs_optimal}/{n}",
-                f"{build / statistics.fmean(ours):.2f}",
-                f"{statistics.fmean(resets) / statistics.fmean(ours):.2f}",
+                f"{statistics.fmean(t / o for t, o in zip(run.theirs, run.ours, strict=True)):.2f}",
+                f"{sum(run.theirs) / sum(run.ours):.2f}",
+                f"{run.ours_optimal}/{n}",
+                f"{run.theirs_optimal}/{n}",
+                f"{run.build / statistics.fmean(run.ours):.2f}",
+                f"{statistics.fmean(run.resets) / statistics.fmean(run.ours):.2f}",
             ]
         )
     header = [
@@ -437,6 +549,86 @@ def bench_pathfinding(count: int, repeats: int) -> str:
     return table(header, rows) + "\n" + note
 
 
+# --- 3. per map kind ---------------------------------------------------------------------------
+
+
+def bench_kinds(count: int, repeats: int, budget: float) -> str:
+    """The default ATP against A* on the `count` longest problems of each map of `KINDS`, with
+    `pathfinding`'s A* per query where it is installed; executing a plan is given up after
+    `budget` times A*'s time."""
+    peer = pathfinding_finder()
+    default = {"one segment": CONFIGS["one segment"]}
+    rows = []
+    for kind, path in KINDS:
+        suite = movingai_suite(path, count, repeats)
+        measured = measure_suite(suite, repeats, default, budget)
+        runs = measured.runs["one segment"]
+        summary = summarise(measured.astar_times, measured.astar_expansions, runs)
+        astar_total = sum(measured.astar_times)
+        with_pyramid = (sum(r.seconds for r in runs) + suite.pyramid_seconds) / astar_total
+        peer_ratio = "-"
+        if peer is not None:
+            blocked, width, height, scenarios = load_problems(path)
+            run = race_pathfinding(peer, blocked, width, height, longest(scenarios, count), repeats)
+            peer_ratio = f"{sum(run.theirs) / sum(run.ours):.2f}"
+        quality_mean, quality_min, time_target = KIND_TARGET
+        first_quality, first_time = FIRST_TARGET
+        met = (
+            summary.final_mean >= quality_mean
+            and summary.final_min >= quality_min
+            and with_pyramid <= time_target
+            and summary.first_mean is not None
+            and summary.first_mean >= first_quality
+            and summary.first_time <= first_time
+        )
+        rows.append(
+            [
+                path.stem,
+                kind,
+                str(len(runs)),
+                summary.first_quality,
+                f"{summary.first_time:.1%}",
+                f"{summary.final_mean:.3f} ({summary.final_min:.3f})",
+                f"{summary.time_mean:.1%}",
+                f"{summary.time_totals:.1%}",
+                f"{with_pyramid:.1%}",
+                f"{summary.expansions:.1%}",
+                peer_ratio,
+                "yes" if met else "NO",
+            ]
+        )
+    header = [
+        "map",
+        "kind",
+        "problems",
+        "first q",
+        "first plan time / A*",
+        "final q mean (min)",
+        "time / A* (mean)",
+        "time / A* (totals)",
+        "with pyramid / A* (totals)",
+        "expansions / A*",
+        "pathfinding / our A*",
+        "issue 17 target",
+    ]
+    peers = "networkx and tcod are not measured (not dependencies of the project)"
+    if peer is None:
+        peers = f"pathfinding: '-', {NO_PATHFINDING}; {peers}"
+    note = (
+        f"(the default ATP, the first plan one segment; the {count} problems of the longest\n"
+        " buckets per map, octile without corner cutting, optimal lengths from our A*; A* and\n"
+        f" the ATP interleaved, each the best of {repeats} run(s); columns as in the first table,\n"
+        f" but an execution is given up after {budget:g}x A*'s time;\n"
+        " with pyramid: (total ATP time + building the pyramid once) / total A* time;\n"
+        " pathfinding / our A*: its total query time / ours on the same problems, as in the\n"
+        f" second table; {peers};\n"
+        f" issue 17 target: final q mean >= {quality_mean} and min >= {quality_min} with\n"
+        f" pyramid <= {time_target:.0%}, first q >= {first_quality} at first plan time <= "
+        f"{first_time:.0%})"
+    )
+    return table(header, rows) + "\n" + note
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer problems: under a minute")
@@ -445,19 +637,25 @@ def main() -> None:
     )
     args = parser.parse_args()
     began = time.perf_counter()
-    small, large, count = (5, 2, 2) if args.quick else (20, 10, 12)
+    small, large, count, per_kind = (5, 2, 2, 4) if args.quick else (20, 10, 12, 16)
     repeats = args.repeats if args.repeats is not None else 2 if args.quick else 3
+    # --quick: the per-kind table's problems once each, their first plans' executions given up
+    # sooner (on mazes they take 10x A*'s time and more: most of a run)
+    kind_repeats = args.repeats if args.repeats is not None else 1 if args.quick else repeats
+    kind_budget = 2 if args.quick else EXECUTION_BUDGET
     print(machine())
     print()
     suites = [
         corner_suite(128, 4, small, repeats),
         corner_suite(128, 8, small, repeats),
         corner_suite(512, 8, large, repeats),
-        *(movingai_suite(name, count, repeats) for name in MOVINGAI),
+        *(movingai_suite(path, count, repeats) for path in MOVINGAI),
     ]
     print(bench_atp(suites, repeats))
     print()
     print(bench_pathfinding(count, repeats))
+    print()
+    print(bench_kinds(per_kind, kind_repeats, kind_budget))
     print()
     print(f"(the whole run took {time.perf_counter() - began:.0f} s)")
 
