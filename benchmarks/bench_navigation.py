@@ -15,6 +15,13 @@
    only when both orthogonal neighbours are free: the MovingAI rule) on the same MovingAI
    problems: query time, and whether each finds the `.scen` optimal length. An optional
    dependency: skipped, with a line saying so, when it is not installed.
+3. Per map kind (issue 17): the default ATP against A* on the longest problems of 13 MovingAI
+   maps, the shipped three and ten more in benchmarks/data/movingai/ (rooms of 16, 32 and 64,
+   mazes of corridor widths 2, 4 and 8, two street maps, a Baldur's Gate II and a Dragon Age
+   map): first plan quality and time, final quality mean (min), time and expansions as
+   fractions of A*'s, the time with the pyramid's one-off build added, `pathfinding`'s query
+   time against ours (where it is installed), and issue 17's targets. Optimal lengths are our
+   A*'s: the old-style `.scen` files round theirs to 5 digits (all agree with A*'s to that).
 
 Timing: `time.perf_counter`, the garbage collector paused, the sides interleaved per problem
 (A*, then each ATP configuration; ours, then theirs), the best of `--repeats` runs per problem
@@ -24,9 +31,11 @@ of its plans, which yields the quality, is not timed (and is given up after `EXE
 times A*'s time: the first plan's quality is then unknown). `pathfinding`'s grid is built once
 per map and reset before each query, both outside its query time and shown separately.
 
-Problems: 20 worlds of 128 x 128 per movement, 10 of 512 x 512, and the 12 problems of the
-longest buckets of each MovingAI map; --quick: 5, 2 and 2, the best of 2 runs (under a minute;
-the full run takes about five).
+Problems: 20 worlds of 128 x 128 per movement, 10 of 512 x 512, the 12 problems of the
+longest buckets of each shipped MovingAI map, and 16 per map in the per-kind table; --quick: 5,
+2, 2 and 4, the best of 2 runs (the per-kind table: 1 run, executions given up after 2x A*'s
+time; about two minutes in all; the full run takes much longer, the per-kind table about
+twenty minutes by estimate: on mazes each first plan's execution runs to its budget).
 
 Run: .venv/bin/python benchmarks/bench_navigation.py [--quick] [--repeats N]
 """
@@ -631,7 +640,7 @@ def bench_kinds(count: int, repeats: int, budget: float) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="fewer problems: under a minute")
+    parser.add_argument("--quick", action="store_true", help="fewer problems: about two minutes")
     parser.add_argument(
         "--repeats", type=int, help="runs per problem and side, the best kept (3; quick: 2)"
     )

@@ -148,10 +148,15 @@ BENCHMARKS = [
         "Navigation: the anytime abstract planner against A*",
         "Plan quality after the first plan and at completion, and time and expansions as"
         " fractions of A*'s (the papers report 0.93 at 27% of A*'s time; the target is at"
-        " least 0.95 at no more than 15% on 512 x 512 maps). `--quick` solves fewer problems."
-        " Where the ATP falls short: on rooms the abstraction's obstacleness cannot see doors,"
-        " and in mazes corridors one cell wide make every coarse cell part-blocked, so the"
-        " abstract plans mislead the refinement.",
+        " least 0.95 at no more than 15% on 512 x 512 maps); our A* against `pathfinding`'s;"
+        " and per map kind (issue 17), the default ATP on the longest problems of 13 MovingAI"
+        " maps: random, rooms of 8 to 64, mazes of corridor widths 1 to 8, two street maps and"
+        " two game maps (ten of them in `benchmarks/data/movingai/`), with the pyramid's"
+        " one-off cost and the issue's targets. `--quick` solves fewer problems (4 per map in"
+        " the per-kind table, one run each). Where the ATP falls short: the abstraction's"
+        " obstacleness cannot see connectivity, so on rooms coarse routes run through walls,"
+        " in mazes every coarse cell is part-blocked and the abstract plans mislead the"
+        " refinement, and on street and game maps building blocks and enclosures look free.",
     ),
     (
         "bench_monitor.py",
