@@ -32,6 +32,7 @@ A policy never stops after the allocation: its grid ends at the last grid time w
 from __future__ import annotations
 
 import math
+from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from typing import Any, Protocol
 
@@ -202,7 +203,7 @@ def _best(candidates: Array) -> tuple[Array, Array]:
     return best, first
 
 
-class _GridPolicy:
+class _GridPolicy(ABC):
     """What every policy on a dynamic profile shares: its model and the run's deadline."""
 
     name = "policy"
@@ -230,8 +231,13 @@ class _GridPolicy:
             return Decision.now("no grid time within the allocation")
         return self._start()
 
+    @abstractmethod
     def _start(self) -> Decision:
-        raise NotImplementedError
+        """The decision before the run's first look, once the deadline is known."""
+
+    @abstractmethod
+    def observe(self, time: float, quality: float | None) -> Decision:
+        """The decision at a look at `time`, the run's answer of `quality` (None: none yet)."""
 
     def _look_next(self, j: int, reason: str) -> Decision:
         """Go on to the next grid time and look there."""
