@@ -45,6 +45,7 @@ from anytime.modules import MISSING, AnytimeModule, Context, ProfileSource, Qual
 from anytime.modules import contract as _contract
 from anytime.modules import elementary as _elementary
 from anytime.modules import interruptible as _interruptible
+from anytime.outdir import owned_directory
 from anytime.plot import new_figure, require_matplotlib, save_figure
 from anytime.profiles import ConditionalPerformanceProfile, VisionHyperbola, tabulate
 from anytime.profiles.builder import Measurement
@@ -138,6 +139,7 @@ __all__ = [
     "proportional_split",
     "require_matplotlib",
     "random_seed",
+    "owned_directory",
     "read_input",
     "run",
     "run_program",

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -114,3 +115,35 @@ def test_the_stopping_policy_runs(cli: Cli) -> None:
     code, out, err = cli("navigate", *args)
     assert (code, err) == (0, "")
     assert json.loads(out)["policy"] == "stopping"
+
+
+def test_out_holds_exactly_one_runs_output(cli: Cli, tmp_path: Path) -> None:
+    """A later, shorter run into the same `--out` leaves none of the earlier run's frames; the
+    user's own files there are kept."""
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / "frame-999.png").write_bytes(b"an earlier run's frame")
+    (out / "notes.txt").write_text("mine")
+    code, stdout, err = cli("navigate", "--size", "16", "--quiet", "--out", str(out))
+    assert (code, err) == (0, "")
+    frames = sorted(p.name for p in out.glob("frame-*.png"))
+    assert frames == [f"frame-{i:03d}.png" for i in range(len(frames))]
+    assert f"wrote {len(frames)} frame pictures" in stdout
+    assert (out / "notes.txt").read_text() == "mine"
+
+
+def test_out_being_written_by_another_run_is_refused_before_the_run(
+    cli: Cli, tmp_path: Path
+) -> None:
+    from anytime.plugin import owned_directory
+
+    out = tmp_path / "o"
+    with owned_directory(out, ("frame-*.png",)):
+        (out / "frame-000.png").write_bytes(b"the other run's")
+        code, stdout, err = cli("navigate", "--size", "16", "--quiet", "--out", str(out))
+        assert (code, stdout) == (1, "")
+        assert err == (
+            f"anytime: error: cannot write '{out}': another run (process {os.getpid()}) is"
+            " writing there; wait for it or choose another directory\n"
+        )
+        assert (out / "frame-000.png").read_bytes() == b"the other run's"

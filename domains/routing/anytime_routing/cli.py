@@ -4,7 +4,6 @@ budget on the work clock, and report the compiled expectation against the realis
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 from typing import Any
 
 from anytime.plugin import (
@@ -15,6 +14,7 @@ from anytime.plugin import (
     format_table,
     int_in_range,
     json_text,
+    owned_directory,
     random_seed,
     require_matplotlib,
 )
@@ -159,9 +159,5 @@ def _text(
 def _figures(args: argparse.Namespace, program: Any, world: Any, run: Delivery) -> list[str]:
     from .figures import write_figures  # matplotlib: the `plot` extra
 
-    out = Path(args.out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as error:
-        raise InputError(f"cannot write to '{out}': {error.strerror}") from None
-    return write_figures(out, program, world, run, args.budget, args.adaptive)
+    with owned_directory(args.out, owns=("tours.png", "quality.png")) as out:
+        return write_figures(out, program, world, run, args.budget, args.adaptive)

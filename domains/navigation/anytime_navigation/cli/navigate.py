@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from contextlib import ExitStack
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +19,7 @@ from anytime.plugin import (
     UsageError,
     int_in_range,
     json_text,
+    owned_directory,
     positive_float,
     random_seed,
     require_matplotlib,
@@ -113,7 +115,12 @@ def add_command(commands: CommandGroup) -> None:
         help="also a directory of profile files (*.yaml): a find-path or get-domain-description "
         "profile there replaces the shipped one; repeatable",
     )
-    navigate.add_argument("--out", metavar="DIR", help="write frame figures, a GIF, events.jsonl")
+    navigate.add_argument(
+        "--out",
+        metavar="DIR",
+        help="write frame figures, a GIF, events.jsonl into DIR (an earlier run's there are "
+        "deleted first; refused while another run writes there)",
+    )
     navigate.add_argument(
         "--compare",
         action="store_true",
@@ -194,32 +201,18 @@ def run_navigate(args: argparse.Namespace) -> int:
                 on_frame=lambda _: bar.update(),
             )
 
-    report = run(args.policy, args.contract)
-    comparison: dict[str, TaskReport] = {}
-    if args.compare:
-        for policy in ("min", "max"):
-            if policy != args.policy:
-                comparison[policy] = run(policy)
     written: list[str] = []
-    if args.out is not None:
-        out = Path(args.out)
-        try:
-            out.mkdir(parents=True, exist_ok=True)
-            write_atomic(out / "events.jsonl", report.log.to_jsonl())
-        except OSError as error:
-            raise InputError(f"cannot write to '{out}': {error.strerror}") from None
-        written.append(str(out / "events.jsonl"))
-        try:
-            from ..frame_figures import write_frames
-        except ImportError as error:  # matplotlib is the optional `plot` extra
-            print(
-                f"anytime: warning: no figures ({error}); install the 'plot' extra", file=sys.stderr
-            )
-        else:
-            with ProgressBar(
-                len(report.records), label="navigate figures", unit="frames", enabled=bars
-            ) as bar:
-                written.extend(write_frames(report, task, out, on_frame=lambda _: bar.update()))
+    with ExitStack() as stack:
+        # the directory is taken before the run: a second run into it is refused at once
+        out = None if args.out is None else stack.enter_context(owned_directory(args.out, OUTPUTS))
+        report = run(args.policy, args.contract)
+        comparison: dict[str, TaskReport] = {}
+        if args.compare:
+            for policy in ("min", "max"):
+                if policy != args.policy:
+                    comparison[policy] = run(policy)
+        if out is not None:
+            written = _outputs(report, task, out, bars)
     if args.json:
         result = report.as_json()
         if comparison:
@@ -234,6 +227,26 @@ def run_navigate(args: argparse.Namespace) -> int:
                 f"{Path(args.out)}"
             )
     return EXIT_OK
+
+
+#: What `navigate --out DIR` writes, and so deletes there before a run writes anew.
+OUTPUTS = ("frame-*.png", "run.gif", "events.jsonl")
+
+
+def _outputs(report: TaskReport, task: NavigationTask, out: Path, bars: bool | None) -> list[str]:
+    """Write the run's event log, and its figures if matplotlib is there; return the paths."""
+    write_atomic(out / "events.jsonl", report.log.to_jsonl())
+    written = [str(out / "events.jsonl")]
+    try:
+        from ..frame_figures import write_frames
+    except ImportError as error:  # matplotlib is the optional `plot` extra
+        print(f"anytime: warning: no figures ({error}); install the 'plot' extra", file=sys.stderr)
+        return written
+    with ProgressBar(
+        len(report.records), label="navigate figures", unit="frames", enabled=bars
+    ) as bar:
+        written.extend(write_frames(report, task, out, on_frame=lambda _: bar.update()))
+    return written
 
 
 def _summary(report: TaskReport, comparison: dict[str, TaskReport]) -> str:

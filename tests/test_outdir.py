@@ -1,0 +1,58 @@
+"""`owned_directory`: a command's `--out DIR` holds exactly one run's output."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+from anytime.files import OutputFileError
+from anytime.outdir import LOCK_NAME, owned_directory
+
+OWNS = ("frame-*.png", "run.gif", "events.jsonl")
+
+
+def test_earlier_outputs_are_deleted_and_other_files_kept(tmp_path: Path) -> None:
+    for name in ("frame-001.png", "frame-099.png", "run.gif", "notes.txt", "frame.png.txt"):
+        (tmp_path / name).write_text("x")
+    (tmp_path / "frame-dir.png").mkdir()  # a directory of a matching name is the user's
+    with owned_directory(tmp_path, OWNS) as out:
+        assert out == tmp_path
+        left = sorted(p.name for p in tmp_path.iterdir())
+    assert left == [LOCK_NAME, "frame-dir.png", "frame.png.txt", "notes.txt"]
+
+
+def test_a_missing_directory_is_made(tmp_path: Path) -> None:
+    with owned_directory(tmp_path / "a" / "b", OWNS) as out:
+        assert out.is_dir()
+
+
+def test_a_second_run_into_the_directory_is_refused_while_the_first_writes(
+    tmp_path: Path,
+) -> None:
+    with owned_directory(tmp_path, OWNS):
+        (tmp_path / "frame-000.png").write_text("first run's")
+        with pytest.raises(OutputFileError) as caught, owned_directory(tmp_path, OWNS):
+            pass
+        assert str(caught.value) == (
+            f"cannot write '{tmp_path}': another run (process {os.getpid()}) is writing there;"
+            " wait for it or choose another directory"
+        )
+        assert (tmp_path / "frame-000.png").read_text() == "first run's"  # nothing deleted
+    with owned_directory(tmp_path, OWNS):  # released: the next run takes it
+        assert not (tmp_path / "frame-000.png").exists()
+
+
+def test_a_lock_file_left_by_a_dead_run_does_not_lock(tmp_path: Path) -> None:
+    (tmp_path / LOCK_NAME).write_text("999999999\n")  # no process holds the lock
+    with owned_directory(tmp_path, OWNS):
+        assert (tmp_path / LOCK_NAME).read_text() == f"{os.getpid()}\n"
+
+
+def test_a_file_where_the_directory_should_be(tmp_path: Path) -> None:
+    target = tmp_path / "file"
+    target.write_text("x")
+    with pytest.raises(OutputFileError, match=f"^cannot write '{target}': File exists$"):
+        with owned_directory(target, OWNS):
+            pass
