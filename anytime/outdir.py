@@ -3,10 +3,12 @@
 A command that writes many files into `--out DIR` (frame pictures, an animation, a log) must not
 mix its files with another run's: two runs into one directory would interleave their frames, and a
 later, shorter run would leave the earlier run's extra frames behind as if they were its own.
-`owned_directory` makes the directory, takes an exclusive lock on it for as long as the command
-writes (a second run into the same directory is refused at once, naming the process that holds
-it), and deletes the files this command wrote there before (those matching its patterns), so what
-the directory holds afterwards is exactly one run's output. Other files in it are left alone.
+`owned_directory` makes the directory and takes an exclusive lock on it for as long as the
+command runs (a second run into the same directory is refused at once, naming the process that
+holds it); `OwnedDirectory.fresh()`, called when the command has its results and starts writing,
+deletes the files this command wrote there before (those matching its patterns), so what the
+directory holds afterwards is exactly one run's output, and a run interrupted before it had
+anything to write leaves the earlier run's output as it was. Other files are left alone.
 
 The lock is an advisory `flock` on a hidden file `DIR/.anytime.lock`: the kernel releases it when
 the holder exits, however it exits, so a crashed run never leaves the directory locked.
@@ -23,7 +25,7 @@ from pathlib import Path
 
 from anytime.files import OutputFileError
 
-__all__ = ["LOCK_NAME", "owned_directory"]
+__all__ = ["LOCK_NAME", "OwnedDirectory", "owned_directory"]
 
 #: The lock file `owned_directory` keeps in the directory (left there: deleting it would race).
 LOCK_NAME = ".anytime.lock"
@@ -34,10 +36,27 @@ except ImportError:  # pragma: no cover - not POSIX: the directory is cleared bu
     fcntl = None  # type: ignore[assignment]
 
 
+class OwnedDirectory:
+    """A directory locked by `owned_directory`; `owns` are the glob patterns of the command's
+    outputs (e.g. `"frame-*.png"`)."""
+
+    def __init__(self, path: Path, owns: Sequence[str]) -> None:
+        self.path = path
+        self.owns = tuple(owns)
+        self._cleared = False
+
+    def fresh(self) -> Path:
+        """Delete the earlier runs' outputs (on the first call only) and return the path."""
+        if not self._cleared:
+            _clear(self.path, self.owns)
+            self._cleared = True
+        return self.path
+
+
 @contextmanager
-def owned_directory(path: str | os.PathLike[str], owns: Sequence[str]) -> Iterator[Path]:
-    """Make `path` a directory this process alone writes into while the block runs, with the
-    files of earlier runs matching the glob patterns `owns` (e.g. `"frame-*.png"`) deleted.
+def owned_directory(path: str | os.PathLike[str], owns: Sequence[str]) -> Iterator[OwnedDirectory]:
+    """Make `path` a directory this process alone writes into while the block runs; the earlier
+    runs' outputs matching the glob patterns `owns` go when the block calls `fresh()`.
 
     Raises `OutputFileError` (`cannot write 'DIR': ...`) when the directory cannot be made, is
     being written by another run, or an earlier output cannot be deleted."""
@@ -49,8 +68,7 @@ def owned_directory(path: str | os.PathLike[str], owns: Sequence[str]) -> Iterat
         raise OutputFileError(error.errno, error.strerror, str(out)) from None
     try:
         _lock(handle, out)
-        _clear(out, owns)
-        yield out
+        yield OwnedDirectory(out, owns)
     finally:
         os.close(handle)  # closing the descriptor releases the lock
 

@@ -18,14 +18,18 @@ def test_earlier_outputs_are_deleted_and_other_files_kept(tmp_path: Path) -> Non
         (tmp_path / name).write_text("x")
     (tmp_path / "frame-dir.png").mkdir()  # a directory of a matching name is the user's
     with owned_directory(tmp_path, OWNS) as out:
-        assert out == tmp_path
+        assert (tmp_path / "run.gif").exists()  # until the run writes, nothing is deleted
+        assert out.fresh() == tmp_path
         left = sorted(p.name for p in tmp_path.iterdir())
+        (tmp_path / "frame-000.png").write_text("this run's")
+        out.fresh()  # once only: this run's outputs stay
+        assert (tmp_path / "frame-000.png").exists()
     assert left == [LOCK_NAME, "frame-dir.png", "frame.png.txt", "notes.txt"]
 
 
 def test_a_missing_directory_is_made(tmp_path: Path) -> None:
     with owned_directory(tmp_path / "a" / "b", OWNS) as out:
-        assert out.is_dir()
+        assert out.path.is_dir()
 
 
 def test_a_second_run_into_the_directory_is_refused_while_the_first_writes(
@@ -40,7 +44,8 @@ def test_a_second_run_into_the_directory_is_refused_while_the_first_writes(
             " wait for it or choose another directory"
         )
         assert (tmp_path / "frame-000.png").read_text() == "first run's"  # nothing deleted
-    with owned_directory(tmp_path, OWNS):  # released: the next run takes it
+    with owned_directory(tmp_path, OWNS) as out:  # released: the next run takes it
+        out.fresh()
         assert not (tmp_path / "frame-000.png").exists()
 
 

@@ -1,7 +1,8 @@
 """The `anytime` command.
 
 Exit codes: 0 success, 1 bad input (a message naming the file and place, never a traceback),
-2 usage errors (one line, argparse's own included), 130 interrupted (Ctrl-C). Each group of
+2 usage errors (one line, argparse's own included), 130 interrupted (Ctrl-C), 143 terminated
+(SIGTERM, handled like Ctrl-C). Each group of
 subcommands lives in its own module.
 
 Plugins add subcommands of their own: a `Plugin` (see `anytime.plugin`) with `add_commands`
@@ -24,13 +25,13 @@ from anytime import __version__
 from anytime.cli import library, measure, plot, schemas
 from anytime.cli.common import (
     EXIT_INPUT,
-    EXIT_INTERRUPTED,
     EXIT_OK,
     EXIT_USAGE,
     InputError,
     UsageError,
 )
 from anytime.errors import AnytimeError, SchemaError
+from anytime.launch import interrupted, sigterm_interrupts
 from anytime.library import load_plugins
 
 __all__ = ["InputError", "UsageError", "build_parser", "describe", "main"]
@@ -45,6 +46,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     130; the files it writes are written atomically, so it leaves no half-written output. Usage
     errors (argparse's and `UsageError`) exit 2.
     """
+    with sigterm_interrupts():
+        return _main(argv)
+
+
+def _main(argv: Sequence[str] | None) -> int:
     command: str | None = None
     try:
         parser = build_parser()
@@ -57,9 +63,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         code = run(args)
         sys.stdout.flush()  # an error writing the output is reported here, not at exit
         return code
-    except KeyboardInterrupt:
-        print("anytime: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
+    except KeyboardInterrupt as interrupt:
+        return interrupted(interrupt)
     except BrokenPipeError:  # the reader went away, e.g. `anytime parse f | head -1`
         _drop_stdout()
         return EXIT_OK

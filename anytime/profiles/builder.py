@@ -524,6 +524,7 @@ def _tabulate(
 
 def _ignore_interrupts() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # a forked worker must die of the parent's stop
 
 
 def _run(chunks: list[Chunk], executor: Executor | None, workers: int) -> Iterator[Done]:

@@ -91,9 +91,13 @@ def test_a_plugin_command_interrupted(
     assert (tmp_path / "events.jsonl").read_text() == "old\n"
 
 
-def _interrupt(argv: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
+def _interrupt(
+    argv: list[str], cwd: Path, sent: signal.Signals = signal.SIGINT
+) -> subprocess.CompletedProcess[str]:
     """Run `anytime ARGV` in a process group of its own, send the group SIGINT once the command
-    runs (as a terminal's Ctrl-C does: worker processes get it too), and wait for the end."""
+    runs (as a terminal's Ctrl-C does: worker processes get it too), and wait for the end; for
+    SIGTERM, send it to the command's process alone (as `timeout` and CI runners do), and check
+    that no process of the group is left once it has ended."""
     code = (
         "import sys; from anytime.cli import main; print('ready', flush=True);"
         f" sys.exit(main({argv!r}))"
@@ -109,9 +113,24 @@ def _interrupt(argv: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
     assert process.stdout is not None
     assert process.stdout.readline() == "ready\n"
     time.sleep(1.0)  # into the command's work (not a timing assertion: any moment will do)
-    os.killpg(process.pid, signal.SIGINT)
+    if sent == signal.SIGINT:
+        os.killpg(process.pid, signal.SIGINT)
+    else:
+        os.kill(process.pid, sent)
     stdout, stderr = process.communicate(timeout=60)
+    _no_process_left(process.pid)
     return subprocess.CompletedProcess(argv, process.returncode, stdout, stderr)
+
+
+def _no_process_left(group: int) -> None:
+    for _ in range(50):  # stopped workers may take a moment to be reaped
+        try:
+            os.killpg(group, 0)
+        except ProcessLookupError:
+            return
+        time.sleep(0.1)
+    os.killpg(group, signal.SIGKILL)
+    raise AssertionError(f"processes of group {group} were left running")
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="SIGINT to a process")
@@ -121,6 +140,18 @@ def test_ctrl_c_in_the_profile_builders_worker_pool(tmp_path: Path) -> None:
     argv = ["profile", "find-path", "--trials", "5000", "--workers", "2", "-o", str(out)]
     done = _interrupt(argv, tmp_path)
     assert (done.returncode, done.stdout, done.stderr) == (130, "", INTERRUPTED)
+    assert out.read_text() == "old\n" and os.listdir(tmp_path) == ["find-path.yaml"]
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="SIGTERM to a process")
+def test_sigterm_to_the_profile_builder_stops_its_workers(tmp_path: Path) -> None:
+    """SIGTERM to the command alone (its workers are not sent it) is handled like Ctrl-C: the
+    workers are stopped, none is left, the old file is kept; one line and status 143."""
+    out = tmp_path / "find-path.yaml"
+    out.write_text("old\n")
+    argv = ["profile", "find-path", "--trials", "5000", "--workers", "2", "-o", str(out)]
+    done = _interrupt(argv, tmp_path, signal.SIGTERM)
+    assert (done.returncode, done.stdout, done.stderr) == (143, "", "anytime: terminated\n")
     assert out.read_text() == "old\n" and os.listdir(tmp_path) == ["find-path.yaml"]
 
 

@@ -160,4 +160,4 @@ def _figures(args: argparse.Namespace, program: Any, world: Any, run: Delivery) 
     from .figures import write_figures  # matplotlib: the `plot` extra
 
     with owned_directory(args.out, owns=("tours.png", "quality.png")) as out:
-        return write_figures(out, program, world, run, args.budget, args.adaptive)
+        return write_figures(out.fresh(), program, world, run, args.budget, args.adaptive)

@@ -212,7 +212,7 @@ def run_navigate(args: argparse.Namespace) -> int:
                 if policy != args.policy:
                     comparison[policy] = run(policy)
         if out is not None:
-            written = _outputs(report, task, out, bars)
+            written = _outputs(report, task, out.fresh(), bars)
     if args.json:
         result = report.as_json()
         if comparison:
