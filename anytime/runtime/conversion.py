@@ -313,8 +313,12 @@ def _parallel(
                     longest = length
                     yield result
     finally:
-        # Queued contracts are cancelled; running ones end on their own at their allocation.
+        # Queued contracts are cancelled and running ones stopped: their results would come
+        # too late, and a contract that hangs would keep the interpreter waiting at its exit.
+        processes = list((pool._processes or {}).values())
         pool.shutdown(wait=False, cancel_futures=True)
+        for process in processes:
+            process.terminate()
 
 
 def _run_contract(

@@ -5,6 +5,7 @@ the work clock, through a compiled program, and on two worker processes)."""
 from __future__ import annotations
 
 import math
+import multiprocessing
 import pickle
 import threading
 import time
@@ -72,6 +73,13 @@ def toy(ctx: Context, problem: Any) -> Result:
         while not ctx.expired:
             pass
     return Result(ctx.allocation, float(CURVE(ctx.allocation)))
+
+
+@contract("hangs", profile=CONTRACT_PROFILE, registry=TOYS)
+def hangs(ctx: Context, problem: Any) -> Result:
+    """A contract that never ends and never looks at its context."""
+    time.sleep(3600)
+    raise AssertionError("unreachable")
 
 
 @contract("interrupted-at-8", registry=TOYS)
@@ -499,6 +507,19 @@ def test_two_worker_processes_run_the_round_robin_schedule() -> None:
     planned = round_robin(2, t0=0.02).contracts(0.4).length
     assert all(np.isclose(planned, length, rtol=1e-12).any() for length in lengths)
     assert all(t <= 0.4 for t, _ in trace)
+
+
+def test_a_hanging_contract_on_workers_leaves_no_process_behind() -> None:
+    """The run answers at its deadline and its worker processes are stopped (they kept the
+    interpreter waiting at exit for as long as the contract hung)."""
+    module = make_interruptible(hangs, t0=0.02, workers=2)
+    before = set(multiprocessing.active_children())
+    record = run(module, ("problem",), allocation=0.3, clock=WallClock())
+    assert record.result is None
+    deadline = time.monotonic() + 10.0  # processes take a moment to be reaped, not a timing test
+    while set(multiprocessing.active_children()) - before and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert set(multiprocessing.active_children()) - before == set()
 
 
 def test_several_workers_need_the_wall_clock() -> None:
