@@ -46,7 +46,7 @@ def sigterm_interrupts() -> Iterator[None]:
 
 def interrupted(interrupt: KeyboardInterrupt) -> int:
     """Say why the command stops, on stderr, and return its exit status."""
-    if isinstance(interrupt, Terminated):
+    if isinstance(interrupt, Terminated) or isinstance(interrupt.__cause__, Terminated):
         print("anytime: terminated", file=sys.stderr)
         return EXIT_TERMINATED
     print("anytime: interrupted", file=sys.stderr)

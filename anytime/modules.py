@@ -115,7 +115,10 @@ class Context:
         self.ticks = 0.0
 
     def tick(self, n: float = 1) -> None:
-        """Report `n` units of work."""
+        """Report `n` units of work: a finite number, 0 or more (NaN would make every later
+        time NaN and every deadline test false; negative work would turn the clock back)."""
+        if not (n >= 0 and math.isfinite(n)):  # NaN fails both tests
+            raise ValueError(f"ctx.tick({n!r}): work must be a finite number of units, 0 or more")
         self.ticks += n
         self.clock.advance(n)
 
@@ -245,18 +248,22 @@ class Registry:
 
     def __init__(self) -> None:
         self._modules: dict[str, AnytimeModule] = {}
+        self._lock = threading.Lock()  # the check and the write are one step (threads racing)
 
     def add(self, module: AnytimeModule) -> AnytimeModule:
-        old = self._modules.get(module.name)
-        if old is not None and _qualified(old.function) != _qualified(module.function):
-            raise RegistrationError(
-                f"module '{module.name}' is defined twice: in {old.origin} and in {module.origin}"
-            )
-        self._modules[module.name] = module
+        with self._lock:
+            old = self._modules.get(module.name)
+            if old is not None and _qualified(old.function) != _qualified(module.function):
+                raise RegistrationError(
+                    f"module '{module.name}' is defined twice: in {old.origin} and in"
+                    f" {module.origin}"
+                )
+            self._modules[module.name] = module
         return module
 
     def remove(self, name: str) -> None:
-        self._modules.pop(name.lower(), None)
+        with self._lock:
+            self._modules.pop(name.lower(), None)
 
     def get(self, name: str) -> AnytimeModule | None:
         return self._modules.get(name.lower())

@@ -59,7 +59,7 @@ from anytime.runtime.deadline import (
     proportional_split,
 )
 from anytime.runtime.deadline import critical_event as _critical_event
-from anytime.runtime.executor import RunRecord, Status, run
+from anytime.runtime.executor import RunInterrupted, RunRecord, Status, run
 from anytime.runtime.monitor import (
     Adjustment,
     CostModel,
@@ -107,6 +107,7 @@ __all__ = [
     "QualityReport",
     "ProgressBar",
     "Result",
+    "RunInterrupted",
     "RunRecord",
     "SchemaFile",
     "Status",

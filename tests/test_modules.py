@@ -266,3 +266,39 @@ def test_the_plugin_decorators_declare_a_step_without_registering() -> None:
     assert len(REGISTRY) == before and "plugin-stepped" not in REGISTRY
     with pytest.raises(ModuleError, match=r"^module 'plugin-bad' .*: step: expected a finite"):
         plugin_interruptible("plugin-bad", step=-3)(gen.function)
+
+
+def _first(ctx: Context) -> Result:
+    return Result(1, 1.0)
+
+
+def _second(ctx: Context) -> Result:
+    return Result(2, 1.0)
+
+
+def _race(registry: Registry) -> list[str]:
+    """Two threads register `_first` and `_second` as 'raced' at once; how each ended."""
+    barrier = threading.Barrier(2)
+    outcomes: list[str] = []
+
+    def register(function: object) -> None:
+        barrier.wait()
+        try:
+            contract("raced", registry=registry)(function)
+            outcomes.append("registered")
+        except RegistrationError:
+            outcomes.append("refused")
+
+    threads = [threading.Thread(target=register, args=(f,)) for f in (_first, _second)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    return outcomes
+
+
+def test_two_threads_registering_one_name_one_wins() -> None:
+    """The check for a taken name and the registration are one step: of two threads racing to
+    register different functions under one name, exactly one succeeds, every time."""
+    for _ in range(200):
+        assert sorted(_race(Registry())) == ["refused", "registered"]

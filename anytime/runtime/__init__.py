@@ -11,7 +11,7 @@ from anytime.runtime.deadline import (
     deadline_from,
     proportional_split,
 )
-from anytime.runtime.executor import RunRecord, Status, run
+from anytime.runtime.executor import RunInterrupted, RunRecord, Status, run
 from anytime.runtime.monitor import (
     Adjustment,
     ContractDecision,
@@ -61,6 +61,7 @@ __all__ = [
     "ProgramRecord",
     "ProjectedStopping",
     "Replay",
+    "RunInterrupted",
     "RunRecord",
     "Status",
     "StoppingModel",

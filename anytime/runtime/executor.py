@@ -124,11 +124,23 @@ class _Slot:
 
 @frozen
 class _Outcome:
-    """How the module's side ended (before the caller turns it into a record)."""
+    """How the module's side ended (before the caller turns it into a record); `interrupt`, a
+    KeyboardInterrupt the module's side caught, for the caller to raise once the record is kept."""
 
     status: Status
     error: str | None = None
     traceback: str | None = None
+    interrupt: KeyboardInterrupt | None = None
+
+
+class RunInterrupted(KeyboardInterrupt):
+    """A KeyboardInterrupt (Ctrl-C, or SIGTERM in the `anytime` command) during a run, raised
+    to the caller once the run's record is kept: `record` has the best result registered
+    before it, status `interrupted`. The interrupt that came is its `__cause__`."""
+
+    def __init__(self, record: RunRecord) -> None:
+        super().__init__(f"run of '{record.module}' interrupted")
+        self.record = record
 
 
 def run(
@@ -169,7 +181,7 @@ def run(
         ctx = _context(allocation, clock, caller_stop, police)
         slot = _Slot(threaded=False, latest=_keeps_latest(module))
         outcome = _drive(module, ctx, args, kwargs or {}, slot, police)
-        return _record(module, ctx, slot, outcome, police)
+        return _answer(_record(module, ctx, slot, outcome, police), outcome)
     # At the deadline the module's `ctx.expired` turns true by itself (its clock has reached
     # the allocation), so the caller's stop event is never set here: one run's deadline must
     # not stop what the caller runs next.
@@ -181,12 +193,19 @@ def run(
     def work() -> None:
         try:
             box.append(_drive(module, ctx, args, kwargs or {}, slot, police))
+        except BaseException as exc:  # anything else the module's side let through
+            box.append(_failure(exc))
         finally:
             finished.set()
 
     worker = threading.Thread(target=work, name=f"anytime:{module.name}", daemon=True)
     worker.start()
-    _wait(finished, ctx, caller_stop, poll, police)
+    try:
+        _wait(finished, ctx, caller_stop, poll, police)
+    except KeyboardInterrupt as exc:  # Ctrl-C while the caller waits: stop the module, answer
+        caller_stop.set()
+        outcome = _interrupted(exc)
+        return _answer(_record(module, ctx, slot, outcome, police), outcome)
     if not finished.is_set():  # the deadline came first: answer now; the module sees expired
         status = Status.CONTRACT_EXPIRED if module.kind == "contract" else Status.INTERRUPTED
         if caller_stop.is_set() and module.kind == "contract":
@@ -194,7 +213,15 @@ def run(
         if police is not None and not caller_stop.is_set() and police.reached(ctx.elapsed):
             status = Status.STOPPED
         return _record(module, ctx, slot, _Outcome(status), police)
-    return _record(module, ctx, slot, box[0], police)
+    return _answer(_record(module, ctx, slot, box[0], police), box[0])
+
+
+def _answer(record: RunRecord, outcome: _Outcome) -> RunRecord:
+    """The record, or, when the run was ended by a KeyboardInterrupt, `RunInterrupted` raised
+    with it: the user asked the caller to stop too."""
+    if outcome.interrupt is not None:
+        raise RunInterrupted(record) from outcome.interrupt
+    return record
 
 
 def _context(
@@ -347,8 +374,10 @@ def _drive(
             slot.offer(value)
             return _Outcome(Status.COMPLETED)
         value = module(ctx, *args, **kwargs)
-    except Exception as exc:
+    except (Exception, SystemExit) as exc:
         return _failure(exc)
+    except KeyboardInterrupt as exc:
+        return _interrupted(exc)
     if value is None:  # a contract's way of saying it has no result
         late = _late(ctx.elapsed, ctx.allocation)
         return _Outcome(Status.CONTRACT_EXPIRED if late else Status.COMPLETED)
@@ -377,8 +406,10 @@ def _interruptible(
 ) -> _Outcome:
     try:
         generator: Generator[Any, None, None] = module(ctx, *args, **kwargs)
-    except Exception as exc:
+    except (Exception, SystemExit) as exc:
         return _failure(exc)
+    except KeyboardInterrupt as exc:
+        return _interrupted(exc)
     # Read once: this loop runs once per registered result and should cost little. In soft
     # mode the best result is kept in locals and handed to the slot when the run ends; in hard
     # mode every result is published at once, for the caller to take at the deadline.
@@ -399,8 +430,10 @@ def _interruptible(
                 if clock.now() - start > limit:
                     return _Outcome(Status.INTERRUPTED)  # it finished after its deadline
                 return _Outcome(Status.COMPLETED)
-            except Exception as exc:
+            except (Exception, SystemExit) as exc:
                 return _failure(exc)
+            except KeyboardInterrupt as exc:
+                return _interrupted(exc)
             if stop.is_set():
                 return _Outcome(Status.INTERRUPTED)
             elapsed = clock.now() - start
@@ -430,7 +463,7 @@ def _interruptible(
         if publish is None:
             slot.best, slot.count = best, count
         # The outcome is decided; a module that fails while being closed changes nothing.
-        with suppress(Exception):
+        with suppress(Exception, SystemExit):
             generator.close()
 
 
@@ -448,6 +481,10 @@ def _quality_of(arg: Any) -> float:
 def _failure(exc: BaseException, where: str = "") -> _Outcome:
     trace = "".join(traceback.format_exception(exc))
     return _Outcome(Status.FAILED, where + _headline(exc), trace)
+
+
+def _interrupted(exc: KeyboardInterrupt) -> _Outcome:
+    return _Outcome(Status.INTERRUPTED, _headline(exc), interrupt=exc)
 
 
 def _headline(exc: BaseException) -> str:
@@ -477,7 +514,10 @@ def _record(
 ) -> RunRecord:
     best, count = slot.close()
     status = outcome.status
-    if best is None and status in (Status.COMPLETED, Status.INTERRUPTED):
+    no_answer = status is Status.COMPLETED or (
+        status is Status.INTERRUPTED and outcome.interrupt is None
+    )
+    if best is None and no_answer:
         status = Status.NO_RESULT
     return RunRecord(
         module=module.name,
