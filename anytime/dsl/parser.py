@@ -303,6 +303,10 @@ def _span(meta: Meta | Token) -> Span:
     return Span(meta.line or 0, meta.column or 0, meta.end_line or 0, meta.end_column or 0)
 
 
+#: The longest integer literal (Python's `int` refuses more than 4,300 digits).
+MAX_INTEGER_DIGITS = 1000
+
+
 @v_args(meta=True)
 class _ToNodes(Transformer[Token, tuple[SchemaDef, ...]]):
     """One method per grammar rule, each building the frozen node of the same name."""
@@ -395,6 +399,12 @@ class _ToNodes(Transformer[Token, tuple[SchemaDef, ...]]):
         text = str(children[0])
         value: int | float
         if re.fullmatch(r"[+-]?\d+", text):
+            digits = len(text.lstrip("+-"))
+            if digits > MAX_INTEGER_DIGITS:
+                raise self._fail(
+                    _span(meta),
+                    f"integer of {digits:,} digits is too large (at most {MAX_INTEGER_DIGITS:,})",
+                )
             value = int(text)
         else:
             value = float(text)

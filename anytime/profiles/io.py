@@ -84,6 +84,7 @@ from anytime.profiles.profile import (
     new_profile,
     point_mass,
 )
+from anytime.profiles.yaml_limits import YAMLLimitError, check_document
 from anytime.text import did_you_mean
 
 FORMAT = "anytime-profile/1"
@@ -183,7 +184,12 @@ def read_document(
 
 def _parse_yaml(text: str, filename: str) -> object:
     """The document, read by the fast loader; a document it refuses is read again by the pure
-    one, whose messages (and marks) are the ones the format documents."""
+    one, whose messages (and marks) are the ones the format documents. What the document may
+    expand to (aliases, nesting, integers) and duplicate keys are checked before either loads."""
+    try:
+        check_document(text, FAST_LOADER)
+    except YAMLLimitError as exc:
+        raise ProfileError(f"{filename}:{exc.line}:{exc.column}: {exc}") from None
     try:
         return yaml.load(text, Loader=FAST_LOADER)  # a safe loader: plain data only
     except yaml.YAMLError:

@@ -135,6 +135,12 @@ SYNTAX_ERRORS = {
         6,
         "number '1e999' is too large",
     ),
+    "huge-integer": (
+        "(defschema p (x)\n  (f " + "7" * 5000 + "))\n",
+        2,
+        6,
+        "integer of 5,000 digits is too large (at most 1,000)",
+    ),
     "positional-after-keyword": (
         "(defschema p (x)\n  (f :level 2 x))\n",
         2,
