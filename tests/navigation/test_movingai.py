@@ -118,6 +118,11 @@ GOOD_MAP = "type octile\nheight 2\nwidth 3\nmap\n..@\n...\n"
             "type octile\r\nheight 2\r\nwidth 3\r\nmap\r\n...\r\n..\r\n",
             "6: row 1 has 2 characters, expected 3",
         ),
+        (
+            "type octile\nheight 1\nwidth 16385\nmap\n" + "." * 16385 + "\n",
+            "3: a 16385x1 map is padded to 32768x32768 cells, more than the 8192x8192 the"
+            " planner takes",
+        ),
     ],
     ids=[
         "empty",
@@ -132,6 +137,7 @@ GOOD_MAP = "type octile\nheight 2\nwidth 3\nmap\n..@\n...\n"
         "unknown-character",
         "extra-row",
         "crlf-row-length",
+        "padded-too-large",
     ],
 )
 def test_map_errors(tmp_path: Path, text: str, message: str) -> None:
@@ -187,6 +193,10 @@ LINE = "0\tm.map\t3\t2\t0\t0\t1\t1\t1.41421356"
             "version 1\n0\tm.map\t3\t2\t0\t0\t1\t1\t-1\n",
             "2: field 9 (optimal length) is not a length: '-1'",
         ),
+        (
+            "version 1\n0\tm.map\t3\t2\t0\t0\t1\t1\t0\n",
+            "2: field 9 (optimal length) is 0 but the start is not the goal",
+        ),
         ("version 1\n0\tm.map\t3\t0\t0\t0\t1\t1\t1\n", "2: map size 3x0 is not positive"),
         ("version 1\n0\tm.map\t3\t2\t3\t0\t1\t1\t1\n", "2: start (3, 0) is outside the 3x2 map"),
         ("version 1\n0\tm.map\t3\t2\t0\t0\t1\t-1\t1\n", "2: goal (1, -1) is outside the 3x2 map"),
@@ -201,6 +211,7 @@ LINE = "0\tm.map\t3\t2\t0\t0\t1\t1\t1.41421356"
         "bucket",
         "optimal",
         "negative-optimal",
+        "zero-optimal",
         "size",
         "start-outside",
         "goal-outside",

@@ -38,6 +38,8 @@ _CODES[[ord(c) for c in BLOCKED]] = 1
 MAX_MAP_BYTES = 64 << 20
 #: The largest `.scen` file read (the largest shipped one is under 1 MiB).
 MAX_SCENARIO_BYTES = 64 << 20
+#: The largest square a map is padded to (the MovingAI benchmark's largest maps are 1024 x 1024).
+MAX_PADDED_SIDE = 8192
 
 _SCEN_FIELDS = (
     "bucket",
@@ -127,6 +129,14 @@ def load_map(path: str | os.PathLike[str]) -> tuple[BoolGrid, int, int]:
         raise MapError(name, 1, f"expected 'type octile', found {found}")
     height = _header_value(name, lines, 1, "height")
     width = _header_value(name, lines, 2, "width")
+    side = padded_side(width, height)
+    if side > MAX_PADDED_SIDE:  # a thin map would be padded to a square of its long side
+        raise MapError(
+            name,
+            2 if height >= width else 3,
+            f"a {width}x{height} map is padded to {side}x{side} cells, more than the"
+            f" {MAX_PADDED_SIDE}x{MAX_PADDED_SIDE} the planner takes",
+        )
     if len(lines) < 4 or lines[3].strip() != "map":
         found = repr(lines[3]) if len(lines) >= 4 else "end of file"
         raise MapError(name, 4, f"expected 'map', found {found}")
@@ -155,7 +165,6 @@ def load_map(path: str | os.PathLike[str]) -> tuple[BoolGrid, int, int]:
             f"unknown character {rows[y][x]!r} at column {x + 1} "
             f"(passable: {' '.join(PASSABLE)}; blocked: {' '.join(BLOCKED)})",
         )
-    side = padded_side(width, height)
     blocked: NDArray[np.bool_] = np.ones((side, side), dtype=bool)
     blocked[:height, :width] = codes == 1
     return blocked, width, height
@@ -211,6 +220,10 @@ def load_scenarios(path: str | os.PathLike[str], blocked: BoolGrid | None = None
             optimal = math.nan
         if not math.isfinite(optimal) or optimal < 0:
             raise MapError(name, line, f"field 9 (optimal length) is not a length: {fields[8]!r}")
+        if optimal == 0 and (sx, sy) != (gx, gy):  # every quality would divide by it
+            raise MapError(
+                name, line, "field 9 (optimal length) is 0 but the start is not the goal"
+            )
         if width <= 0 or height <= 0:
             raise MapError(name, line, f"map size {width}x{height} is not positive")
         for label, (x, y) in (("start", (sx, sy)), ("goal", (gx, gy))):
