@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
+import os
 import sys
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any
 
 from anytime.errors import AnytimeError
@@ -183,6 +186,29 @@ def check_lattice(grid: Sequence[float], resolution: float | None) -> None:
             f" {max(grid):g} make a lattice of {many} points, more than the limit of"
             f" {MAX_LATTICE_POINTS:,}; give {fix}"
         )
+
+
+def refuse_overwriting_inputs(
+    output: str | os.PathLike[str] | None, *inputs: str | os.PathLike[str] | None
+) -> None:
+    """An output file that is one of the command's input files (the same path, or the same file
+    by another path) is refused before any work: `-o schema.any` would replace the schema with
+    the compiled profile."""
+    if output is None:
+        return
+    target = Path(output)
+    for given in inputs:
+        if given is None:
+            continue
+        source = Path(given)
+        same = target.resolve() == source.resolve()
+        if not same and target.exists() and source.exists():
+            with contextlib.suppress(OSError):
+                same = target.samefile(source)
+        if same:
+            raise InputError(
+                f"the output '{output}' is an input of this command; give another file"
+            )
 
 
 def library_options(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:

@@ -19,6 +19,7 @@ from anytime.cli.common import (
     library_options,
     open_library,
     random_seed,
+    refuse_overwriting_inputs,
     trial_count,
     worker_count,
 )
@@ -253,6 +254,7 @@ def _runnable(args: argparse.Namespace) -> tuple[AnytimeModule, AnytimeLibrary]:
 def run_calibrate(args: argparse.Namespace) -> int:
     if (args.profile is None) != (args.output is None):
         args.usage_error("--profile FILE and -o OUT go together")
+    refuse_overwriting_inputs(args.output, args.profile)
     module, library = _runnable(args)
     profile = None
     if args.profile is not None:  # checked before the measurement spends its seconds

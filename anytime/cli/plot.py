@@ -20,7 +20,14 @@ from typing import NoReturn
 import numpy as np
 import yaml
 
-from anytime.cli.common import EXIT_OK, InputError, library_options, open_library, time_grid
+from anytime.cli.common import (
+    EXIT_OK,
+    InputError,
+    library_options,
+    open_library,
+    refuse_overwriting_inputs,
+    time_grid,
+)
 from anytime.cli.schemas import check_schema_name, compile_schemas
 from anytime.compiler.compile import ALLOCATOR_NAMES
 from anytime.dsl import load_schemas
@@ -76,6 +83,7 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
 def run_plot(args: argparse.Namespace) -> int:
     source = Path(args.file)
     output = Path(args.output) if args.output is not None else source.with_suffix(".png")
+    refuse_overwriting_inputs(output, source)
     try:
         require_matplotlib()  # before any work
         if source.suffix.lower() == SCHEMA_SUFFIX:

@@ -18,6 +18,7 @@ from anytime.cli.common import (
     open_library,
     positive_float,
     quality_list,
+    refuse_overwriting_inputs,
     time_grid,
 )
 from anytime.compiler import (
@@ -184,6 +185,7 @@ def run_parse(args: argparse.Namespace) -> int:
 
 
 def run_compile(args: argparse.Namespace) -> int:
+    refuse_overwriting_inputs(args.output, args.file)
     library = open_library(args)
     # Calls are checked against the library for the compiled schemas only (by the compiler).
     schemas = load_schemas(args.file)

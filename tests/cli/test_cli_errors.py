@@ -77,3 +77,29 @@ def test_an_output_file_that_cannot_be_written(
     assert (code, stdout) == (1, "")
     assert err == f"anytime: error: cannot write '{navigation_any}': File exists\n"
     assert err.count("\n") == 1
+
+
+def test_an_output_that_is_an_input_is_refused(
+    cli: Cli, navigation_any: Path, tmp_path: Path
+) -> None:
+    """`-o` naming the command's own input (by its path or another) is refused before any
+    work, and the input is left as it was."""
+    schema = tmp_path / "navigation.any"
+    schema.write_text(navigation_any.read_text())
+    link = tmp_path / "link.any"
+    link.symlink_to(schema)
+    before = schema.read_text()
+    for output in (schema, link, tmp_path / "." / "navigation.any"):
+        code, stdout, err = cli(
+            "compile", str(schema), "--schema", "navigate", "--time-grid", "0:1000:250",
+            "-o", str(output),
+        )  # fmt: skip
+        assert (code, stdout) == (1, "")
+        assert err == (
+            f"anytime: error: the output '{output}' is an input of this command; give another"
+            " file\n"
+        )
+    assert schema.read_text() == before
+    code, stdout, err = cli("plot", str(schema), "-o", str(schema))
+    assert (code, stdout) == (1, "")
+    assert err.startswith(f"anytime: error: the output '{schema}' is an input")
