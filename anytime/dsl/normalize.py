@@ -9,7 +9,8 @@ place, and all of them are raised together in one `SchemaError`.
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable, Collection, Iterable, Mapping
+from collections import deque
+from collections.abc import Callable, Collection, Iterable, Mapping, Sequence
 
 from anytime.dsl.nodes import (
     BestOfForm,
@@ -93,10 +94,23 @@ def normalize(source: SourceFile, known_functions: KnownFunctions | None = None)
     return SchemaFile(source.filename, programs, source=source.source)
 
 
+#: How many errors of one file get a "did you mean" hint: each hint compares the name with
+#: every known one, so a file of thousands of misspellings would take minutes to report.
+MAX_HINTS = 20
+
+
 class _Checker:
     def __init__(self, source: SourceFile) -> None:
         self.source = source
         self.diagnostics: list[Diagnostic] = []
+        self.hints = 0
+
+    def suggest(self, name: str, known: Collection[str]) -> str:
+        """`text.suggest`'s hint for the first `MAX_HINTS` errors of the file, then ""."""
+        if self.hints >= MAX_HINTS or not known:
+            return ""
+        self.hints += 1
+        return suggest(name, known)
 
     def error(self, span: Span | None, message: str) -> None:
         self.diagnostics.append(self.source.source.diagnostic(message, span or Span(1, 1, 1, 2)))
@@ -150,7 +164,7 @@ class _Checker:
         self, step: CallStep, known: KnownFunctions, schema_arity: Mapping[str, int]
     ) -> None:
         if step.function not in known:
-            hint = suggest(step.function, [*known, *schema_arity])
+            hint = self.suggest(step.function, [*known, *schema_arity])
             self.error(step.function_span, f"unknown function '{step.function}'{hint}")
             return
         arity = known.get(step.function) if isinstance(known, Mapping) else None
@@ -161,40 +175,98 @@ class _Checker:
             )
 
     def check_recursion(self, programs: tuple[Program, ...]) -> None:
-        """A schema may not call itself, directly or through other schemas."""
-        by_name = {p.name: p for p in programs}
+        """A schema may not call itself, directly or through other schemas. Only schemas on a
+        cycle of the call graph (its strongly connected components, found once) are searched
+        for their shortest cycle, so a long chain of calls is checked in linear time."""
+        calls = {p.name: tuple(dict.fromkeys(p.callees())) for p in programs}
+        component = _components(calls)
         reported: set[str] = set()
         for program in programs:
-            path = self.find_cycle(program.name, by_name)
-            if path is None or program.name in reported:
+            name = program.name
+            if name in reported or not _on_a_cycle(name, calls, component):
                 continue
+            path = self.find_cycle(name, calls, component)
             reported.update(path)
             step = next(
                 s for s in program.walk() if isinstance(s, SchemaCall) and s.schema == path[1]
             )
             if len(path) == 2:
-                self.error(step.function_span, f"schema '{program.name}' calls itself")
+                self.error(step.function_span, f"schema '{name}' calls itself")
             else:
                 chain = " -> ".join(path)
                 self.error(
                     step.function_span,
-                    f"schema '{program.name}' calls itself through other schemas: {chain}",
+                    f"schema '{name}' calls itself through other schemas: {chain}",
                 )
 
     @staticmethod
-    def find_cycle(start: str, by_name: Mapping[str, Program]) -> list[str] | None:
-        """The shortest call path start -> ... -> start, if there is one (breadth first)."""
-        paths = [[start]]
-        seen: set[str] = set()
-        while paths:
-            path = paths.pop(0)
-            for callee in by_name[path[-1]].callees():
+    def find_cycle(
+        start: str, calls: Mapping[str, Sequence[str]], component: Mapping[str, int]
+    ) -> list[str]:
+        """The shortest call path start -> ... -> start (breadth first within the strongly
+        connected component of `start`, which holds every such path)."""
+        mine = component[start]
+        parent: dict[str, str] = {}
+        queue = deque([start])
+        while queue:
+            here = queue.popleft()
+            for callee in calls[here]:
                 if callee == start:
-                    return [*path, start]
-                if callee not in seen:
-                    seen.add(callee)
-                    paths.append([*path, callee])
-        return None
+                    path = [here]
+                    while path[-1] != start:
+                        path.append(parent[path[-1]])
+                    return [*reversed(path), start]
+                if callee not in parent and component.get(callee) == mine:
+                    parent[callee] = here
+                    queue.append(callee)
+        raise AssertionError(f"no cycle through '{start}' in its component")  # unreachable
+
+
+def _on_a_cycle(
+    name: str, calls: Mapping[str, Sequence[str]], component: Mapping[str, int]
+) -> bool:
+    return name in calls[name] or any(component.get(c) == component[name] for c in calls[name])
+
+
+def _components(calls: Mapping[str, Sequence[str]]) -> dict[str, int]:
+    """Each schema's strongly connected component of the call graph (Tarjan's algorithm, with
+    an explicit stack: a chain of thousands of calls must not reach Python's recursion limit)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    component: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    known = {name: [c for c in callees if c in calls] for name, callees in calls.items()}
+    for root in calls:
+        if root in index:
+            continue
+        work = [(root, 0)]
+        while work:
+            node, i = work.pop()
+            if i == 0:
+                index[node] = low[node] = len(index)
+                stack.append(node)
+                on_stack.add(node)
+            callees = known[node]
+            if i < len(callees):
+                work.append((node, i + 1))
+                callee = callees[i]
+                if callee not in index:
+                    work.append((callee, 0))
+                elif callee in on_stack:
+                    low[node] = min(low[node], index[callee])
+                continue
+            if low[node] == index[node]:  # the root of a component: pop it whole
+                while True:
+                    member = stack.pop()
+                    on_stack.discard(member)
+                    component[member] = index[node]
+                    if member == node:
+                        break
+            if work:  # back in the caller: its low link takes the callee's
+                caller = work[-1][0]
+                low[caller] = min(low[caller], low[node])
+    return component
 
 
 class _ProgramBuilder:
@@ -544,7 +616,7 @@ class _ProgramBuilder:
     def lookup(self, symbol: Symbol) -> Arg:
         if symbol.name in self.values:
             return self.values[symbol.name]
-        hint = suggest(symbol.name, self.values) if self.values else ""
+        hint = self.checker.suggest(symbol.name, self.values.keys())
         if not hint.startswith(";"):
             hint = ""  # listing every variable in scope would be noise
         self.checker.error(symbol.span, f"undefined variable '{symbol.name}'{hint}")

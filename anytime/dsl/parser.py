@@ -375,10 +375,12 @@ class _ToNodes(Transformer[Token, tuple[SchemaDef, ...]]):
         """Positional arguments, then keyword arguments, each keyword once."""
         args: list[Expr] = []
         keywords: list[KeywordArg] = []
+        given: set[str] = set()
         for item in items:
             if isinstance(item, KeywordArg):
-                if any(k.name == item.name for k in keywords):
+                if item.name in given:
                     raise self._fail(item.span, f"keyword :{item.name} is given twice")
+                given.add(item.name)
                 keywords.append(item)
             elif keywords:
                 raise self._fail(
