@@ -95,9 +95,14 @@ def _exception_classes() -> list[type[BaseException]]:
     return classes
 
 
-#: Exceptions that are signals, caught where they are raised, never an error anyone meets:
-#: A* reaching its expansion limit (the anytime planner's deadline).
-SIGNALS = {"anytime_navigation.search.SearchLimit"}
+#: Exceptions that are signals, not errors: A* reaching its expansion limit (the anytime
+#: planner's deadline, caught where it is raised), and the KeyboardInterrupts of a user's stop
+#: (SIGTERM to the command; an interrupted run carrying its record to the caller).
+SIGNALS = {
+    "anytime_navigation.search.SearchLimit",
+    "anytime.launch.Terminated",
+    "anytime.runtime.executor.RunInterrupted",
+}
 
 
 def test_every_exception_class_is_in_the_tree() -> None:

@@ -17,6 +17,8 @@ from typing import Any
 
 import yaml
 
+from anytime.errors import AnytimeError
+
 __all__ = ["MAX_DEPTH", "MAX_INTEGER_DIGITS", "MAX_NODES", "YAMLLimitError", "check_document"]
 
 #: The most nodes a document may stand for, aliases expanded (a profile's cells are nodes: the
@@ -30,7 +32,7 @@ MAX_INTEGER_DIGITS = 1000
 _INTEGER = re.compile(r"[-+]?[0-9][0-9_]*$")
 
 
-class YAMLLimitError(ValueError):
+class YAMLLimitError(AnytimeError, ValueError):
     """A document over a limit, or with a duplicate key; `line` and `column` count from 1."""
 
     def __init__(self, message: str, mark: Any) -> None:
