@@ -97,9 +97,7 @@ def _clear(out: Path, owns: Sequence[str]) -> None:
         if not entry.is_file() or entry.is_symlink():
             continue  # a directory or link of that name is the user's, not an output of ours
         try:
-            entry.unlink()
-        except FileNotFoundError:
-            pass
+            entry.unlink(missing_ok=True)  # gone meanwhile is as good as deleted
         except OSError as error:
             raise OutputFileError(
                 error.errno, f"cannot delete the earlier output '{entry.name}'", str(out)

@@ -2,8 +2,7 @@
 
 Exit codes: 0 success, 1 bad input (a message naming the file and place, never a traceback),
 2 usage errors (one line, argparse's own included), 130 interrupted (Ctrl-C), 143 terminated
-(SIGTERM, handled like Ctrl-C). Each group of
-subcommands lives in its own module.
+(SIGTERM, handled like Ctrl-C). Each group of subcommands lives in its own module.
 
 Plugins add subcommands of their own: a `Plugin` (see `anytime.plugin`) with `add_commands`
 set receives a `CommandGroup` and adds each command with `add_command(name, help=..., run=...)`.
@@ -43,8 +42,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     The one place errors are turned into messages (`describe`): whatever a command (a plugin's
     too) raises ends as one line on standard error (a schema error adds its source line and a
     caret), never a traceback. Ctrl-C ends any command with `anytime: interrupted` and status
-    130; the files it writes are written atomically, so it leaves no half-written output. Usage
-    errors (argparse's and `UsageError`) exit 2.
+    130, SIGTERM likewise with `anytime: terminated` and 143; the files it writes are written
+    atomically, so it leaves no half-written output. Usage errors (argparse's and `UsageError`)
+    exit 2.
     """
     with sigterm_interrupts():
         return _main(argv)
