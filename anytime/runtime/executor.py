@@ -234,7 +234,9 @@ class _Fence:
     def __init__(self, clock: Clock, slot: _Slot, ended: threading.Event) -> None:
         self.clock, self.slot, self.ended = clock, slot, ended
         self.unit = clock.unit
+        self._work = clock.unit != "seconds"
         self.ctx: Context | None = None
+        self._allocation = self._limit = math.nan  # the ctx's allocation; past it, late
         self.crossed = False  # a tick of the module took it past its allocation
         self._frozen: float | None = None  # the time at which the run was answered
         self._lock = threading.Lock()
@@ -247,11 +249,14 @@ class _Fence:
         with self._lock:
             if self._frozen is not None:
                 return
-            self.clock.advance(n)
-            ctx = self.ctx
-            if self.unit == "seconds" or ctx is None:
+            clock, ctx = self.clock, self.ctx
+            clock.advance(n)
+            if not self._work or ctx is None:
                 return
-            if _late(self.clock.now() - ctx.start, ctx.allocation):
+            if ctx.allocation != self._allocation:  # a stopping policy moved it
+                self._allocation = ctx.allocation
+                self._limit = self._allocation + 1e-9 * max(1.0, abs(self._allocation))
+            if clock.now() - ctx.start > self._limit:  # as `_late`: past it beyond rounding
                 self.crossed = True
                 self._freeze()
                 self.ended.set()
