@@ -2,6 +2,7 @@
 module passes every check, and each broken one fails exactly the check for what it breaks."""
 
 import json
+import math
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -125,6 +126,29 @@ def rewriter(ctx: Context, data: Result, limit: int) -> Iterator[Result]:
         yield Result(counted, data.quality * done / limit)
 
 
+def _impossible(ctx: Context, data: Result, limit: int, work: float) -> Iterator[Result]:
+    """Counts like `good`, but reports impossible work for its last step: refused, so the run
+    fails there instead of answering with a NaN or negative time."""
+    for done in range(1, limit + 1):
+        ctx.tick(work if done == limit else 1)
+        yield Result(done, data.quality * done / limit)
+
+
+@interruptible("catalogue-ticks-nan", inputs=["data"], profile=COUNTING, registry=BROKEN)
+def ticks_nan(ctx: Context, data: Result, limit: int) -> Iterator[Result]:
+    yield from _impossible(ctx, data, limit, math.nan)
+
+
+@interruptible("catalogue-ticks-negative", inputs=["data"], profile=COUNTING, registry=BROKEN)
+def ticks_negative(ctx: Context, data: Result, limit: int) -> Iterator[Result]:
+    yield from _impossible(ctx, data, limit, -1.0)
+
+
+@interruptible("catalogue-ticks-inf", inputs=["data"], profile=COUNTING, registry=BROKEN)
+def ticks_inf(ctx: Context, data: Result, limit: int) -> Iterator[Result]:
+    yield from _impossible(ctx, data, limit, math.inf)
+
+
 class Halving:
     def instance(self, rng: np.random.Generator, input_qualities: tuple[float, ...]) -> Instance:
         return Instance(args=(float(rng.random()),))
@@ -221,6 +245,20 @@ def test_a_broken_module_fails_exactly_its_check(
     report = check_module(module, problems_of(module), trials=10)
     assert [c.name for c in report.failed] == [check], report.format()
     assert report[check].message == message
+
+
+@pytest.mark.parametrize(
+    ("module", "work"), [(ticks_nan, "nan"), (ticks_negative, "-1.0"), (ticks_inf, "inf")]
+)
+def test_a_module_that_reports_impossible_work_fails_the_errors_check(
+    module: AnytimeModule, work: str
+) -> None:
+    report = check_module(module, Counting(), trials=10)
+    assert [c.name for c in report.failed] == ["errors"], report.format()
+    assert report["errors"].message == (
+        f"ValueError: ctx.tick({work}): work must be a finite number of units, 0 or more"
+        " (allocation 150, trial 0 at input qualities [0.5]); 38 of 120 runs raised"
+    )
 
 
 def test_a_declared_profile_that_disagrees_with_the_behaviour() -> None:

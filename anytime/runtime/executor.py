@@ -14,7 +14,10 @@ yields. Hard interruption (`hard=True`) runs it in a worker thread that publishe
 a slot; at the deadline the caller takes the slot's best result, asks the module to stop (its
 `ctx.expired` turns true) and returns at once, so a module stuck in a long computation cannot
 make the caller late. Python cannot kill a thread: a stuck module keeps its (daemon) thread until
-it next looks at its context or finishes, and its late results are ignored.
+it next looks at its context or finishes, and its late results are ignored. On a work clock the
+deadline is the tick that takes the module past its allocation: the run ends at that tick, and
+the abandoned module's later ticks go nowhere, so a hard run's record (and the time of what runs
+next on the same clock) is the same however busy the machine is and however many runs share it.
 
 An interruptible module may run under a stopping policy (`anytime.runtime.policies`): the policy
 is asked before the run and at the first result registered at or after each time it asks to
@@ -185,9 +188,11 @@ def run(
     # At the deadline the module's `ctx.expired` turns true by itself (its clock has reached
     # the allocation), so the caller's stop event is never set here: one run's deadline must
     # not stop what the caller runs next.
-    ctx = _context(allocation, clock, caller_stop, police)
     slot = _Slot(threaded=True, latest=_keeps_latest(module))
-    finished = threading.Event()
+    finished = threading.Event()  # the module's side ended, or its tick ended the run
+    fence = _Fence(clock, slot, finished)
+    ctx = _context(allocation, fence, caller_stop, police)
+    fence.ctx = ctx
     box: list[_Outcome] = []
 
     def work() -> None:
@@ -204,9 +209,11 @@ def run(
         _wait(finished, ctx, caller_stop, poll, police)
     except KeyboardInterrupt as exc:  # Ctrl-C while the caller waits: stop the module, answer
         caller_stop.set()
+        fence.close()
         outcome = _interrupted(exc)
         return _answer(_record(module, ctx, slot, outcome, police), outcome)
-    if not finished.is_set():  # the deadline came first: answer now; the module sees expired
+    if fence.crossed or not box:  # the deadline came first: answer now; the module sees expired
+        fence.close()
         status = Status.CONTRACT_EXPIRED if module.kind == "contract" else Status.INTERRUPTED
         if caller_stop.is_set() and module.kind == "contract":
             status = Status.INTERRUPTED
@@ -214,6 +221,56 @@ def run(
             status = Status.STOPPED
         return _record(module, ctx, slot, _Outcome(status), police)
     return _answer(_record(module, ctx, slot, box[0], police), box[0])
+
+
+class _Fence:
+    """A hard-mode run's view of its clock. On a work clock, the tick that takes the module
+    past its allocation ends the run at that tick, not whenever the caller next looks (so the
+    record is the same however busy the machine is, or how many runs share it); once the run
+    is answered, the abandoned module's further ticks go nowhere (its record's time, and the
+    time of what the caller runs next on the same clock, do not depend on how long it takes
+    to notice). A wall clock passes through: its deadline comes by itself."""
+
+    def __init__(self, clock: Clock, slot: _Slot, ended: threading.Event) -> None:
+        self.clock, self.slot, self.ended = clock, slot, ended
+        self.unit = clock.unit
+        self._work = clock.unit != "seconds"
+        self.ctx: Context | None = None
+        self._allocation = self._limit = math.nan  # the ctx's allocation; past it, late
+        self.crossed = False  # a tick of the module took it past its allocation
+        self._frozen: float | None = None  # the time at which the run was answered
+        self._lock = threading.Lock()
+
+    def now(self) -> float:
+        frozen = self._frozen
+        return self.clock.now() if frozen is None else frozen
+
+    def advance(self, n: float) -> None:
+        with self._lock:
+            if self._frozen is not None:
+                return
+            clock, ctx = self.clock, self.ctx
+            clock.advance(n)
+            if not self._work or ctx is None:
+                return
+            if ctx.allocation != self._allocation:  # a stopping policy moved it
+                self._allocation = ctx.allocation
+                self._limit = self._allocation + 1e-9 * max(1.0, abs(self._allocation))
+            if clock.now() - ctx.start > self._limit:  # as `_late`: past it beyond rounding
+                self.crossed = True
+                self._freeze()
+                self.ended.set()
+
+    def close(self) -> None:
+        """The caller answers: the time stops here for this run."""
+        with self._lock:
+            if self._frozen is None:
+                self._freeze()
+
+    def _freeze(self) -> None:
+        self.slot.close()  # results registered from now on are late
+        if self.unit != "seconds":
+            self._frozen = self.clock.now()
 
 
 def _answer(record: RunRecord, outcome: _Outcome) -> RunRecord:
