@@ -203,6 +203,22 @@ def refuse_overwriting_inputs(
             )
 
 
+def refuse_overwriting_profiles(
+    output: str | os.PathLike[str] | None, library: AnytimeLibrary
+) -> None:
+    """An output file that is the profile file of a module of the library the command reads is
+    refused before any work: `compile -o profiles/plan.yaml` would replace that module's
+    measured profile with the compiled program."""
+    if output is None:
+        return
+    for entry in library:
+        if entry.profile_file is not None and _same_file(Path(output), entry.profile_file):
+            raise InputError(
+                f"the output '{output}' is the profile file of module '{entry.name}', an input"
+                " of this command; give another file"
+            )
+
+
 def refuse_colliding_outputs(outputs: Mapping[str, str | os.PathLike[str] | None]) -> None:
     """Two outputs of one command (named by what they are) that are the same file are refused
     before any work: the one written last would replace the other."""
