@@ -254,6 +254,8 @@ def test_plot_a_compiled_file_and_a_schema(
          "table of shape [9, 2] (input grids, time, one per module), got [9, 3]"),
         (["{dir}/lib/plan.yaml", "--schema", "p"], "anytime: error: --schema is for schema files "
          "(.any), and {dir}/lib/plan.yaml is read as a profile file"),
+        (["{dir}/bomb.yaml"], "anytime: error: {dir}/bomb.yaml:8:14: the document stands "
+         "for more than 20,000,000 values (with its aliases expanded)"),
         (["{dir}/lib/plan.yaml", "-o", "{dir}/no/such/dir/x.png"], "anytime: error: cannot "
          "write '{dir}/no/such/dir/x.png': No such file or directory"),
         (["{dir}/lib/plan.yaml", "-o", "{dir}/x.txt"], "anytime: error: {dir}/x.txt: unknown "
@@ -267,6 +269,7 @@ def test_plot_a_compiled_file_and_a_schema(
         "bad-profile",
         "bad-allocation",
         "schema-option-on-a-profile",
+        "alias-bomb-allocation",
         "unwritable-output",
         "unknown-format",
     ],
@@ -285,6 +288,16 @@ def test_bad_input_is_one_line_and_exit_1(
         "allocation": [[1, 2, 3]] * len(TIME),
     }
     (tmp_path / "lopsided.yaml").write_text(yaml.safe_dump(lopsided), encoding="utf-8")
+    # the issue's ~600 bytes in a compiled program's `allocation:` standing for 9**10 values
+    bomb = ['a: &a ["lol","lol","lol","lol","lol","lol","lol","lol","lol"]']
+    bomb += [
+        f"{b}: &{b} [" + ",".join([f"*{a}"] * 9) + "]"
+        for a, b in zip("abcdefghi", "bcdefghij", strict=True)
+    ]
+    lopsided["allocation"] = "*j"
+    (tmp_path / "bomb.yaml").write_text(
+        "\n".join(bomb) + "\n" + yaml.safe_dump(lopsided).replace("'*j'", "*j"), encoding="utf-8"
+    )
     fill = {"any": str(schemas), "dir": str(tmp_path)}
     args = [a.format(**fill) for a in argv]
     if args[0].endswith(".any"):

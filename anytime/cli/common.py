@@ -8,7 +8,7 @@ import json
 import math
 import os
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -196,19 +196,50 @@ def refuse_overwriting_inputs(
     the compiled profile."""
     if output is None:
         return
-    target = Path(output)
     for given in inputs:
-        if given is None:
-            continue
-        source = Path(given)
-        same = target.resolve() == source.resolve()
-        if not same and target.exists() and source.exists():
-            with contextlib.suppress(OSError):
-                same = target.samefile(source)
-        if same:
+        if given is not None and _same_file(Path(output), Path(given)):
             raise InputError(
                 f"the output '{output}' is an input of this command; give another file"
             )
+
+
+def refuse_overwriting_profiles(
+    output: str | os.PathLike[str] | None, library: AnytimeLibrary
+) -> None:
+    """An output file that is the profile file of a module of the library the command reads is
+    refused before any work: `compile -o profiles/plan.yaml` would replace that module's
+    measured profile with the compiled program."""
+    if output is None:
+        return
+    for entry in library:
+        if entry.profile_file is not None and _same_file(Path(output), entry.profile_file):
+            raise InputError(
+                f"the output '{output}' is the profile file of module '{entry.name}', an input"
+                " of this command; give another file"
+            )
+
+
+def refuse_colliding_outputs(outputs: Mapping[str, str | os.PathLike[str] | None]) -> None:
+    """Two outputs of one command (named by what they are) that are the same file are refused
+    before any work: the one written last would replace the other."""
+    seen: list[tuple[str, Path]] = []
+    for what, given in outputs.items():
+        if given is None:
+            continue
+        for other, path in seen:
+            if _same_file(Path(given), path):
+                raise InputError(f"{what} '{given}' is also {other}; give another file")
+        seen.append((what, Path(given)))
+
+
+def _same_file(one: Path, other: Path) -> bool:
+    """The same path once resolved (symbolic links, `.`), or the same existing file (a hard
+    link, another mount)."""
+    if one.resolve() == other.resolve():
+        return True
+    with contextlib.suppress(OSError):
+        return one.exists() and other.exists() and one.samefile(other)
+    return False
 
 
 def library_options(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:

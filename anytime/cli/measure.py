@@ -19,6 +19,7 @@ from anytime.cli.common import (
     library_options,
     open_library,
     random_seed,
+    refuse_colliding_outputs,
     refuse_overwriting_inputs,
     trial_count,
     worker_count,
@@ -186,6 +187,14 @@ def run_profile(args: argparse.Namespace) -> int:
     if args.states is not None and not args.dynamic:
         args.usage_error("--states K goes with --dynamic")
     module, library = _runnable(args)
+    output = Path(args.output if args.output is not None else f"{module.name}.yaml")
+    refuse_colliding_outputs(
+        {
+            "the profile's file": output,
+            "the dynamic profile's file": dynamic_profile_path(output) if args.dynamic else None,
+            "--traces": args.traces,
+        }
+    )
     grid = library.measurement(module.name).grid
     cells = math.prod(grid.cell_shape)
     tables = 2 if module.reports == "estimate" and (args.dynamic or args.traces) else 1
@@ -206,7 +215,6 @@ def run_profile(args: argparse.Namespace) -> int:
         traces=args.dynamic or args.traces is not None,
     )
     build = profile_module(module, request, measurement=library.measurement(module.name))
-    output = Path(args.output if args.output is not None else f"{module.name}.yaml")
     written = {"file": output}
     _save(output, lambda path: save_profile(build.profile, path))
     traces = build.traces

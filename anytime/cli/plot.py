@@ -13,12 +13,11 @@ from __future__ import annotations
 
 import argparse
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import NoReturn
+from typing import Any, NoReturn
 
 import numpy as np
-import yaml
 
 from anytime.cli.common import (
     EXIT_OK,
@@ -31,7 +30,6 @@ from anytime.cli.common import (
 from anytime.cli.schemas import check_schema_name, compile_schemas
 from anytime.compiler.compile import ALLOCATOR_NAMES
 from anytime.dsl import load_schemas
-from anytime.files import MAX_PROFILE_BYTES, read_input
 from anytime.plot import (
     MissingMatplotlibError,
     PlotError,
@@ -40,7 +38,7 @@ from anytime.plot import (
     plot_profile,
     require_matplotlib,
 )
-from anytime.profiles.io import load_profile
+from anytime.profiles.io import read_profile_file
 from anytime.profiles.profile import Array, ConditionalPerformanceProfile
 
 #: Suffix of schema files; anything else is read as a profile file.
@@ -108,8 +106,8 @@ def run_plot(args: argparse.Namespace) -> int:
 
 
 def _plot_profile_file(filename: str, output: Path, title: str | None) -> None:
-    profile = load_profile(filename)
-    table = _allocation_table(filename, profile)
+    profile, fields = read_profile_file(filename)
+    table = _allocation_table(filename, profile, fields)
     if table is None:
         plot_profile(profile, output, title=title)
     else:
@@ -137,11 +135,11 @@ def _plot_schema(args: argparse.Namespace, output: Path) -> None:
 
 
 def _allocation_table(
-    filename: str, profile: ConditionalPerformanceProfile
+    filename: str, profile: ConditionalPerformanceProfile, data: Mapping[Any, Any]
 ) -> tuple[Sequence[str], Array] | None:
-    """A compiled program's `modules` and `allocation` fields, checked against its profile;
-    None for a plain profile. (`load_profile` has read and validated the rest of the file.)"""
-    data = yaml.safe_load(read_input(filename, limit=MAX_PROFILE_BYTES).decode("utf-8-sig"))
+    """A compiled program's `modules` and `allocation` fields (of the file's mapping `data`),
+    checked against its profile; None for a plain profile. (`read_profile_file` has read the
+    file through the one safe loader and validated the rest of it.)"""
     if "allocation" not in data and "modules" not in data:
         return None
     for field in ("modules", "allocation"):

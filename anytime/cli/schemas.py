@@ -19,6 +19,7 @@ from anytime.cli.common import (
     positive_float,
     quality_list,
     refuse_overwriting_inputs,
+    refuse_overwriting_profiles,
     time_grid,
 )
 from anytime.compiler import (
@@ -187,6 +188,7 @@ def run_parse(args: argparse.Namespace) -> int:
 def run_compile(args: argparse.Namespace) -> int:
     refuse_overwriting_inputs(args.output, args.file)
     library = open_library(args)
+    refuse_overwriting_profiles(args.output, library)
     # Calls are checked against the library for the compiled schemas only (by the compiler).
     schemas = load_schemas(args.file)
     check_schema_name(schemas, args.schema)

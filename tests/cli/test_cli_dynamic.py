@@ -141,3 +141,29 @@ def test_library_show_names_a_broken_dynamic_profile(cli: Cli, tmp_path: Path) -
         f"anytime: error: {path}: observed: expected 'true' or 'estimate' or 'none', got"
         " 'sometimes'\n"
     )
+
+
+def test_profile_outputs_that_are_one_file_are_refused_before_measuring(
+    cli: Cli, tmp_path: Path
+) -> None:
+    """`--traces` naming the profile's own file (or its dynamic profile's) would replace it
+    after the whole measurement: refused up front, nothing written."""
+    out = tmp_path / "g.yaml"
+    base = ("profile", "get-domain-description", "--trials", "2", "--quiet", "-o", str(out))
+    dynamic = tmp_path / "g.dynamic.yaml"
+    link = tmp_path / "link.yaml"
+    link.symlink_to(out)
+    spelled = f"{tmp_path}/./g.dynamic.yaml"
+    cases = [
+        ((*base, "--traces", str(out)), f"--traces '{out}' is also the profile's file"),
+        ((*base, "--traces", str(link)), f"--traces '{link}' is also the profile's file"),
+        (
+            (*base, "--dynamic", "--traces", spelled),
+            f"--traces '{spelled}' is also the dynamic profile's file",
+        ),
+    ]
+    for argv, message in cases:
+        code, text, err = cli(*argv)
+        assert (code, text) == (1, "")
+        assert err == f"anytime: error: {message}; give another file\n"
+    assert not out.exists() and not dynamic.exists()

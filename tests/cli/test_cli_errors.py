@@ -103,3 +103,27 @@ def test_an_output_that_is_an_input_is_refused(
     code, stdout, err = cli("plot", str(schema), "-o", str(schema))
     assert (code, stdout) == (1, "")
     assert err.startswith(f"anytime: error: the output '{schema}' is an input")
+
+
+def test_an_output_that_is_a_library_profile_is_refused(
+    cli: Cli, navigation_any: Path, tmp_path: Path
+) -> None:
+    """`compile -o` naming the profile file of a module the command reads (here from
+    `--profiles DIR`) would replace the measured profile with the compiled program."""
+    library = tmp_path / "lib"
+    library.mkdir()
+    profile = library / "find-path.yaml"
+    profile.write_text(
+        "format: anytime-profile/1\ntime: [0, 1]\nquality_bins: [0.0, 1.0]\nexpected: [0.0, 1.0]\n"
+    )
+    before = profile.read_bytes()
+    code, stdout, err = cli(
+        "compile", str(navigation_any), "--schema", "navigate", "--time-grid", "0:1000:250",
+        "--profiles", str(library), "--no-plugins", "-o", f"{library}/./find-path.yaml",
+    )  # fmt: skip
+    assert (code, stdout) == (1, "")
+    assert err == (
+        f"anytime: error: the output '{library}/./find-path.yaml' is the profile file of module"
+        " 'find-path', an input of this command; give another file\n"
+    )
+    assert profile.read_bytes() == before
