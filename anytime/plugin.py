@@ -60,6 +60,7 @@ from anytime.runtime.deadline import (
 )
 from anytime.runtime.deadline import critical_event as _critical_event
 from anytime.runtime.executor import RunInterrupted, RunRecord, Status, run
+from anytime.runtime.isolation import Limits
 from anytime.runtime.monitor import (
     Adjustment,
     CostModel,
@@ -95,6 +96,7 @@ __all__ = [
     "InputFileError",
     "Instance",
     "LibraryEntry",
+    "Limits",
     "MISSING",
     "Measurement",
     "ModuleMargin",

@@ -11,7 +11,8 @@ from anytime.runtime.deadline import (
     deadline_from,
     proportional_split,
 )
-from anytime.runtime.executor import RunInterrupted, RunRecord, Status, run
+from anytime.runtime.executor import WATCHDOG, RunInterrupted, RunRecord, Status, run
+from anytime.runtime.isolation import IsolationError, Limits
 from anytime.runtime.monitor import (
     Adjustment,
     ContractDecision,
@@ -52,6 +53,8 @@ __all__ = [
     "EventLog",
     "ExecutionError",
     "FixedStopping",
+    "IsolationError",
+    "Limits",
     "Monitor",
     "MonitorError",
     "MonitorEvent",
@@ -70,6 +73,7 @@ __all__ = [
     "UnknownEventError",
     "Utility",
     "ValueModel",
+    "WATCHDOG",
     "clairvoyant",
     "critical_event",
     "deadline_from",

@@ -28,19 +28,29 @@ context shows as its allocation.
 from __future__ import annotations
 
 import math
+import mmap
+import signal
+import struct
 import threading
+import time
 import traceback
 from collections.abc import Generator, Mapping, Sequence
 from contextlib import suppress
 from enum import StrEnum
-from typing import Any
+from typing import Any, Literal
 
 from attrs import frozen
 
-from anytime.clocks import Clock, WorkClock
+from anytime.clocks import Clock, Unit, WorkClock
 from anytime.modules import AnytimeModule, Context, Result
+from anytime.runtime.isolation import Channel, Child, IsolationError, Limits
 from anytime.runtime.monitor import EventLog
 from anytime.runtime.policies import Decision, PolicyError, StoppingPolicy
+
+Isolation = Literal["none", "process"]
+ISOLATIONS: tuple[Isolation, ...] = ("none", "process")
+#: Wall-clock seconds an isolated run is given to answer by default, whatever its clock says.
+WATCHDOG = 60.0
 
 
 class Status(StrEnum):
@@ -52,6 +62,7 @@ class Status(StrEnum):
     FAILED = "failed"  # it raised, or broke the protocol (see `error`)
     NO_RESULT = "no-result"  # it ended without registering any result
     STOPPED = "stopped"  # its stopping policy stopped it (with its best result, if any)
+    CRASHED = "crashed"  # its process died (isolation="process"): a signal, an exit, no memory
 
 
 @frozen
@@ -70,6 +81,9 @@ class RunRecord:
         error: for a failure, what went wrong, in one line.
         traceback: for a failure raised by the module, its traceback.
         looks: how many times a stopping policy looked at the run.
+        exit_code: for a crashed isolated run, how its process ended: its exit code, or the
+            negated number of the signal that killed it (as `subprocess` reports it); None
+            when it did not exit (it ran out of memory, or was not isolated).
     """
 
     module: str
@@ -81,6 +95,7 @@ class RunRecord:
     error: str | None = None
     traceback: str | None = None
     looks: int = 0
+    exit_code: int | None = None
 
     @property
     def quality(self) -> float:
@@ -158,6 +173,9 @@ def run(
     poll: float = 0.001,
     policy: StoppingPolicy | None = None,
     log: EventLog | None = None,
+    isolation: Isolation = "none",
+    watchdog: float = WATCHDOG,
+    limits: Limits | None = None,
 ) -> RunRecord:
     """Run `module(ctx, *args, **kwargs)` with `allocation` time on `clock` (a fresh
     `WorkClock` by default) and answer with its best registered result.
@@ -172,7 +190,25 @@ def run(
             the first result registered at or after each time it asks to look, with the quality
             of the run's answer then; it may stop the run (status `stopped`).
         log: where the policy's decisions are recorded (kind "stopping").
+        isolation: "process" runs the module in a child process of its own (see
+            `anytime.runtime.isolation`), which answers at the deadline as `hard` does and
+            survives whatever the module does: a process that dies gives status `crashed`
+            with the best result it had sent, and nothing it started outlives the run.
+        watchdog: with process isolation, the wall-clock seconds after which a run that has
+            not answered fails (status `failed`) and its process is ended, whatever its clock
+            says: on the work clock, a module that never ticks cannot hang the caller.
+        limits: with process isolation, the run's memory and CPU limits.
     """
+    if isolation not in ISOLATIONS:
+        raise IsolationError(
+            f"run: isolation: expected one of {', '.join(map(repr, ISOLATIONS))}, got {isolation!r}"
+        )
+    if not watchdog > 0:  # NaN too
+        raise IsolationError(
+            f"run: watchdog: expected a positive number of seconds, got {watchdog!r}"
+        )
+    if limits is not None and isolation != "process":
+        raise IsolationError('run: limits need isolation="process"')
     clock = clock if clock is not None else WorkClock()
     caller_stop = stop if stop is not None else threading.Event()
     police = None
@@ -180,6 +216,18 @@ def run(
         police = _Police(_checked_policy(module, policy), log, float(allocation))
         if police.stopped:  # stopped before it started
             return RunRecord(module.name, Status.STOPPED, None, 0.0, float(allocation))
+    if isolation == "process":
+        return _isolated(
+            module,
+            args,
+            kwargs or {},
+            float(allocation),
+            clock,
+            caller_stop,
+            police,
+            watchdog,
+            limits,
+        )
     if not hard:
         ctx = _context(allocation, clock, caller_stop, police)
         slot = _Slot(threaded=False, latest=_keeps_latest(module))
@@ -570,6 +618,21 @@ def _record(
     police: _Police | None = None,
 ) -> RunRecord:
     best, count = slot.close()
+    allocation = ctx.allocation if police is None else police.allocation
+    looks = 0 if police is None else police.looks
+    return _recorded(module, best, count, outcome, ctx.elapsed, allocation, looks)
+
+
+def _recorded(
+    module: AnytimeModule,
+    best: Result | None,
+    count: int,
+    outcome: _Outcome,
+    time_used: float,
+    allocation: float,
+    looks: int,
+    exit_code: int | None = None,
+) -> RunRecord:
     status = outcome.status
     no_answer = status is Status.COMPLETED or (
         status is Status.INTERRUPTED and outcome.interrupt is None
@@ -580,10 +643,184 @@ def _record(
         module=module.name,
         status=status,
         result=best,
-        time_used=ctx.elapsed,
-        allocation=ctx.allocation if police is None else police.allocation,
+        time_used=time_used,
+        allocation=allocation,
         registered=count,
         error=outcome.error,
         traceback=outcome.traceback,
-        looks=0 if police is None else police.looks,
+        looks=looks,
+        exit_code=exit_code,
     )
+
+
+# Process isolation: the module runs in a `Child` (anytime.runtime.isolation) as it would run
+# in soft mode, sending each result it keeps as it keeps it; the caller keeps the best of them
+# and answers at the deadline (or on the watchdog, or when the child dies) as hard mode does.
+
+
+class _SharedTicks:
+    """A work clock whose time the caller can read while the child moves it: the ticks the
+    child's module reports live in memory the fork shares. The tick that takes the module past
+    its allocation ends its run there: the child says so and waits to be ended, so the record
+    is the same however busy the machine is (as `_Fence` makes it in hard mode)."""
+
+    unit: Unit = "ticks"
+
+    def __init__(self, start: float) -> None:
+        self.start = start
+        self._memory = mmap.mmap(-1, 8)  # anonymous and shared: the child writes, the caller reads
+        self.ticks = 0.0
+        self.ctx: Context | None = None
+        self.channel: Channel | None = None
+
+    def now(self) -> float:
+        return self.start + self.ticks
+
+    def advance(self, n: float) -> None:
+        self.ticks += n
+        struct.pack_into("d", self._memory, 0, self.ticks)
+        ctx = self.ctx
+        if ctx is not None and self.channel is not None and _late(self.ticks, ctx.allocation):
+            self.channel.send(("crossed", self.ticks))
+            while True:  # the caller answers and ends this process
+                time.sleep(3600)
+
+    def read(self) -> float:
+        """The ticks reported so far (from the caller's side)."""
+        return float(struct.unpack_from("d", self._memory, 0)[0])
+
+
+class _SendingSlot(_Slot):
+    """The child's slot: every result kept is sent to the caller at once."""
+
+    def __init__(self, channel: Channel, latest: bool) -> None:
+        super().__init__(threaded=True, latest=latest)
+        self.channel = channel
+
+    def _keep(self, result: Result) -> None:
+        if self.closed:
+            return
+        try:
+            self.channel.send(("result", result))
+        except Exception as exc:  # pickling it failed: say which result could not travel
+            raise TypeError(
+                f"its result ({_describe(result.value)}) cannot be sent from its process: {exc}"
+            ) from exc
+        super()._keep(result)
+
+
+class _SentLog:
+    """A stopping policy's log in the child: each event goes to the caller's log."""
+
+    def __init__(self, channel: Channel) -> None:
+        self.channel = channel
+
+    def record(self, time: float, kind: str, data: Mapping[str, Any]) -> None:
+        self.channel.send(("log", time, kind, dict(data)))
+
+
+def _isolated(
+    module: AnytimeModule,
+    args: Sequence[Any],
+    kwargs: Mapping[str, Any],
+    allocation: float,
+    clock: Clock,
+    caller_stop: threading.Event,
+    police: _Police | None,
+    watchdog: float,
+    limits: Limits | None,
+) -> RunRecord:
+    """`run` with the module in a child process (see `run`'s `isolation`)."""
+    ticks = _SharedTicks(clock.now()) if clock.unit != "seconds" else None
+    start = clock.now()
+    log = None if police is None else police.log
+
+    def child(channel: Channel) -> None:
+        child_clock: Clock = clock if ticks is None else ticks
+        ctx = _context(allocation, child_clock, threading.Event(), police)
+        if ticks is not None:
+            ticks.ctx, ticks.channel = ctx, channel
+        if police is not None and police.log is not None:
+            police.log = _SentLog(channel)  # type: ignore[assignment]
+        slot = _SendingSlot(channel, _keeps_latest(module))
+        try:
+            outcome = _drive(module, ctx, args, kwargs, slot, police)
+        except BaseException as exc:  # a result that could not be sent, or the like
+            outcome = _failure(exc)
+        looks = 0 if police is None else police.looks
+        channel.send(("done", outcome.status, outcome.error, outcome.traceback, looks))
+
+    slot = _Slot(threaded=False, latest=_keeps_latest(module))
+    looks = 0
+    outcome: _Outcome | None = None
+    exit_code: int | None = None
+    began = time.monotonic()
+    process = Child(child, limits)
+    try:
+        while outcome is None:
+            wait = min(0.01, max(0.0, began + watchdog - time.monotonic()))
+            if ticks is None:
+                wait = min(wait, max(0.0, allocation - (clock.now() - start)))
+            for message in process.receive(wait):
+                kind = message[0]
+                if kind == "result":
+                    slot.offer(message[1])
+                elif kind == "log" and log is not None:
+                    log.record(*message[1:])
+                elif kind == "crossed":
+                    outcome = _deadline(module, caller_stop)
+                elif kind == "done":
+                    status, error, trace, looks = message[1:]
+                    if status is Status.FAILED and (error or "").startswith("MemoryError"):
+                        status = Status.CRASHED  # it ran out of the memory it may have
+                    outcome = _Outcome(status, error, trace)
+                    break
+            if outcome is not None:
+                break
+            if process.gone:
+                exit_code = process.exit_code
+                outcome = _Outcome(Status.CRASHED, _death(exit_code))
+            elif caller_stop.is_set():
+                outcome = _Outcome(Status.INTERRUPTED)
+            elif ticks is None and clock.now() - start >= allocation:
+                outcome = _deadline(module, caller_stop)
+            elif time.monotonic() - began >= watchdog:
+                spent = f"{ticks.read():g} {clock.unit}" if ticks is not None else "its time"
+                outcome = _Outcome(
+                    Status.FAILED,
+                    f"watchdog: no answer after {watchdog:g} s of wall time (it had used {spent}"
+                    f" of an allocation of {allocation:g})",
+                )
+    except KeyboardInterrupt as exc:  # Ctrl-C while the caller waits: end the child, answer
+        outcome = _interrupted(exc)
+    finally:
+        used = clock.now() - start if ticks is None else ticks.read()  # the answer's time
+        process.end()
+    if ticks is not None:
+        clock.advance(used)  # the caller's clock moves as if the module had run here
+    if police is not None:
+        police.looks = looks
+        if outcome.status is Status.INTERRUPTED and police.reached(used):
+            outcome = _Outcome(Status.STOPPED)
+    best, count = slot.close()
+    record = _recorded(module, best, count, outcome, used, allocation, looks, exit_code)
+    return _answer(record, outcome)
+
+
+def _deadline(module: AnytimeModule, caller_stop: threading.Event) -> _Outcome:
+    """How a run ends that the deadline ended (as hard mode says it)."""
+    contract = module.kind == "contract" and not caller_stop.is_set()
+    return _Outcome(Status.CONTRACT_EXPIRED if contract else Status.INTERRUPTED)
+
+
+def _death(exit_code: int | None) -> str:
+    """How a child process ended, in words."""
+    if exit_code is None:
+        return "its process ended"
+    if exit_code < 0:
+        try:
+            name = signal.Signals(-exit_code).name
+        except ValueError:
+            name = f"signal {-exit_code}"
+        return f"its process was killed by {name} (signal {-exit_code})"
+    return f"its process exited with code {exit_code} before it answered"

@@ -1,0 +1,280 @@
+"""Child processes of their own: what `isolation="process"` runs a module in.
+
+A `Child` is a fork of the caller that leads a process group of its own, so that whatever it
+starts can be ended with it, and that a terminal's Ctrl-C reaches the caller, which then ends
+it. The child sends messages (pickled, one at a time, as they come) to the caller over a pipe;
+the caller reads them as they arrive, learns when the child has gone and how (its exit code, or
+the signal that killed it), and ends it and everything it started: SIGTERM to the group, then
+SIGKILL to what is left of it after a grace period.
+
+Forking (not spawning a fresh interpreter) is what lets a module defined anywhere, a closure
+or a lambda included, and arguments of any kind, run in the child without being pickled; only
+what the child sends back must pickle. The cost is a fork per run (about a millisecond), and
+what forking a threaded process always risks: a lock another thread of the caller held at the
+fork stays held in the child.
+
+This is POSIX-only (fork, process groups); on other systems `Child` refuses with `OSError`.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import pickle
+import select
+import signal
+import struct
+import sys
+import time
+import traceback
+from collections.abc import Callable
+from contextlib import suppress
+from pathlib import Path
+from typing import Any
+
+from attrs import field, frozen
+
+from anytime.errors import AnytimeError
+
+#: Seconds a child (and its group) is given to end after SIGTERM before SIGKILL.
+GRACE = 0.05
+_HEADER = struct.Struct("<Q")  # the length of each pickled message
+_SUPERVISOR_FAILED = 70  # the child's exit code when its target could not run (EX_SOFTWARE)
+
+
+class IsolationError(AnytimeError, ValueError):
+    """An isolation option is not usable; the message names it."""
+
+
+def _limit(name: str) -> Callable[[Any, Any, float | None], None]:
+    def check(_instance: Any, _attribute: Any, value: float | None) -> None:
+        if value is None:
+            return
+        if isinstance(value, bool) or not isinstance(value, int | float) or not value > 0:
+            raise IsolationError(f"Limits: {name}: expected a positive number, got {value!r}")
+        if math.isinf(value):
+            raise IsolationError(f"Limits: {name}: expected a finite number, got {value!r}")
+
+    return check
+
+
+@frozen
+class Limits:
+    """Resource limits of an isolated run (POSIX rlimits, set in the child before it runs).
+
+    Attributes:
+        memory: bytes of address space the run may map beyond what its process had when it
+            started (a fork of the caller, with everything the caller had mapped); past it,
+            allocations fail (a `MemoryError` in Python: the record says `crashed`).
+        cpu: CPU seconds the run may use; past them the kernel kills it (SIGXCPU).
+    """
+
+    memory: int | None = field(default=None, validator=_limit("memory"))
+    cpu: float | None = field(default=None, validator=_limit("cpu"))
+
+
+class Channel:
+    """The child's end of the pipe: `send` one picklable message at a time."""
+
+    def __init__(self, fd: int) -> None:
+        self._fd = fd
+
+    def send(self, message: Any) -> None:
+        data = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
+        view = memoryview(_HEADER.pack(len(data)) + data)
+        while view:
+            view = view[os.write(self._fd, view) :]
+
+
+class Child:
+    """`target(channel)` run in a forked child process that leads its own process group.
+
+    The child ends when `target` returns (exit code 0), or however the target makes it end.
+    Read what it sends with `receive`; end it (and its group) with `end`, which every user of
+    a `Child` must call, also when it has exited by itself (it reaps the child, and ends what
+    the child started and left behind)."""
+
+    def __init__(self, target: Callable[[Channel], None], limits: Limits | None = None) -> None:
+        if not hasattr(os, "fork"):
+            raise OSError("process isolation needs fork() and process groups (POSIX)")
+        for stream in (sys.stdout, sys.stderr):  # else the child would print the caller's buffer
+            with suppress(Exception):
+                stream.flush()
+        read, write = os.pipe()
+        pid = os.fork()
+        if pid == 0:  # the child: never returns into the caller's code
+            code = 0
+            try:
+                os.close(read)
+                os.setpgid(0, 0)
+                signal.signal(signal.SIGTERM, signal.SIG_DFL)  # the caller's stop kills it
+                _apply(limits)
+                target(Channel(write))
+            except BaseException:
+                code = _SUPERVISOR_FAILED
+                with suppress(BaseException):
+                    traceback.print_exc()
+            finally:
+                for stream in (sys.stdout, sys.stderr):
+                    with suppress(BaseException):
+                        stream.flush()
+                os._exit(code)
+        with suppress(OSError):  # as the child does: whichever runs first makes the group
+            os.setpgid(pid, pid)
+        os.close(write)
+        os.set_blocking(read, False)
+        self.pid = pid
+        self.exit_code: int | None = None  # once it has gone: its exit code, or -signal
+        self._read: int | None = read
+        self._buffer = bytearray()
+        self._reaped = False
+        self._pidfd: int | None = None
+        with suppress(AttributeError, OSError):
+            self._pidfd = os.pidfd_open(pid)
+
+    @property
+    def gone(self) -> bool:
+        """Whether the child has exited (or been killed)."""
+        return self._exited()
+
+    def receive(self, timeout: float) -> list[Any]:
+        """The messages that have come, waiting up to `timeout` seconds for one (or for the
+        child to go) when none is waiting."""
+        messages = self._parse()
+        if not messages and self._read is not None and not self._exited():
+            watched = [self._read] if self._pidfd is None else [self._read, self._pidfd]
+            step = timeout if self._pidfd is not None else min(timeout, 0.005)
+            with suppress(InterruptedError):
+                select.select(watched, [], [], max(0.0, step))
+            messages = self._parse()
+        if not messages and self._exited():  # what it sent before it went is in the pipe
+            messages = self._parse()
+        return messages
+
+    def end(self, grace: float = GRACE) -> None:
+        """End the child and its process group: SIGTERM, then SIGKILL to whatever is left
+        after `grace` seconds; reap the child. Safe to call more than once."""
+        if self._reaped:
+            return
+        _signal_group(self.pid, signal.SIGTERM)
+        deadline = time.monotonic() + grace
+        while time.monotonic() < deadline:
+            if self._exited() and not _group_alive(self.pid):
+                break
+            self._wait_exit(min(0.002, max(0.0, deadline - time.monotonic())))
+        else:
+            _signal_group(self.pid, signal.SIGKILL)
+        if self.exit_code is None:
+            _, status = os.waitpid(self.pid, 0)
+            self.exit_code = os.waitstatus_to_exitcode(status)
+        else:
+            with suppress(ChildProcessError):
+                os.waitpid(self.pid, 0)
+        self._reaped = True
+        for fd in (self._read, self._pidfd):
+            if fd is not None:
+                os.close(fd)
+        self._read = self._pidfd = None
+
+    def _exited(self) -> bool:
+        """Whether the child has gone; notes its exit code without reaping it (so its pid,
+        which names its process group, stays reserved until `end`)."""
+        if self.exit_code is not None:
+            return True
+        try:
+            info = os.waitid(os.P_PID, self.pid, os.WEXITED | os.WNOHANG | os.WNOWAIT)
+        except ChildProcessError:  # reaped elsewhere (a SIGCHLD handler of the caller's)
+            self.exit_code = -1
+            return True
+        if info is None:
+            return False
+        self.exit_code = info.si_status if info.si_code == os.CLD_EXITED else -info.si_status
+        return True
+
+    def _wait_exit(self, seconds: float) -> None:
+        if self._pidfd is not None and not self._exited():
+            with suppress(InterruptedError):
+                select.select([self._pidfd], [], [], seconds)
+        else:
+            time.sleep(seconds)
+
+    def _parse(self) -> list[Any]:
+        """Read what is waiting in the pipe; the complete messages in it."""
+        while self._read is not None:
+            try:
+                data = os.read(self._read, 1 << 16)
+            except BlockingIOError:
+                break
+            if not data:
+                break
+            self._buffer += data
+        messages = []
+        buffer = self._buffer
+        while len(buffer) >= _HEADER.size:
+            (size,) = _HEADER.unpack_from(buffer)
+            if len(buffer) < _HEADER.size + size:
+                break
+            messages.append(pickle.loads(buffer[_HEADER.size : _HEADER.size + size]))
+            del buffer[: _HEADER.size + size]
+        return messages
+
+
+def _apply(limits: Limits | None) -> None:
+    if limits is None:
+        return
+    import resource
+
+    if limits.memory is not None:
+        mapped = _address_space()
+        wanted = mapped + int(limits.memory)
+        resource.setrlimit(resource.RLIMIT_AS, (wanted, wanted))
+    if limits.cpu is not None:
+        used = resource.getrusage(resource.RUSAGE_SELF)
+        seconds = math.ceil(used.ru_utime + used.ru_stime + limits.cpu)
+        resource.setrlimit(resource.RLIMIT_CPU, (seconds, seconds + 1))
+
+
+def _address_space() -> int:
+    """The bytes of address space this process has mapped (0 where it cannot be read)."""
+    try:
+        pages = int(Path("/proc/self/statm").read_text().split()[0])
+    except (OSError, ValueError, IndexError):
+        return 0
+    return pages * os.sysconf("SC_PAGE_SIZE")
+
+
+def _signal_group(pgid: int, sig: int) -> None:
+    with suppress(ProcessLookupError, PermissionError):
+        os.killpg(pgid, sig)
+
+
+def group_members(pgid: int) -> list[int]:
+    """The live processes of process group `pgid` (zombies left to a parent that does not
+    reap them are not alive); on a system without /proc, the group itself if it exists."""
+    proc = Path("/proc")
+    if not proc.is_dir():
+        try:
+            os.killpg(pgid, 0)
+        except (ProcessLookupError, PermissionError):
+            return []
+        return [pgid]
+    members = []
+    for entry in proc.iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / "stat").read_text()
+        except OSError:
+            continue
+        fields = stat[stat.rfind(")") + 2 :].split()  # after "pid (comm) "
+        if len(fields) > 2 and fields[2] == str(pgid) and fields[0] not in ("Z", "X"):
+            members.append(int(entry.name))
+    return members
+
+
+def _group_alive(pgid: int) -> bool:
+    try:
+        os.killpg(pgid, 0)
+    except (ProcessLookupError, PermissionError):
+        return False
+    return bool(group_members(pgid))  # only zombies, perhaps
