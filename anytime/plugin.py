@@ -40,6 +40,7 @@ from anytime.compiler.explain import Explanation, ModuleMargin, Move, explain
 from anytime.dsl import SchemaFile, load_schemas, parse_schemas
 from anytime.errors import AnytimeError, ProfileError
 from anytime.files import InputFileError, atomic_path, read_input, write_atomic
+from anytime.isolation import Limits
 from anytime.library import AnytimeLibrary, CommandGroup, LibraryEntry, Plugin
 from anytime.modules import MISSING, AnytimeModule, Context, ProfileSource, QualityReport, Result
 from anytime.modules import contract as _contract
@@ -60,7 +61,6 @@ from anytime.runtime.deadline import (
 )
 from anytime.runtime.deadline import critical_event as _critical_event
 from anytime.runtime.executor import RunInterrupted, RunRecord, Status, run
-from anytime.runtime.isolation import Limits
 from anytime.runtime.monitor import (
     Adjustment,
     CostModel,

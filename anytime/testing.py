@@ -67,6 +67,7 @@ from numpy.typing import ArrayLike
 
 from anytime.clocks import Unit, WorkClock
 from anytime.errors import AnytimeError, ProfileError
+from anytime.isolation import WATCHDOG, Isolation, Lost, calls
 from anytime.library import AnytimeLibrary, LibraryEntry
 from anytime.modules import AnytimeModule, Context, Result
 from anytime.profiles.builder import BuildError, build_profile, registered_problems
@@ -221,6 +222,8 @@ def check_module(
     confidence: float = 0.99,
     workers: int = 1,
     progress: bool | None = False,
+    isolation: Isolation = "process",
+    watchdog: float = WATCHDOG,
 ) -> CatalogueReport:
     """Run the catalogue on `module` (see the module docstring).
 
@@ -240,6 +243,10 @@ def check_module(
             on how many).
         progress: draw progress bars on standard error (the runs, then the profile's trials);
             None: only on a terminal.
+        isolation: "process" (default) makes every run, and every trial of the profile check,
+            in a child process (`anytime.isolation`): a run that crashes its process fails the
+            errors check with how it died, and the catalogue goes on; "none" runs them here.
+        watchdog: wall-clock seconds one isolated run may take before it counts as failed.
 
     Raises:
         CatalogueError: an elementary module, or no grid to run on.
@@ -258,6 +265,7 @@ def check_module(
     grid = _grid(module, declared, time, input_grids, registered)
     own = check_seed(seed)
     session = _Session(module, problems, grid, trials, own)
+    session.isolation, session.watchdog = isolation, watchdog
     checks = [_check_pickle(module, problems)]
     total = len(session.cells) * trials * (len(grid.time) + 1)
     with ProgressBar(total, label=f"{module.name} checks", unit="runs", enabled=progress) as bar:
@@ -271,7 +279,18 @@ def check_module(
     checks.append(_check_interruption(module, interruption))
     if declared is not None:
         verdict = _check_profile(
-            module, problems, declared, grid, trials, own, tolerance, confidence, workers, progress
+            module,
+            problems,
+            declared,
+            grid,
+            trials,
+            own,
+            tolerance,
+            confidence,
+            workers,
+            progress,
+            isolation,
+            watchdog,
         )
     assert verdict is not None
     checks.append(verdict)
@@ -436,6 +455,11 @@ def check_seed(seed: int) -> int:
 _CATALOGUE_STREAM = 0x636865636B
 
 
+#: One catalogue run: cell, instance, input qualities, where (for messages), allocation, and
+#: the tick to stop it at.
+_Spec = tuple[int, int, tuple[float, ...], str, float, float]
+
+
 class _Session:
     """The instances of one catalogue run, and the runs made on them."""
 
@@ -449,6 +473,8 @@ class _Session:
             for index in np.ndindex(*grid.cell_shape)
         ]
         self.done: Callable[[], object] = lambda: None  # called after every run (progress)
+        self.isolation: Isolation = "process"
+        self.watchdog = WATCHDOG
 
     def _instances(self) -> Iterator[tuple[int, int, tuple[float, ...], str]]:
         for cell, qualities in enumerate(self.cells):
@@ -479,31 +505,60 @@ class _Session:
         clock = _ProbeClock(allocation, stop, stop_at)
         recorded = _recorded(self.module, log, snapshots=stop_at < math.inf)
         record = run(recorded, args, allocation=allocation, clock=clock, stop=stop)
-        self.done()
         return _Run(record, tuple(log), where, allocation, clock.largest, clock.negative)
 
     def deadline_runs(self) -> list[_Run]:
         """Every instance at every allocation of the grid."""
-        return [
-            self._run(cell, i, q, f"allocation {float(a):g}, {where}", float(a))
-            for cell, i, q, where in self._instances()
-            for a in self.grid.time
-        ]
+        return self._runs(
+            [
+                (cell, i, q, f"allocation {float(a):g}, {where}", float(a), math.inf)
+                for cell, i, q, where in self._instances()
+                for a in self.grid.time
+            ]
+        )
 
     def interruption_runs(self) -> list[_Run]:
         """Every instance, stopped at a random tick (interruptible) or given a random
         allocation (contract), up to the grid's largest time."""
         longest = float(self.grid.time[-1])
-        runs = []
+        specs: list[_Spec] = []
         for cell, i, q, where in self._instances():
             rng = np.random.default_rng(np.random.SeedSequence(self.seed, spawn_key=(cell, i, 1)))
             point = float(rng.uniform(0, longest))
             if self.module.kind == "contract":
-                runs.append(self._run(cell, i, q, f"allocation {point:.6g}, {where}", point))
+                specs.append((cell, i, q, f"allocation {point:.6g}, {where}", point, math.inf))
             else:
                 label = f"stopped at tick {point:.6g}, {where}"
-                runs.append(self._run(cell, i, q, label, math.inf, stop_at=point))
+                specs.append((cell, i, q, label, math.inf, point))
+        return self._runs(specs)
+
+    def _runs(self, specs: list[_Spec]) -> list[_Run]:
+        """The runs of `specs`, isolated in child processes unless the session says not: a
+        run whose process dies or hangs is a run that crashed (or failed, on the watchdog)."""
+        if self.isolation == "none":
+            outcomes: Iterator[_Run | Lost] = (self._run(*spec) for spec in specs)
+        else:
+            outcomes = calls(lambda spec: self._run(*spec), specs, watchdog=self.watchdog)
+        runs = []
+        for spec, outcome in zip(specs, outcomes, strict=True):
+            runs.append(self._lost(spec, outcome) if isinstance(outcome, Lost) else outcome)
+            self.done()
         return runs
+
+    def _lost(self, spec: _Spec, lost: Lost) -> _Run:
+        """The run of `spec` whose process did not come back."""
+        *_, where, allocation, _ = spec
+        hung = lost.exit_code is None
+        record = RunRecord(
+            self.module.name,
+            Status.FAILED if hung else Status.CRASHED,
+            None,
+            0.0,
+            allocation,
+            error=lost.reason,
+            exit_code=lost.exit_code,
+        )
+        return _Run(record, (), where, allocation, 0.0, False)
 
 
 # --- the checks --------------------------------------------------------------------------------
@@ -577,12 +632,13 @@ def _check_errors(runs: list[_Run]) -> Check:
     bad = [
         (r, r.record.error or "failed")
         for r in runs
-        if r.record.status is Status.FAILED
+        if r.record.status in (Status.FAILED, Status.CRASHED)
         and all(isinstance(y.item, Result) for y in r.log)
         and not (r.record.error or "").startswith(_QUALITY_REFUSED)
     ]
     if bad:
-        return Check("errors", False, _first(bad, len(runs), "raised"))
+        crashed = any(r.record.status is Status.CRASHED for r, _ in bad)
+        return Check("errors", False, _first(bad, len(runs), "failed" if crashed else "raised"))
     return Check("errors", True, f"none of {len(runs)} runs raised")
 
 
@@ -683,6 +739,8 @@ def _check_profile(
     confidence: float,
     workers: int,
     progress: bool | None = False,
+    isolation: Isolation = "process",
+    watchdog: float = WATCHDOG,
 ) -> Check:
     build = build_profile(
         module,
@@ -694,6 +752,8 @@ def _check_profile(
         seed=seed,
         workers=workers,
         progress=progress,
+        isolation=isolation,
+        watchdog=watchdog,
     )
     measured = build.profile
     exact = declared.mean is not None  # else compare what both say with bin representatives

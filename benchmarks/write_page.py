@@ -73,6 +73,20 @@ BENCHMARKS = [
         " interruption), and what the executor adds per registered result (target: below 5%).",
     ),
     (
+        "bench_isolation.py",
+        ["--quick"],
+        "Runtime: what process isolation costs",
+        "Soft, hard and process isolation side by side: the wall time of one run of a trivial"
+        " module on the work clock (per-run overhead; for process isolation a fork, a pipe and"
+        " ending the child's process group), with the bare process's share and what the"
+        " caller pays after a fork; how late a run answers after its deadline on the wall"
+        " clock (interruption latency) for a module that yields every millisecond, one that"
+        " blocks and one that spins in Python (soft mode cannot interrupt the last two); and"
+        " how soon a run answers after its module raises, or its process exits or is killed"
+        " (process isolation only). Ratios to soft (or hard) mode; no targets. `--quick` uses"
+        " 30 runs per latency row and 200 per overhead row instead of 60 and 500.",
+    ),
+    (
         "bench_runtime_conversion.py",
         ["--quick"],
         "Runtime: contract algorithms made interruptible",

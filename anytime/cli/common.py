@@ -65,6 +65,8 @@ MAX_TIME_POINTS = 10_000
 MAX_LATTICE_POINTS = 20_000
 #: The most program input qualities in --input-quality (a grid for each quality input).
 MAX_QUALITY_POINTS = 101
+#: The longest --watchdog (seconds): a day.
+MAX_WATCHDOG = 86_400.0
 
 
 def _whole(text: str) -> int:

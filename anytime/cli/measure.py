@@ -10,6 +10,7 @@ from pathlib import Path
 from anytime.cli.common import (
     EXIT_OK,
     MAX_TRIALS,
+    MAX_WATCHDOG,
     MAX_WORKERS,
     InputError,
     UsageError,
@@ -25,6 +26,7 @@ from anytime.cli.common import (
     worker_count,
 )
 from anytime.files import format_size
+from anytime.isolation import ISOLATIONS, WATCHDOG
 from anytime.library import AnytimeLibrary
 from anytime.modules import AnytimeModule
 from anytime.profiles.builder import (
@@ -109,6 +111,7 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
         " profile directory does not read it as a profile)",
     )
     profile.add_argument("--json", action="store_true", help="print a JSON summary")
+    _isolation_options(profile, "trial")
     library_options(profile)
     profile.set_defaults(run=run_profile, usage_error=profile.error)
 
@@ -179,8 +182,27 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     check.add_argument("--json", action="store_true", help="print the report as JSON")
     check.add_argument("--quiet", action="store_true", help="no progress bars")
+    _isolation_options(check, "run")
     library_options(check)
     check.set_defaults(run=run_check)
+
+
+def _isolation_options(parser: argparse.ArgumentParser, what: str) -> None:
+    parser.add_argument(
+        "--isolation",
+        choices=ISOLATIONS,
+        default="process",
+        help=f"run every {what} in a child process of its own (process, the default: a {what}"
+        f" that crashes or hangs fails alone) or in this one (none: faster)",
+    )
+    parser.add_argument(
+        "--watchdog",
+        type=float_in_range(0.001, MAX_WATCHDOG),
+        default=WATCHDOG,
+        metavar="SECONDS",
+        help=f"wall-clock seconds an isolated {what} may take before it counts as failed"
+        f" ({WATCHDOG:g})",
+    )
 
 
 def run_profile(args: argparse.Namespace) -> int:
@@ -213,6 +235,8 @@ def run_profile(args: argparse.Namespace) -> int:
         clock=args.clock,
         quiet=args.quiet,
         traces=args.dynamic or args.traces is not None,
+        isolation=args.isolation,
+        watchdog=args.watchdog,
     )
     build = profile_module(module, request, measurement=library.measurement(module.name))
     written = {"file": output}
@@ -313,6 +337,8 @@ def run_check(args: argparse.Namespace) -> int:
         seed=args.seed,
         workers=args.workers,
         progress=False if args.quiet else None,  # bars on a terminal, unless --quiet
+        isolation=args.isolation,
+        watchdog=args.watchdog,
     )
     if args.json:
         print(json_text(report.to_dict()))

@@ -54,10 +54,11 @@ from contextlib import contextmanager
 from typing import Any, Literal
 
 import numpy as np
-from attrs import frozen
+from attrs import field, frozen
 from numpy.typing import ArrayLike, NDArray
 
 from anytime.errors import AnytimeError, ProfileError
+from anytime.isolation import ISOLATIONS, WATCHDOG, Isolation
 from anytime.modules import AnytimeModule
 from anytime.profiles.dynamic import QualityTraces
 from anytime.profiles.profile import (
@@ -77,6 +78,7 @@ from anytime.profiles.trials import (
     Instance,
     ProblemSet,
     measure_chunk,
+    measure_chunks,
 )
 from anytime.text import did_you_mean
 
@@ -174,9 +176,12 @@ class ProfileBuild:
         trials: instances per cell (the profile's `samples`).
         runs: module runs in all (one per trial for interruptible, one per trial and time for
             contract modules).
-        failures: runs that raised or yielded something other than a `Result`.
+        failures: runs that raised or yielded something other than a `Result`, or (isolated)
+            whose process died or that took longer than the watchdog.
         overruns: contract runs that used more than their allocation (their results count).
         first_failure: the first failed run (in trial order) and its traceback, or None.
+        reasons: why runs failed: each reason (an error's first line, or how an isolated
+            trial's process died or that it hung) and how many runs it failed.
         seed: the seed the trials' random streams derive from (pass it again to reproduce).
         seconds: wall time of the whole build.
         traces: every trial's quality at every grid time, when asked for (`traces=True`), else
@@ -192,6 +197,7 @@ class ProfileBuild:
     seed: int
     seconds: float
     traces: QualityTraces | None = None
+    reasons: Mapping[str, int] = field(factory=dict)
 
     @property
     def rate(self) -> float:
@@ -206,6 +212,7 @@ class ProfileBuild:
             "runs": int(self.runs),
             "failures": int(self.failures),
             "overruns": int(self.overruns),
+            "failure_reasons": dict(self.reasons),
             "seed": int(self.seed),
             "seconds": round(float(self.seconds), 3),
         }
@@ -221,9 +228,17 @@ class ProfileBuild:
         if self.failures:
             head = (self.first_failure or "").splitlines()[0]
             lines.append(f"{self.failures} of {self.runs} runs failed; first: {head}")
+            common = sorted(self.reasons.items(), key=lambda kv: (-kv[1], kv[0]))
+            for reason, count in common[:_REASONS_SHOWN]:
+                lines.append(f"  {count} x {reason}")
+            if len(common) > _REASONS_SHOWN:
+                lines.append(f"  and {len(common) - _REASONS_SHOWN} other reasons")
         if self.overruns:
             lines.append(f"{self.overruns} contract runs used more than their allocation")
         return "\n".join(lines)
+
+
+_REASONS_SHOWN = 5  # the most common reasons for failed runs a summary lists
 
 
 @frozen
@@ -239,6 +254,9 @@ class ProfileRequest:
         quiet: no progress bar even on a terminal.
         chunk_size: trials per task (default: enough tasks to keep every worker busy).
         traces: keep every trial's quality trace (`ProfileBuild.traces`).
+        isolation: "process" (each trial in a child process; a crash or hang is a failed
+            trial) or "none".
+        watchdog: wall-clock seconds an isolated trial may take.
     """
 
     trials: int = 100
@@ -249,6 +267,8 @@ class ProfileRequest:
     quiet: bool = False
     chunk_size: int | None = None
     traces: bool = False
+    isolation: Isolation = "process"
+    watchdog: float = WATCHDOG
 
 
 def profile_module(
@@ -275,6 +295,8 @@ def profile_module(
             progress=False if request.quiet else None,
             chunk_size=request.chunk_size,
             traces=request.traces,
+            isolation=request.isolation,
+            watchdog=request.watchdog,
         )
 
 
@@ -327,6 +349,8 @@ def build_profile(
     progress: bool | None = None,
     chunk_size: int | None = None,
     traces: bool = False,
+    isolation: Isolation = "process",
+    watchdog: float = WATCHDOG,
 ) -> ProfileBuild:
     """Measure `module`'s conditional performance profile on `problems`.
 
@@ -345,15 +369,36 @@ def build_profile(
         chunk_size: trials per task; it changes the overhead, never the result.
         traces: also keep every trial's scored quality at every grid time, and for a module
             that reports an estimate its `Result.quality` there (`ProfileBuild.traces`).
+        isolation: "process" (default) runs the trials in child processes
+            (`anytime.isolation`): a trial that crashes its process, or takes longer than
+            `watchdog` seconds of wall time, is a failed trial without a result, and the build
+            goes on; "none" runs them in the worker itself (a little faster, and a module that
+            crashes or hangs takes the build with it).
+        watchdog: the wall-clock seconds one isolated trial may take.
     """
     started = _time.perf_counter()
     grid = _check(module, time, input_grids, bins, trials, seed, workers, clock, chunk_size)
+    if isolation not in ISOLATIONS:
+        raise BuildError(f"isolation: expected 'process' or 'none', got {isolation!r}")
+    if not watchdog > 0:  # NaN too
+        raise BuildError(f"watchdog: expected a positive number of seconds, got {watchdog!r}")
     entropy = int(seed) if seed is not None else secrets.randbits(128)  # as SeedSequence() does
     total = trials * math.prod(grid.cell_shape)
     if chunk_size is None:
         chunk_size = max(1, min(256, math.ceil(total / max(64, 8 * workers))))
     chunks = [
-        Chunk(module, problems, grid, clock, entropy, trials, start, min(start + chunk_size, total))
+        Chunk(
+            module,
+            problems,
+            grid,
+            clock,
+            entropy,
+            trials,
+            start,
+            min(start + chunk_size, total),
+            isolation,
+            watchdog,
+        )
         for start in range(0, total, chunk_size)
     ]
     quality = np.zeros((total, len(grid.time)))
@@ -365,6 +410,7 @@ def build_profile(
     failures = overruns = 0
     step = 0.0
     first: tuple[int, str] | None = None
+    reasons: dict[str, int] = {}
     with ProgressBar(total, label=module.name, enabled=progress) as bar:
         for done in _run(chunks, executor, workers):
             quality[done.start : done.start + len(done.quality)] = done.quality
@@ -377,6 +423,8 @@ def build_profile(
                 finished[rows] = done.finished
             failures += done.failures
             overruns += done.overruns
+            for reason, count in done.reasons.items():
+                reasons[reason] = reasons.get(reason, 0) + count
             step = max(step, done.step)
             if done.first_failure is not None and (first is None or done.first_failure < first):
                 first = done.first_failure
@@ -390,6 +438,7 @@ def build_profile(
         failures=failures,
         overruns=overruns,
         first_failure=None if first is None else first[1],
+        reasons=dict(sorted(reasons.items())),
         seed=entropy,
         seconds=_time.perf_counter() - started,
         traces=_traces(module, grid, quality, scored, estimate, finished, clock)
@@ -530,7 +579,7 @@ def _ignore_interrupts() -> None:
 def _run(chunks: list[Chunk], executor: Executor | None, workers: int) -> Iterator[Done]:
     """Finished chunks as they come back, in any order."""
     if executor is None and workers == 1:
-        yield from map(measure_chunk, chunks)
+        yield from measure_chunks(chunks)
         return
     # The workers ignore Ctrl-C (the terminal sends it to them too): the parent stops them.
     own: ProcessPoolExecutor | None = None

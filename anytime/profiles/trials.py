@@ -9,7 +9,9 @@ from __future__ import annotations
 import inspect
 import math
 import traceback
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from functools import partial
+from itertools import islice
 from typing import Any, Literal, Protocol
 
 import numpy as np
@@ -18,6 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from anytime.clocks import Clock, WallClock, WorkClock
 from anytime.errors import AnytimeError
+from anytime.isolation import WATCHDOG, Isolation, Lost, calls
 from anytime.modules import AnytimeModule, Context, Result
 from anytime.profiles.profile import Array, default_bins
 
@@ -116,6 +119,8 @@ class Chunk:
     trials: int
     start: int
     stop: int
+    isolation: Isolation = "process"  # each trial's run in a child process (see `measure_chunk`)
+    watchdog: float = WATCHDOG  # seconds of wall time a trial may take, isolated
 
 
 @frozen(eq=False)
@@ -134,10 +139,37 @@ class Done:
     # (stop - start,): when each run ended, by itself or at the last grid time (see `Row`), or
     # None: not recorded
     finished: Array | None = None
+    # why runs failed: each reason (an error's first line, or how a process died) and how often
+    reasons: dict[str, int] = field(factory=dict)
 
 
 def measure_chunk(chunk: Chunk) -> Done:
-    """Run one chunk of trials."""
+    """Run one chunk of trials. Isolated (the default), they run in turn in a child process
+    (`anytime.isolation.calls`): a trial whose process dies, or that takes longer than the
+    watchdog, is a failed trial without a result (its row scores 0), and the next trials go
+    on in a new process."""
+    return next(measure_chunks([chunk]))
+
+
+def measure_chunks(chunks: Sequence[Chunk]) -> Iterator[Done]:
+    """`measure_chunk` of each of `chunks` (of one build) in turn; isolated, one process runs
+    them all (a process per chunk would cost a fork each)."""
+    if not chunks:
+        return
+    first = chunks[0]
+    flats = [flat for chunk in chunks for flat in range(chunk.start, chunk.stop)]
+    measure = partial(_measured, first)
+    outcomes: Iterator[Measured | Lost]
+    if first.isolation == "process":
+        outcomes = calls(measure, flats, watchdog=first.watchdog)
+    else:
+        outcomes = map(measure, flats)
+    for chunk in chunks:
+        yield _done(chunk, islice(outcomes, chunk.stop - chunk.start))
+
+
+def _done(chunk: Chunk, outcomes: Iterator[Measured | Lost]) -> Done:
+    """The chunk's measurements from its trials' outcomes (in trial order)."""
     grid = chunk.grid
     quality = np.zeros((chunk.stop - chunk.start, len(grid.time)))
     scored = np.zeros(quality.shape, dtype=np.bool_)  # no result until one is scored
@@ -146,29 +178,65 @@ def measure_chunk(chunk: Chunk) -> Done:
     failures = overruns = 0
     step = 0.0
     first: tuple[int, str] | None = None
-    measure = _interruptible if chunk.module.kind == "interruptible" else _contract
-    for row, flat in enumerate(range(chunk.start, chunk.stop)):
-        cell, instance = divmod(flat, chunk.trials)
-        position = np.unravel_index(cell, grid.cell_shape) if grid.cell_shape else ()
-        qualities = tuple(float(g[i]) for g, i in zip(grid.input_grids, position, strict=True))
-        trial = Trial(
-            chunk.module,
-            chunk.problems,
-            qualities,
-            np.random.SeedSequence(chunk.entropy, spawn_key=(cell, instance)),
-            CLOCKS[chunk.clock][0],
-            f"trial {instance} at input qualities {list(qualities)}",
-        )
-        failed, overran, longest = measure(
-            trial, grid.time, Row(quality[row], scored[row], reported[row], finished[row : row + 1])
-        )
-        overruns += overran
-        step = max(step, longest)
+    reasons: dict[str, int] = {}
+    flats = range(chunk.start, chunk.stop)
+    for row, (flat, outcome) in enumerate(zip(flats, outcomes, strict=True)):
+        if isinstance(outcome, Lost):
+            failed = [(outcome.reason, "")]
+        else:
+            quality[row], scored[row], reported[row] = outcome.row
+            finished[row] = outcome.finished
+            failed = outcome.failed
+            overruns += outcome.overruns
+            step = max(step, outcome.step)
         failures += len(failed)
+        for headline, _ in failed:
+            reasons[headline] = reasons.get(headline, 0) + 1
         if failed and first is None:
             headline, details = failed[0]
-            first = (flat, f"{headline} ({trial.where})\n{details}".rstrip())
-    return Done(chunk.start, quality, failures, overruns, first, step, scored, reported, finished)
+            first = (flat, f"{headline} ({_trial(chunk, flat).where})\n{details}".rstrip())
+    return Done(
+        chunk.start, quality, failures, overruns, first, step, scored, reported, finished, reasons
+    )
+
+
+@frozen(eq=False)
+class Measured:
+    """What one trial gives (see `measure_chunk`): its row of scores, whether it had a result,
+    and what it reported, per grid time; when it ended; its failures, overruns and step."""
+
+    row: tuple[Array, NDArray[np.bool_], Array]
+    finished: float
+    failed: Failures
+    overruns: int
+    step: float
+
+
+def _trial(chunk: Chunk, flat: int) -> Trial:
+    """Trial `flat` (`cell * trials + instance`) of the chunk's build."""
+    grid = chunk.grid
+    cell, instance = divmod(flat, chunk.trials)
+    position = np.unravel_index(cell, grid.cell_shape) if grid.cell_shape else ()
+    qualities = tuple(float(g[i]) for g, i in zip(grid.input_grids, position, strict=True))
+    return Trial(
+        chunk.module,
+        chunk.problems,
+        qualities,
+        np.random.SeedSequence(chunk.entropy, spawn_key=(cell, instance)),
+        CLOCKS[chunk.clock][0],
+        f"trial {instance} at input qualities {list(qualities)}",
+    )
+
+
+def _measured(chunk: Chunk, flat: int) -> Measured:
+    """Run trial `flat` of the chunk."""
+    times = chunk.grid.time
+    n = len(times)
+    out = Row(np.zeros(n), np.zeros(n, dtype=np.bool_), np.zeros(n), np.full(1, float(times[-1])))
+    measure = _interruptible if chunk.module.kind == "interruptible" else _contract
+    failed, overran, longest = measure(_trial(chunk, flat), times, out)
+    row = (out.quality, out.scored, out.reported)
+    return Measured(row, float(out.finished[0]), failed, overran, longest)
 
 
 @frozen(eq=False)

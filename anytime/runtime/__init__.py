@@ -1,6 +1,7 @@
 """The runtime: executing anytime modules and compiled programs under contracts and
 interruption, the frame monitor, stopping policies, and deadlines from critical events."""
 
+from anytime.isolation import WATCHDOG, IsolationError, Limits
 from anytime.runtime.deadline import (
     CostBoundError,
     CriticalEvent,
@@ -11,8 +12,7 @@ from anytime.runtime.deadline import (
     deadline_from,
     proportional_split,
 )
-from anytime.runtime.executor import WATCHDOG, RunInterrupted, RunRecord, Status, run
-from anytime.runtime.isolation import IsolationError, Limits
+from anytime.runtime.executor import RunInterrupted, RunRecord, Status, run
 from anytime.runtime.monitor import (
     Adjustment,
     ContractDecision,

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import math
 import mmap
-import signal
 import struct
 import threading
 import time
@@ -37,20 +36,24 @@ import traceback
 from collections.abc import Generator, Mapping, Sequence
 from contextlib import suppress
 from enum import StrEnum
-from typing import Any, Literal
+from typing import Any
 
 from attrs import frozen
 
 from anytime.clocks import Clock, Unit, WorkClock
+from anytime.isolation import (
+    ISOLATIONS,
+    WATCHDOG,
+    Channel,
+    Child,
+    Isolation,
+    IsolationError,
+    Limits,
+    died,
+)
 from anytime.modules import AnytimeModule, Context, Result
-from anytime.runtime.isolation import Channel, Child, IsolationError, Limits
 from anytime.runtime.monitor import EventLog
 from anytime.runtime.policies import Decision, PolicyError, StoppingPolicy
-
-Isolation = Literal["none", "process"]
-ISOLATIONS: tuple[Isolation, ...] = ("none", "process")
-#: Wall-clock seconds an isolated run is given to answer by default, whatever its clock says.
-WATCHDOG = 60.0
 
 
 class Status(StrEnum):
@@ -191,7 +194,7 @@ def run(
             of the run's answer then; it may stop the run (status `stopped`).
         log: where the policy's decisions are recorded (kind "stopping").
         isolation: "process" runs the module in a child process of its own (see
-            `anytime.runtime.isolation`), which answers at the deadline as `hard` does and
+            `anytime.isolation`), which answers at the deadline as `hard` does and
             survives whatever the module does: a process that dies gives status `crashed`
             with the best result it had sent, and nothing it started outlives the run.
         watchdog: with process isolation, the wall-clock seconds after which a run that has
@@ -653,7 +656,7 @@ def _recorded(
     )
 
 
-# Process isolation: the module runs in a `Child` (anytime.runtime.isolation) as it would run
+# Process isolation: the module runs in a `Child` (anytime.isolation) as it would run
 # in soft mode, sending each result it keeps as it keeps it; the caller keeps the best of them
 # and answers at the deadline (or on the watchdog, or when the child dies) as hard mode does.
 
@@ -779,17 +782,17 @@ def _isolated(
                 break
             if process.gone:
                 exit_code = process.exit_code
-                outcome = _Outcome(Status.CRASHED, _death(exit_code))
+                outcome = _Outcome(Status.CRASHED, died(exit_code))
             elif caller_stop.is_set():
                 outcome = _Outcome(Status.INTERRUPTED)
             elif ticks is None and clock.now() - start >= allocation:
                 outcome = _deadline(module, caller_stop)
             elif time.monotonic() - began >= watchdog:
-                spent = f"{ticks.read():g} {clock.unit}" if ticks is not None else "its time"
+                used = ticks.read() if ticks is not None else clock.now() - start
                 outcome = _Outcome(
                     Status.FAILED,
-                    f"watchdog: no answer after {watchdog:g} s of wall time (it had used {spent}"
-                    f" of an allocation of {allocation:g})",
+                    f"watchdog: no answer after {watchdog:g} s of wall time (it had used"
+                    f" {used:.6g} of its {allocation:g} {clock.unit})",
                 )
     except KeyboardInterrupt as exc:  # Ctrl-C while the caller waits: end the child, answer
         outcome = _interrupted(exc)
@@ -811,16 +814,3 @@ def _deadline(module: AnytimeModule, caller_stop: threading.Event) -> _Outcome:
     """How a run ends that the deadline ended (as hard mode says it)."""
     contract = module.kind == "contract" and not caller_stop.is_set()
     return _Outcome(Status.CONTRACT_EXPIRED if contract else Status.INTERRUPTED)
-
-
-def _death(exit_code: int | None) -> str:
-    """How a child process ended, in words."""
-    if exit_code is None:
-        return "its process ended"
-    if exit_code < 0:
-        try:
-            name = signal.Signals(-exit_code).name
-        except ValueError:
-            name = f"signal {-exit_code}"
-        return f"its process was killed by {name} (signal {-exit_code})"
-    return f"its process exited with code {exit_code} before it answered"

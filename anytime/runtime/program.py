@@ -55,6 +55,7 @@ from anytime.compiler.model import (
 from anytime.dsl.graph import InputRef, NodeRef, Source
 from anytime.dsl.program import Literal
 from anytime.errors import AnytimeError
+from anytime.isolation import WATCHDOG, Isolation, Limits
 from anytime.modules import MISSING, AnytimeModule, Context, Result
 from anytime.profiles.profile import Array
 from anytime.runtime.executor import RunRecord, Status, run
@@ -70,7 +71,7 @@ class ProgramRecord:
 
     Attributes:
         result: the output's best result (None when the output module registered none).
-        status: "failed" if any call failed, "no-result" without an output result,
+        status: "failed" if any call failed or crashed, "no-result" without an output result,
             "contract-expired" if the run used more than its total, else "completed".
         records: one run record per call of the program, in execution order, then those of
             the calls inside the schemas it called and the branches its ifs ran.
@@ -98,14 +99,23 @@ def run_program(
     adaptive: bool = False,
     hard: bool = False,
     stop: threading.Event | None = None,
+    isolation: Isolation = "none",
+    watchdog: float = WATCHDOG,
+    limits: Limits | None = None,
 ) -> ProgramRecord:
     """Run `compiled` with `total` time (inputs positional or by name; `Result`s carry their
     quality, plain values have quality 1). Setting `stop` interrupts every module.
 
+    `hard`, `isolation`, `watchdog` and `limits` are how each anytime module's call is run
+    (see `anytime.runtime.run`): with `isolation="process"` a module that crashes or hangs
+    loses its own result only (status `crashed` or `failed` in its record), and the program
+    goes on without it, as it does after any failed call.
+
     Raises:
         ExecutionError: the inputs do not match the program's, or a module has no code.
     """
-    execution = _Execution(compiled, inputs, total, clock or WorkClock(), adaptive, hard, stop)
+    how = _How(hard, isolation, watchdog, limits)
+    execution = _Execution(compiled, inputs, total, clock or WorkClock(), adaptive, how, stop)
     return execution.run()
 
 
@@ -136,6 +146,38 @@ class _CompiledContract:
         return record.result
 
 
+@frozen
+class _How:
+    """How a program's module calls are run (the options of `run` they share)."""
+
+    hard: bool = False
+    isolation: Isolation = "none"
+    watchdog: float = WATCHDOG
+    limits: Limits | None = None
+
+    def run(
+        self,
+        module: AnytimeModule,
+        args: Sequence[Any],
+        kwargs: Mapping[str, Any],
+        allocation: float,
+        clock: Clock,
+        stop: threading.Event | None,
+    ) -> RunRecord:
+        return run(
+            module,
+            args,
+            kwargs,
+            allocation=allocation,
+            clock=clock,
+            stop=stop,
+            hard=self.hard,
+            isolation=self.isolation,
+            watchdog=self.watchdog,
+            limits=self.limits,
+        )
+
+
 class _Execution:
     """One run of a compiled program: the state its calls share."""
 
@@ -146,15 +188,15 @@ class _Execution:
         total: float,
         clock: Clock,
         adaptive: bool,
-        hard: bool,
+        how: _How,
         stop: threading.Event | None,
     ) -> None:
         self.compiled, self.model = compiled, compiled.model
-        self.total, self.clock, self.adaptive, self.hard, self.stop = (
+        self.total, self.clock, self.adaptive, self.how, self.stop = (
             total,
             clock,
             adaptive,
-            hard,
+            how,
             stop,
         )
         program = self.model.program
@@ -188,7 +230,7 @@ class _Execution:
             final = _wrapped(self.values[output.name])
         used = self.clock.now() - self.start
         every = [*self.records.values(), *self.inner]
-        if any(r.status == Status.FAILED for r in every):
+        if any(r.status in (Status.FAILED, Status.CRASHED) for r in every):
             status = Status.FAILED
         elif final is None:
             status = Status.NO_RESULT
@@ -237,15 +279,7 @@ class _Execution:
                         f"not run: with {allocation:g} of its share of {share:g} (its step "
                         f"{node.step:g} kept back) its profile gives it no result",
                     )
-                return run(
-                    module,
-                    args,
-                    kwargs,
-                    allocation=allocation,
-                    clock=self.clock,
-                    stop=self.stop,
-                    hard=self.hard,
-                )
+                return self.how.run(module, args, kwargs, allocation, self.clock, self.stop)
             case ModuleNode(callee=callee):
                 _, args, _ = self.arguments(node, callee.model.program.inputs)
                 return self.subprogram(callee, args, self.budget(node), node.name)
@@ -337,21 +371,11 @@ class _Execution:
                     )
                 )
                 continue
-            records.append(
-                run(
-                    module,
-                    args,
-                    {},
-                    allocation=allocation,
-                    clock=self.clock,
-                    stop=self.stop,
-                    hard=self.hard,
-                )
-            )
+            records.append(self.how.run(module, args, {}, allocation, self.clock, self.stop))
         self.inner.extend(records)
         quality = float(np.mean([r.quality for r in records])) if records else 1.0
         value = [r.result.value if r.result is not None else MISSING for r in records]
-        failed = any(r.status == Status.FAILED for r in records)
+        failed = any(r.status in (Status.FAILED, Status.CRASHED) for r in records)
         return RunRecord(
             node.name,
             Status.FAILED if failed else Status.COMPLETED,
@@ -417,7 +441,7 @@ class _Execution:
         """A called schema or an if's branch, run on this run's clock: one record for the
         call, its own calls' records kept after it."""
         sub = _Execution(
-            compiled, inputs, given, self.clock, self.adaptive, self.hard, self.stop
+            compiled, inputs, given, self.clock, self.adaptive, self.how, self.stop
         ).run()
         self.inner.extend(sub.records)
         return RunRecord(

@@ -27,15 +27,21 @@ import struct
 import sys
 import time
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Generator, Iterator, Sequence
 from contextlib import suppress
+from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from attrs import field, frozen
 
 from anytime.errors import AnytimeError
 
+Isolation = Literal["none", "process"]
+ISOLATIONS: tuple[Isolation, ...] = ("none", "process")
+#: Wall-clock seconds an isolated run (or trial) is given to answer by default, whatever its
+#: own clock says.
+WATCHDOG = 60.0
 #: Seconds a child (and its group) is given to end after SIGTERM before SIGKILL.
 GRACE = 0.05
 _HEADER = struct.Struct("<Q")  # the length of each pickled message
@@ -101,6 +107,7 @@ class Child:
             with suppress(Exception):
                 stream.flush()
         read, write = os.pipe()
+        parent = os.getpid()
         pid = os.fork()
         if pid == 0:  # the child: never returns into the caller's code
             code = 0
@@ -108,8 +115,11 @@ class Child:
                 os.close(read)
                 os.setpgid(0, 0)
                 signal.signal(signal.SIGTERM, signal.SIG_DFL)  # the caller's stop kills it
+                _die_with(parent)
                 _apply(limits)
                 target(Channel(write))
+            except (BrokenPipeError, KeyboardInterrupt):  # the caller stopped listening, or
+                code = _SUPERVISOR_FAILED  # a Ctrl-C reached it before it left the caller's group
             except BaseException:
                 code = _SUPERVISOR_FAILED
                 with suppress(BaseException):
@@ -158,19 +168,20 @@ class Child:
             return
         _signal_group(self.pid, signal.SIGTERM)
         deadline = time.monotonic() + grace
-        while time.monotonic() < deadline:
-            if self._exited() and not _group_alive(self.pid):
-                break
-            self._wait_exit(min(0.002, max(0.0, deadline - time.monotonic())))
-        else:
+        while not self._exited() and time.monotonic() < deadline:
+            self._wait_exit(min(0.005, max(0.0, deadline - time.monotonic())))
+        if not self._exited():
             _signal_group(self.pid, signal.SIGKILL)
+        _, status = os.waitpid(self.pid, 0)
         if self.exit_code is None:
-            _, status = os.waitpid(self.pid, 0)
             self.exit_code = os.waitstatus_to_exitcode(status)
-        else:
-            with suppress(ChildProcessError):
-                os.waitpid(self.pid, 0)
         self._reaped = True
+        # What the child started and left behind is still in its group (which keeps the group's
+        # number from being reused); zombies of it that nobody reaps are not alive.
+        while _group_alive(self.pid) and time.monotonic() < deadline:
+            time.sleep(0.002)
+        if _group_alive(self.pid):
+            _signal_group(self.pid, signal.SIGKILL)
         for fd in (self._read, self._pidfd):
             if fd is not None:
                 os.close(fd)
@@ -217,6 +228,24 @@ class Child:
             messages.append(pickle.loads(buffer[_HEADER.size : _HEADER.size + size]))
             del buffer[: _HEADER.size + size]
         return messages
+
+
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with(parent: int) -> None:
+    """Have the kernel kill this child when the thread that forked it ends (Linux): a caller
+    killed outright (SIGKILL, or a worker process its own parent terminates) cannot end its
+    child, which would otherwise run on in a process group of its own."""
+    if not sys.platform.startswith("linux"):
+        return
+    import ctypes
+
+    with suppress(OSError, AttributeError):
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    if os.getppid() != parent:  # it went before the request was made
+        os._exit(_SUPERVISOR_FAILED)
 
 
 def _apply(limits: Limits | None) -> None:
@@ -278,3 +307,95 @@ def _group_alive(pgid: int) -> bool:
     except (ProcessLookupError, PermissionError):
         return False
     return bool(group_members(pgid))  # only zombies, perhaps
+
+
+@frozen
+class Lost:
+    """A call made by `calls` that did not come back: its process died, or it took longer
+    than the watchdog allows; `reason` says which, in words."""
+
+    reason: str
+    exit_code: int | None = None
+
+
+def calls(
+    function: Callable[[Any], Any],
+    items: Sequence[Any],
+    *,
+    watchdog: float,
+    limits: Limits | None = None,
+    grace: float = GRACE,
+) -> Iterator[Any]:
+    """`function(item)` for each item, in order, in child processes; each value is given as it
+    comes, or `Lost` for a call whose process died or that took more than `watchdog` seconds
+    of wall time (its process is then ended, and a new one goes on with the next items). One
+    process makes the calls in turn, so a run of calls costs one fork, not one per call. An
+    exception `function` raises is raised here, after the values before it."""
+    start = 0
+    while start < len(items):
+        process = Child(partial(_calling, function, items, start), limits)
+        try:
+            start = yield from _answers(process, items, start, watchdog)
+        finally:
+            process.end(grace)
+
+
+def _calling(
+    function: Callable[[Any], Any], items: Sequence[Any], start: int, out: Channel
+) -> None:
+    for index in range(start, len(items)):
+        try:
+            value = function(items[index])
+        except BaseException as exc:
+            out.send(("raised", _portable(exc)))
+            return
+        out.send(("value", value))
+
+
+def _answers(
+    process: Child, items: Sequence[Any], start: int, watchdog: float
+) -> Generator[Any, None, int]:
+    """The values `process` sends from item `start` on; returns the first item it did not
+    answer for (after giving it as `Lost`), or len(items)."""
+    index = start
+    since = time.monotonic()
+    while index < len(items):
+        messages = process.receive(min(0.05, max(0.0, since + watchdog - time.monotonic())))
+        for kind, value in messages:
+            if kind == "raised":
+                raise value
+            yield value
+            index += 1
+            since = time.monotonic()
+        if messages:
+            continue
+        if process.gone:
+            yield Lost(died(process.exit_code), process.exit_code)
+            return index + 1
+        if time.monotonic() - since >= watchdog:
+            yield Lost(f"watchdog: no answer after {watchdog:g} s of wall time")
+            return index + 1
+    return index
+
+
+def _portable(exc: BaseException) -> BaseException:
+    """`exc` if it pickles, else a RuntimeError carrying its traceback's text."""
+    try:
+        pickle.loads(pickle.dumps(exc))
+    except Exception:
+        text = "".join(traceback.format_exception(exc)).rstrip()
+        return RuntimeError(f"in an isolated process:\n{text}")
+    return exc
+
+
+def died(exit_code: int | None) -> str:
+    """How a child process ended, in words."""
+    if exit_code is None:
+        return "its process ended"
+    if exit_code < 0:
+        try:
+            name = signal.Signals(-exit_code).name
+        except ValueError:
+            name = f"signal {-exit_code}"
+        return f"its process was killed by {name} (signal {-exit_code})"
+    return f"its process exited with code {exit_code} before it answered"
