@@ -277,28 +277,45 @@ def _signal_group(pgid: int, sig: int) -> None:
         os.killpg(pgid, sig)
 
 
+@frozen
+class ProcessInfo:
+    """What /proc says of a process."""
+
+    pid: int
+    state: str  # R, S, D, Z (a zombie), ...
+    parent: int
+    group: int
+    session: int
+
+
+def processes() -> list[ProcessInfo]:
+    """Every process /proc lists (empty on a system without /proc)."""
+    found = []
+    with suppress(OSError):
+        for entry in Path("/proc").iterdir():
+            if not entry.name.isdigit():
+                continue
+            try:
+                stat = (entry / "stat").read_text()
+            except OSError:  # it ended meanwhile
+                continue
+            fields = stat[stat.rfind(")") + 2 :].split()  # after "pid (comm) "
+            if len(fields) > 3:
+                state, parent, group, session = fields[0], *map(int, fields[1:4])
+                found.append(ProcessInfo(int(entry.name), state, parent, group, session))
+    return found
+
+
 def group_members(pgid: int) -> list[int]:
     """The live processes of process group `pgid` (zombies left to a parent that does not
     reap them are not alive); on a system without /proc, the group itself if it exists."""
-    proc = Path("/proc")
-    if not proc.is_dir():
+    if not Path("/proc").is_dir():
         try:
             os.killpg(pgid, 0)
         except (ProcessLookupError, PermissionError):
             return []
         return [pgid]
-    members = []
-    for entry in proc.iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            stat = (entry / "stat").read_text()
-        except OSError:
-            continue
-        fields = stat[stat.rfind(")") + 2 :].split()  # after "pid (comm) "
-        if len(fields) > 2 and fields[2] == str(pgid) and fields[0] not in ("Z", "X"):
-            members.append(int(entry.name))
-    return members
+    return [p.pid for p in processes() if p.group == pgid and p.state not in ("Z", "X")]
 
 
 def _group_alive(pgid: int) -> bool:

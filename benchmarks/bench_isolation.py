@@ -46,7 +46,7 @@ import numpy as np
 from tables import machine, table  # benchmarks/tables.py: a script's own folder is on sys.path
 
 from anytime.clocks import Clock, WallClock, WorkClock
-from anytime.isolation import Channel, Child
+from anytime.isolation import Channel, Child, processes
 from anytime.modules import AnytimeModule, Context, Registry, Result, interruptible
 from anytime.runtime import RunRecord, run
 
@@ -132,21 +132,10 @@ def answers(records: list[RunRecord]) -> str:
 
 
 def leftovers() -> list[int]:
-    """Live or unreaped child processes of this process, and live members of their groups
-    (after every run has answered there should be none)."""
-    mine = str(os.getpid())
-    found = []
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            stat = (entry / "stat").read_text()
-        except OSError:
-            continue
-        fields = stat[stat.rfind(")") + 2 :].split()  # state, ppid, pgrp, ...
-        if fields[1] == mine and entry.name != mine:
-            found.append(int(entry.name))
-    return found
+    """Child processes of this process, live or unreaped (after every run has answered there
+    should be none)."""
+    mine = os.getpid()
+    return [p.pid for p in processes() if p.parent == mine]
 
 
 def resident_mb() -> float:

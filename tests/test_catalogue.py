@@ -409,7 +409,8 @@ def test_check_a_module_without_a_problem_set(cli: Cli, monkeypatch: pytest.Monk
 
 
 class Drawn(Counting):
-    """Counting problems that remember every instance's random draw (within one process)."""
+    """Counting problems that remember every instance's random draw (within one process: an
+    isolated trial's draw stays in its child process)."""
 
     def __init__(self) -> None:
         self.draws: list[int] = []
@@ -424,9 +425,11 @@ class Drawn(Counting):
 def test_the_catalogue_checks_on_instances_the_profile_never_saw() -> None:
     """With the same seed as the profile builder it re-measured the very instances the
     profile came from, so "measured agrees with declared" could not fail (difference 0.0)."""
-    profiled, checked = Drawn(), Drawn()
-    build_profile(good, profiled, time=TIME, input_grids=[QUALITIES], trials=10, seed=0)
-    check_module(good, checked, trials=10, seed=0)
+    profiled, checked = Drawn(), Drawn()  # in this process: they record their draws
+    build_profile(
+        good, profiled, time=TIME, input_grids=[QUALITIES], trials=10, seed=0, isolation="none"
+    )
+    check_module(good, checked, trials=10, seed=0, isolation="none")
     assert profiled.draws and checked.draws
     assert not set(profiled.draws) & set(checked.draws)
 

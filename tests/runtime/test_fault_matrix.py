@@ -4,10 +4,14 @@ Each misbehaviour comes after two results (qualities 0.1 and 0.2): raising, yiel
 not a Result, building a Result of quality NaN, looping or sleeping without ticking,
 `sys.exit`, `os._exit`, a segmentation fault, `abort()`, a SIGTERM to itself, forking a child
 that would outlive it, growing its memory under a limit, closing its standard output, mutating
-its arguments. Under `isolation="process"` every case ends with a record that keeps the best
-result sent (0.2, or the last for a module that goes on), the caller survives, and no process
-of the run is left. The profile builder and the catalogue run one misbehaving trial among
-many: it fails alone, the rest are measured, and the reason is reported.
+its arguments. Under `isolation="process"` on the work and the wall clock (interruptible and
+contract modules, and a contract made interruptible) every case ends with a record that keeps
+the best result sent (0.2, or the last for a module that goes on), the caller survives, and no
+process of the run is left. The profile builder (1 and 2 workers), the catalogue, and
+`anytime profile` and `anytime check` run one misbehaving trial among many: it fails alone, the
+rest are measured, the file is written, and the reason is reported. (A compiled program's
+isolated runs are in test_program.py; the time isolation takes to answer is measured by
+benchmarks/bench_isolation.py, not asserted here.)
 
 In-process runs (soft and hard) survive the cases that do not end the interpreter; the others
 (`os._exit`, a segfault, `abort()`, a signal) are what isolation is for, and are not run here
@@ -17,6 +21,7 @@ in-process (they would end the test run).
 from __future__ import annotations
 
 import ctypes
+import faulthandler
 import io
 import math
 import os
@@ -30,34 +35,33 @@ from typing import Any
 
 import numpy as np
 import pytest
+from conftest import Cli
 
 from anytime.clocks import WallClock, WorkClock
-from anytime.isolation import Limits
+from anytime.isolation import Limits, processes
 from anytime.modules import Context, Registry, Result, contract, interruptible
-from anytime.profiles.builder import build_profile
+from anytime.profiles.builder import build_profile, register_problems
+from anytime.profiles.io import load_profile
 from anytime.profiles.trials import Instance
 from anytime.runtime import Status, run
+from anytime.runtime.conversion import make_interruptible
 from anytime.testing import check_module, check_seed
 
 MODULES = Registry()
+COMMANDS = Registry()  # the modules of the command tests, put in the library's registry there
 RELEASE = threading.Event()  # lets an in-process loop that never ticks end after its test
 
 
 def _session_processes() -> set[int]:
-    """The live (not zombie) processes of this test run's session."""
-    session = os.getsid(0)
-    found = set()
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            stat = (entry / "stat").read_text()
-        except OSError:
-            continue
-        fields = stat[stat.rfind(")") + 2 :].split()
-        if fields[0] not in ("Z", "X") and int(fields[3]) == session:
-            found.add(int(entry.name))
-    return found
+    """The live (not zombie) children of this process, and the orphans of its session (what a
+    process a run forks becomes once the run's process is gone)."""
+    me, session = os.getpid(), os.getsid(0)
+    return {
+        p.pid
+        for p in processes()
+        if p.state not in ("Z", "X")
+        and (p.parent == me or (p.parent == 1 and p.session == session))
+    }
 
 
 def _misbehave(ctx: Context, how: str, args: list[Any]) -> None:
@@ -70,8 +74,10 @@ def _misbehave(ctx: Context, how: str, args: list[Any]) -> None:
         case "os-exit":
             os._exit(3)
         case "segfault":
+            faulthandler.disable()  # pytest's would print the dying process's stack
             ctypes.string_at(0)
         case "abort":
+            faulthandler.disable()
             os.abort()
         case "sigterm":
             os.kill(os.getpid(), signal.SIGTERM)
@@ -98,6 +104,20 @@ def _misbehave(ctx: Context, how: str, args: list[Any]) -> None:
 
 @interruptible("misbehaving", registry=MODULES, inputs=())
 def misbehaving(ctx: Context, how: str, args: list[Any]) -> Iterator[Result]:
+    yield from _two_results_then(ctx, how, args)
+
+
+@interruptible("faulty-count", registry=COMMANDS, inputs=())
+def faulty_count_module(ctx: Context, how: str, args: list[Any]) -> Iterator[Result]:
+    yield from _two_results_then(ctx, how, args)
+
+
+@interruptible("faulty-check", registry=COMMANDS, inputs=())
+def faulty_check_module(ctx: Context, how: str, args: list[Any]) -> Iterator[Result]:
+    yield from _two_results_then(ctx, how, args)
+
+
+def _two_results_then(ctx: Context, how: str, args: list[Any]) -> Iterator[Result]:
     for quality in (0.1, 0.2):
         ctx.tick(1)
         yield Result(quality, quality)
@@ -347,4 +367,76 @@ def test_the_catalogue_reports_a_crashing_trial_and_goes_on() -> None:
         "its process was killed by SIGSEGV (signal 11) (allocation 3, trial 2); 1 of 20 runs failed"
     )
     assert checks["quality"].passed
+    assert _session_processes() <= before
+
+
+# --- the commands: one bad trial in a run of 100 -----------------------------------------------
+
+
+@pytest.fixture
+def faulty_count(monkeypatch: pytest.MonkeyPatch) -> Iterator[str]:
+    """`faulty-count` in the process-wide registry, with its problem set: the one trial of 100
+    (trial 37 of the profile builder's seed 0) that segfaults after its second result."""
+    fresh = Registry()
+    monkeypatch.setattr("anytime.library.REGISTRY", fresh)
+    monkeypatch.setattr("anytime.profiles.builder._MEASUREMENTS", {})
+    for module in COMMANDS:
+        fresh.add(module)
+    register_problems("faulty-count", OneBadTrial("segfault", _draw(0, BAD_TRIAL)), time=[1, 2, 3])
+    register_problems(
+        "faulty-check", OneBadTrial("segfault", _draw(check_seed(0), 2)), time=[1, 2, 3]
+    )
+    yield "faulty-count"
+
+
+def test_anytime_profile_writes_its_file_with_one_crashing_trial_in_100(
+    cli: Cli, faulty_count: str, tmp_path: Path
+) -> None:
+    out = tmp_path / "faulty.yaml"
+    before = _session_processes()
+    code, stdout, stderr = cli(
+        "profile", faulty_count, "--trials", "100", "--quiet", "--no-plugins", "-o", str(out)
+    )
+    assert (code, stderr) == (0, "")
+    failed = "1 of 100 runs failed; first: its process was killed by SIGSEGV (signal 11) (trial 37"
+    assert failed in stdout
+    assert "  1 x its process was killed by SIGSEGV (signal 11)" in stdout
+    profile = load_profile(out)
+    assert profile.mean is not None and profile.mean[-1] == pytest.approx(99 * 0.9 / 100)
+    assert _session_processes() <= before
+
+
+def test_anytime_check_reports_a_crashing_run_and_finishes(cli: Cli, faulty_count: str) -> None:
+    before = _session_processes()
+    code, stdout, stderr = cli("check", "faulty-check", "--trials", "5", "--quiet", "--no-plugins")
+    assert (code, stderr) == (
+        1,
+        "anytime: error: module 'faulty-check' fails 1 of 6 checks: errors\n",
+    )
+    assert (
+        "its process was killed by SIGSEGV (signal 11) (allocation 3, trial 2); 1 of 20 runs failed"
+        in stdout
+    )
+    assert _session_processes() <= before
+
+
+@contract("crashes-when-long", registry=MODULES, inputs=())
+def crashes_when_long(ctx: Context) -> Result:
+    """A contract that answers allocations under 4 ticks and ends its process on longer ones."""
+    if ctx.allocation >= 4:
+        os._exit(3)
+    ctx.tick(ctx.allocation)
+    return Result(ctx.allocation, ctx.allocation / 10)
+
+
+def test_a_contract_made_interruptible_and_isolated_keeps_the_contracts_before_a_crash() -> None:
+    module = MODULES.get("crashes-when-long")
+    assert module is not None
+    made = make_interruptible(module, t0=1, r=2)  # contracts of 1, 2, then 4 ticks
+    before = _session_processes()
+    record = run(made, allocation=20, isolation="process")
+    assert (record.status, record.result, record.registered, record.exit_code) == (
+        Status.CRASHED, Result(2.0, 0.2), 2, 3,
+    )  # fmt: skip
+    assert record.time_used == 3.0  # 1 + 2 ticks of the contracts that answered
     assert _session_processes() <= before

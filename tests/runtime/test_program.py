@@ -10,6 +10,7 @@ quality is random, where re-allocating on the observed quality beats the fixed a
 from __future__ import annotations
 
 import math
+import os
 import threading
 from collections.abc import Iterator, Sequence
 from typing import Any
@@ -208,6 +209,37 @@ def test_a_failing_middle_module_fails_the_program_and_the_rest_still_runs(k: in
         assert (last_record.result, last_record.time_used) == (None, 0.0)
         assert last_record.error == "not run: its input from 'middle' has no result"
         assert record.result is None
+
+
+@interruptible("crasher", inputs=["m"], profile=conditional(0.1), registry=CHAIN)
+def crasher(ctx: Context, m: Result, k: int) -> Iterator[Result]:
+    """Yields k results, then ends its process."""
+    for i in range(k):
+        ctx.tick(1)
+        yield Result(("middle", i, m.value), m.quality * (i + 1) / (k + 1))
+    os._exit(9)
+
+
+def test_isolated_a_crashing_module_loses_its_own_result_only_and_the_program_goes_on() -> None:
+    k = 2
+    inputs = {"x": Result("map", 1.0), "k": k}
+    raising = run_program(
+        compiled("(defschema p (x k) (last (middle (first x) k)))", CHAIN), inputs, 30.0
+    )
+    program = compiled("(defschema p (x k) (last (crasher (first x) k)))", CHAIN)
+    record = run_program(program, inputs, 30.0, isolation="process")
+    assert [r.status for r in record.records] == [
+        Status.INTERRUPTED, Status.CRASHED, Status.INTERRUPTED,
+    ]  # fmt: skip
+    crashed = record.records[1]
+    assert (crashed.exit_code, crashed.error) == (
+        9,
+        "its process exited with code 9 before it answered",
+    )
+    assert record.status == Status.FAILED
+    # The same answer as when the middle module raises in-process at the same point.
+    assert [r.result for r in record.records] == [r.result for r in raising.records]
+    assert record.result == raising.result
 
 
 def test_a_program_whose_output_registers_nothing_has_no_result() -> None:
