@@ -595,11 +595,17 @@ def _run(chunks: list[Chunk], executor: Executor | None, workers: int) -> Iterat
             yield future.result()
     except (KeyboardInterrupt, GeneratorExit):
         if own is not None:  # stop the running chunks now rather than wait for them
-            for process in list((own._processes or {}).values()):
+            processes = list((own._processes or {}).values())
+            own.shutdown(wait=False, cancel_futures=True)
+            for process in processes:
                 process.terminate()
         raise
     finally:
-        for future in futures:  # after an error: drop what has not started
-            future.cancel()
-        if executor is None:
-            pool.shutdown(wait=True, cancel_futures=True)
+        # After an error, drop what has not started. Our own pool cancels its queued chunks
+        # itself: a future cancelled from outside while the pool breaks (its workers ended
+        # above) makes the pool's manager thread fail (InvalidStateError, Python 3.11).
+        if own is not None:
+            own.shutdown(wait=True, cancel_futures=True)
+        else:
+            for future in futures:
+                future.cancel()
