@@ -57,6 +57,7 @@ from typing import Any
 import numpy as np
 from anytime_navigation.abstraction import Pyramid
 from anytime_navigation.execution import Execution, execute, plan_quality, waypoints
+from anytime_navigation.components import Components
 from anytime_navigation.movingai import Scenario, load_problems
 from anytime_navigation.planner import MultiPath, atp
 from anytime_navigation.search import find_path
@@ -167,12 +168,19 @@ def timed(measure: Callable[[], Any]) -> tuple[float, Any]:
     return best_of(1, measure)
 
 
+def abstraction(blocked: BoolGrid, movement: int) -> tuple[Pyramid, Components]:
+    """The ATP's description of a map, built once per map: the obstacleness pyramid and the
+    connectivity-aware abstraction up to the default first-plan level."""
+    pyramid = Pyramid.build(blocked)
+    return pyramid, Components.build(blocked, movement, top=max(pyramid.top - 4, 0))
+
+
 def corner_suite(size: int, movement: int, worlds: int, repeats: int) -> Suite:
     problems, pyramid = [], 0.0
     for seed in range(worlds):
         world = random_world(size, seed=seed, movement=movement)
         problems.append(Problem(world.blocked, world.start, world.goal, None))
-        pyramid += best_of(repeats, partial(Pyramid.build, world.blocked))[0]
+        pyramid += best_of(repeats, partial(abstraction, world.blocked, movement))[0]
     name = f"random rectangles {size}, {movement}-connected"
     return Suite(name, movement, problems, size >= 512, pyramid)
 
@@ -188,7 +196,7 @@ def movingai_suite(path: Path, count: int, repeats: int) -> Suite:
     blocked, _, _, scenarios = load_problems(path)
     chosen = longest(scenarios, count)
     problems = [Problem(blocked, s.start, s.goal, None) for s in chosen]
-    pyramid = best_of(repeats, lambda: Pyramid.build(blocked))[0]
+    pyramid = best_of(repeats, lambda: abstraction(blocked, 8))[0]
     buckets = f"buckets {min(s.bucket for s in chosen)}-{max(s.bucket for s in chosen)}"
     return Suite(f"{path.stem} ({buckets}), 8-connected", 8, problems, True, pyramid)
 
@@ -208,6 +216,7 @@ def run_atp(ctx: Context, plans: Iterator[Any]) -> tuple[float, MultiPath, Multi
 def measure_problem(
     problem: Problem,
     pyramid: Pyramid,
+    components: Components,
     movement: int,
     repeats: int,
     configs: dict[str, dict[str, Any]] = CONFIGS,
@@ -230,7 +239,15 @@ def measure_problem(
             ctx = Context()
 
             def plan(ctx: Context = ctx, options: dict[str, Any] = options) -> Any:
-                plans = atp(ctx, problem.start, problem.goal, pyramid, movement=movement, **options)
+                plans = atp(
+                    ctx,
+                    problem.start,
+                    problem.goal,
+                    pyramid,
+                    movement=movement,
+                    components=components,
+                    **options,
+                )
                 return run_atp(ctx, plans)
 
             seconds, (first_seconds, first, last, refinements) = timed(plan)
@@ -311,14 +328,15 @@ def measure_suite(
     configs: dict[str, dict[str, Any]] = CONFIGS,
     budget: float = EXECUTION_BUDGET,
 ) -> Measured:
-    pyramids: dict[int, Pyramid] = {}
+    described: dict[int, tuple[Pyramid, Components]] = {}
     measured = Measured([], [], {name: [] for name in configs})
     for problem in suite.problems:
         key = id(problem.blocked)
-        if key not in pyramids:
-            pyramids[key] = Pyramid.build(problem.blocked)
+        if key not in described:
+            described[key] = abstraction(problem.blocked, suite.movement)
+        pyramid, components = described[key]
         seconds, expansions, runs = measure_problem(
-            problem, pyramids[key], suite.movement, repeats, configs, budget
+            problem, pyramid, components, suite.movement, repeats, configs, budget
         )
         measured.astar_times.append(seconds)
         measured.astar_expansions.append(expansions)

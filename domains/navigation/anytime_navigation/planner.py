@@ -36,8 +36,9 @@ from attrs import field, frozen
 from anytime.plugin import Context, Result
 
 from .abstraction import Pyramid, project
-from .search import SQRT2, SearchLimit, find_path_to_box
-from .world import BoolGrid, Position, reachable
+from .components import Components, NodePath
+from .search import SearchLimit, find_path
+from .world import BoolGrid, Position
 
 __all__ = ["MultiPath", "Segment", "atp", "quality_estimate", "segmentize", "worst_segment"]
 
@@ -56,6 +57,22 @@ class Segment:
 
     level: int
     cells: tuple[Position, ...] = field(converter=_cells)
+    # The abstraction's nodes the cells stand for (`components.Components`): the connected
+    # free region of each cell's block the segment goes through; empty for a segment made
+    # without them (then a cell means its whole block).
+    nodes: tuple[int, ...] = field(default=(), converter=tuple)
+    # Each node's cells, a packed (2^level x 2^level) mask of its block (`region`); empty as
+    # `nodes` is, and at level 0 (a node is its cell).
+    regions: tuple[bytes, ...] = field(default=(), converter=tuple)
+
+    def region(self, index: int) -> BoolGrid | None:
+        """The cells of its block the `index`-th cell's node holds, a boolean mask [y, x], or
+        None when the segment does not say (the whole block is meant)."""
+        if not self.regions or self.level == 0:
+            return None
+        side = 1 << self.level
+        bits = np.unpackbits(np.frombuffer(self.regions[index], dtype=np.uint8), count=side * side)
+        return bits.reshape(side, side).astype(bool)
 
     @property
     def source(self) -> Position:
@@ -181,77 +198,85 @@ def atp(
     pyramid: Pyramid,
     *,
     movement: int = 4,
-    weight: float = 1.0,
     top: int | None = None,
-    margin: int = 1,
     segment_moves: int | None = None,
+    components: Components | None = None,
 ) -> Iterator[Result]:
     """The anytime abstract planner: yields `Result(MultiPath, quality_estimate)` after the first
     plan and after every refinement; returns (SIGNAL(TERMINATION)) when nothing is refinable or
-    when `ctx` has expired. Work is the A* expansions PATH-FINDER reports; a search is given
-    what is left of the allocation and stopped when it runs out, so the planner never works
-    past its deadline (the refinement under way is dropped; the last plan yielded stands).
+    when `ctx` has expired. Work is the expansions PATH-FINDER reports; a search is given what
+    is left of the allocation and stopped when it runs out, so the planner never works past its
+    deadline (the refinement under way is dropped; the last plan yielded stands).
+
+    PATH-FINDER plans over the connectivity-aware abstraction (`components`): a level-k plan is
+    a path of neighbouring *nodes*, each a connected free region of one 2^k x 2^k block, so a
+    coarse plan never runs through a wall that splits a block. The pyramid's obstacleness
+    chooses the worst segment and makes the quality estimate.
 
     Args:
-        ctx: the context; each A* expansion is one tick.
+        ctx: the context; each node a search expands is one tick.
         start: the base-level start (x, y), a free cell.
         goal: the base-level goal (x, y), a free cell.
-        pyramid: the domain description (possibly of a noisy map).
+        pyramid: the obstacleness pyramid of the map planned on (possibly a noisy one).
         movement: 4 or 8, at every level.
-        weight: the obstacleness weight of PATH-FINDER (see `search.find_path`).
         top: the level of the first plan (the papers' "highest level of abstraction"). By
-            default the level whose grid is 16 x 16 cells (the pyramid's top on smaller maps):
-            the pyramid's own top is one cell, a first plan that says nothing; measured while
-            tuning on the 512 x 512 MovingAI maps, starting at 16 x 16 gave better final routes
-            for less work than 8 x 8 or 1 x 1 (0.977 against 0.972 and 0.941 on random512,
-            at 14%, 18% and 29% of A*'s time).
+            default the level whose grid is 16 x 16 blocks (the pyramid's top on smaller maps):
+            the pyramid's own top is one block, a first plan that says nothing.
         segment_moves: the first plan is cut into segments of at most this many moves, of
             equal length (None, the default: one segment, as in the pseudocode). Segment length
             is what refinement keeps invariant, so it sets the grain of the anytime behaviour:
-            how much one refinement costs and improves. Measured on the 512 x 512 benchmark
-            maps, one segment gives better final routes for less time than segments of 8 moves
-            (benchmarks/bench_navigation.py), at a coarser grain.
-        margin: how far (in cells of the lower level) a refinement may stray outside the
-            blocks of the segment it refines before the corridor is widened.
+            how much one refinement costs and improves.
+        components: the abstraction of the pyramid's map (`Components.build(pyramid.levels[0]
+            >= 1, movement)`), built here when not given; pass it to plan many times on one map.
 
-    REFINE re-plans the chosen level-k segment one level lower with PATH-FINDER restricted to a
-    corridor: the 2x2 children of its cells, widened by `margin` (and, only when that has no
-    path, by 4, 16, ... cells up to the whole level). Its ends are the junctions with its
-    neighbours: a fixed cell when the neighbour is already finer (its end, projected), otherwise
-    any free child of the shared cell (the search chooses the best one, which the neighbour will
-    then have to meet). The path found is split at its middle into two halves of equal length
-    (a path of n moves into n // 2 and n - n // 2), each a segment one level lower: the length
-    in moves of a segment stays about invariant, and so does the cost of a refinement, which is
-    a local A* over a few dozen cells.
+    REFINE re-plans the chosen level-k segment one level lower, through the children of its
+    nodes only (they are connected: see `components`), so the search is local and always finds
+    a path. Its ends are the junctions with its neighbours: a fixed node when the neighbour is
+    already finer (its end's node one level lower), otherwise any child of the shared node (the
+    search chooses the best one, with the cost each adds to the neighbour's side, which the
+    neighbour will then have to meet). The path found is split at its middle into two halves of
+    equal length (a path of n moves into n // 2 and n - n // 2), each a segment one level lower:
+    the length in moves of a segment stays about invariant, and so does a refinement's cost.
 
     A goal the map given does not connect to the start (a noisy map can wall it off) is not an
-    error: the planner then treats blocked cells as passable at a cost (obstacleness 1, times
-    `weight`) and returns its best-effort plan; execution on the true map avoids the obstacles.
+    error: the planner then opens the walls in the way (the cells of the cheapest route that
+    counts a blocked cell as two free ones) and plans on that map; execution on the true map
+    avoids the obstacles.
 
     Raises:
-        ValueError: a blocked start or goal, a top outside the pyramid, segment_moves < 1 or a
-            negative margin.
+        ValueError: a blocked start or goal, a top outside the pyramid, segment_moves < 1, or
+            components of another map or movement.
     """
     top = max(pyramid.top - 4, 0) if top is None else top
     if segment_moves is not None and segment_moves < 1:
         raise ValueError(f"segment_moves must be >= 1 or None, got {segment_moves}")
-    if margin < 0:
-        raise ValueError(f"margin must be >= 0, got {margin}")
     if not 0 <= top <= pyramid.top:
         raise ValueError(f"top must be in [0, {pyramid.top}], got {top}")
     for name, position in (("start", start), ("goal", goal)):
         if pyramid.obstacleness(position, 0) >= 1.0:
             raise ValueError(f"{name} {position} is a blocked cell")
-    planner = _Planner(pyramid, start, goal, movement, weight, margin, ctx)
-    side = pyramid.side(top)
+    blocked = pyramid.levels[0] >= 1.0
+    if components is None:
+        components = Components.build(blocked, movement, top=top)
+    elif components.movement != movement or components.top < top:
+        raise ValueError(
+            f"the components are for movement {components.movement} up to level"
+            f" {components.top}; planning needs movement {movement} up to level {top}"
+        )
+    elif components.cell.shape != blocked.shape:
+        raise ValueError(
+            f"the components are of a {components.cell.shape} map, the pyramid's is"
+            f" {blocked.shape}"
+        )
+    if not _connected(components, start, goal):
+        components = Components.build(_opened(blocked, start, goal, movement), movement, top=top)
+    planner = _Planner(components, start, goal, ctx)
     try:
-        path = planner.plan(
-            top, [project(start, 0, top)], _point(goal, top), (0, 0, side - 1, side - 1)
-        ).cells
+        first = planner.first(top)
     except SearchLimit as stopped:  # the deadline came before the first plan
         ctx.tick(stopped.expansions)
         return
-    segments = _pieces(top, path, segment_moves)
+    segments = [planner.segment(top, part) for part in _pieces(first, segment_moves)]
     plan = MultiPath(
         start, goal, segmentize(start, top), tuple(segments), segmentize(goal, top)[::-1]
     )
@@ -299,193 +324,134 @@ def atp(
         yield Result(plan, 1.0 if not live else _clip(sums[1] / sums[0]))
 
 
-def _pieces(level: int, path: tuple[Position, ...], most: int | None) -> list[Segment]:
-    """`path` cut into the fewest segments of at most `most` moves, of about equal length."""
-    n = len(path) - 1
+def _pieces(path: NodePath, most: int | None) -> list[tuple[int, ...]]:
+    """The path's nodes cut into the fewest runs of at most `most` moves, of about equal
+    length (consecutive runs share their junction node)."""
+    nodes = path.nodes
+    n = len(nodes) - 1
     count = 1 if most is None or n <= most else -(-n // most)
     bounds = [round(i * n / count) for i in range(count + 1)]
-    return [Segment(level, path[a : b + 1]) for a, b in zip(bounds, bounds[1:], strict=False)]
+    return [nodes[a : b + 1] for a, b in zip(bounds, bounds[1:], strict=False)]
 
 
-def _point(position: Position, level: int = 0) -> tuple[int, int, int, int]:
-    x, y = position if level == 0 else project(position, 0, level)
-    return (x, y, x, y)
+def _connected(components: Components, start: Position, goal: Position) -> bool:
+    """Whether start and goal are in one connected region (one node at the top level)."""
+    top = components.top
+    return components.node(start, top) == components.node(goal, top) or (
+        components.search(top, [components.node(start, top)], [components.node(goal, top)])
+        is not None
+    )
 
 
-def _children(cell: Position) -> tuple[int, int, int, int]:
-    """The box of a cell's four children one level lower."""
-    x, y = cell
-    return (2 * x, 2 * y, 2 * x + 1, 2 * y + 1)
+def _opened(blocked: BoolGrid, start: Position, goal: Position, movement: int) -> BoolGrid:
+    """`blocked` with the walls between start and goal opened: the blocked cells of the
+    cheapest route that counts a blocked cell as two free ones."""
+    found = find_path(blocked, start, goal, movement=movement, weight=1.0)
+    assert found is not None  # every cell is passable at a cost
+    opened = np.array(blocked, dtype=bool)
+    for x, y in found.path:
+        opened[y, x] = False
+    return opened
 
 
 class _Planner:
-    """PATH-FINDER and REFINE over one pyramid, with the cells each level lets the planner use:
-    those connected to the start (computed lazily per level), or every cell when the goal is not
-    connected to the start on this map (the best-effort mode of `atp`)."""
+    """PATH-FINDER and REFINE over one map's connectivity-aware abstraction."""
 
     def __init__(
-        self,
-        pyramid: Pyramid,
-        start: Position,
-        goal: Position,
-        movement: int,
-        weight: float,
-        margin: int,
-        ctx: Context,
+        self, components: Components, start: Position, goal: Position, ctx: Context
     ) -> None:
-        self.pyramid, self.start, self.goal = pyramid, start, goal
-        self.movement, self.weight, self.margin, self.ctx = movement, weight, margin, ctx
-        self._passable: dict[int, BoolGrid] = {}
-        gx, gy = goal
-        self.connected = bool(self.passable(0)[gy, gx])
-        if not self.connected:
-            self._passable.clear()
+        self.components, self.start, self.goal, self.ctx = components, start, goal, ctx
 
-    def passable(self, level: int) -> BoolGrid:
-        if level not in self._passable:
-            grid = self.pyramid.levels[level]
-            if getattr(self, "connected", True):
-                origin = project(self.start, 0, level)
-                self._passable[level] = reachable(grid >= 1.0, origin, self.movement)
-            else:
-                self._passable[level] = np.ones(grid.shape, dtype=bool)
-        return self._passable[level]
+    def first(self, level: int) -> NodePath:
+        """The first plan: a path of nodes at `level` from the start's node to the goal's."""
+        c = self.components
+        return self._search(level, [c.node(self.start, level)], [c.node(self.goal, level)])
 
-    def plan(
+    def segment(self, level: int, nodes: tuple[int, ...]) -> Segment:
+        c = self.components
+        cells = [c.block(node, level) for node in nodes]
+        regions = (
+            [np.packbits(c.region(node, level)).tobytes() for node in nodes] if level else []
+        )
+        return Segment(level, cells, nodes, regions)
+
+    def _search(
         self,
         level: int,
-        sources: list[Position],
-        box: tuple[int, int, int, int],
-        corridor: tuple[Position, ...] | tuple[int, int, int, int],
+        sources: list[int],
+        targets: list[int],
+        allowed: set[int] | None = None,
         source_costs: list[float] | None = None,
-        box_costs: npt.NDArray[np.float64] | None = None,
-    ) -> Segment:
-        """PATH-FINDER at `level` from any of `sources` into `box`, first inside `corridor` (a
-        box, or the cells of the segment being refined, one level up) widened by the margin,
-        then by wider margins up to the whole level."""
-        grid, ok = self.pyramid.levels[level], self.passable(level)
-        side = grid.shape[0]
-        if not any(ok[y, x] for x, y in sources):
-            sources, source_costs = [self._nearest(level, box)], None
-        bx0, by0, bx1, by1 = box
-        if not ok[by0 : by1 + 1, bx0 : bx1 + 1].any():
-            box, box_costs = _point(self._nearest(level, box)), None
-        margin, whole = self.margin, (0, 0, side - 1, side - 1)
-        while True:
-            mask, (x0, y0) = self._corridor(level, corridor, sources, box, margin)
-            found = find_path_to_box(
-                grid[y0 : y0 + mask.shape[0], x0 : x0 + mask.shape[1]],
-                [(x - x0, y - y0) for x, y in sources],
-                (box[0] - x0, box[1] - y0, box[2] - x0, box[3] - y0),
-                movement=self.movement,
-                weight=self.weight,
-                impassable=~mask,
-                source_costs=source_costs,
-                box_costs=box_costs,
-                limit=self.ctx.remaining,
-            )
-            if found is not None:
-                self.ctx.tick(found.expansions)
-                return Segment(level, [(x + x0, y + y0) for x, y in found.path])
-            # A failed search expanded every usable cell it could reach in the window.
-            self.ctx.tick(min(int(np.count_nonzero(mask)), self.ctx.remaining))
-            if corridor == whole:
-                raise AssertionError(f"no path at level {level} between connected cells")
-            margin = max(4 * margin, 4)
-            if margin >= side:
-                corridor = whole
-
-    def _corridor(
-        self,
-        level: int,
-        corridor: tuple[Position, ...] | tuple[int, int, int, int],
-        sources: list[Position],
-        box: tuple[int, int, int, int],
-        margin: int,
-    ) -> tuple[BoolGrid, Position]:
-        """The passable cells of the corridor and the window's upper-left corner."""
-        side = self.pyramid.levels[level].shape[0]
-        if isinstance(corridor[0], int):
-            boxes = [corridor]
-        else:
-            boxes = [_children(cell) for cell in corridor]
-        boxes += [_point(s) for s in sources] + [box]
-        x0 = max(min(b[0] for b in boxes) - margin, 0)
-        y0 = max(min(b[1] for b in boxes) - margin, 0)
-        x1 = min(max(b[2] for b in boxes) + margin, side - 1)
-        y1 = min(max(b[3] for b in boxes) + margin, side - 1)
-        mask = np.zeros((y1 - y0 + 1, x1 - x0 + 1), dtype=bool)
-        for bx0, by0, bx1, by1 in boxes:
-            mask[
-                max(by0 - margin - y0, 0) : by1 + margin - y0 + 1,
-                max(bx0 - margin - x0, 0) : bx1 + margin - x0 + 1,
-            ] = True
-        mask &= self.passable(level)[y0 : y1 + 1, x0 : x1 + 1]
-        return mask, (x0, y0)
-
-    def _nearest(self, level: int, box: tuple[int, int, int, int]) -> Position:
-        """The usable cell nearest the centre of `box` (when none of the box is usable: rare, a
-        block whose free part is walled off at this level)."""
-        ys, xs = np.nonzero(self.passable(level))
-        cx, cy = (box[0] + box[2]) / 2.0, (box[1] + box[3]) / 2.0
-        i = int(np.argmin((xs - cx) ** 2 + (ys - cy) ** 2))
-        return (int(xs[i]), int(ys[i]))
+        target_costs: dict[int, float] | None = None,
+    ) -> NodePath:
+        found = self.components.search(
+            level,
+            sources,
+            targets,
+            allowed=allowed,
+            source_costs=source_costs,
+            target_costs=target_costs,
+            limit=self.ctx.remaining,
+        )
+        if found is None:
+            raise AssertionError(f"no path at level {level} between connected nodes")
+        self.ctx.tick(found.expansions)
+        return found
 
     def refine(self, segments: list[Segment], index: int) -> tuple[Segment, ...]:
         """REFINE route segment `index`: its replacement, two halves one level lower (one
         segment when the path found has fewer than two moves)."""
+        c = self.components
         segment = segments[index]
         lower = segment.level - 1
-        source_costs = box_costs = None
+        nodes = c.levels[segment.level]
+        # The children of its nodes (connected: a path exists among them) and their neighbours
+        # one level down: room for the route to cut the corners of the coarse blocks.
+        # The children of its nodes (connected: a path exists among them) and their neighbours
+        # one level down: room for the route to cut the corners of the coarse blocks.
+        inside = {child for node in segment.nodes for child in nodes.children(node)}
+        below = c.levels[lower]
+        allowed = inside | {n for child in inside for n in below.neighbours(child)[0]}
+        source_costs: list[float] | None = None
+        target_costs: dict[int, float] | None = None
         if index == 0:
-            sources = [project(self.start, 0, lower)]
+            sources = [c.node(self.start, lower)]
         elif segments[index - 1].level <= lower:
             prev = segments[index - 1]
-            sources = [project(prev.target, prev.level, lower)]
+            sources = [c.ancestor(prev.nodes[-1], prev.level, lower)]
         else:
-            x, y, _, _ = _children(segment.source)
-            sources = [(x, y), (x + 1, y), (x, y + 1), (x + 1, y + 1)]
-            before = segments[index - 1].cells
-            costs = self._approach(
-                sources, segments[index - 1].level, before[max(len(before) - 2, 0)], lower
-            )
-            source_costs = list(costs)
+            sources = nodes.children(segment.nodes[0])
+            before = segments[index - 1]
+            toward = before.nodes[max(len(before.nodes) - 2, 0)]
+            source_costs = self._approach(sources, lower, toward, before.level).tolist()
         if index == len(segments) - 1:
-            box = _point(self.goal, lower)
+            targets = [c.node(self.goal, lower)]
         elif segments[index + 1].level <= lower:
             nxt = segments[index + 1]
-            box = _point(project(nxt.source, nxt.level, lower))
+            targets = [c.ancestor(nxt.nodes[0], nxt.level, lower)]
         else:
-            box = _children(segment.target)
-            x, y, _, _ = box
-            after = segments[index + 1].cells
-            costs = self._approach(
-                [(x, y), (x + 1, y), (x, y + 1), (x + 1, y + 1)],
-                segments[index + 1].level,
-                after[min(1, len(after) - 1)],
-                lower,
-            )
-            box_costs = costs.reshape(2, 2)
-        path = self.plan(lower, sources, box, segment.cells, source_costs, box_costs).cells
+            targets = nodes.children(segment.nodes[-1])
+            after = segments[index + 1]
+            toward = after.nodes[min(1, len(after.nodes) - 1)]
+            costs = self._approach(targets, lower, toward, after.level)
+            target_costs = dict(zip(targets, costs.tolist(), strict=True))
+        found = self._search(lower, sources, targets, allowed, source_costs, target_costs)
+        path = found.nodes
         n = len(path) - 1
         if n < 2:
-            return (Segment(lower, path),)
-        return (Segment(lower, path[: n // 2 + 1]), Segment(lower, path[n // 2 :]))
+            return (self.segment(lower, path),)
+        return (self.segment(lower, path[: n // 2 + 1]), self.segment(lower, path[n // 2 :]))
 
     def _approach(
-        self, cells: list[Position], level: int, neighbour: Position, lower: int
+        self, nodes: list[int], level: int, neighbour: int, neighbour_level: int
     ) -> npt.NDArray[np.float64]:
-        """How much farther each of `cells` (at `lower`) is from the centre of the neighbouring
-        segment's next cell (at `level`) than the nearest of them: the cost a flexible junction
-        adds to the neighbour, so that the junction is chosen for both sides."""
-        scale = float(1 << (level - lower))
-        cx, cy = (neighbour[0] + 0.5) * scale, (neighbour[1] + 0.5) * scale
-        xy = np.asarray(cells, dtype=np.float64) + 0.5
-        dx, dy = np.abs(xy[:, 0] - cx), np.abs(xy[:, 1] - cy)
-        if self.movement == 4:
-            d = dx + dy
-        else:
-            d = np.maximum(dx, dy) + (SQRT2 - 1.0) * np.minimum(dx, dy)
+        """How much farther each of `nodes` (at `level`) is from the centre of the neighbouring
+        segment's next node than the nearest of them: the cost a flexible junction adds to the
+        neighbour, so that the junction is chosen for both sides."""
+        c = self.components
+        centre = c.levels[neighbour_level].centre[neighbour]
+        points = c.levels[level].centre[nodes]
+        d = np.hypot(points[:, 0] - centre[0], points[:, 1] - centre[1])
         return np.asarray(d - d.min())
 
 
