@@ -56,8 +56,8 @@ from typing import Any
 
 import numpy as np
 from anytime_navigation.abstraction import Pyramid
-from anytime_navigation.execution import Execution, execute, plan_quality, waypoints
 from anytime_navigation.components import Components
+from anytime_navigation.execution import Execution, execute, plan_quality, waypoints
 from anytime_navigation.movingai import Scenario, load_problems
 from anytime_navigation.planner import MultiPath, atp
 from anytime_navigation.search import find_path

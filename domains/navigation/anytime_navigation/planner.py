@@ -265,8 +265,7 @@ def atp(
         )
     elif components.cell.shape != blocked.shape:
         raise ValueError(
-            f"the components are of a {components.cell.shape} map, the pyramid's is"
-            f" {blocked.shape}"
+            f"the components are of a {components.cell.shape} map, the pyramid's is {blocked.shape}"
         )
     if not _connected(components, start, goal):
         components = Components.build(_opened(blocked, start, goal, movement), movement, top=top)
@@ -370,9 +369,7 @@ class _Planner:
     def segment(self, level: int, nodes: tuple[int, ...]) -> Segment:
         c = self.components
         cells = [c.block(node, level) for node in nodes]
-        regions = (
-            [np.packbits(c.region(node, level)).tobytes() for node in nodes] if level else []
-        )
+        regions = [np.packbits(c.region(node, level)).tobytes() for node in nodes] if level else []
         return Segment(level, cells, nodes, regions)
 
     def _search(
@@ -405,8 +402,6 @@ class _Planner:
         segment = segments[index]
         lower = segment.level - 1
         nodes = c.levels[segment.level]
-        # The children of its nodes (connected: a path exists among them) and their neighbours
-        # one level down: room for the route to cut the corners of the coarse blocks.
         # The children of its nodes (connected: a path exists among them) and their neighbours
         # one level down: room for the route to cut the corners of the coarse blocks.
         inside = {child for node in segment.nodes for child in nodes.children(node)}
