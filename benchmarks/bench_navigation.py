@@ -59,7 +59,7 @@ from anytime_navigation.abstraction import Pyramid
 from anytime_navigation.components import Components
 from anytime_navigation.execution import Execution, execute, plan_quality, waypoints
 from anytime_navigation.movingai import Scenario, load_problems
-from anytime_navigation.planner import MultiPath, atp
+from anytime_navigation.planner import DEFAULT_TOP, MultiPath, atp
 from anytime_navigation.search import find_path
 from anytime_navigation.world import BoolGrid, Position, random_world
 from attrs import frozen
@@ -172,7 +172,7 @@ def abstraction(blocked: BoolGrid, movement: int) -> tuple[Pyramid, Components]:
     """The ATP's description of a map, built once per map: the obstacleness pyramid and the
     connectivity-aware abstraction up to the default first-plan level."""
     pyramid = Pyramid.build(blocked)
-    return pyramid, Components.build(blocked, movement, top=max(pyramid.top - 4, 0))
+    return pyramid, Components.build(blocked, movement, top=min(DEFAULT_TOP, pyramid.top))
 
 
 def corner_suite(size: int, movement: int, worlds: int, repeats: int) -> Suite:

@@ -8,7 +8,14 @@ import numpy as np
 import pytest
 from anytime_navigation.abstraction import Pyramid, project
 from anytime_navigation.execution import execute, optimal_length, plan_quality
-from anytime_navigation.planner import MultiPath, Segment, atp, quality_estimate, segmentize
+from anytime_navigation.planner import (
+    DEFAULT_TOP,
+    MultiPath,
+    Segment,
+    atp,
+    quality_estimate,
+    segmentize,
+)
 from anytime_navigation.world import random_world
 
 from anytime.modules import Context, Result
@@ -46,7 +53,7 @@ def test_first_plan_is_at_the_top_level_in_equal_segments(movement: int, top: in
             Context(), world.start, world.goal, pyramid, movement=movement, top=top, segment_moves=8
         )
     )
-    level = max(pyramid.top - 4, 0) if top is None else top
+    level = min(DEFAULT_TOP, pyramid.top) if top is None else top
     plan = first.value
     assert {s.level for s in plan.segments} == {level}
     assert plan.segments[0].source == project(world.start, 0, level)
@@ -204,9 +211,26 @@ def test_true_quality_is_non_decreasing_in_expectation(movement: int) -> None:
     assert final > 0.9
 
 
-def test_by_default_the_first_plan_is_one_segment_on_a_16_by_16_grid() -> None:
+def test_by_default_the_first_plan_is_one_segment_of_blocks_of_8_by_8_cells() -> None:
     world = random_world(128, seed=2)
     pyramid = Pyramid.build(world.blocked)
     first = next(atp(Context(), world.start, world.goal, pyramid)).value
-    assert [s.level for s in first.segments] == [pyramid.top - 4]
-    assert pyramid.side(pyramid.top - 4) == 16
+    assert [s.level for s in first.segments] == [DEFAULT_TOP] == [3]
+
+
+def test_a_coarse_plan_never_runs_through_a_wall_that_splits_a_block() -> None:
+    """A wall with one door splits the map; with obstacleness the 8 x 8 blocks the wall
+    crosses look passable (one column in eight blocked), with components they are two regions
+    each, and the first plan goes through the door's block."""
+    blocked = np.zeros((64, 64), dtype=bool)
+    blocked[:, 35] = True  # a wall inside the blocks of columns 32..39
+    blocked[60, 35] = False  # its one door, in the bottom block
+    pyramid = Pyramid.build(blocked)
+    first = next(atp(Context(), (2, 2), (62, 2), pyramid, movement=8)).value
+    (segment,) = first.segments
+    crossing = [cell for cell in segment.cells if cell[0] == 35 // 8]
+    assert (35 // 8, 60 // 8) in crossing  # the door's block
+    final = list(atp(Context(), (2, 2), (62, 2), pyramid, movement=8))[-1].value
+    route = final.base_route()
+    assert route is not None and (35, 60) in route
+    assert execute(first, blocked, movement=8).reached

@@ -28,14 +28,15 @@ Arrays are indexed [y, x]; positions are (x, y).
 
 from __future__ import annotations
 
-import heapq
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from attrs import frozen
 from numpy.typing import NDArray
 from scipy import ndimage
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import dijkstra
 
 from .world import BoolGrid, Position, is_power_of_two
 
@@ -68,58 +69,45 @@ class Level:
     movement: int
     grid: IntArray | None = None
 
-    def __attrs_post_init__(self) -> None:
-        # The search reads these one node at a time: Python lists are several times faster
-        # to index than numpy arrays.
-        object.__setattr__(self, "_bx", self.block[:, 0].tolist())
-        object.__setattr__(self, "_by", self.block[:, 1].tolist())
-        object.__setattr__(self, "_x", self.centre[:, 0].tolist())
-        object.__setattr__(self, "_y", self.centre[:, 1].tolist())
-        if self.grid is None:
-            object.__setattr__(self, "_first", self.first.tolist())
-            object.__setattr__(self, "_neighbour", self.neighbour.tolist())
-            object.__setattr__(self, "_cost", self.cost.tolist())
-        else:
-            object.__setattr__(self, "_ids", self.grid.ravel().tolist())
-            object.__setattr__(self, "_side", int(self.grid.shape[0]))
-
     def __len__(self) -> int:
         return len(self.size)
-
-    def neighbours(self, node: int) -> tuple[list[int], list[float]]:
-        """The node's neighbours and the cost of the edge to each."""
-        if self.grid is not None:
-            return self._moves(node)
-        first: list[int] = self._first  # type: ignore[attr-defined]
-        a, b = first[node], first[node + 1]
-        return self._neighbour[a:b], self._cost[a:b]  # type: ignore[attr-defined]
-
-    def _moves(self, node: int) -> tuple[list[int], list[float]]:
-        """Level 0: the legal moves from a cell (no corner cutting)."""
-        ids: list[int] = self._ids  # type: ignore[attr-defined]
-        side: int = self._side  # type: ignore[attr-defined]
-        x, y = int(self._x[node]), int(self._y[node])  # type: ignore[attr-defined]
-        row = y * side
-        left = ids[row + x - 1] if x > 0 else -1
-        right = ids[row + x + 1] if x + 1 < side else -1
-        up = ids[row - side + x] if y > 0 else -1
-        down = ids[row + side + x] if y + 1 < side else -1
-        found = [n for n in (left, right, up, down) if n >= 0]
-        costs = [1.0] * len(found)
-        if self.movement == 8:
-            for dx, dy, a, b in ((-1, -1, left, up), (1, -1, right, up),
-                                 (-1, 1, left, down), (1, 1, right, down)):  # fmt: skip
-                corner = ids[row + dy * side + x + dx] if a >= 0 and b >= 0 else -1
-                if corner >= 0:  # free, and both orthogonal neighbours too
-                    found.append(corner)
-                    costs.append(_SQRT2)
-        return found, costs
 
     def children(self, node: int) -> list[int]:
         return self.child[self.first_child[node] : self.first_child[node + 1]].tolist()
 
+    def children_of(self, nodes: Sequence[int]) -> IntArray:
+        """The children of all of `nodes`, as one array."""
+        parts = [self.child[self.first_child[n] : self.first_child[n + 1]] for n in nodes]
+        return np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
+
+    def edges_of(self, nodes: IntArray) -> tuple[IntArray, IntArray, FloatArray]:
+        """Every edge leaving `nodes`: (tail, head, cost) arrays, tails among `nodes`."""
+        if self.grid is None:
+            counts = self.first[nodes + 1] - self.first[nodes]
+            starts = np.repeat(self.first[nodes] - np.cumsum(counts) + counts, counts)
+            index = starts + np.arange(int(counts.sum()))
+            return np.repeat(nodes, counts), self.neighbour[index], self.cost[index]
+        grid, side = self.grid, self.grid.shape[0]
+        x, y = self.block[nodes, 0], self.block[nodes, 1]
+        tails, heads, costs = [], [], []
+        moves = _STRAIGHT_MOVES + (_DIAGONAL_MOVES if self.movement == 8 else ())
+        for dx, dy, step in moves:
+            nx, ny = x + dx, y + dy
+            inside = (nx >= 0) & (nx < side) & (ny >= 0) & (ny < side)
+            cx, cy = np.clip(nx, 0, side - 1), np.clip(ny, 0, side - 1)
+            head = np.where(inside, grid[cy, cx], -1)
+            ok = head >= 0
+            if dx and dy:  # no corner cutting: both orthogonal neighbours free
+                ok &= (grid[y, cx] >= 0) & (grid[cy, x] >= 0)
+            tails.append(nodes[ok])
+            heads.append(head[ok])
+            costs.append(np.full(int(ok.sum()), step))
+        return np.concatenate(tails), np.concatenate(heads), np.concatenate(costs)
+
 
 _SQRT2 = math.sqrt(2.0)
+_STRAIGHT_MOVES = ((1, 0, 1.0), (-1, 0, 1.0), (0, 1, 1.0), (0, -1, 1.0))
+_DIAGONAL_MOVES = ((1, 1, _SQRT2), (-1, 1, _SQRT2), (1, -1, _SQRT2), (-1, -1, _SQRT2))
 
 
 @frozen(eq=False)
@@ -142,6 +130,7 @@ class Components:
     levels: tuple[Level, ...]
     grids: tuple[IntArray, ...]
     movement: int
+    regions: IntArray  # the connected free region of each base cell (-1 where blocked)
 
     @property
     def cell(self) -> IntArray:
@@ -213,7 +202,8 @@ class Components:
                     labels if k == 0 else None,
                 )
             )
-        return cls(tuple(levels), tuple(grids), movement)
+        regions, _ = ndimage.label(free)  # 4-connected: octile moves join the same cells
+        return cls(tuple(levels), tuple(grids), movement, regions.astype(np.int64) - 1)
 
     @property
     def top(self) -> int:
@@ -231,8 +221,13 @@ class Components:
         return node
 
     def block(self, node: int, level: int) -> Position:
-        nodes = self.levels[level]
-        return (nodes._bx[node], nodes._by[node])  # type: ignore[attr-defined]
+        x, y = self.levels[level].block[node]
+        return (int(x), int(y))
+
+    def connected(self, one: Position, other: Position) -> bool:
+        """Whether a route joins two free base cells."""
+        (ax, ay), (bx, by) = one, other
+        return bool(self.regions[ay, ax] >= 0 and self.regions[ay, ax] == self.regions[by, bx])
 
     def region(self, node: int, level: int) -> BoolGrid:
         """Which cells of the node's block belong to it, a (2^level, 2^level) mask [y, x]."""
@@ -240,100 +235,56 @@ class Components:
         bx, by = self.block(node, level)
         return self.grids[level][by * side : (by + 1) * side, bx * side : (bx + 1) * side] == node
 
-    def search(
+    def corridor(
         self,
         level: int,
+        allowed: IntArray,
         sources: Sequence[int],
-        targets: Iterable[int],
+        targets: Sequence[int],
         *,
-        allowed: set[int] | None = None,
         source_costs: Sequence[float] | None = None,
-        target_costs: dict[int, float] | None = None,
+        target_costs: Sequence[float] | None = None,
         limit: float = math.inf,
     ) -> NodePath | None:
         """A cheapest path of neighbouring nodes at `level` from any of `sources` to any of
-        `targets`, through `allowed` nodes only (all by default): A* with the distance to the
-        nearest target's centre as its heuristic (consistent: edge costs are distances between
-        centres). `source_costs` and `target_costs` are extra costs of starting or ending at
-        a node. None when no target can be reached.
+        `targets` through the `allowed` nodes (sources and targets among them), with the extra
+        costs of starting and ending at each: Dijkstra's algorithm over the corridor in C
+        (`scipy.sparse.csgraph`), every node of which counts as expanded. None when no target
+        can be reached.
 
         Raises:
-            SearchLimit: more than `limit` expansions were needed.
+            SearchLimit: the corridor has more than `limit` nodes (nothing is searched).
         """
         from .search import SearchLimit
 
-        nodes = self.levels[level]
-        goal = list(targets)
-        end = target_costs or {}
-        goal_set = set(goal)
-        if not goal_set:
+        nodes = np.unique(np.asarray(allowed, dtype=np.int64))
+        n = len(nodes)
+        if n > limit:
+            raise SearchLimit(int(limit))
+        tails, heads, costs = self.levels[level].edges_of(nodes)
+        local = np.searchsorted(nodes, heads)
+        ok = (local < n) & (nodes[np.minimum(local, n - 1)] == heads)
+        tails, local, costs = np.searchsorted(nodes, tails[ok]), local[ok], costs[ok]
+        start, finish = n, n + 1  # a source before every source, a target after every target
+        s_local = np.searchsorted(nodes, np.asarray(sources, dtype=np.int64))
+        t_local = np.searchsorted(nodes, np.asarray(targets, dtype=np.int64))
+        s_costs = np.zeros(len(s_local)) if source_costs is None else np.asarray(source_costs)
+        t_costs = np.zeros(len(t_local)) if target_costs is None else np.asarray(target_costs)
+        rows = np.concatenate([tails, np.full(len(s_local), start), t_local])
+        cols = np.concatenate([local, s_local, np.full(len(t_local), finish)])
+        # Explicit zeros are no edges to csgraph: the free ends cost a hair.
+        weights = np.concatenate([costs, s_costs + 1e-12, t_costs + 1e-12])
+        graph = csr_matrix((weights, (rows, cols)), shape=(n + 2, n + 2))
+        distance, previous = dijkstra(graph, indices=start, return_predecessors=True)
+        if not np.isfinite(distance[finish]):
             return None
-        xs: list[float] = nodes._x  # type: ignore[attr-defined]
-        ys: list[float] = nodes._y  # type: ignore[attr-defined]
-        goals = [(xs[t], ys[t]) for t in goal]
-        diagonal = math.sqrt(2) - 1
-        octile = level == 0 and self.movement == 8
-        manhattan = level == 0 and self.movement == 4
-
-        def h(node: int) -> float:
-            cx, cy = xs[node], ys[node]
-            best = math.inf
-            for gx, gy in goals:
-                dx, dy = abs(gx - cx), abs(gy - cy)
-                if manhattan:
-                    d = dx + dy
-                elif octile:
-                    d = max(dx, dy) + diagonal * min(dx, dy)
-                else:
-                    d = math.hypot(dx, dy)
-                best = min(best, d)
-            return best
-
-        g: dict[int, float] = {}
-        parent: dict[int, int] = {}
-        heap: list[tuple[float, float, int]] = []
-        for i, source in enumerate(sources):
-            if allowed is not None and source not in allowed:
-                continue
-            cost = 0.0 if source_costs is None else float(source_costs[i])
-            if cost < g.get(source, math.inf):
-                g[source] = cost
-                parent[source] = -1
-                heapq.heappush(heap, (cost + h(source), -cost, source))
-        closed: set[int] = set()
-        expansions = 0
-        while heap:
-            _, negative, node = heapq.heappop(heap)
-            if node < 0:  # the finish of a path ending at target -node - 1
-                target = -node - 1
-                return NodePath(level, _unwind(parent, target), g[target], expansions)
-            if node in closed:
-                continue
-            closed.add(node)
-            cost = -negative
-            if node in goal_set:  # finishing here costs its ending cost more (h is 0 here)
-                total = cost + end.get(node, 0.0)
-                heapq.heappush(heap, (total, -total, -node - 1))
-            if expansions + 1 > limit:  # this expansion would take it past its limit
-                raise SearchLimit(expansions)
-            expansions += 1
-            neighbours, steps = nodes.neighbours(node)
-            for neighbour, step in zip(neighbours, steps, strict=True):
-                if neighbour in closed or (allowed is not None and neighbour not in allowed):
-                    continue
-                reach = cost + step
-                if reach < g.get(neighbour, math.inf):
-                    g[neighbour] = reach
-                    parent[neighbour] = node
-                    heapq.heappush(heap, (reach + h(neighbour), -reach, neighbour))
-        return None
-
-
-def _unwind(parent: dict[int, int], node: int) -> tuple[int, ...]:
-    path = [node]
-    while parent[path[-1]] >= 0:
-        path.append(parent[path[-1]])
-    return tuple(reversed(path))
+        path = []
+        at = int(previous[finish])
+        while at != start:
+            path.append(int(nodes[at]))
+            at = int(previous[at])
+        expansions = int(np.count_nonzero(np.isfinite(distance[:n])))
+        return NodePath(level, tuple(reversed(path)), float(distance[finish]), expansions)
 
 
 def _block_labels(free: BoolGrid, side: int) -> IntArray:
@@ -358,11 +309,13 @@ def _adjacency(
     cut = np.arange(side - 1, labels.shape[0] - 1, side)  # the last row/column of each block
     pairs.append((labels[:, cut], labels[:, cut + 1]))  # across a vertical boundary
     pairs.append((labels[cut, :], labels[cut + 1, :]))  # across a horizontal boundary
-    if movement == 8:  # diagonal moves with both orthogonal neighbours free
-        free = labels >= 0
-        square = free[:-1, :-1] & free[:-1, 1:] & free[1:, :-1] & free[1:, 1:]
-        pairs.append((np.where(square, labels[:-1, :-1], -1), labels[1:, 1:]))
-        pairs.append((np.where(square, labels[:-1, 1:], -1), labels[1:, :-1]))
+    if movement == 8:  # diagonal moves across a boundary, both orthogonal neighbours free
+        for rows, cols in ((slice(None), cut), (cut, slice(None))):
+            top = labels[:-1, :-1][rows, cols], labels[:-1, 1:][rows, cols]
+            bottom = labels[1:, :-1][rows, cols], labels[1:, 1:][rows, cols]
+            square = (top[0] >= 0) & (top[1] >= 0) & (bottom[0] >= 0) & (bottom[1] >= 0)
+            pairs.append((np.where(square, top[0], -1), bottom[1]))
+            pairs.append((np.where(square, top[1], -1), bottom[0]))
     a = np.concatenate([one.ravel() for one, _ in pairs])
     b = np.concatenate([two.ravel() for _, two in pairs])
     keep = (a >= 0) & (b >= 0) & (a != b)

@@ -107,18 +107,29 @@ def waypoints(plan: MultiPath) -> list[Waypoint]:
     gets into it: a coarse segment ending where a finer one starts, or SEGMENTIZE(goal) going
     down). The first waypoint is the start's base cell, the last the goal's.
     """
-    kept: list[tuple[int, Position, Box]] = [(0, plan.start, cell_bounds(plan.start, 0))]
-    sequence = [(s.level, c) for s in plan.parts for c in s.cells] + [(0, plan.goal)]
-    for level, cell in sequence:
+    return [(level, cell) for level, cell, _ in _targets(plan)]
+
+
+def _targets(plan: MultiPath) -> list[tuple[int, Position, int | None]]:
+    """`waypoints` with the abstraction's node of each (None where the plan has none)."""
+    kept: list[tuple[int, Position, int | None, Box]] = [
+        (0, plan.start, None, cell_bounds(plan.start, 0))
+    ]
+    sequence = [
+        (s.level, c, s.nodes[i] if s.nodes else None)
+        for s in plan.parts
+        for i, c in enumerate(s.cells)
+    ] + [(0, plan.goal, None)]
+    for level, cell, node in sequence:
         box = cell_bounds(cell, level)
-        if _contains(box, kept[-1][2]):
+        if _contains(box, kept[-1][3]):
             continue
-        while len(kept) > 1 and _contains(kept[-1][2], box):
+        while len(kept) > 1 and _contains(kept[-1][3], box):
             kept.pop()
-        if _contains(box, kept[-1][2]):
+        if _contains(box, kept[-1][3]):
             continue
-        kept.append((level, cell, box))
-    return [(level, cell) for level, cell, _ in kept]
+        kept.append((level, cell, node, box))
+    return [(level, cell, node) for level, cell, node, _ in kept]
 
 
 def execute(
@@ -150,15 +161,19 @@ def execute(
         raise ValueError(f"the map must be a 2-D grid blocked[y, x], got shape {grid.shape}")
     if movement not in (4, 8):
         raise ValueError(f"movement must be 4 or 8, got {movement!r}")
+    regions: list[BoolGrid | None]
     if isinstance(plan, MultiPath):
         start, goal = plan.start, plan.goal
-        points = waypoints(plan)
+        targets = _targets(plan)
+        points = [(level, cell) for level, cell, _ in targets]
+        regions = [plan.region(level, node) for level, _, node in targets]
     else:
         cells = [(int(x), int(y)) for x, y in plan]
         if not cells:
             raise ValueError("a plan needs at least one cell")
         start, goal = cells[0], cells[-1]
         points = [(0, c) for c in cells]
+        regions = [None] * len(points)
     height, width = grid.shape
     boxes = [_clip(cell_bounds(c, level), width, height, (level, c)) for level, c in points]
     sx, sy = start
@@ -177,17 +192,21 @@ def execute(
 
     route: list[Position] = [start]
     expansions = 0
-    for x0, y0, x1, y1 in boxes:
+    for (x0, y0, x1, y1), region in zip(boxes, regions, strict=True):
+        target = ok[y0:y1, x0:x1]
+        if region is not None:  # the node's cells (as the plan's map says) that can be reached
+            aimed = target & region[: y1 - y0, : x1 - x0]
+            target = aimed if aimed.any() else target
         x, y = route[-1]
-        if x0 <= x < x1 and y0 <= y < y1:
+        if x0 <= x < x1 and y0 <= y < y1 and target[y - y0, x - x0]:
             continue
-        if not ok[y0:y1, x0:x1].any():
+        if not target.any():
             continue  # nothing of this block can be reached: skip the waypoint
-        step = _step_into(grid, ok, route[-1], (x0, y0, x1, y1), movement)
+        step = _step_into(grid, target, route[-1], (x0, y0, x1, y1), movement)
         if step is not None:
             route.append(step)
             continue
-        path, work = _feel_into(grid, memory, route[-1], (x0, y0, x1, y1), movement)
+        path, work = _feel_into(grid, memory, route[-1], (x0, y0, x1, y1), target, movement)
         expansions += work
         if tick is not None:
             tick(work)
@@ -253,15 +272,15 @@ def _clip(box: Box, width: int, height: int, what: Waypoint) -> Box:
 
 
 def _step_into(
-    grid: BoolGrid, ok: BoolGrid, position: Position, box: Box, movement: int
+    grid: BoolGrid, target: BoolGrid, position: Position, box: Box, movement: int
 ) -> Position | None:
-    """A cell of `box` reachable (per `ok`) one legal move from `position`, straight moves
-    first; None when there is none."""
+    """A cell of `box` that is a target (`target`, the box's mask) one legal move from
+    `position`, straight moves first; None when there is none."""
     x, y = position
     x0, y0, x1, y1 = box
     for dx, dy in _STRAIGHT if movement == 4 else _STRAIGHT + _DIAGONAL:
         nx, ny = x + dx, y + dy
-        if not (x0 <= nx < x1 and y0 <= ny < y1) or not ok[ny, nx]:
+        if not (x0 <= nx < x1 and y0 <= ny < y1) or not target[ny - y0, nx - x0]:
             continue
         if dx and dy and (grid[y, nx] or grid[ny, x]):
             continue  # no corner cutting
@@ -270,19 +289,26 @@ def _step_into(
 
 
 def _feel_into(
-    grid: BoolGrid, memory: BoolGrid, position: Position, box: Box, movement: int
+    grid: BoolGrid,
+    memory: BoolGrid,
+    position: Position,
+    box: Box,
+    target: BoolGrid,
+    movement: int,
 ) -> tuple[list[Position], int]:
-    """Obstacle avoidance toward `box` with the free-space assumption (see the module
-    docstring): plan with A* on `memory` (the blocked cells the robot has seen; updated in
-    place), walk the path, re-plan when a cell seen blocked is in the way. Returns the cells
-    walked (`position` first) and the A* expansions."""
+    """Obstacle avoidance toward the `target` cells of `box` (a mask of the box) with the
+    free-space assumption (see the module docstring): plan with A* on `memory` (the blocked
+    cells the robot has seen; updated in place), walk the path, re-plan when a cell seen
+    blocked is in the way. Returns the cells walked (`position` first) and the A*
+    expansions."""
     height, width = grid.shape
     x0, y0, x1, y1 = box
     walked = [position]
     work = 0
     x, y = position
     _see(grid, memory, x, y)
-    while not (x0 <= x < x1 and y0 <= y < y1):
+    ending = np.where(target, 0.0, -1.0)
+    while not (x0 <= x < x1 and y0 <= y < y1 and target[y - y0, x - x0]):
         path = None
         margin = 8
         while path is None:
@@ -296,6 +322,7 @@ def _feel_into(
                 movement=movement,
                 weight=0.0,
                 impassable=seen,
+                box_costs=ending,  # only at a target: the box's other cells may be crossed
             )
             if found is not None:
                 work += found.expansions

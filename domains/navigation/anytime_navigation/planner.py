@@ -17,10 +17,15 @@ path segments of arbitrary abstraction level".
 
 Junctions. Consecutive segments meet at a junction cell: the last cell of one and the first of
 the next are the same cell when both segments have one level, and otherwise the finer one's
-cell lies inside the coarser one's (projected up to the coarser level they are equal). An
-executor can therefore follow a mixed-level plan segment by segment: a level-k cell means "go
-into that 2^k x 2^k block". The only exception is the rare fallback of `_descend` (a block with
-no child reachable at the finer level), where the junction moves to the nearest reachable cell.
+cell lies inside the coarser one's (projected up to the coarser level they are equal), and so
+does its node. An executor can therefore follow a mixed-level plan segment by segment: a
+level-k cell with its node means "go into that connected region of the 2^k x 2^k block"
+(`MultiPath.region`).
+
+PATH-FINDER and REFINE work on the connectivity-aware abstraction (`components`): a level-k plan
+is a path of neighbouring nodes, each a connected free region of one block, and a refinement
+searches the children of the refined segment's nodes and of their neighbours, a corridor that
+always holds a path (Dijkstra's algorithm over it, in C: every node of the corridor is a tick).
 """
 
 from __future__ import annotations
@@ -40,7 +45,20 @@ from .components import Components, NodePath
 from .search import SearchLimit, find_path
 from .world import BoolGrid, Position
 
-__all__ = ["MultiPath", "Segment", "atp", "quality_estimate", "segmentize", "worst_segment"]
+#: The level of the first plan by default: blocks of 8 x 8 cells (measured on the MovingAI maps of
+#: every kind, benchmarks/bench_navigation.py: coarser first plans confine the refinements to
+#: worse corridors; finer ones cost more to refine).
+DEFAULT_TOP = 3
+
+__all__ = [
+    "DEFAULT_TOP",
+    "MultiPath",
+    "Segment",
+    "atp",
+    "quality_estimate",
+    "segmentize",
+    "worst_segment",
+]
 
 
 def _cells(value: object) -> tuple[Position, ...]:
@@ -106,6 +124,16 @@ class MultiPath:
     head: tuple[Segment, ...]
     segments: tuple[Segment, ...]
     tail: tuple[Segment, ...]
+    # The abstraction the segments' nodes are of (None for a plan made without one): what an
+    # executor reads a node's cells from, to aim at the region a node means, not its block.
+    abstraction: Components | None = field(default=None, eq=False, repr=False)
+
+    def region(self, level: int, node: int | None) -> BoolGrid | None:
+        """The cells of its block a node of the plan holds, a (2^level, 2^level) mask [y, x];
+        None when the plan does not say (no abstraction or node: the whole block is meant)."""
+        if self.abstraction is None or node is None or level == 0:
+            return None
+        return self.abstraction.region(node, level)
 
     @property
     def parts(self) -> tuple[Segment, ...]:
@@ -220,8 +248,7 @@ def atp(
         pyramid: the obstacleness pyramid of the map planned on (possibly a noisy one).
         movement: 4 or 8, at every level.
         top: the level of the first plan (the papers' "highest level of abstraction"). By
-            default the level whose grid is 16 x 16 blocks (the pyramid's top on smaller maps):
-            the pyramid's own top is one block, a first plan that says nothing.
+            default `DEFAULT_TOP`, blocks of 8 x 8 cells (the pyramid's top on smaller maps).
         segment_moves: the first plan is cut into segments of at most this many moves, of
             equal length (None, the default: one segment, as in the pseudocode). Segment length
             is what refinement keeps invariant, so it sets the grain of the anytime behaviour:
@@ -247,7 +274,7 @@ def atp(
         ValueError: a blocked start or goal, a top outside the pyramid, segment_moves < 1, or
             components of another map or movement.
     """
-    top = max(pyramid.top - 4, 0) if top is None else top
+    top = min(DEFAULT_TOP, pyramid.top) if top is None else top
     if segment_moves is not None and segment_moves < 1:
         raise ValueError(f"segment_moves must be >= 1 or None, got {segment_moves}")
     if not 0 <= top <= pyramid.top:
@@ -267,7 +294,7 @@ def atp(
         raise ValueError(
             f"the components are of a {components.cell.shape} map, the pyramid's is {blocked.shape}"
         )
-    if not _connected(components, start, goal):
+    if not components.connected(start, goal):
         components = Components.build(_opened(blocked, start, goal, movement), movement, top=top)
     planner = _Planner(components, start, goal, ctx)
     try:
@@ -277,7 +304,12 @@ def atp(
         return
     segments = [planner.segment(top, part) for part in _pieces(first, segment_moves)]
     plan = MultiPath(
-        start, goal, segmentize(start, top), tuple(segments), segmentize(goal, top)[::-1]
+        start,
+        goal,
+        segmentize(start, top),
+        tuple(segments),
+        segmentize(goal, top)[::-1],
+        components,
     )
     # WORST-SEGMENT as a heap of (-score, creation order, segment), stale entries skipped; the
     # quality estimate as running sums: no rescan of the plan per refinement.
@@ -319,7 +351,7 @@ def atp(
         segments[index : index + 1] = new
         head = plan.head[:-1] if index == 0 else plan.head
         tail = plan.tail[1:] if index == len(segments) - len(new) else plan.tail
-        plan = MultiPath(start, goal, head, tuple(segments), tail)
+        plan = MultiPath(start, goal, head, tuple(segments), tail, components)
         yield Result(plan, 1.0 if not live else _clip(sums[1] / sums[0]))
 
 
@@ -333,19 +365,13 @@ def _pieces(path: NodePath, most: int | None) -> list[tuple[int, ...]]:
     return [nodes[a : b + 1] for a, b in zip(bounds, bounds[1:], strict=False)]
 
 
-def _connected(components: Components, start: Position, goal: Position) -> bool:
-    """Whether start and goal are in one connected region (one node at the top level)."""
-    top = components.top
-    return components.node(start, top) == components.node(goal, top) or (
-        components.search(top, [components.node(start, top)], [components.node(goal, top)])
-        is not None
-    )
-
-
 def _opened(blocked: BoolGrid, start: Position, goal: Position, movement: int) -> BoolGrid:
     """`blocked` with the walls between start and goal opened: the blocked cells of the
     cheapest route that counts a blocked cell as two free ones."""
-    found = find_path(blocked, start, goal, movement=movement, weight=1.0)
+    grid = np.asarray(blocked, dtype=bool)
+    found = find_path(
+        grid, start, goal, movement=movement, weight=1.0, impassable=np.zeros_like(grid)
+    )
     assert found is not None  # every cell is passable at a cost
     opened = np.array(blocked, dtype=bool)
     for x, y in found.path:
@@ -364,36 +390,22 @@ class _Planner:
     def first(self, level: int) -> NodePath:
         """The first plan: a path of nodes at `level` from the start's node to the goal's."""
         c = self.components
-        return self._search(level, [c.node(self.start, level)], [c.node(self.goal, level)])
-
-    def segment(self, level: int, nodes: tuple[int, ...]) -> Segment:
-        c = self.components
-        cells = [c.block(node, level) for node in nodes]
-        regions = [np.packbits(c.region(node, level)).tobytes() for node in nodes] if level else []
-        return Segment(level, cells, nodes, regions)
-
-    def _search(
-        self,
-        level: int,
-        sources: list[int],
-        targets: list[int],
-        allowed: set[int] | None = None,
-        source_costs: list[float] | None = None,
-        target_costs: dict[int, float] | None = None,
-    ) -> NodePath:
-        found = self.components.search(
+        every = np.arange(len(c.levels[level]))
+        found = c.corridor(
             level,
-            sources,
-            targets,
-            allowed=allowed,
-            source_costs=source_costs,
-            target_costs=target_costs,
+            every,
+            [c.node(self.start, level)],
+            [c.node(self.goal, level)],
             limit=self.ctx.remaining,
         )
         if found is None:
             raise AssertionError(f"no path at level {level} between connected nodes")
         self.ctx.tick(found.expansions)
         return found
+
+    def segment(self, level: int, nodes: tuple[int, ...]) -> Segment:
+        cells = self.components.levels[level].block[list(nodes)].tolist()
+        return Segment(level, cells, nodes)
 
     def refine(self, segments: list[Segment], index: int) -> tuple[Segment, ...]:
         """REFINE route segment `index`: its replacement, two halves one level lower (one
@@ -402,13 +414,13 @@ class _Planner:
         segment = segments[index]
         lower = segment.level - 1
         nodes = c.levels[segment.level]
-        # The children of its nodes (connected: a path exists among them) and their neighbours
-        # one level down: room for the route to cut the corners of the coarse blocks.
-        inside = {child for node in segment.nodes for child in nodes.children(node)}
-        below = c.levels[lower]
-        allowed = inside | {n for child in inside for n in below.neighbours(child)[0]}
+        # The children of its nodes (connected: a path exists among them) and of their
+        # neighbours: room for the route to leave the coarse blocks where that is shorter.
+        path = np.asarray(segment.nodes, dtype=np.int64)
+        around = np.unique(np.concatenate([path, nodes.edges_of(path)[1]]))
+        allowed = nodes.children_of(around.tolist())
         source_costs: list[float] | None = None
-        target_costs: dict[int, float] | None = None
+        target_costs: list[float] | None = None
         if index == 0:
             sources = [c.node(self.start, lower)]
         elif segments[index - 1].level <= lower:
@@ -428,9 +440,19 @@ class _Planner:
             targets = nodes.children(segment.nodes[-1])
             after = segments[index + 1]
             toward = after.nodes[min(1, len(after.nodes) - 1)]
-            costs = self._approach(targets, lower, toward, after.level)
-            target_costs = dict(zip(targets, costs.tolist(), strict=True))
-        found = self._search(lower, sources, targets, allowed, source_costs, target_costs)
+            target_costs = self._approach(targets, lower, toward, after.level).tolist()
+        found = self.components.corridor(
+            lower,
+            allowed,
+            sources,
+            targets,
+            source_costs=source_costs,
+            target_costs=target_costs,
+            limit=self.ctx.remaining,
+        )
+        if found is None:
+            raise AssertionError(f"no path at level {lower} through the children of a path")
+        self.ctx.tick(found.expansions)
         path = found.nodes
         n = len(path) - 1
         if n < 2:

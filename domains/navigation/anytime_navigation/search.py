@@ -126,7 +126,8 @@ def find_path_to_box(
 
     `source_costs` (one per source) and `box_costs` (shape of the box, `[y, x]`) are extra
     costs, >= 0, of starting at a source and of ending at a box cell: the path minimises their
-    sum with the path's own cost (`PathResult.cost` includes them). `limit` bounds the
+    sum with the path's own cost (`PathResult.cost` includes them); a negative box cost says the
+    path may not end at that cell (it may still cross it). `limit` bounds the
     expansions: reaching it raises `SearchLimit` (an anytime caller's deadline). The heuristic
     is the Manhattan or octile distance to the nearest cell of the box (still consistent).
     Impassable sources are ignored and impassable box cells cannot be reached; otherwise as

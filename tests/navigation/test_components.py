@@ -1,0 +1,137 @@
+"""The connectivity-aware abstraction: every level's nodes are the 4-connected free regions of
+its blocks, found one block at a time by brute force; neighbours are exactly the nodes a legal
+move joins; a node's children are its cells' nodes one level down and are connected among
+themselves; a corridor search at level 0 finds A*'s optimal length."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from anytime_navigation.components import Components
+from anytime_navigation.search import SearchLimit, find_path
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy import ndimage
+
+maps = st.builds(
+    lambda seed, density, side: np.random.default_rng(seed).random((side, side)) < density,
+    st.integers(0, 2**31),
+    st.floats(0.0, 0.6),
+    st.sampled_from([8, 16, 32]),
+)
+
+MOVES = {
+    4: ((1, 0), (0, 1)),
+    8: ((1, 0), (0, 1), (1, 1), (-1, 1)),
+}
+
+
+def _legal_moves(
+    blocked: np.ndarray, movement: int
+) -> list[tuple[tuple[int, int], tuple[int, int]]]:
+    side = blocked.shape[0]
+    moves = []
+    for y in range(side):
+        for x in range(side):
+            for dx, dy in MOVES[movement]:
+                nx, ny = x + dx, y + dy
+                if not (0 <= nx < side and 0 <= ny < side) or blocked[y, x] or blocked[ny, nx]:
+                    continue
+                if dx and dy and (blocked[y, nx] or blocked[ny, x]):
+                    continue
+                moves.append(((x, y), (nx, ny)))
+    return moves
+
+
+@settings(max_examples=40, deadline=None)
+@given(maps, st.sampled_from([4, 8]))
+def test_nodes_are_the_free_regions_of_each_block_and_neighbours_the_moves_between(
+    blocked: np.ndarray, movement: int
+) -> None:
+    c = Components.build(blocked, movement)
+    side = blocked.shape[0]
+    moves = _legal_moves(blocked, movement)
+    for k, level in enumerate(c.levels):
+        grid, size = c.grids[k], 1 << k
+        # The same partition of each block as labelling the block alone.
+        for by in range(side // size):
+            for bx in range(side // size):
+                window = (slice(by * size, (by + 1) * size), slice(bx * size, (bx + 1) * size))
+                alone, count = ndimage.label(~blocked[window])
+                ours = grid[window]
+                pairs = {(int(a), int(b)) for a, b in zip(alone.ravel(), ours.ravel(), strict=True)}
+                assert (
+                    len({a for a, _ in pairs if a}) == count == len({b for _, b in pairs if b >= 0})
+                )
+                assert len(pairs) == count + (1 if (alone == 0).any() else 0)
+                assert all(level.block[b].tolist() == [bx, by] for a, b in pairs if a)
+        assert np.array_equal(level.size, np.bincount(grid[grid >= 0], minlength=len(level)))
+        if k < c.top:  # the parent of a node holds all its cells
+            parents = c.levels[k].parent[grid[grid >= 0]]
+            assert np.array_equal(parents, c.grids[k + 1][grid >= 0])
+        if k == 0:
+            continue
+        expected = {
+            frozenset((int(grid[ay, ax]), int(grid[by_, bx_])))
+            for (ax, ay), (bx_, by_) in moves
+            if grid[ay, ax] != grid[by_, bx_]
+        }
+        edges = set()
+        for node in range(len(level)):
+            tails, heads, costs = level.edges_of(np.array([node]))
+            edges |= {frozenset((node, int(h))) for h in heads}
+            centre = level.centre
+            assert np.allclose(costs, np.hypot(*(centre[heads] - centre[node]).T))
+        assert edges == expected
+        for node in range(len(level)):  # its children, connected among themselves
+            children = level.children(node)
+            assert sorted(children) == sorted(set(c.grids[k - 1][grid == node].tolist()))
+            region = np.isin(c.grids[k - 1], children)
+            _, count = ndimage.label(region)
+            assert count == 1
+
+
+@settings(max_examples=40, deadline=None)
+@given(maps, st.sampled_from([4, 8]), st.data())
+def test_a_corridor_over_every_cell_finds_the_optimal_length(
+    blocked: np.ndarray, movement: int, data: st.DataObject
+) -> None:
+    free = np.argwhere(~blocked)
+    if len(free) < 2:
+        return
+    i, j = data.draw(st.integers(0, len(free) - 1)), data.draw(st.integers(0, len(free) - 1))
+    (sy, sx), (gy, gx) = free[i], free[j]
+    c = Components.build(blocked, movement, top=0)
+    every = np.arange(len(c.levels[0]))
+    found = c.corridor(0, every, [c.node((sx, sy), 0)], [c.node((gx, gy), 0)])
+    best = find_path(blocked, (sx, sy), (gx, gy), movement=movement, weight=0.0)
+    assert (found is None) == (best is None) == (not c.connected((sx, sy), (gx, gy)))
+    if found is not None and best is not None:
+        assert math.isclose(found.cost, best.length, rel_tol=1e-9, abs_tol=1e-9)
+        cells = [c.block(node, 0) for node in found.nodes]
+        assert cells[0] == (sx, sy) and cells[-1] == (gx, gy)
+
+
+def test_a_corridor_larger_than_the_limit_is_not_searched() -> None:
+    c = Components.build(np.zeros((16, 16), dtype=bool), 8)
+    with pytest.raises(SearchLimit):
+        c.corridor(0, np.arange(256), [0], [255], limit=100)
+
+
+def test_a_block_split_by_a_wall_is_two_nodes() -> None:
+    blocked = np.zeros((8, 8), dtype=bool)
+    blocked[:, 3] = True
+    c = Components.build(blocked, 4)
+    assert len(c.levels[3]) == 2  # the whole map: left of the wall, right of it
+    assert not c.connected((0, 0), (7, 7))
+    left = c.node((0, 0), 3)
+    assert c.region(left, 3)[:, :3].all() and not c.region(left, 3)[:, 3:].any()
+
+
+def test_it_refuses_a_map_it_cannot_cut_into_blocks() -> None:
+    with pytest.raises(ValueError, match=r"square with a power-of-two side, got \(6, 6\)"):
+        Components.build(np.zeros((6, 6), dtype=bool))
+    with pytest.raises(ValueError, match="movement must be 4 or 8, got 6"):
+        Components.build(np.zeros((8, 8), dtype=bool), 6)
