@@ -19,13 +19,14 @@
    maps, the shipped three and ten more in benchmarks/data/movingai/ (rooms of 16, 32 and 64,
    mazes of corridor widths 2, 4 and 8, two street maps, a Baldur's Gate II and a Dragon Age
    map): first plan quality and time, final quality mean (min), time and expansions as
-   fractions of A*'s, the time with the pyramid's one-off build added, `pathfinding`'s query
+   fractions of A*'s, the time with the abstraction's one-off build added, `pathfinding`'s query
    time against ours (where it is installed), and issue 17's targets. Optimal lengths are our
    A*'s: the old-style `.scen` files round theirs to 5 digits (all agree with A*'s to that).
 
 Timing: `time.perf_counter`, the garbage collector paused, the sides interleaved per problem
 (A*, then each ATP configuration; ours, then theirs), the best of `--repeats` runs per problem
-and side. ATP's time is planning only: its abstraction pyramid is built once per map, timed
+and side. ATP's time is planning only: its abstraction (the obstacleness pyramid and the
+connected components of every block) is built once per map, timed
 separately (shown as a fraction of A*'s total time on that map's problems), and the execution
 of its plans, which yields the quality, is not timed (and is given up after `EXECUTION_BUDGET`
 times A*'s time: the first plan's quality is then unknown). `pathfinding`'s grid is built once
@@ -105,7 +106,7 @@ CONFIGS: dict[str, dict[str, Any]] = {
 PAPERS = (0.93, 0.27)
 TARGET = (0.95, 0.15)
 #: Issue 17's targets on every map kind: final quality mean and min at most this fraction of
-#: A*'s time (totals, the pyramid included); the first plan's quality within this fraction.
+#: A*'s time (totals, the abstraction included); the first plan's quality within this fraction.
 KIND_TARGET = (0.97, 0.93, 0.12)
 FIRST_TARGET = (0.85, 0.02)
 
@@ -133,7 +134,7 @@ class Suite:
     movement: int
     problems: list[Problem]
     large: bool  # 512 x 512: the target applies
-    pyramid_seconds: float  # building the pyramids of its maps, once per map
+    abstraction_seconds: float  # building the abstractions of its maps, once per map
 
 
 @frozen
@@ -365,7 +366,7 @@ def bench_atp(suites: list[Suite], repeats: int) -> str:
         "first plan time / A*",
         "expansions / A*",
         "refinements",
-        "pyramid / A*",
+        "abstraction / A*",
         "first plan exec. exp. / A*",
         "target met",
     ]
@@ -376,8 +377,9 @@ def bench_atp(suites: list[Suite], repeats: int) -> str:
         " minimum; time / A* (mean): the mean over problems of ATP time / A* time, each the best\n"
         f" of {repeats} runs; (totals): total ATP time / total A* time; first plan time: to the\n"
         " first yield; expansions / A*: total ATP expansions (of all its searches) / total A*\n"
-        " expansions; refinements: mean per problem; pyramid / A*: building the abstraction\n"
-        " pyramid, once per map, / total A* time on the map's problems (not in the ATP time);\n"
+        " expansions; refinements: mean per problem; abstraction / A*: building the pyramid and\n"
+        " the components, once per map, / total A* time on the map's problems (not in the ATP\n"
+        " time);\n"
         " first plan exec. exp.: the obstacle-avoidance expansions executing the first plan on\n"
         " the true map takes, / total A* expansions (the final plan is followed with none);\n"
         f" an execution is given up after {EXECUTION_BUDGET}x A*'s time: 'k over' = first plans\n"
@@ -458,7 +460,7 @@ def atp_row(
         f"{summary.first_time:.1%}",
         f"{summary.expansions:.1%}",
         f"{summary.refinements:.0f}",
-        f"{suite.pyramid_seconds / sum(astar_times):.1%}",
+        f"{suite.abstraction_seconds / sum(astar_times):.1%}",
         summary.first_execution,
         target,
     ]
@@ -592,7 +594,7 @@ def bench_kinds(count: int, repeats: int, budget: float) -> str:
         runs = measured.runs["one segment"]
         summary = summarise(measured.astar_times, measured.astar_expansions, runs)
         astar_total = sum(measured.astar_times)
-        with_pyramid = (sum(r.seconds for r in runs) + suite.pyramid_seconds) / astar_total
+        with_abstraction = (sum(r.seconds for r in runs) + suite.abstraction_seconds) / astar_total
         peer_ratio = "-"
         if peer is not None:
             blocked, width, height, scenarios = load_problems(path)
@@ -603,7 +605,7 @@ def bench_kinds(count: int, repeats: int, budget: float) -> str:
         met = (
             summary.final_mean >= quality_mean
             and summary.final_min >= quality_min
-            and with_pyramid <= time_target
+            and with_abstraction <= time_target
             and summary.first_mean is not None
             and summary.first_mean >= first_quality
             and summary.first_time <= first_time
@@ -618,7 +620,7 @@ def bench_kinds(count: int, repeats: int, budget: float) -> str:
                 f"{summary.final_mean:.3f} ({summary.final_min:.3f})",
                 f"{summary.time_mean:.1%}",
                 f"{summary.time_totals:.1%}",
-                f"{with_pyramid:.1%}",
+                f"{with_abstraction:.1%}",
                 f"{summary.expansions:.1%}",
                 peer_ratio,
                 "yes" if met else "NO",
@@ -633,7 +635,7 @@ def bench_kinds(count: int, repeats: int, budget: float) -> str:
         "final q mean (min)",
         "time / A* (mean)",
         "time / A* (totals)",
-        "with pyramid / A* (totals)",
+        "with abstraction / A* (totals)",
         "expansions / A*",
         "pathfinding / our A*",
         "issue 17 target",
@@ -646,11 +648,11 @@ def bench_kinds(count: int, repeats: int, budget: float) -> str:
         " buckets per map, octile without corner cutting, optimal lengths from our A*; A* and\n"
         f" the ATP interleaved, each the best of {repeats} run(s); columns as in the first table,\n"
         f" but an execution is given up after {budget:g}x A*'s time;\n"
-        " with pyramid: (total ATP time + building the pyramid once) / total A* time;\n"
+        " with abstraction: (total ATP time + building the abstraction once) / total A* time;\n"
         " pathfinding / our A*: its total query time / ours on the same problems, as in the\n"
         f" second table; {peers};\n"
         f" issue 17 target: final q mean >= {quality_mean} and min >= {quality_min} with\n"
-        f" pyramid <= {time_target:.0%}, first q >= {first_quality} at first plan time <= "
+        f" abstraction <= {time_target:.0%}, first q >= {first_quality} at first plan time <= "
         f"{first_time:.0%})"
     )
     return table(header, rows) + "\n" + note

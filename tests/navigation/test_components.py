@@ -83,7 +83,9 @@ def test_nodes_are_the_free_regions_of_each_block_and_neighbours_the_moves_betwe
             tails, heads, costs = level.edges_of(np.array([node]))
             edges |= {frozenset((node, int(h))) for h in heads}
             centre = level.centre
-            assert np.allclose(costs, np.hypot(*(centre[heads] - centre[node]).T))
+            dx, dy = np.abs(centre[heads] - centre[node]).T
+            octile = np.maximum(dx, dy) + (math.sqrt(2) - 1) * np.minimum(dx, dy)
+            assert np.allclose(costs, dx + dy if movement == 4 else octile)
         assert edges == expected
         for node in range(len(level)):  # its children, connected among themselves
             children = level.children(node)
@@ -114,10 +116,23 @@ def test_a_corridor_over_every_cell_finds_the_optimal_length(
         assert cells[0] == (sx, sy) and cells[-1] == (gx, gy)
 
 
-def test_a_corridor_larger_than_the_limit_is_not_searched() -> None:
-    c = Components.build(np.zeros((16, 16), dtype=bool), 8)
+def test_a_corridor_search_counts_what_a_star_expands_and_keeps_to_its_limit() -> None:
+    blocked = np.zeros((16, 16), dtype=bool)
+    blocked[2:14, 8] = True  # a wall between start and goal
+    c = Components.build(blocked, 8)
+    every = np.arange(len(c.levels[0]))
+    start, goal = c.node((2, 8), 0), c.node((14, 8), 0)
+    found = c.corridor(0, every, [start], [goal])
+    ours = find_path(blocked, (2, 8), (14, 8), movement=8, weight=0.0)
+    assert found is not None and ours is not None
+    assert math.isclose(found.cost, ours.length)
+    # The nodes whose cost plus heuristic is below the path's, and the path's own: about
+    # what our A* expands (its tie-breaking differs), far fewer than the corridor holds.
+    assert len(found.nodes) - 1 <= found.expansions <= len(every) // 2
+    assert abs(found.expansions - ours.expansions) <= 0.25 * ours.expansions
     with pytest.raises(SearchLimit):
-        c.corridor(0, np.arange(256), [0], [255], limit=100)
+        c.corridor(0, every, [start], [goal], limit=found.expansions - 1)
+    assert c.corridor(0, every, [start], [goal], limit=found.expansions) == found
 
 
 def test_a_block_split_by_a_wall_is_two_nodes() -> None:

@@ -19,7 +19,8 @@ path of neighbouring nodes are connected, and a search one level lower restricte
 finds a path. Refinement never needs a widened corridor.
 
 Costs. A level's edges join the centres (mean positions) of the nodes' cells, each costing the
-distance between them (Euclidean; at level 0 that is the move's length, 1 or sqrt 2). The whole
+distance between them as the robot moves (Manhattan for 4-connected moves, octile for
+8-connected ones; at level 0 that is the move's length, 1 or sqrt 2). The whole
 hierarchy is built with vectorised label propagation (scipy's connected components per level),
 once per map: O(N^2 log N) for an N x N map.
 
@@ -110,7 +111,7 @@ _STRAIGHT_MOVES = ((1, 0, 1.0), (-1, 0, 1.0), (0, 1, 1.0), (0, -1, 1.0))
 _DIAGONAL_MOVES = ((1, 1, _SQRT2), (-1, 1, _SQRT2), (1, -1, _SQRT2), (-1, -1, _SQRT2))
 
 
-@frozen(eq=False)
+@frozen
 class NodePath:
     """A path found by `Components.search`: `nodes` at `level`, start to end; its `cost` (the
     sum of its edges' costs) and the nodes the search expanded."""
@@ -248,19 +249,21 @@ class Components:
     ) -> NodePath | None:
         """A cheapest path of neighbouring nodes at `level` from any of `sources` to any of
         `targets` through the `allowed` nodes (sources and targets among them), with the extra
-        costs of starting and ending at each: Dijkstra's algorithm over the corridor in C
-        (`scipy.sparse.csgraph`), every node of which counts as expanded. None when no target
-        can be reached.
+        costs of starting and ending at each; None when no target can be reached.
+
+        Dijkstra's algorithm over the corridor, in C (`scipy.sparse.csgraph`). Its work is
+        counted as the nodes an A* search for the same path expands, those whose cost from a
+        source plus the heuristic (the distance to the nearest target, consistent with the
+        edges' costs) is below the path's cost: a measure of the search, not of how it is
+        computed.
 
         Raises:
-            SearchLimit: the corridor has more than `limit` nodes (nothing is searched).
+            SearchLimit: that work is more than `limit`.
         """
         from .search import SearchLimit
 
         nodes = np.unique(np.asarray(allowed, dtype=np.int64))
         n = len(nodes)
-        if n > limit:
-            raise SearchLimit(int(limit))
         tails, heads, costs = self.levels[level].edges_of(nodes)
         local = np.searchsorted(nodes, heads)
         ok = (local < n) & (nodes[np.minimum(local, n - 1)] == heads)
@@ -276,15 +279,42 @@ class Components:
         weights = np.concatenate([costs, s_costs + 1e-12, t_costs + 1e-12])
         graph = csr_matrix((weights, (rows, cols)), shape=(n + 2, n + 2))
         distance, previous = dijkstra(graph, indices=start, return_predecessors=True)
-        if not np.isfinite(distance[finish]):
-            return None
+        best = float(distance[finish])
+        estimate = distance[:n] + self._heuristic(level, nodes, nodes[t_local])
+        expanded = (
+            estimate < best - 1e-9 * max(1.0, best) if np.isfinite(best) else estimate < np.inf
+        )
         path = []
-        at = int(previous[finish])
-        while at != start:
-            path.append(int(nodes[at]))
-            at = int(previous[at])
-        expansions = int(np.count_nonzero(np.isfinite(distance[:n])))
-        return NodePath(level, tuple(reversed(path)), float(distance[finish]), expansions)
+        if np.isfinite(best):
+            at = int(previous[finish])
+            while at != start:
+                path.append(at)
+                at = int(previous[at])
+            expanded[path[1:]] = True  # A* pops the path's nodes too; the target ends it
+        expansions = int(np.count_nonzero(expanded))
+        if expansions > limit:
+            raise SearchLimit(int(limit))
+        if not path:
+            return None
+        nodes_path = tuple(int(nodes[i]) for i in reversed(path))
+        return NodePath(level, nodes_path, best, expansions)
+
+    def _heuristic(self, level: int, nodes: IntArray, targets: IntArray) -> FloatArray:
+        """The distance from each of `nodes` to the nearest of `targets` (centre to centre):
+        Manhattan or octile at level 0, as the moves go, Euclidean above."""
+        centre = self.levels[level].centre
+        offsets = centre[nodes][:, None, :] - centre[targets][None, :, :]
+        return np.asarray(_distance(offsets, self.movement).min(axis=1))
+
+
+def _distance(offset: FloatArray, movement: int) -> FloatArray:
+    """The length of the shortest move sequence across `offset` (..., 2) on an open grid:
+    Manhattan for 4-connected moves, octile for 8-connected ones (a metric: the heuristic it
+    gives is consistent with edges that cost it)."""
+    dx, dy = np.abs(offset[..., 0]), np.abs(offset[..., 1])
+    if movement == 4:
+        return np.asarray(dx + dy)
+    return np.asarray(np.maximum(dx, dy) + (math.sqrt(2.0) - 1.0) * np.minimum(dx, dy))
 
 
 def _block_labels(free: BoolGrid, side: int) -> IntArray:
@@ -323,7 +353,7 @@ def _adjacency(
     keys = np.sort(low * max(count, 1) + high)
     keys = keys[np.concatenate(([True], keys[1:] != keys[:-1]))] if len(keys) else keys
     a, b = keys // max(count, 1), keys % max(count, 1)
-    step = np.hypot(*(centre[a] - centre[b]).T) if len(a) else np.zeros(0)
+    step = _distance(centre[a] - centre[b], movement)
     tails, heads = np.concatenate([a, b]), np.concatenate([b, a])
     order = np.argsort(tails, kind="stable")
     first = np.searchsorted(tails[order], np.arange(count + 1)).astype(np.int64)
