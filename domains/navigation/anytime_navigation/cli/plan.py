@@ -30,9 +30,10 @@ from anytime.plugin import (
 )
 
 from ..abstraction import Pyramid
+from ..components import Components
 from ..execution import execute, plan_quality
 from ..movingai import MapError, load_map, load_scenarios
-from ..planner import atp
+from ..planner import DEFAULT_TOP, atp
 from ..search import find_path
 from ..world import BoolGrid, Position, reachable
 
@@ -77,7 +78,7 @@ def add_command(commands: CommandGroup) -> None:
         "MAP.scen next to the map), or one --start/--goal problem, and print per problem the "
         "length found, the optimal length (the .scen's with 8-connected movement, else A*'s), "
         "node expansions (for the ATP those of all its searches), the wall time of planning "
-        "(not of loading the map or building the ATP's abstraction pyramid), and the plan "
+        "(not of loading the map or building the ATP's abstraction), and the plan "
         "quality (optimal length / length of the route executed on the map) after the first "
         "plan and at completion; the ATP is run to completion. Positions are X,Y = column,row "
         "from the upper-left corner, as in .scen files.",
@@ -136,12 +137,12 @@ def run_plan(args: argparse.Namespace) -> int:
         problems = _problems(args, blocked, width, height)
     except MapError as error:
         raise InputError(error.message, where=f"{error.filename}:{error.line}") from None
-    pyramid = Pyramid.build(blocked) if args.planner == "atp" else None
+    described = _described(blocked, args.movement) if args.planner == "atp" else None
     solutions = []
     enabled = False if args.quiet or len(problems) == 1 else None  # on a terminal's stderr
     with ProgressBar(len(problems), label="plan", unit="problems", enabled=enabled) as bar:
         for problem in problems:
-            solutions.append(_solve(problem, blocked, pyramid, args.movement))
+            solutions.append(_solve(problem, blocked, described, args.movement))
             bar.update()
     reference = "scen" if problems[0].optimal is not None else "astar"
     summary = _summary(solutions, args.planner, args.movement, reference)
@@ -196,9 +197,20 @@ def _problems(
     return problems
 
 
-def _solve(problem: Problem, blocked: BoolGrid, pyramid: Pyramid | None, movement: int) -> Solution:
+def _described(blocked: BoolGrid, movement: int) -> tuple[Pyramid, Components]:
+    """The ATP's description of the map, built once for all its problems."""
+    pyramid = Pyramid.build(blocked)
+    return pyramid, Components.build(blocked, movement, top=min(DEFAULT_TOP, pyramid.top))
+
+
+def _solve(
+    problem: Problem,
+    blocked: BoolGrid,
+    described: tuple[Pyramid, Components] | None,
+    movement: int,
+) -> Solution:
     """Plan, timing the planner alone; execute the ATP's first and final plans for quality."""
-    if pyramid is None:
+    if described is None:
         begin = time.perf_counter()
         found = find_path(blocked, problem.start, problem.goal, movement=movement, weight=0.0)
         seconds = time.perf_counter() - begin
@@ -217,7 +229,8 @@ def _solve(problem: Problem, blocked: BoolGrid, pyramid: Pyramid | None, movemen
         )
     ctx = Context()
     begin = time.perf_counter()
-    plans = atp(ctx, problem.start, problem.goal, pyramid, movement=movement)
+    pyramid, components = described
+    plans = atp(ctx, problem.start, problem.goal, pyramid, movement=movement, components=components)
     first = last = next(plans).value
     for result in plans:
         last = result.value
