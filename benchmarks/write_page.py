@@ -165,12 +165,13 @@ BENCHMARKS = [
         " least 0.95 at no more than 15% on 512 x 512 maps); our A* against `pathfinding`'s;"
         " and per map kind (issue 17), the default ATP on the longest problems of 13 MovingAI"
         " maps: random, rooms of 8 to 64, mazes of corridor widths 1 to 8, two street maps and"
-        " two game maps (ten of them in `benchmarks/data/movingai/`), with the pyramid's"
+        " two game maps (ten of them in `benchmarks/data/movingai/`), with the abstraction's"
         " one-off cost and the issue's targets. `--quick` solves fewer problems (4 per map in"
-        " the per-kind table, one run each). Where the ATP falls short: the abstraction's"
-        " obstacleness cannot see connectivity, so on rooms coarse routes run through walls,"
-        " in mazes every coarse cell is part-blocked and the abstract plans mislead the"
-        " refinement, and on street and game maps building blocks and enclosures look free.",
+        " the per-kind table, one run each), so the one-off cost is shared by 4 problems per"
+        " map, not 16. The ATP plans over connected free regions of blocks (a block a wall"
+        " splits is two nodes), first over blocks of 8 x 8 cells; its time is planning only."
+        " Where it still falls short: a mixed-level plan's execution on mazes (the first plan's"
+        " quality), and the abstraction's one-off cost on maps where A* is quick.",
     ),
     (
         "bench_monitor.py",

@@ -44,7 +44,9 @@ def test_the_shipped_navigate_schema_says_why_and_where_as_fields(navigation_any
     assert navigate.allocator == "exhaustive" and navigate.exact
     assert navigate.dp_obstacle is not None
     assert navigate.dp_obstacle.startswith("module 'get-domain-description' has a stochastic")
-    assert navigate.kept_smaller == (500.0,)  # the planner alone does better with 250 than 500
+    # The planner alone on the prior map does better with 250 ticks than with 500, but at 500
+    # sensing first does better still: no total keeps a smaller one's allocation.
+    assert navigate.kept_smaller == ()
     assert navigate.note.startswith(
         f"exhaustive, because dp would not be exact: {navigate.dp_obstacle}"
     )
