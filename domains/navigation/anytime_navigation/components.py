@@ -74,7 +74,8 @@ class Level:
         return len(self.size)
 
     def children(self, node: int) -> list[int]:
-        return self.child[self.first_child[node] : self.first_child[node + 1]].tolist()
+        found: list[int] = self.child[self.first_child[node] : self.first_child[node + 1]].tolist()
+        return found
 
     def children_of(self, nodes: Sequence[int]) -> IntArray:
         """The children of all of `nodes`, as one array."""
@@ -183,8 +184,8 @@ class Components:
                 child = np.argsort(below, kind="stable").astype(np.int64)
                 first_child = np.searchsorted(below[child], np.arange(count + 1)).astype(np.int64)
             if k == 0:
-                empty = np.zeros(0, dtype=np.int64)
-                first, neighbour, cost = np.zeros(count + 1, dtype=np.int64), empty, empty + 0.0
+                first, neighbour = np.zeros(count + 1, dtype=np.int64), np.zeros(0, dtype=np.int64)
+                cost = np.zeros(0, dtype=np.float64)
             else:
                 first, neighbour, cost = _adjacency(labels, 1 << k, movement, centre, count)
             levels.append(
@@ -234,7 +235,8 @@ class Components:
         """Which cells of the node's block belong to it, a (2^level, 2^level) mask [y, x]."""
         side = 1 << level
         bx, by = self.block(node, level)
-        return self.grids[level][by * side : (by + 1) * side, bx * side : (bx + 1) * side] == node
+        window = self.grids[level][by * side : (by + 1) * side, bx * side : (bx + 1) * side]
+        return np.asarray(window == node)
 
     def corridor(
         self,
@@ -327,7 +329,7 @@ def _block_labels(free: BoolGrid, side: int) -> IntArray:
     within[1] = ndimage.generate_binary_structure(2, 1)
     labels, _ = ndimage.label(stacked, structure=within)
     labels = labels.reshape(m, m, side, side).transpose(0, 2, 1, 3).reshape(n, n)
-    return labels.astype(np.int64) - 1
+    return np.asarray(labels, dtype=np.int64) - 1
 
 
 def _adjacency(

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import heapq
 import itertools
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator, Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -68,6 +68,10 @@ def _cells(value: object) -> tuple[Position, ...]:
     return cells
 
 
+def _nodes(value: Iterable[int]) -> tuple[int, ...]:
+    return tuple(int(node) for node in value)
+
+
 @frozen
 class Segment:
     """A path at one abstraction level: `cells` are positions at `level`, in order; consecutive
@@ -78,19 +82,7 @@ class Segment:
     # The abstraction's nodes the cells stand for (`components.Components`): the connected
     # free region of each cell's block the segment goes through; empty for a segment made
     # without them (then a cell means its whole block).
-    nodes: tuple[int, ...] = field(default=(), converter=tuple)
-    # Each node's cells, a packed (2^level x 2^level) mask of its block (`region`); empty as
-    # `nodes` is, and at level 0 (a node is its cell).
-    regions: tuple[bytes, ...] = field(default=(), converter=tuple)
-
-    def region(self, index: int) -> BoolGrid | None:
-        """The cells of its block the `index`-th cell's node holds, a boolean mask [y, x], or
-        None when the segment does not say (the whole block is meant)."""
-        if not self.regions or self.level == 0:
-            return None
-        side = 1 << self.level
-        bits = np.unpackbits(np.frombuffer(self.regions[index], dtype=np.uint8), count=side * side)
-        return bits.reshape(side, side).astype(bool)
+    nodes: tuple[int, ...] = field(default=(), converter=_nodes)
 
     @property
     def source(self) -> Position:
@@ -403,9 +395,9 @@ class _Planner:
         self.ctx.tick(found.expansions)
         return found
 
-    def segment(self, level: int, nodes: tuple[int, ...]) -> Segment:
+    def segment(self, level: int, nodes: Sequence[int]) -> Segment:
         cells = self.components.levels[level].block[list(nodes)].tolist()
-        return Segment(level, cells, nodes)
+        return Segment(level, cells, tuple(nodes))
 
     def refine(self, segments: list[Segment], index: int) -> tuple[Segment, ...]:
         """REFINE route segment `index`: its replacement, two halves one level lower (one
@@ -416,8 +408,8 @@ class _Planner:
         nodes = c.levels[segment.level]
         # The children of its nodes (connected: a path exists among them) and of their
         # neighbours: room for the route to leave the coarse blocks where that is shorter.
-        path = np.asarray(segment.nodes, dtype=np.int64)
-        around = np.unique(np.concatenate([path, nodes.edges_of(path)[1]]))
+        route = np.asarray(segment.nodes, dtype=np.int64)
+        around = np.unique(np.concatenate([route, nodes.edges_of(route)[1]]))
         allowed = nodes.children_of(around.tolist())
         source_costs: list[float] | None = None
         target_costs: list[float] | None = None
