@@ -39,6 +39,7 @@ from scipy import ndimage
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
+from .search import SearchLimit
 from .world import BoolGrid, Position, is_power_of_two
 
 __all__ = ["Components", "Level", "NodePath"]
@@ -47,7 +48,7 @@ IntArray = NDArray[np.int64]
 FloatArray = NDArray[np.float64]
 
 
-@frozen(eq=False, slots=False)
+@frozen(eq=False)
 class Level:
     """The nodes of one level: `block[i]` (x, y) is node i's block, `centre[i]` the mean base
     position (x + 0.5, y + 0.5) of its cells, `size[i]` how many cells it has, `parent[i]` its
@@ -114,8 +115,9 @@ _DIAGONAL_MOVES = ((1, 1, _SQRT2), (-1, 1, _SQRT2), (1, -1, _SQRT2), (-1, -1, _S
 
 @frozen
 class NodePath:
-    """A path found by `Components.search`: `nodes` at `level`, start to end; its `cost` (the
-    sum of its edges' costs) and the nodes the search expanded."""
+    """A path found by `Components.corridor`: `nodes` at `level`, start to end; its `cost` (the
+    sum of its edges' costs, and the costs of its ends) and the nodes an A* search for it
+    expands."""
 
     level: int
     nodes: tuple[int, ...]
@@ -262,8 +264,6 @@ class Components:
         Raises:
             SearchLimit: that work is more than `limit`.
         """
-        from .search import SearchLimit
-
         nodes = np.unique(np.asarray(allowed, dtype=np.int64))
         n = len(nodes)
         tails, heads, costs = self.levels[level].edges_of(nodes)
