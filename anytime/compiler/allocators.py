@@ -218,13 +218,11 @@ def climb(
     step: np.ndarray,
     dt: float,
     memory: int,
-    every_step: bool = False,
 ) -> tuple[np.ndarray, Array]:
     """The papers' hill-climbing from `allocation (R, n)` (expected qualities `best`), every row
     in lockstep: while some trade of `step` units from one module to another raises E[Q_out],
-    make the best one; else halve the step (or, with `every_step`, try the next smaller one),
-    until it is below one unit. Returns the final allocations and qualities (the inputs are not
-    changed)."""
+    make the best one; else halve the step, until it is below one unit. Returns the final
+    allocations and qualities (the inputs are not changed)."""
     allocation, best, step = allocation.copy(), best.copy(), step.copy()
     n = allocation.shape[1]
     trade = trades(n)
@@ -249,7 +247,7 @@ def climb(
             gain = top > best[rows] + IMPROVEMENT
             allocation[rows[gain]] = candidates[gain, choice[gain]]
             best[rows[gain]] = top[gain]
-            step[rows[~gain]] = step[rows[~gain]] - 1 if every_step else step[rows[~gain]] // 2
+            step[rows[~gain]] = step[rows[~gain]] // 2
         active = step >= 1
     return allocation, best
 

@@ -9,18 +9,23 @@ a module whose quality only rises past a threshold):
 
 1. From the equal split with the papers' first step (one equal share): hill-climbing itself,
    so the result is never below it.
-2. From Romanenko's proportional split, and from the best few points of a coarse lattice of the
-   simplex (every split in multiples of g units, g chosen so that a cell evaluates at most
-   `SEED_POINTS` of them): a global look at the landscape that finds the basins, each point
-   climbed with trades from g units down to one.
+2. From Romanenko's proportional split, from dp's allocation with the program taken as a tree
+   (relaxed dp), and from the best few points of a coarse lattice of the simplex (every split
+   in multiples of g units, g chosen so that a cell evaluates at most `SEED_POINTS` of them): a
+   global look at the landscape that finds the basins, each point climbed with trades of g
+   units, halved down to one.
 3. From the neighbouring totals' best allocations (the optimum at T is usually near the one at
    T +- dt), the difference added as an equal split or taken away in proportion, climbed
    again; repeated while some cell improves (at most `ROUNDS` times).
 
 Each cell keeps the best of its climbs. All climbs of all cells run in lockstep on batches, in
-chunks within the memory cap. The result is a lattice allocation no worse than hill-climbing's,
-the equal split's and the proportional split's, with no bound on its gap to the optimum
-(benchmarks/bench_allocators.py measures it against the exhaustive search).
+chunks within the memory cap. A small program's time goes to the evaluator's cost per call, so
+the number of calls is what is kept small: trade sizes are halved rather than lowered one unit
+at a time (2-3x fewer calls; benchmarks/bench_allocators.py measured the gaps staying within
+their targets), and the coarse lattices of many cells are evaluated in one call. The result is
+a lattice allocation no worse than hill-climbing's, the equal split's and the proportional
+split's, with no bound on its gap to the optimum (benchmarks/bench_allocators.py measures it
+against the exhaustive search).
 """
 
 from __future__ import annotations
@@ -75,26 +80,30 @@ class MultiStart:
         self, evaluator: Evaluates, quality: Array, units: np.ndarray, dt: float
     ) -> tuple[np.ndarray, Array]:
         n = evaluator.n_modules
-        # The papers' hill-climbing first: the result is never below it.
-        allocation, best = HillClimbing(self.memory).allocate(evaluator, quality, units, dt)
-        if n <= 1:  # nothing to split
-            return allocation, best
+        if n <= 1:  # nothing to split: the papers' hill-climbing says all there is
+            return HillClimbing(self.memory).allocate(evaluator, quality, units, dt)
+        # The papers' hill-climbing is the first start (equal split, one equal share's trades,
+        # halving): climbed in lockstep with the others, its row ends where hill-climbing
+        # alone would, so the result is never below it.
         first = np.where(units > 0, np.maximum(units // n, 1), 0)
-        starts, steps, owners = [], [], []
+        cells = np.arange(len(units))
+        starts, steps, owners = [equal_split(units, n)], [first], [cells]
         if len(evaluator.model.anytime_nodes) == n:  # not a restricted evaluator
             proportional, _ = Proportional(self.memory).allocate(evaluator, quality, units, dt)
             starts.append(proportional)
             steps.append(first)
-            owners.append(np.arange(len(units)))
+            owners.append(cells)
             seed = _relaxed_dp(evaluator, quality, units, dt, self.memory)
             if seed is not None:
                 starts.append(seed)
                 steps.append(first)
-                owners.append(np.arange(len(units)))
+                owners.append(cells)
         grid, spacing, owner = self._coarse_seeds(evaluator, quality, units, dt)
         starts.append(grid)
         steps.append(spacing)
         owners.append(owner)
+        allocation = np.zeros((len(units), n), dtype=np.int64)
+        best = np.full(len(units), -np.inf)
         allocation, best = self._climb_all(
             evaluator, quality, dt, starts, steps, owners, allocation, best
         )
@@ -121,13 +130,14 @@ class MultiStart:
         allocation: np.ndarray,
         best: Array,
     ) -> tuple[np.ndarray, Array]:
-        """Climb every start (each for the cell `owners` says), trying every trade size from
-        its first down to one unit, and keep each cell's best: `allocation` and `best` where no
-        climb does better."""
+        """Climb every start (each for the cell `owners` says) with trades from its first
+        size, halving it, and keep each cell's best: `allocation` and `best` where no climb
+        does better. All climbs move in lockstep, so the evaluator is called once per step of
+        the longest climb: what costs a small program most is that count, not the rows."""
         start, step, owner = np.concatenate(starts), np.concatenate(steps), np.concatenate(owners)
         q = quality[owner]
         value = expected_in_chunks(evaluator, q, start * dt, self.memory)
-        top, top_value = climb(evaluator, q, start, value, step, dt, self.memory, True)
+        top, top_value = climb(evaluator, q, start, value, step, dt, self.memory)
         allocation, best = allocation.copy(), best.copy()
         # The best climb of each cell: order by value, the first start of equals winning.
         order = np.lexsort((np.arange(len(owner)), -top_value, owner))
@@ -141,28 +151,50 @@ class MultiStart:
     def _coarse_seeds(
         self, evaluator: Evaluates, quality: Array, units: np.ndarray, dt: float
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The best `SEEDS` points of each cell's coarse lattice, their spacing and cell."""
+        """The best `SEEDS` points of each cell's coarse lattice, their spacing and cell. The
+        lattices of as many cells as the memory cap holds are evaluated in one call."""
         n = evaluator.n_modules
+        lattices = {total: _coarse_lattice(total, n) for total in set(units.tolist())}
+        sizes = [len(lattices[total][0]) for total in units.tolist()]
+        limit = chunk_rows(evaluator.model, self.memory, 16 * n)
         seeds, spacing, owner = [], [], []
-        for total in np.unique(units):
-            cells = np.flatnonzero(units == total)
-            k = coarse_parts(int(total), n)
-            g = int(total) // k if k else 0
-            points = compositions(k, n) * g
-            points = points + equal_split(np.full(len(points), int(total) - k * g), n)
-            value = np.empty((len(cells), len(points)))
-            per = max(1, chunk_rows(evaluator.model, self.memory, 16 * n) // len(points))
-            for first in range(0, len(cells), per):
-                part = cells[first : first + per]
-                q = np.repeat(quality[part], len(points), axis=0)
-                a = np.tile(points, (len(part), 1)) * dt
-                value[first : first + per] = evaluator.expected(q, a).reshape(len(part), -1)
-            keep = min(SEEDS, len(points))
-            top = np.argsort(-value, axis=1, kind="stable")[:, :keep]
-            seeds.append(points[top].reshape(-1, n))
-            spacing.append(np.full(top.size, max(g, 1) if total > 0 else 0))
-            owner.append(np.repeat(cells, keep))
+        for cells in _groups(sizes, limit):
+            lattice = [lattices[int(units[cell])] for cell in cells]
+            points = np.concatenate([points for points, _ in lattice])
+            count = [sizes[cell] for cell in cells]
+            value = evaluator.expected(np.repeat(quality[cells], count, axis=0), points * dt)
+            ends = np.cumsum(count)
+            for cell, (cell_points, g), end, size in zip(cells, lattice, ends, count, strict=True):
+                keep = min(SEEDS, size)
+                top = np.argsort(-value[end - size : end], kind="stable")[:keep]
+                seeds.append(cell_points[top])
+                spacing.append(np.full(keep, g))
+                owner.append(np.full(keep, cell))
         return np.concatenate(seeds), np.concatenate(spacing), np.concatenate(owner)
+
+
+def _coarse_lattice(total: int, n: int) -> tuple[np.ndarray, int]:
+    """Every split of `total` units among n modules in multiples of g units (the remainder
+    as an equal split), g the least that keeps them within `SEED_POINTS`; and g (0 for no
+    time)."""
+    k = coarse_parts(total, n)
+    g = total // k if k else 0
+    points = compositions(k, n) * g + equal_split(np.full(1, total - k * g), n)
+    return points, max(g, 1) if total > 0 else 0
+
+
+def _groups(sizes: list[int], limit: int) -> list[list[int]]:
+    """Consecutive indices of `sizes` in groups whose sizes sum to at most `limit` (a group
+    of one where one alone is more)."""
+    groups: list[list[int]] = [[]]
+    held = 0
+    for index, size in enumerate(sizes):
+        if groups[-1] and held + size > limit:
+            groups.append([])
+            held = 0
+        groups[-1].append(index)
+        held += size
+    return groups if groups[0] else []
 
 
 def _relaxed_dp(
