@@ -14,6 +14,7 @@ import pytest
 from anytime_routing import geometry as G
 from anytime_routing.domain import (
     Clustering,
+    Depot,
     clustering_quality,
     demand_quality,
     random_world,
@@ -24,11 +25,15 @@ from anytime_routing.domain import (
 )
 from anytime_routing.modules import (
     PROBLEM_SETS,
+    DepotTour,
     cluster_stops,
     clustering_of_quality,
     demand_of_quality,
+    depots,
     estimate_demand,
+    plan_tour,
     plan_tours,
+    route,
 )
 from anytime_routing.plugin import PLUGIN
 from anytime_routing.program import (
@@ -42,6 +47,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from anytime import Context, Result
+from anytime.plugin import MISSING
 from anytime.testing import assert_module_passes
 
 PACKAGE = Path(anytime_routing.__file__).parent
@@ -130,6 +136,58 @@ def test_the_reference_delivery_is_no_longer_than_the_reference_clusterings_tour
         assert tours.value.length >= length - 1e-9
 
 
+def test_a_tour_per_depot_is_the_tour_plan_tours_makes_for_it() -> None:
+    """`plan-tour` makes one depot's moves as `plan-tours` makes each of its tours' (round
+    robin changes only the order of the ticks): run to convergence, the same tours, in as many
+    ticks in all; `depots` and `route` take the clustering apart and put the tours together."""
+    rng = np.random.default_rng([SEED, 5])
+    for _ in range(10):
+        world = random_world(rng)
+        _, clustering = run_kmeans(world.points, world.shares, world.depots, seed=0)
+        clusters = Result(clustering, 0.9)
+        together = Context()
+        *_, whole = plan_tours(together, clusters)
+        items = depots(clusters)
+        assert [item.index for item in items] == list(range(world.depots))
+        tours, ticks = [], 0.0
+        for item in items:
+            alone = Context()
+            *_, last = plan_tour(alone, Result(item, clusters.quality))
+            assert isinstance(last.value, DepotTour) and last.quality <= 0.9
+            tours.append(last.value)
+            ticks += alone.elapsed
+        joined = route(Result(tours, 0.9))
+        assert [o.tolist() for o in joined.orders] == [o.tolist() for o in whole.value.orders]
+        assert joined.length == pytest.approx(sum(tour.length for tour in tours))
+        assert ticks == together.elapsed
+
+
+def test_route_is_no_delivery_while_a_depot_has_no_tour() -> None:
+    world = random_world(np.random.default_rng([SEED, 6]))
+    _, clustering = run_kmeans(world.points, world.shares, world.depots, seed=0)
+    *_, first = plan_tour(Context(), Result(Depot(clustering, 0), 1.0))
+    assert route(Result([first.value, MISSING, first.value], 0.5)) is None
+    assert route(Result([], 1.0)) is None
+
+
+def test_a_depots_measured_quality_is_its_share_of_the_reference() -> None:
+    """Scored against the depot's optimal tour scaled by how close the clustering's optimal
+    tours come to the reference delivery: an optimal tour scores that scale, a longer one
+    less, in proportion."""
+    depot_inputs = PROBLEM_SETS["plan-tour"].problems
+    rng = np.random.default_rng([SEED, 7])
+    for _ in range(3):
+        instance = depot_inputs.instance(rng, (0.9,))
+        (given,) = instance.args
+        scale, optimal = instance.reference
+        assert 0 < scale <= 1 + 1e-9 and given.quality == 0.9
+        *_, last = plan_tour(Context(), given)
+        score = depot_inputs.score(instance, last.value)
+        assert score == pytest.approx(min(1.0, scale * optimal / last.value.length))
+        assert score <= scale + 1e-9
+        assert depot_inputs.score(instance, None) == 0.0
+
+
 # --- problem sets ---------------------------------------------------------------------------
 
 
@@ -157,6 +215,7 @@ CATALOGUE = {  # a few cells per module: `anytime check MODULE` runs the full gr
     "cluster-stops": {"time": [0, 4, 24], "input_grids": [[0.8]]},
     "plan-tours": {"time": [0, 4, 20], "input_grids": [[0.95]]},
     "insert-tours": {"time": [0, 24, 48], "input_grids": [[0.95]]},
+    "plan-tour": {"time": [0, 1, 8], "input_grids": [[0.95]]},
 }
 
 

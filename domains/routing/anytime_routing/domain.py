@@ -27,6 +27,7 @@ __all__ = [
     "DEPOTS",
     "EXACT_NODES",
     "Clustering",
+    "Depot",
     "OrderLog",
     "ReferenceUnavailable",
     "Sites",
@@ -132,6 +133,18 @@ class Clustering:
     def nodes(self, k: int) -> FloatArray:
         """Depot k then its customers: the nodes of its tour (node 0 is the depot)."""
         return np.vstack([self.centres[k][None, :], self.points[self.members(k)]])
+
+
+class Depot:
+    """One depot of a clustering, its customers to visit: an item of the collection that
+    `(map plan-tour (depots clusters))` loops over."""
+
+    def __init__(self, clustering: Clustering, index: int) -> None:
+        self.clustering = clustering
+        self.index = index
+
+    def __repr__(self) -> str:
+        return f"Depot({self.index}, {len(self.clustering.members(self.index))} customers)"
 
 
 class Tours:

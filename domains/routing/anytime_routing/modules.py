@@ -30,6 +30,7 @@ from anytime.plugin import (
 from .domain import (
     BATCH,
     Clustering,
+    Depot,
     OrderLog,
     Sites,
     Tours,
@@ -37,6 +38,7 @@ from .domain import (
     clustering_quality,
     demand_quality,
     estimate_shares,
+    optimal_length,
     random_world,
     reference_clustering,
     reference_delivery,
@@ -59,7 +61,7 @@ from .geometry import (
     one_tree_bound,
     tour_length,
 )
-from .program import SCHEMAS, compiled_program
+from .program import MEASURED_WITH, compiled_program
 
 __all__ = [
     "MODULES",
@@ -67,16 +69,22 @@ __all__ = [
     "ClusteringInputs",
     "DemandInputs",
     "OrderLogs",
+    "DepotInputs",
     "cluster_stops",
+    "depots",
     "estimate_demand",
     "insert_tours",
+    "plan_tour",
     "plan_tours",
+    "route",
 ]
 
 #: The modules' time grids (ticks), every 2 ticks: the compile lattice (resolution 2).
 DEMAND_TIME = list(range(0, 41, 2))
 CLUSTER_TIME = list(range(0, 25, 2))
 TOUR_TIME = list(range(0, 49, 2))
+#: One depot's tour (`plan-tour`): every tick, so that a loop's time splits finely.
+DEPOT_TIME = list(range(0, 25))
 #: Input-quality grids, finest where the upstream module's qualities lie (see README.md).
 DEMAND_GRID = [0.25, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9]
 CLUSTER_GRID = [0.4, 0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95, 0.98, 1.0]
@@ -218,23 +226,109 @@ def plan_tours(ctx: Context, clusters: Result) -> Iterator[Result]:
         for tour in tours:
             if not tour.active:
                 continue
-            if ctx.remaining < 1:
+            moved = _improve(ctx, tour)
+            if moved is None:
                 return
-            ctx.tick()
-            gain, i, j = best_two_opt(tour.dist, tour.order)
-            if gain > EPS:
-                tour.order = apply_two_opt(tour.order, i, j)
+            if moved:
                 yield _result(clustering, tours, clusters.quality)
-                continue
-            if ctx.remaining < 1:
-                return
-            ctx.tick()
-            gain, start, length, edge, reverse = best_or_opt(tour.dist, tour.order)
-            if gain > EPS:
-                tour.order = apply_or_opt(tour.order, start, length, edge, reverse)
-                yield _result(clustering, tours, clusters.quality)
-            else:
-                tour.active = False
+
+
+def _improve(ctx: Context, tour: _Tour) -> bool | None:
+    """One improving move of `tour`: a tick evaluates every 2-opt move and makes the best;
+    when none improves, a tick does the same for Or-opt. True when it moved, False when
+    neither improves (the tour is done: no longer `active`), None when the time ran out
+    first."""
+    if ctx.remaining < 1:
+        return None
+    ctx.tick()
+    gain, i, j = best_two_opt(tour.dist, tour.order)
+    if gain > EPS:
+        tour.order = apply_two_opt(tour.order, i, j)
+        return True
+    if ctx.remaining < 1:
+        return None
+    ctx.tick()
+    gain, start, length, edge, reverse = best_or_opt(tour.dist, tour.order)
+    if gain > EPS:
+        tour.order = apply_or_opt(tour.order, start, length, edge, reverse)
+        return True
+    tour.active = False
+    return False
+
+
+# --- one depot's tour: the body of a map over the depots ----------------------------------
+
+
+class DepotTour:
+    """One depot's tour: the customers in visiting order, from the depot and back."""
+
+    def __init__(self, depot: Depot, visits: IntArray) -> None:
+        self.depot = depot
+        self.visits = visits
+
+    @property
+    def length(self) -> float:
+        clustering, k = self.depot.clustering, self.depot.index
+        stops = np.vstack(
+            [clustering.centres[k], clustering.points[self.visits], clustering.centres[k]]
+        )
+        return float(np.sqrt(((stops[1:] - stops[:-1]) ** 2).sum(axis=1)).sum())
+
+    def __repr__(self) -> str:
+        return f"DepotTour({self.depot.index}, {len(self.visits)} stops, {self.length:.4f})"
+
+
+@elementary("depots")
+def depots(clusters: Result) -> list[Depot]:
+    """The clustering's depots, each with its customers: the collection a map over the
+    depots loops over (its quality the clustering's)."""
+    clustering: Clustering = clusters.value
+    return [Depot(clustering, k) for k in range(len(clustering.centres))]
+
+
+@interruptible(
+    "plan-tour",
+    inputs=["depot"],
+    profile="profiles/plan-tour.yaml",
+    reports="estimate",
+    step=0,
+)
+def plan_tour(ctx: Context, depot: Result) -> Iterator[Result]:
+    """One depot's tour, made as `plan-tours` makes each of its tours: nearest neighbour (a
+    tick, with its 1-tree bound), then 2-opt and Or-opt moves (a tick each), a result after
+    every improving move; self-estimate: the 1-tree bound over the length, at most the
+    depot's (its clustering's) quality. Its quality as measured: the depot's optimal tour
+    over this one, times how close its clustering's optimal tours come to the reference
+    delivery (`DepotInputs`), so that the mean over the depots stands for the route's."""
+    item: Depot = depot.value
+    if ctx.remaining < 1:
+        return
+    ctx.tick()
+    tour = _Tour(item.clustering, item.index)
+    tour.order = nearest_neighbour(tour.dist)
+    tour.bound = one_tree_bound(tour.dist)
+    yield _depot_result(item, tour, depot.quality)
+    while True:
+        moved = _improve(ctx, tour)
+        if not moved:
+            return
+        yield _depot_result(item, tour, depot.quality)
+
+
+def _depot_result(depot: Depot, tour: _Tour, quality_in: float) -> Result:
+    length = tour.length
+    estimate = 1.0 if length <= 0 else min(1.0, tour.bound / length)
+    return Result(DepotTour(depot, tour.visits()), min(estimate, quality_in))
+
+
+@elementary("route")
+def route(tours: Result) -> Tours | None:
+    """The depots' tours (a map's list) as one delivery; None while a depot has none (no
+    delivery: it scores 0)."""
+    found = list(tours.value)
+    if not found or any(not isinstance(tour, DepotTour) for tour in found):
+        return None
+    return Tours(found[0].depot.clustering, [tour.visits for tour in found])
 
 
 @interruptible(
@@ -347,7 +441,7 @@ def upstream_times() -> tuple[tuple[float, float], ...]:
     which `cluster-stops` runs: the clusterings a program actually hands to the tour planners
     are made with these."""
     pairs = set()
-    for schema in SCHEMAS:
+    for schema in MEASURED_WITH:
         program = compiled_program(schema)
         demand, clusters = (program.modules.index(m) for m in ("estimate-demand", "cluster-stops"))
         quality = [1.0] * program.profile.n_inputs
@@ -403,11 +497,47 @@ class ClusteringInputs:
         return tour_quality(value, instance.reference)
 
 
-MODULES = (estimate_demand, cluster_stops, plan_tours, insert_tours, has_customers)
+class DepotInputs:
+    """Problems for `plan-tour`: one depot, drawn at random, of a clustering of the quality
+    asked for (`clustering_of_quality`). The truth: the depot's optimal tour over this one,
+    times the reference delivery over the clustering's optimal tours (at most 1), so that
+    the mean over a clustering's depots is close to the route's quality (`tour_quality`):
+    exactly that where the depots' tours are equally close to optimal, the reference over the
+    tours' total length being their length-weighted (harmonic) mean."""
+
+    def instance(self, rng: np.random.Generator, input_qualities: tuple[float, ...]) -> Instance:
+        (q,) = input_qualities
+        world, clustering = clustering_of_quality(rng, q)
+        length, _ = reference_delivery(world)
+        value: Clustering = clustering.value
+        optimal = [optimal_length(value.nodes(k)) for k in range(len(value.centres))]
+        k = int(rng.integers(len(optimal)))
+        given = Result(Depot(value, k), q)  # the grid's quality, as the builder asks
+        return Instance(args=(given,), reference=(length / sum(optimal), optimal[k]))
+
+    def score(self, instance: Instance, value: Any) -> float:
+        if not isinstance(value, DepotTour):
+            return 0.0
+        clustering_share, optimal = instance.reference
+        length = value.length
+        return 1.0 if length <= 0 else min(1.0, clustering_share * optimal / length)
+
+
+MODULES = (
+    estimate_demand,
+    cluster_stops,
+    plan_tours,
+    insert_tours,
+    plan_tour,
+    has_customers,
+    depots,
+    route,
+)
 
 PROBLEM_SETS = {
     "estimate-demand": Measurement.of(OrderLogs(), time=DEMAND_TIME),
     "cluster-stops": Measurement.of(DemandInputs(), time=CLUSTER_TIME, input_grids=[DEMAND_GRID]),
     "plan-tours": Measurement.of(ClusteringInputs(), time=TOUR_TIME, input_grids=[CLUSTER_GRID]),
     "insert-tours": Measurement.of(ClusteringInputs(), time=TOUR_TIME, input_grids=[CLUSTER_GRID]),
+    "plan-tour": Measurement.of(DepotInputs(), time=DEPOT_TIME, input_grids=[CLUSTER_GRID]),
 }

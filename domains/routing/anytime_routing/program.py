@@ -31,6 +31,7 @@ from .domain import (
 from .resources import load_schema_file
 
 __all__ = [
+    "MEASURED_WITH",
     "RESOLUTIONS",
     "SCHEMAS",
     "TIME_GRIDS",
@@ -41,12 +42,20 @@ __all__ = [
     "world_for",
 ]
 
-#: The packaged schemas: the chain and the DAG with a best-of.
-SCHEMAS = ("deliver", "deliver-best")
+#: The packaged schemas: the chain, the DAG with a best-of, and the chain with a tour per depot
+#: in a loop (`map`).
+SCHEMAS = ("deliver", "deliver-best", "deliver-each")
+#: The schemas whose upstream allocations make the clusterings the tour planners are measured
+#: on (`modules.upstream_times`): the loop's `plan-tour` is measured on the same ones.
+MEASURED_WITH = ("deliver", "deliver-best")
 #: The compiled totals (ticks) and the allocation lattice of each schema, both on the
 #: profiles' time step (the DAG's four modules are searched by the multi-start allocator).
-TIME_GRIDS = {"deliver": tuple(range(0, 101, 4)), "deliver-best": tuple(range(0, 65, 4))}
-RESOLUTIONS = {"deliver": 2.0, "deliver-best": 2.0}
+TIME_GRIDS = {
+    "deliver": tuple(range(0, 101, 4)),
+    "deliver-best": tuple(range(0, 65, 4)),
+    "deliver-each": tuple(range(0, 101, 4)),
+}
+RESOLUTIONS = {"deliver": 2.0, "deliver-best": 2.0, "deliver-each": 2.0}
 
 
 @cache
