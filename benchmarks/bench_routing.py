@@ -1,9 +1,10 @@
 """The routing plugin (domains/routing): its compiled schemas' promises, and its tour
 improvement on TSPLIB instances against their optimal lengths.
 
-1. For `deliver` (the chain) and `deliver-best` (the DAG with a best-of), at every budget of
-   the compiled table: the compiled expectation against the mean true quality of runs on fresh
-   problems (mean +- standard error), fixed and adaptive, and the most time any run used.
+1. For `deliver` (the chain), `deliver-best` (the DAG with a best-of) and `deliver-each` (the
+   chain with a loop, a `plan-tour` per depot), at every budget of the compiled table: the
+   compiled expectation against the mean true quality of runs on fresh problems (mean +-
+   standard error), fixed and adaptive, and the most time any run used.
    Target: |realised - compiled| <= max(0.01, 2 se) at every budget, no run over its budget.
 2. The time to measure each module's profile with `anytime profile`'s builder, the plugin's own
    problem sets on their full grids with a few trials per cell: 1 worker process, 2, and a

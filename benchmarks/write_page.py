@@ -124,9 +124,10 @@ BENCHMARKS = [
         "bench_routing.py",
         ["--quick"],
         "Routing: promised against delivered, and 2-opt/Or-opt on TSPLIB",
-        "The routing plugin's chain (deliver) and DAG (deliver-best): the compiled"
-        " expectation at every budget against the mean true quality of fixed and adaptive runs"
-        " on fresh problems (target: within max(0.01, 2 se), no run over its budget); and"
+        "The routing plugin's chain (deliver), DAG (deliver-best) and loop over the depots"
+        " (deliver-each, a map of plan-tour): the compiled expectation at every budget"
+        " against the mean true quality of fixed and adaptive runs on fresh problems"
+        " (target: within max(0.01, 2 se), no run over its budget); and"
         " plan-tours on TSPLIB instances against their optimal lengths over its ticks"
         " (target: within 5% at convergence). `--quick` uses 100 problems per budget.",
     ),

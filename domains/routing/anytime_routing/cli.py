@@ -65,8 +65,7 @@ def add_commands(commands: CommandGroup) -> None:
         "--budget",
         type=float_in_range(0.0, MAX_BUDGET),
         default=60.0,
-        help="ticks of work, a multiple of the schema's lattice: 2 for deliver, 4 for"
-        " deliver-best (60)",
+        help="ticks of work, a multiple of the schemas' lattice, 2 ticks (60)",
     )
     parser.add_argument(
         "--schema", choices=SCHEMAS, default="deliver", help="the packaged schema (deliver)"
