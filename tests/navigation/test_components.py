@@ -6,10 +6,13 @@ themselves; a corridor search at level 0 finds A*'s optimal length."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 from anytime_navigation.components import Components
+from anytime_navigation.movingai import load_map
+from anytime_navigation.resources import data_file
 from anytime_navigation.search import SearchLimit, find_path
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -20,6 +23,14 @@ maps = st.builds(
     st.integers(0, 2**31),
     st.floats(0.0, 0.6),
     st.sampled_from([8, 16, 32]),
+)
+
+#: Maps of any density, 1 x 1 to 32 x 32, for comparing the build with the reference.
+any_maps = st.builds(
+    lambda seed, density, side: np.random.default_rng(seed).random((side, side)) < density,
+    st.integers(0, 2**31),
+    st.floats(0.0, 1.0),
+    st.sampled_from([1, 2, 4, 8, 16, 32]),
 )
 
 MOVES = {
@@ -150,3 +161,126 @@ def test_it_refuses_a_map_it_cannot_cut_into_blocks() -> None:
         Components.build(np.zeros((6, 6), dtype=bool))
     with pytest.raises(ValueError, match="movement must be 4 or 8, got 6"):
         Components.build(np.zeros((8, 8), dtype=bool), 6)
+
+
+def _reference(blocked: np.ndarray, movement: int, top: int) -> dict[str, list[np.ndarray]]:
+    """The hierarchy the straightforward way: each level's grid labelled block by block
+    (`ndimage.label` on the blocks stacked), nodes numbered as the labelling meets them; the
+    edges the pairs of labels a move across a block boundary joins. What `Components.build`
+    must equal, to the last bit."""
+    free, side = ~blocked, blocked.shape[0]
+    ys, xs = np.nonzero(free)
+    grids = []
+    for k in range(top + 1):
+        size, m = 1 << k, side >> k
+        stacked = free.reshape(m, size, m, size).transpose(0, 2, 1, 3).reshape(m * m, size, size)
+        within = np.zeros((3, 3, 3), dtype=bool)
+        within[1] = ndimage.generate_binary_structure(2, 1)
+        labels, _ = ndimage.label(stacked, structure=within)
+        labels = labels.reshape(m, m, size, size).transpose(0, 2, 1, 3).reshape(side, side)
+        grids.append(labels.astype(np.int64) - 1)
+    out: dict[str, list[np.ndarray]] = {"grid": grids, "block": [], "centre": [], "size": []}
+    for name in ("parent", "first", "neighbour", "cost", "first_child", "child"):
+        out[name] = []
+    for k, labels in enumerate(grids):
+        count = int(labels.max()) + 1 if len(xs) else 0
+        ids = labels[ys, xs]
+        size = np.bincount(ids, minlength=count)
+        out["size"].append(size)
+        out["centre"].append(
+            np.stack(
+                [
+                    np.bincount(ids, weights=xs + 0.5, minlength=count) / np.maximum(size, 1),
+                    np.bincount(ids, weights=ys + 0.5, minlength=count) / np.maximum(size, 1),
+                ],
+                axis=1,
+            )
+        )
+        block = np.zeros((count, 2), dtype=np.int64)
+        block[ids, 0], block[ids, 1] = xs >> k, ys >> k
+        out["block"].append(block)
+        parent = np.full(count, -1)
+        if k < top:
+            parent[ids] = grids[k + 1][ys, xs]
+        out["parent"].append(parent)
+        child, first_child = np.zeros(0, dtype=np.int64), np.zeros(count + 1, dtype=np.int64)
+        if k > 0:
+            below = out["parent"][k - 1]
+            child = np.argsort(below, kind="stable")
+            first_child = np.searchsorted(below[child], np.arange(count + 1))
+        out["child"].append(child)
+        out["first_child"].append(first_child)
+        first, neighbour, cost = _reference_edges(labels, 1 << k, movement, out["centre"][k])
+        out["first"].append(first)
+        out["neighbour"].append(neighbour)
+        out["cost"].append(cost)
+    out["regions"] = [ndimage.label(free)[0].astype(np.int64) - 1]
+    return out
+
+
+def _reference_edges(
+    labels: np.ndarray, side: int, movement: int, centre: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The level's edges, every pair of labels a legal move across a block boundary joins, as
+    compressed rows: a node's higher neighbours, then its lower ones, each ascending."""
+    count = len(centre)
+    if side == 1:
+        return np.zeros(count + 1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0)
+    pairs = []
+    cut = np.arange(side - 1, labels.shape[0] - 1, side)  # the last row/column of each block
+    pairs.append((labels[:, cut], labels[:, cut + 1]))
+    pairs.append((labels[cut, :], labels[cut + 1, :]))
+    if movement == 8:  # diagonal moves across a boundary, both orthogonal neighbours free
+        for rows, cols in ((slice(None), cut), (cut, slice(None))):
+            upper = labels[:-1, :-1][rows, cols], labels[:-1, 1:][rows, cols]
+            lower = labels[1:, :-1][rows, cols], labels[1:, 1:][rows, cols]
+            square = (upper[0] >= 0) & (upper[1] >= 0) & (lower[0] >= 0) & (lower[1] >= 0)
+            pairs.append((np.where(square, upper[0], -1), lower[1]))
+            pairs.append((np.where(square, upper[1], -1), lower[0]))
+    a = np.concatenate([one.ravel() for one, _ in pairs])
+    b = np.concatenate([two.ravel() for _, two in pairs])
+    keep = (a >= 0) & (b >= 0) & (a != b)
+    keys = np.unique(np.minimum(a[keep], b[keep]) * count + np.maximum(a[keep], b[keep]))
+    low, high = keys // max(count, 1), keys % max(count, 1)
+    dx, dy = np.abs(centre[low] - centre[high]).T
+    step = (
+        dx + dy if movement == 4 else np.maximum(dx, dy) + (math.sqrt(2) - 1) * np.minimum(dx, dy)
+    )
+    tails, heads = np.concatenate([low, high]), np.concatenate([high, low])
+    order = np.argsort(tails, kind="stable")
+    first = np.searchsorted(tails[order], np.arange(count + 1))
+    return first, heads[order], np.concatenate([step, step])[order]
+
+
+def _assert_same_as_reference(blocked: np.ndarray, movement: int, top: int) -> None:
+    c = Components.build(blocked, movement, top=top)
+    expected = _reference(blocked, movement, top)
+    assert len(c.levels) == top + 1
+    for name, arrays in expected.items():
+        for k, array in enumerate(arrays):
+            if name == "grid":
+                ours = c.grids[k]
+            elif name == "regions":
+                ours = c.regions
+            else:
+                ours = getattr(c.levels[k], name)
+            assert ours.shape == np.shape(array), (name, k)
+            assert ours.dtype == (np.float64 if name in ("centre", "cost") else np.int64), name
+            assert np.array_equal(ours, array), (name, k)  # to the last bit: no tolerance
+    assert c.levels[0].grid is c.grids[0]
+
+
+@settings(max_examples=60, deadline=None)
+@given(any_maps, st.sampled_from([4, 8]), st.data())
+def test_the_build_equals_the_straightforward_one(
+    blocked: np.ndarray, movement: int, data: st.DataObject
+) -> None:
+    top = data.draw(st.integers(0, blocked.shape[0].bit_length() - 1))
+    _assert_same_as_reference(blocked, movement, top)
+
+
+@pytest.mark.parametrize("name", ["random512-10-0", "8room_000", "maze512-1-0", "arena"])
+def test_the_build_equals_the_straightforward_one_on_the_shipped_maps(name: str) -> None:
+    blocked = load_map(Path(str(data_file("maps"))) / f"{name}.map")[0]
+    for movement in (4, 8):
+        _assert_same_as_reference(blocked, movement, 3)

@@ -157,6 +157,17 @@ def test_segmentize_is_the_chain_of_cells_containing_the_position() -> None:
     )
 
 
+def test_a_segment_of_an_array_of_cells_is_the_segment_of_its_int_tuples() -> None:
+    cells = np.array([[3, 4], [4, 4], [5, 5]], dtype=np.int64)
+    segment = Segment(1, cells, np.array([7, 8, 9]))
+    assert segment == Segment(1, [(3, 4), (4, 4), (5, 5)], (7, 8, 9))
+    assert all(type(v) is int for cell in segment.cells for v in cell)
+    assert all(type(node) is int for node in segment.nodes)
+    assert Segment(0, np.array([[1.7, 2.2]])).cells == ((1, 2),)  # floats: int() as before
+    with pytest.raises(ValueError, match="at least one cell"):
+        Segment(0, np.zeros((0, 2), dtype=np.int64))
+
+
 @pytest.mark.parametrize("movement", MOVEMENTS)
 def test_interruption_keeps_a_result_and_never_works_past_the_deadline(movement: int) -> None:
     world = random_world(128, seed=4, movement=movement)

@@ -20,15 +20,17 @@ finds a path. Refinement never needs a widened corridor.
 
 Costs. A level's edges join the centres (mean positions) of the nodes' cells, each costing the
 distance between them as the robot moves (Manhattan for 4-connected moves, octile for
-8-connected ones; at level 0 that is the move's length, 1 or sqrt 2). The whole
-hierarchy is built with vectorised label propagation (scipy's connected components per level),
-once per map: O(N^2 log N) for an N x N map.
+8-connected ones; at level 0 that is the move's length, 1 or sqrt 2). The whole hierarchy is
+built once per map, bottom-up and vectorised (`Components.build`): level 1 read off the 2 x 2
+blocks' patterns, each level above from the graph of the one below (scipy's connected
+components); about linear in the free cells, but for sorting each level's edges.
 
 Arrays are indexed [y, x]; positions are (x, y).
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 
@@ -37,7 +39,7 @@ from attrs import frozen
 from numpy.typing import NDArray
 from scipy import ndimage
 from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
+from scipy.sparse.csgraph import connected_components, dijkstra
 
 from .search import SearchLimit
 from .world import BoolGrid, Position, is_power_of_two
@@ -46,6 +48,7 @@ __all__ = ["Components", "Level", "NodePath"]
 
 IntArray = NDArray[np.int64]
 FloatArray = NDArray[np.float64]
+Edges = tuple[IntArray, IntArray]  # a level's edges (low, high): low < high, sorted, once each
 
 
 @frozen(eq=False)
@@ -70,6 +73,8 @@ class Level:
     child: IntArray
     movement: int
     grid: IntArray | None = None
+    # Level 0's `grid` ravelled with a border of -1 (blocked): a move's head is one look-up.
+    padded: IntArray | None = None
 
     def __len__(self) -> int:
         return len(self.size)
@@ -78,17 +83,15 @@ class Level:
         found: list[int] = self.child[self.first_child[node] : self.first_child[node + 1]].tolist()
         return found
 
-    def children_of(self, nodes: Sequence[int]) -> IntArray:
+    def children_of(self, nodes: Sequence[int] | IntArray) -> IntArray:
         """The children of all of `nodes`, as one array."""
-        parts = [self.child[self.first_child[n] : self.first_child[n + 1]] for n in nodes]
-        return np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
+        return self.child[_rows(self.first_child, np.asarray(nodes, dtype=np.int64))]
 
     def edges_of(self, nodes: IntArray) -> tuple[IntArray, IntArray, FloatArray]:
         """Every edge leaving `nodes`: (tail, head, cost) arrays, tails among `nodes`."""
         if self.grid is None:
+            index = _rows(self.first, nodes)
             counts = self.first[nodes + 1] - self.first[nodes]
-            starts = np.repeat(self.first[nodes] - np.cumsum(counts) + counts, counts)
-            index = starts + np.arange(int(counts.sum()))
             return np.repeat(nodes, counts), self.neighbour[index], self.cost[index]
         grid, side = self.grid, self.grid.shape[0]
         x, y = self.block[nodes, 0], self.block[nodes, 1]
@@ -111,6 +114,13 @@ class Level:
 _SQRT2 = math.sqrt(2.0)
 _STRAIGHT_MOVES = ((1, 0, 1.0), (-1, 0, 1.0), (0, 1, 1.0), (0, -1, 1.0))
 _DIAGONAL_MOVES = ((1, 1, _SQRT2), (-1, 1, _SQRT2), (1, -1, _SQRT2), (-1, -1, _SQRT2))
+#: The moves in the order of their heads in raster order (dy, then dx).
+_RASTER_MOVES = {
+    movement: sorted(
+        _STRAIGHT_MOVES + (_DIAGONAL_MOVES if movement == 8 else ()), key=lambda m: (m[1], m[0])
+    )
+    for movement in (4, 8)
+}
 
 
 @frozen
@@ -146,68 +156,81 @@ class Components:
         """The hierarchy of `blocked` (square, power-of-two side) up to level `top` (default
         log2(N): one block).
 
-        A block's components are its 4-connected free regions (octile moves without corner
-        cutting connect the same cells), labelled for every block of a level at once
-        (`scipy.ndimage.label` on the blocks stacked, never connected across). A node's
-        neighbours are found where a legal move crosses a block boundary."""
+        Bottom-up, the grid never labelled again: level 0's nodes are the free cells, level 1's
+        are read off each 2 x 2 block's pattern of free cells, and a node higher up is a
+        component of the graph of the nodes one level down in its block, joined by their edges
+        (the legal moves between them stay inside the block). A level's edges are the edges
+        one level down between blocks, taken up to the parents. Nodes are numbered by block
+        (row by row), then by first cell (row by row): the order a raster scan of each block
+        meets its components in."""
         grid = np.asarray(blocked, dtype=bool)
         if grid.ndim != 2 or grid.shape[0] != grid.shape[1] or not is_power_of_two(grid.shape[0]):
             raise ValueError(f"the grid must be square with a power-of-two side, got {grid.shape}")
         if movement not in (4, 8):
             raise ValueError(f"movement must be 4 or 8, got {movement!r}")
-        highest = grid.shape[0].bit_length() - 1
+        side = grid.shape[0]
+        highest = side.bit_length() - 1
         top = highest if top is None else top
         if not 0 <= top <= highest:
             raise ValueError(f"top must be in [0, {highest}], got {top}")
         free = ~grid
-        ys, xs = np.nonzero(free)
-        grids = [_block_labels(free, 1 << k) for k in range(top + 1)]
-        levels: list[Level] = []
-        for k, labels in enumerate(grids):
-            count = int(labels.max()) + 1 if len(xs) else 0
-            ids = labels[ys, xs]
-            size = np.bincount(ids, minlength=count)
-            centre = np.stack(
-                [
-                    np.bincount(ids, weights=xs + 0.5, minlength=count) / np.maximum(size, 1),
-                    np.bincount(ids, weights=ys + 0.5, minlength=count) / np.maximum(size, 1),
-                ],
-                axis=1,
-            )
-            block = np.zeros((count, 2), dtype=np.int64)
-            block[ids, 0], block[ids, 1] = xs >> k, ys >> k
-            parent = np.full(count, -1, dtype=np.int64)
-            if k < top:
-                parent[ids] = grids[k + 1][ys, xs]
-            first_child = np.zeros(count + 1, dtype=np.int64)
-            child = np.zeros(0, dtype=np.int64)
-            if k > 0:
-                below = levels[-1].parent
-                child = np.argsort(below, kind="stable").astype(np.int64)
-                first_child = np.searchsorted(below[child], np.arange(count + 1)).astype(np.int64)
+        cells = np.flatnonzero(free)  # level 0's nodes, in raster order
+        nodes = np.full(side * side, -1, dtype=np.int64)
+        nodes[cells] = np.arange(len(cells))
+        grids = [nodes.reshape(side, side)]
+        # A level in the making: each node's first cell in raster order (y * side + x), its
+        # number of cells, the sums of their x and of their y (exact, in any order), and the
+        # level's edges (low < high, sorted).
+        made: list[tuple[IntArray, IntArray, tuple[FloatArray, FloatArray], Edges]] = []
+        first_cell, size = cells, np.ones(len(cells), dtype=np.int64)
+        sums = ((cells & (side - 1)).astype(np.float64), (cells >> highest).astype(np.float64))
+        edges: Edges = (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64))
+        parents: list[IntArray] = []
+        quad_children: IntArray | None = None  # level 1's children, read off its blocks
+        for k in range(top):  # level k + 1 from level k
             if k == 0:
-                first, neighbour = np.zeros(count + 1, dtype=np.int64), np.zeros(0, dtype=np.int64)
-                cost = np.zeros(0, dtype=np.float64)
+                grid_up, count, edges_up, quad_cells = _quads(free, movement)
+                quad_children = nodes[quad_cells]
+                parent = grid_up.ravel()[cells]
+                first_up = np.full(count, side * side, dtype=np.int64)
+                np.minimum.at(first_up, parent, first_cell)
             else:
-                first, neighbour, cost = _adjacency(labels, 1 << k, movement, centre, count)
-            levels.append(
-                Level(
-                    k,
-                    block,
-                    centre,
-                    size.astype(np.int64),
-                    parent,
-                    first,
-                    neighbour,
-                    cost,
-                    first_child,
-                    child,
-                    movement,
-                    labels if k == 0 else None,
-                )
+                k_up, across = k + 1, side >> (k + 1)  # blocks per row one level up
+                x, y = first_cell & (side - 1), first_cell >> highest
+                block_up = (y >> k_up) * across + (x >> k_up)
+                parent, count, first_up = _components(edges, block_up, first_cell, side)
+                edges_up = _lifted(edges, parent, count)
+                grid_up = np.append(parent, -1)[grids[-1]]  # blocked, -1, picks the -1 appended
+            made.append((first_cell, size, sums, edges))
+            parents.append(parent)
+            grids.append(grid_up)
+            size = np.bincount(parent, weights=size, minlength=count).astype(np.int64)
+            sums = (
+                np.bincount(parent, weights=sums[0], minlength=count),
+                np.bincount(parent, weights=sums[1], minlength=count),
             )
-        regions, _ = ndimage.label(free)  # 4-connected: octile moves join the same cells
-        return cls(tuple(levels), tuple(grids), movement, regions.astype(np.int64) - 1)
+            first_cell, edges = first_up, edges_up
+        made.append((first_cell, size, sums, edges))
+        parents.append(np.full(len(size), -1, dtype=np.int64))
+        levels = tuple(
+            _level(  # level 1's children known, the others' sorted out
+                k,
+                *made[k],
+                parents[k],
+                parents[k - 1] if k else None,
+                quad_children if k == 1 else None,
+                grids[0],
+                movement,
+            )
+            for k in range(top + 1)
+        )
+        if top > 0:  # the free regions: the components of the top level's graph
+            region, _, _ = _components(edges, np.zeros(len(size), np.int64), first_cell, side)
+            regions = np.append(region, -1)[grids[top]]
+        else:
+            labels, _ = ndimage.label(free)  # 4-connected: octile moves join the same cells
+            regions = labels.astype(np.int64) - 1
+        return cls(levels, tuple(grids), movement, regions)
 
     @property
     def top(self) -> int:
@@ -264,22 +287,18 @@ class Components:
         Raises:
             SearchLimit: that work is more than `limit`.
         """
-        nodes = np.unique(np.asarray(allowed, dtype=np.int64))
+        nodes = _sorted_unique(np.asarray(allowed, dtype=np.int64))
         n = len(nodes)
-        tails, heads, costs = self.levels[level].edges_of(nodes)
-        local = np.searchsorted(nodes, heads)
-        ok = (local < n) & (nodes[np.minimum(local, n - 1)] == heads)
-        tails, local, costs = np.searchsorted(nodes, tails[ok]), local[ok], costs[ok]
         start, finish = n, n + 1  # a source before every source, a target after every target
-        s_local = np.searchsorted(nodes, np.asarray(sources, dtype=np.int64))
-        t_local = np.searchsorted(nodes, np.asarray(targets, dtype=np.int64))
+        local = np.full(len(self.levels[level]) + 1, -1, dtype=np.int64)  # the last: for -1
+        local[nodes] = np.arange(n)
+        s_local = local[np.asarray(sources, dtype=np.int64)]
+        t_local = local[np.asarray(targets, dtype=np.int64)]
         s_costs = np.zeros(len(s_local)) if source_costs is None else np.asarray(source_costs)
         t_costs = np.zeros(len(t_local)) if target_costs is None else np.asarray(target_costs)
-        rows = np.concatenate([tails, np.full(len(s_local), start), t_local])
-        cols = np.concatenate([local, s_local, np.full(len(t_local), finish)])
         # Explicit zeros are no edges to csgraph: the free ends cost a hair.
-        weights = np.concatenate([costs, s_costs + 1e-12, t_costs + 1e-12])
-        graph = csr_matrix((weights, (rows, cols)), shape=(n + 2, n + 2))
+        ends = (s_local, s_costs + 1e-12, t_local, t_costs + 1e-12)
+        graph = _corridor_graph(self.levels[level], nodes, local, *ends)
         distance, previous = dijkstra(graph, indices=start, return_predecessors=True)
         best = float(distance[finish])
         estimate = distance[:n] + self._heuristic(level, nodes, nodes[t_local])
@@ -288,75 +307,410 @@ class Components:
         )
         path = []
         if np.isfinite(best):
-            at = int(previous[finish])
+            back: list[int] = previous.tolist()
+            at = back[finish]
             while at != start:
                 path.append(at)
-                at = int(previous[at])
+                at = back[at]
             expanded[path[1:]] = True  # A* pops the path's nodes too; the target ends it
         expansions = int(np.count_nonzero(expanded))
         if expansions > limit:
             raise SearchLimit(int(limit))
         if not path:
             return None
-        nodes_path = tuple(int(nodes[i]) for i in reversed(path))
+        nodes_path = tuple(nodes[path[::-1]].tolist())
         return NodePath(level, nodes_path, best, expansions)
 
     def _heuristic(self, level: int, nodes: IntArray, targets: IntArray) -> FloatArray:
         """The distance from each of `nodes` to the nearest of `targets` (centre to centre):
-        Manhattan or octile at level 0, as the moves go, Euclidean above."""
+        Manhattan or octile, as the moves go (`_distance`), one target at a time."""
         centre = self.levels[level].centre
-        offsets = centre[nodes][:, None, :] - centre[targets][None, :, :]
-        return np.asarray(_distance(offsets, self.movement).min(axis=1))
+        x, y = centre[nodes, 0], centre[nodes, 1]
+        nearest = np.full(len(nodes), np.inf)
+        for tx, ty in centre[targets].tolist():
+            np.minimum(
+                nearest, _distance(np.abs(x - tx), np.abs(y - ty), self.movement), out=nearest
+            )
+        return nearest
 
 
-def _distance(offset: FloatArray, movement: int) -> FloatArray:
-    """The length of the shortest move sequence across `offset` (..., 2) on an open grid:
-    Manhattan for 4-connected moves, octile for 8-connected ones (a metric: the heuristic it
-    gives is consistent with edges that cost it)."""
-    dx, dy = np.abs(offset[..., 0]), np.abs(offset[..., 1])
+def _sorted_unique(values: IntArray) -> IntArray:
+    """`np.unique` of integers, by a sort (numpy's hash table is slower on these)."""
+    ordered = np.sort(values)
+    return (
+        ordered[np.concatenate(([True], ordered[1:] != ordered[:-1]))] if len(values) else ordered
+    )
+
+
+def _rows(first: IntArray, nodes: IntArray) -> IntArray:
+    """The indices of the entries of `nodes`' rows in compressed rows `first`, row by row."""
+    counts = first[nodes + 1] - first[nodes]
+    return np.repeat(first[nodes] - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())
+
+
+def _summed(local: IntArray, costs: FloatArray) -> tuple[IntArray, FloatArray]:
+    """The distinct `local` nodes, ascending, each with the sum of its costs (as csgraph sums
+    duplicate edges)."""
+    if len(local) < 2 or bool((local[1:] > local[:-1]).all()):  # a node or children: as they are
+        return local, costs
+    distinct = _sorted_unique(local)
+    total = np.zeros(len(distinct))
+    np.add.at(total, np.searchsorted(distinct, local), costs)
+    return distinct, total
+
+
+def _corridor_graph(
+    level: Level,
+    nodes: IntArray,
+    local: IntArray,
+    sources: IntArray,
+    source_costs: FloatArray,
+    targets: IntArray,
+    target_costs: FloatArray,
+) -> csr_matrix:
+    """The graph a corridor search runs on: the edges among `nodes` (`local[node]` its index
+    there, -1 outside), an edge from a start (index n) to each source and from each target to
+    a finish (n + 1), as canonical compressed rows (each row's columns ascending): the graph
+    scipy would make of the same edges, so that Dijkstra's ties go the same way."""
+    n = len(nodes)
+    targets, target_costs = _summed(targets, target_costs)
+    sources, source_costs = _summed(sources, source_costs)
+    if level.grid is not None and level.padded is not None:
+        cols, data, counts = _cell_rows(level, level.grid.shape[0], nodes, local, targets)
+        data[np.cumsum(counts)[targets] - 1] = target_costs  # a target's last column: finish
+    else:
+        cols, data, counts = _node_rows(level, nodes, local, targets, target_costs)
+    first = np.zeros(n + 3, dtype=np.int64)
+    np.cumsum(counts, out=first[1 : n + 1])
+    first[n + 1 :] = first[n] + len(sources)
+    cols = np.concatenate([cols, sources])
+    data = np.concatenate([data, source_costs])
+    return csr_matrix((data, cols, first), shape=(n + 2, n + 2))
+
+
+def _cell_rows(
+    level: Level, side: int, nodes: IntArray, local: IntArray, targets: IntArray
+) -> tuple[IntArray, FloatArray, IntArray]:
+    """Level 0's rows of a corridor graph (columns, weights, counts): each cell's moves in
+    raster order of their heads, then the finish for a target (weight left 0)."""
+    n, wide = len(nodes), side + 2
+    moves = _RASTER_MOVES[level.movement]
+    padded = level.padded
+    assert padded is not None
+    at = ((level.block[nodes, 1] + 1) * wide + level.block[nodes, 0] + 1)[:, None]
+    heads = np.full((n, len(moves) + 1), -1, dtype=np.int64)
+    heads[:, :-1] = local[padded[at + np.array([dy * wide + dx for dx, dy, _ in moves])]]
+    diagonal = [j for j, (dx, dy, _) in enumerate(moves) if dx and dy]
+    if diagonal:  # no corner cutting: both orthogonal neighbours free
+        across = np.array([moves[j][0] for j in diagonal])
+        along = np.array([moves[j][1] * wide for j in diagonal])
+        cut = (padded[at + across] < 0) | (padded[at + along] < 0)
+        heads[:, diagonal] = np.where(cut, -1, heads[:, diagonal])
+    heads[targets, -1] = n + 1
+    edge = heads >= 0
+    weights = np.tile(np.array([step for _, _, step in moves] + [0.0]), (n, 1))
+    return heads[edge], weights[edge], np.count_nonzero(edge, axis=1)
+
+
+def _node_rows(
+    level: Level, nodes: IntArray, local: IntArray, targets: IntArray, target_costs: FloatArray
+) -> tuple[IntArray, FloatArray, IntArray]:
+    """The rows of a corridor graph above level 0 (columns, weights, counts), from the level's:
+    each row's lower neighbours first (the level's rows hold the higher ones first), then the
+    finish for a target."""
+    n = len(nodes)
+    index = _rows(level.first, nodes)
+    head = local[level.neighbour[index]]
+    edge = head >= 0
+    row = np.repeat(np.arange(n), level.first[nodes + 1] - level.first[nodes])[edge]
+    col, weight = head[edge], level.cost[index][edge]
+    lower = col < row
+    count, lows = np.bincount(row, minlength=n), np.bincount(row[lower], minlength=n)
+    counts = count.copy()
+    counts[targets] += 1
+    was, now = np.cumsum(count) - count, np.cumsum(counts) - counts  # each row's first entry
+    rank = np.arange(len(row)) - was[row]
+    at = now[row] + np.where(lower, rank - (count - lows)[row], rank + lows[row])
+    cols = np.zeros(len(row) + len(targets), dtype=np.int64)
+    data = np.zeros(len(cols))
+    cols[at], data[at] = col, weight
+    ends = now[targets] + count[targets]
+    cols[ends], data[ends] = n + 1, target_costs
+    return cols, data, counts
+
+
+def _distance(dx: FloatArray, dy: FloatArray, movement: int) -> FloatArray:
+    """The length of the shortest move sequence across the offsets (dx, dy), both >= 0, on an
+    open grid: Manhattan for 4-connected moves, octile for 8-connected ones (a metric: the
+    heuristic it gives is consistent with edges that cost it)."""
     if movement == 4:
         return np.asarray(dx + dy)
     return np.asarray(np.maximum(dx, dy) + (math.sqrt(2.0) - 1.0) * np.minimum(dx, dy))
 
 
-def _block_labels(free: BoolGrid, side: int) -> IntArray:
-    """The 4-connected component of each free cell within its `side` x `side` block, numbered
-    from 0 block by block (-1 where blocked)."""
-    n = free.shape[0]
-    m = n // side
-    stacked = free.reshape(m, side, m, side).transpose(0, 2, 1, 3).reshape(m * m, side, side)
-    within = np.zeros((3, 3, 3), dtype=bool)  # 4-connected inside one block, never across
-    within[1] = ndimage.generate_binary_structure(2, 1)
-    labels, _ = ndimage.label(stacked, structure=within)
-    labels = labels.reshape(m, m, side, side).transpose(0, 2, 1, 3).reshape(n, n)
-    return np.asarray(labels, dtype=np.int64) - 1
+def _quad_labels() -> IntArray:
+    """The components of a 2 x 2 block for each of the 16 patterns of free cells (bit p of the
+    pattern: position p = 2y + x free): each position's label, numbered in raster order (-1
+    where blocked)."""
+    labels = np.full((16, 4), -1, dtype=np.int64)
+    for pattern in range(16):
+        count = 0
+        for p in range(4):
+            if pattern >> p & 1 and labels[pattern, p] < 0:
+                labels[pattern, p] = count
+                for q in (p ^ 1, p ^ 2, p ^ 3):  # p ^ 3, diagonal, joins through p ^ 1 or p ^ 2
+                    if pattern >> q & 1 and (q != p ^ 3 or pattern & (1 << (p ^ 1) | 1 << (p ^ 2))):
+                        labels[pattern, q] = count
+                count += 1
+    return labels
 
 
-def _adjacency(
-    labels: IntArray, side: int, movement: int, centre: FloatArray, count: int
-) -> tuple[IntArray, IntArray, FloatArray]:
-    """The level's edges as compressed rows (first, neighbour, cost): the pairs of nodes a legal
-    move across a block boundary joins, once each, costing the distance between centres."""
-    pairs = []
-    cut = np.arange(side - 1, labels.shape[0] - 1, side)  # the last row/column of each block
-    pairs.append((labels[:, cut], labels[:, cut + 1]))  # across a vertical boundary
-    pairs.append((labels[cut, :], labels[cut + 1, :]))  # across a horizontal boundary
-    if movement == 8:  # diagonal moves across a boundary, both orthogonal neighbours free
-        for rows, cols in ((slice(None), cut), (cut, slice(None))):
-            top = labels[:-1, :-1][rows, cols], labels[:-1, 1:][rows, cols]
-            bottom = labels[1:, :-1][rows, cols], labels[1:, 1:][rows, cols]
-            square = (top[0] >= 0) & (top[1] >= 0) & (bottom[0] >= 0) & (bottom[1] >= 0)
-            pairs.append((np.where(square, top[0], -1), bottom[1]))
-            pairs.append((np.where(square, top[1], -1), bottom[0]))
-    a = np.concatenate([one.ravel() for one, _ in pairs])
-    b = np.concatenate([two.ravel() for _, two in pairs])
-    keep = (a >= 0) & (b >= 0) & (a != b)
-    low, high = np.minimum(a[keep], b[keep]), np.maximum(a[keep], b[keep])
-    keys = np.sort(low * max(count, 1) + high)
+_QUAD_LABELS = _quad_labels().astype(np.int8)
+_QUAD_COUNTS = _QUAD_LABELS.max(axis=1) + 1
+#: The neighbouring blocks (dx, dy) that come after a block in raster order, in their order.
+_FORWARD = ((1, 0), (-1, 1), (0, 1), (1, 1))
+
+
+def _quad_moves(movement: int) -> list[tuple[int, int, int, list[tuple[int, int, int]]]]:
+    """The legal moves from a 2 x 2 block into one of the `_FORWARD` blocks: (direction, the
+    tail's position, the head's position, the cells that must be free too, each (dx, dy) of its
+    block and position), every move between two blocks once."""
+    moves = _STRAIGHT_MOVES + (_DIAGONAL_MOVES if movement == 8 else ())
+    found = []
+    for tail in range(4):
+        tx, ty = tail & 1, tail >> 1
+        for dx, dy, _ in moves:
+            hx, hy = tx + dx, ty + dy
+            if (hx >> 1, hy >> 1) not in _FORWARD:
+                continue
+            corners = [(x >> 1, y >> 1, 2 * (y & 1) + (x & 1)) for x, y in ((hx, ty), (tx, hy))]
+            head = 2 * (hy & 1) + (hx & 1)
+            found.append(
+                (_FORWARD.index((hx >> 1, hy >> 1)), tail, head, corners if dx and dy else [])
+            )
+    return found
+
+
+_QUAD_MOVES = {movement: _quad_moves(movement) for movement in (4, 8)}
+
+
+def _pair_table(movement: int, direction: int) -> NDArray[np.uint8] | None:
+    """The components the moves between two neighbouring blocks in `direction` join, for each
+    pair of their patterns (16 * tail's + head's): bit 2 * tail's label + head's label. None
+    when a move's corner cells lie in a third block (the diagonal directions)."""
+    dx, dy = _FORWARD[direction]
+    moves = [move for move in _QUAD_MOVES[movement] if move[0] == direction]
+    if any((cx, cy) not in ((0, 0), (dx, dy)) for *_, corners in moves for cx, cy, _ in corners):
+        return None
+    table = np.zeros(256, dtype=np.uint8)
+    for tail_pattern, head_pattern in itertools.product(range(16), repeat=2):
+        for _, tail, head, corners in moves:
+            tail_label, head_label = (
+                _QUAD_LABELS[tail_pattern, tail],
+                _QUAD_LABELS[head_pattern, head],
+            )
+            corners_free = all(
+                _QUAD_LABELS[tail_pattern if (cx, cy) == (0, 0) else head_pattern, p] >= 0
+                for cx, cy, p in corners
+            )
+            if tail_label >= 0 and head_label >= 0 and corners_free:
+                table[16 * tail_pattern + head_pattern] |= 1 << (2 * tail_label + head_label)
+    return table
+
+
+_PAIR_TABLES = {(m, d): _pair_table(m, d) for m in (4, 8) for d in range(len(_FORWARD))}
+
+
+def _level(
+    k: int,
+    first_cell: IntArray,
+    size: IntArray,
+    sums: tuple[FloatArray, FloatArray],
+    edges: Edges,
+    parent: IntArray,
+    below: IntArray | None,
+    children: IntArray | None,
+    base: IntArray,
+    movement: int,
+) -> Level:
+    """Level k from its making (`Components.build`), the parents of the level below and its
+    nodes' children, ascending, when known (level 1's); `base` is level 0's grid."""
+    side, count = base.shape[0], len(size)
+    block = np.zeros((count, 2), dtype=np.int64)
+    block[:, 0] = (first_cell & (side - 1)) >> k
+    block[:, 1] = (first_cell >> (side.bit_length() - 1)) >> k
+    centre: FloatArray
+    if k == 0:  # one cell each: (x + 0.5) / 1
+        centre = np.add(block, 0.5, dtype=np.float64)
+    else:
+        centre = np.zeros((count, 2))
+        for i, total in enumerate(sums):
+            np.divide(total + 0.5 * size, np.maximum(size, 1), out=centre[:, i])
+    first_child, child = np.zeros(count + 1, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    if below is not None:
+        first_child, child = _grouped(below, count, children)
+    first, neighbour, cost = _compressed(edges, centre[:, 0], centre[:, 1], movement)
+    return Level(
+        k,
+        block,
+        centre,
+        size,
+        parent,
+        first,
+        neighbour,
+        cost,
+        first_child,
+        child,
+        movement,
+        base if k == 0 else None,
+        np.pad(base, 1, constant_values=-1).ravel() if k == 0 else None,
+    )
+
+
+def _quads(free: BoolGrid, movement: int) -> tuple[IntArray, int, Edges, IntArray]:
+    """Level 1 from the 2 x 2 blocks' patterns of free cells (the blocks with a free cell only:
+    a sparse map costs little): its node of each base cell (-1 where blocked), its number of
+    nodes, its edges, and its nodes' cells (y * side + x) node by node, ascending (a block's
+    two components, when it has two, are one cell each, in raster order)."""
+    side = free.shape[0]
+    m = side // 2
+    quads = free.reshape(m, 2, m, 2)
+    every = quads[:, 0, :, 0] | quads[:, 0, :, 1] << 1 | quads[:, 1, :, 0] << 2
+    every = (every | quads[:, 1, :, 1] << 3).ravel()
+    occupied = np.flatnonzero(every)  # raster order
+    pattern = every[occupied]
+    local: NDArray[np.int8] = _QUAD_LABELS[pattern]  # (blocks, 4): each position's component
+    counts = _QUAD_COUNTS[pattern]
+    offset = np.cumsum(counts) - counts  # each block's first node
+    count = int(counts.sum())
+    bx, by = occupied % m, occupied // m
+    grid = np.full(side * side, -1, dtype=np.int64)
+    corner = 2 * by * side + 2 * bx
+    cells = corner[:, None] + np.array([0, 1, side, side + 1])  # (blocks, 4), raster order
+    here = local >= 0
+    grid[cells[here]] = (offset[:, None] + local)[here]
+    slot = np.full(m * m, -1, dtype=np.int64)  # each block's index among `occupied`
+    slot[occupied] = np.arange(len(occupied))
+    near: dict[tuple[int, int], IntArray] = {}
+
+    def beside(dx: int, dy: int) -> IntArray:
+        """The index of the neighbouring block (dx, dy >= 0) of each, -1 when it has no free
+        cell or is off the map: an index of the arrays with a -1 row appended."""
+        if (dx, dy) not in near:
+            found = slot[np.minimum(occupied + dy * m + dx, m * m - 1)]
+            found[(bx + dx < 0) | (bx + dx >= m) | (by + dy >= m)] = -1
+            near[dx, dy] = found
+        return near[dx, dy]
+
+    # Each block's 4 labels as one int32, to gather a neighbour's at once.
+    rows = np.concatenate([local, np.full((1, 4), -1, dtype=np.int8)]).view(np.int32).ravel()
+
+    def label(dx: int, dy: int, p: int) -> NDArray[np.int8]:
+        """The label of position p of each block's neighbour (dx, dy) (-1: none)."""
+        if (dx, dy) == (0, 0):
+            return local[:, p]
+        labels: NDArray[np.int8] = rows[beside(dx, dy)].view(np.int8).reshape(-1, 4)[:, p]
+        return labels
+
+    # The components each pair of neighbouring blocks joins: bit 2 * tail's + head's.
+    joined = np.zeros((len(_FORWARD), len(occupied)), dtype=np.uint8)
+    patterns = np.append(pattern, 0)
+    for direction, (dx, dy) in enumerate(_FORWARD):
+        table = _PAIR_TABLES[movement, direction]
+        if table is not None:
+            joined[direction] = table[16 * pattern + patterns[beside(dx, dy)]]
+    for direction, tail, head, corners in _QUAD_MOVES[movement]:
+        if _PAIR_TABLES[movement, direction] is not None:
+            continue
+        tail_label, head_label = local[:, tail], label(*_FORWARD[direction], head)
+        legal = (tail_label >= 0) & (head_label >= 0)
+        for cx, cy, p in corners:
+            legal &= label(cx, cy, p) >= 0
+        joined[direction] |= legal << np.maximum(2 * tail_label + head_label, 0).astype(np.uint8)
+    bits = count.bit_length()
+    offsets = np.append(offset, 0)
+    keys = []
+    for (dx, dy), pairs in zip(_FORWARD, joined, strict=True):
+        bit_rows = np.unpackbits(pairs.reshape(-1, 1), axis=1, count=4, bitorder="little")
+        found = np.flatnonzero(bit_rows.view(bool))
+        at, pair = found >> 2, found & 3
+        head_first = offsets[beside(dx, dy)[at]]
+        keys.append((offset[at] + (pair >> 1)) << bits | head_first + (pair & 1))
+    edges = np.sort(np.concatenate(keys), kind="stable")  # four sorted runs: merged
+    return grid.reshape(side, side), count, (edges >> bits, edges & ((1 << bits) - 1)), cells[here]
+
+
+def _components(
+    edges: Edges, group: IntArray, first_cell: IntArray, side: int
+) -> tuple[IntArray, int, IntArray]:
+    """The components of the graph of the edges that stay within a `group` (a block one level
+    up): each node's component, their number and first cells, numbered by group, then by first
+    cell."""
+    n = len(group)
+    if n == 0:
+        return np.zeros(0, dtype=np.int64), 0, np.zeros(0, dtype=np.int64)
+    low, high = edges
+    inside = group[low] == group[high]
+    rows = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(low[inside], minlength=n), out=rows[1:])
+    graph = csr_matrix((np.ones(int(rows[-1])), high[inside], rows), shape=(n, n))
+    count, label = connected_components(graph, directed=False)
+    first = np.full(count, side * side, dtype=np.int64)
+    np.minimum.at(first, label, first_cell)
+    where = np.zeros(count, dtype=np.int64)
+    where[label] = group
+    order = np.argsort(where * side * side + first)
+    rank = np.zeros(count, dtype=np.int64)
+    rank[order] = np.arange(count)
+    return rank[label], int(count), first[order]
+
+
+def _lifted(edges: Edges, parent: IntArray, count: int) -> Edges:
+    """The edges one level up: the parents of the ends of the edges between blocks, once
+    each."""
+    a, b = parent[edges[0]], parent[edges[1]]
+    between = a != b
+    bits = count.bit_length()
+    keys = np.sort(np.minimum(a, b)[between] << bits | np.maximum(a, b)[between])
     keys = keys[np.concatenate(([True], keys[1:] != keys[:-1]))] if len(keys) else keys
-    a, b = keys // max(count, 1), keys % max(count, 1)
-    step = _distance(centre[a] - centre[b], movement)
-    tails, heads = np.concatenate([a, b]), np.concatenate([b, a])
-    order = np.argsort(tails, kind="stable")
-    first = np.searchsorted(tails[order], np.arange(count + 1)).astype(np.int64)
-    return first, heads[order].astype(np.int64), np.concatenate([step, step])[order]
+    return keys >> bits, keys & ((1 << bits) - 1)
+
+
+def _grouped(
+    parent: IntArray, count: int, children: IntArray | None = None
+) -> tuple[IntArray, IntArray]:
+    """The children of each of `count` nodes, ascending, as compressed rows (first, child);
+    `children` the child column when known."""
+    n = len(parent)
+    first = np.zeros(count + 1, dtype=np.int64)
+    np.cumsum(np.bincount(parent, minlength=count), out=first[1:])
+    if children is not None:
+        return first, children
+    bits = n.bit_length()
+    return first, np.sort(parent << bits | np.arange(n)) & ((1 << bits) - 1)
+
+
+def _compressed(
+    edges: Edges, x: FloatArray, y: FloatArray, movement: int
+) -> tuple[IntArray, IntArray, FloatArray]:
+    """The edges as compressed rows (first, neighbour, cost), each costing the distance between
+    the centres (x, y) of its ends: a node's row holds its higher neighbours, then its lower
+    ones, each ascending."""
+    low, high = edges
+    count, n = len(x), len(low)
+    if n == 0:  # none (at level 0 a node's neighbours are the moves from its cell)
+        return np.zeros(count + 1, dtype=np.int64), low, np.zeros(0, dtype=np.float64)
+    ups, downs = np.bincount(low, minlength=count), np.bincount(high, minlength=count)
+    first = np.zeros(count + 1, dtype=np.int64)
+    np.cumsum(ups + downs, out=first[1:])
+    step = _distance(np.abs(x[low] - x[high]), np.abs(y[low] - y[high]), movement)
+    bits = n.bit_length()
+    # The edges by their high end, then their low one (the index follows the low end).
+    back = np.sort(high << bits | np.arange(n)) & ((1 << bits) - 1)
+    neighbour = np.zeros(2 * n, dtype=np.int64)
+    cost = np.zeros(2 * n, dtype=np.float64)
+    upward = np.arange(n) + (np.cumsum(downs) - downs)[low]  # first[low] + rank among ups
+    downward = np.arange(n) + np.cumsum(ups)[high[back]]  # first + ups + rank among downs
+    neighbour[upward], neighbour[downward] = high, low[back]
+    cost[upward], cost[downward] = step, step[back]
+    return first, neighbour, cost

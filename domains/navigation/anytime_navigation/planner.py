@@ -62,14 +62,17 @@ __all__ = [
 
 
 def _cells(value: object) -> tuple[Position, ...]:
-    cells = tuple((int(x), int(y)) for x, y in value)  # type: ignore[attr-defined]
+    if isinstance(value, np.ndarray) and value.dtype.kind in "iu" and value.shape[1:] == (2,):
+        cells = tuple(map(tuple, value.tolist()))  # the planner's: ints already, made at once
+    else:
+        cells = tuple((int(x), int(y)) for x, y in value)  # type: ignore[attr-defined]
     if not cells:
         raise ValueError("a segment needs at least one cell")
     return cells
 
 
 def _nodes(value: Iterable[int]) -> tuple[int, ...]:
-    return tuple(int(node) for node in value)
+    return tuple(map(int, value))
 
 
 @frozen
@@ -288,13 +291,14 @@ def atp(
         )
     if not components.connected(start, goal):
         components = Components.build(_opened(blocked, start, goal, movement), movement, top=top)
-    planner = _Planner(components, start, goal, ctx)
+    planner = _Planner(components, pyramid, start, goal, ctx)
     try:
         first = planner.first(top)
     except SearchLimit as stopped:  # the deadline came before the first plan
         ctx.tick(stopped.expansions)
         return
-    segments = [planner.segment(top, part) for part in _pieces(first, segment_moves)]
+    made = [planner.segment(top, part) for part in _pieces(first, segment_moves)]
+    segments = [segment for segment, _ in made]
     plan = MultiPath(
         start,
         goal,
@@ -303,31 +307,31 @@ def atp(
         segmentize(goal, top)[::-1],
         components,
     )
-    # WORST-SEGMENT as a heap of (-score, creation order, segment), stale entries skipped; the
-    # quality estimate as running sums: no rescan of the plan per refinement.
+    # WORST-SEGMENT as a heap of (-score, creation order, segment, its mean obstacleness),
+    # stale entries skipped; the quality estimate as running sums: no rescan of the plan per
+    # refinement.
     order = itertools.count()
     live: set[int] = set()
-    heap: list[tuple[float, int, Segment]] = []
+    heap: list[tuple[float, int, Segment, float]] = []
     sums = [0.0, 0.0]
 
-    def add(segment: Segment) -> None:
-        o = _mean_obstacleness(segment, pyramid)
+    def add(segment: Segment, o: float) -> None:
         extent, credit = _credit(segment, o, pyramid.top)
         sums[0] += extent
         sums[1] += credit
         if segment.level > 0:
             live.add(id(segment))
-            heapq.heappush(heap, (-_score(segment.level, o), next(order), segment))
+            heapq.heappush(heap, (-_score(segment.level, o), next(order), segment, o))
 
-    for segment in segments:
-        add(segment)
+    for segment, o in made:
+        add(segment, o)
     yield Result(plan, _clip(sums[1] / sums[0]))
     while not ctx.expired:
         while heap and id(heap[0][2]) not in live:
             heapq.heappop(heap)
         if not heap:
             return
-        old = heapq.heappop(heap)[2]
+        _, _, old, old_obstacleness = heapq.heappop(heap)
         live.discard(id(old))
         index = next(i for i in range(len(segments)) if segments[i] is old)
         try:
@@ -335,12 +339,12 @@ def atp(
         except SearchLimit as stopped:  # the deadline came mid-refinement: keep the last plan
             ctx.tick(stopped.expansions)
             return
-        extent, credit = _credit(old, _mean_obstacleness(old, pyramid), pyramid.top)
+        extent, credit = _credit(old, old_obstacleness, pyramid.top)
         sums[0] -= extent
         sums[1] -= credit
-        for segment in new:
-            add(segment)
-        segments[index : index + 1] = new
+        for segment, o in new:
+            add(segment, o)
+        segments[index : index + 1] = [segment for segment, _ in new]
         head = plan.head[:-1] if index == 0 else plan.head
         tail = plan.tail[1:] if index == len(segments) - len(new) else plan.tail
         plan = MultiPath(start, goal, head, tuple(segments), tail, components)
@@ -375,9 +379,15 @@ class _Planner:
     """PATH-FINDER and REFINE over one map's connectivity-aware abstraction."""
 
     def __init__(
-        self, components: Components, start: Position, goal: Position, ctx: Context
+        self,
+        components: Components,
+        pyramid: Pyramid,
+        start: Position,
+        goal: Position,
+        ctx: Context,
     ) -> None:
-        self.components, self.start, self.goal, self.ctx = components, start, goal, ctx
+        self.components, self.pyramid = components, pyramid
+        self.start, self.goal, self.ctx = start, goal, ctx
 
     def first(self, level: int) -> NodePath:
         """The first plan: a path of nodes at `level` from the start's node to the goal's."""
@@ -395,13 +405,17 @@ class _Planner:
         self.ctx.tick(found.expansions)
         return found
 
-    def segment(self, level: int, nodes: Sequence[int]) -> Segment:
-        cells = self.components.levels[level].block[list(nodes)].tolist()
-        return Segment(level, cells, tuple(nodes))
+    def segment(self, level: int, nodes: Sequence[int]) -> tuple[Segment, float]:
+        """The segment through `nodes` and its mean obstacleness (`_mean_obstacleness`, from
+        the cells' array)."""
+        cells = self.components.levels[level].block[np.array(nodes, dtype=np.int64)]
+        obstacleness = float(self.pyramid.levels[level][cells[:, 1], cells[:, 0]].mean())
+        return Segment(level, cells, tuple(nodes)), obstacleness
 
-    def refine(self, segments: list[Segment], index: int) -> tuple[Segment, ...]:
+    def refine(self, segments: list[Segment], index: int) -> tuple[tuple[Segment, float], ...]:
         """REFINE route segment `index`: its replacement, two halves one level lower (one
-        segment when the path found has fewer than two moves)."""
+        segment when the path found has fewer than two moves), each with its mean
+        obstacleness."""
         c = self.components
         segment = segments[index]
         lower = segment.level - 1
@@ -409,8 +423,8 @@ class _Planner:
         # The children of its nodes (connected: a path exists among them) and of their
         # neighbours: room for the route to leave the coarse blocks where that is shorter.
         route = np.asarray(segment.nodes, dtype=np.int64)
-        around = np.unique(np.concatenate([route, nodes.edges_of(route)[1]]))
-        allowed = nodes.children_of(around.tolist())
+        around = np.sort(np.concatenate([route, nodes.edges_of(route)[1]]))
+        allowed = nodes.children_of(around[np.concatenate(([True], around[1:] != around[:-1]))])
         source_costs: list[float] | None = None
         target_costs: list[float] | None = None
         if index == 0:
