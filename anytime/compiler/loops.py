@@ -35,6 +35,12 @@ from anytime.compiler.model import ModuleNode
 from anytime.profiles.profile import Array, ConditionalPerformanceProfile
 
 TOLERANCE = 1e-12  # a gain smaller than this is none
+#: A curve whose gains grow by less than this from one unit to the next is taken as concave: a
+#: measured profile's means carry sampling error (about 1e-3 to 1e-2 a cell), and a converged
+#: curve's last gains, a few 1e-4 apart by chance, must not turn equal shares into a lattice
+#: split that starves some calls of time (below one unit a call, the lattice cannot share
+#: equally). The loss of equal shares on such a curve is of the order of this tolerance.
+CONCAVITY_TOLERANCE = 1e-3
 
 
 def call_curves(call: ModuleNode, qualities: Array, units: int, dt: float) -> Array:
@@ -55,7 +61,7 @@ def concave(curves: Array) -> np.ndarray:
     rises = np.diff(curves, axis=-1)
     falls = np.diff(rises, axis=-1)
     return np.asarray(
-        np.all(rises >= -TOLERANCE, axis=(1, 2)) & np.all(falls <= TOLERANCE, axis=(1, 2))
+        np.all(rises >= -TOLERANCE, axis=(1, 2)) & np.all(falls <= CONCAVITY_TOLERANCE, axis=(1, 2))
     )
 
 

@@ -91,6 +91,10 @@ CLUSTER_GRID = [0.4, 0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95, 0.98, 1.0]
 #: Clusterings of quality below 0.8 come (often enough) only from `cluster-stops` runs of at
 #: most this many ticks (see `clustering_of_quality`).
 LOW_CLUSTER_TICKS = 12
+#: The schema whose upstream allocations make the clusterings `plan-tour` is measured on: the
+#: loop's own (`deliver-each` gives the demand less time than `deliver` does, and clusterings
+#: of one quality but other upstream times give other tours).
+LOOPED = ("deliver-each",)
 #: Most Lloyd iterations of one k-means restart.
 MAX_ITERATIONS = 30
 
@@ -435,13 +439,13 @@ class DemandInputs:
 
 
 @cache
-def upstream_times() -> tuple[tuple[float, float], ...]:
-    """The (`estimate-demand`, `cluster-stops`) allocations the packaged programs (`deliver`
-    and `deliver-best`) give at their compiled budgets under the installed profiles, those at
-    which `cluster-stops` runs: the clusterings a program actually hands to the tour planners
-    are made with these."""
+def upstream_times(schemas: tuple[str, ...] = MEASURED_WITH) -> tuple[tuple[float, float], ...]:
+    """The (`estimate-demand`, `cluster-stops`) allocations the packaged `schemas` (default
+    `deliver` and `deliver-best`) give at their compiled budgets under the installed profiles,
+    those at which `cluster-stops` runs: the clusterings a program actually hands to the tour
+    planners are made with these."""
     pairs = set()
-    for schema in MEASURED_WITH:
+    for schema in schemas:
         program = compiled_program(schema)
         demand, clusters = (program.modules.index(m) for m in ("estimate-demand", "cluster-stops"))
         quality = [1.0] * program.profile.n_inputs
@@ -452,7 +456,9 @@ def upstream_times() -> tuple[tuple[float, float], ...]:
     return tuple(sorted(pairs))
 
 
-def clustering_of_quality(rng: np.random.Generator, q: float) -> tuple[World, Result]:
+def clustering_of_quality(
+    rng: np.random.Generator, q: float, schemas: tuple[str, ...] = MEASURED_WITH
+) -> tuple[World, Result]:
     """A world and a `cluster-stops` answer of true quality within TOLERANCE of `q`, made by
     the two upstream modules themselves: draw a world, then (up to 20 times on it) one of the
     allocations the compiled programs give them (`upstream_times`; below quality 0.8 those with
@@ -461,7 +467,7 @@ def clustering_of_quality(rng: np.random.Generator, q: float) -> tuple[World, Re
     enough. At one quality, a clustering of uniform demand run to convergence gives shorter
     tours than one of good demand stopped early (see README.md): drawing the allocations the
     programs use makes the mix the one they meet."""
-    times = upstream_times()
+    times = upstream_times(schemas)
     if q < 0.8:
         times = tuple(t for t in times if t[1] <= LOW_CLUSTER_TICKS)
     for _ in range(MAX_DRAWS // 20):
@@ -499,15 +505,16 @@ class ClusteringInputs:
 
 class DepotInputs:
     """Problems for `plan-tour`: one depot, drawn at random, of a clustering of the quality
-    asked for (`clustering_of_quality`). The truth: the depot's optimal tour over this one,
-    times the reference delivery over the clustering's optimal tours (at most 1), so that
-    the mean over a clustering's depots is close to the route's quality (`tour_quality`):
-    exactly that where the depots' tours are equally close to optimal, the reference over the
-    tours' total length being their length-weighted (harmonic) mean."""
+    asked for (`clustering_of_quality`, with `deliver-each`'s upstream allocations). The
+    truth: the depot's optimal tour over this one, times the reference delivery over the
+    clustering's optimal tours (at most 1), so that the mean over a clustering's depots is
+    close to the route's quality (`tour_quality`): exactly that where the depots' tours are
+    equally close to optimal, the reference over the tours' total length being their
+    length-weighted (harmonic) mean."""
 
     def instance(self, rng: np.random.Generator, input_qualities: tuple[float, ...]) -> Instance:
         (q,) = input_qualities
-        world, clustering = clustering_of_quality(rng, q)
+        world, clustering = clustering_of_quality(rng, q, LOOPED)
         length, _ = reference_delivery(world)
         value: Clustering = clustering.value
         optimal = [optimal_length(value.nodes(k)) for k in range(len(value.centres))]

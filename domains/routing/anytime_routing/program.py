@@ -45,8 +45,8 @@ __all__ = [
 #: The packaged schemas: the chain, the DAG with a best-of, and the chain with a tour per depot
 #: in a loop (`map`).
 SCHEMAS = ("deliver", "deliver-best", "deliver-each")
-#: The schemas whose upstream allocations make the clusterings the tour planners are measured
-#: on (`modules.upstream_times`): the loop's `plan-tour` is measured on the same ones.
+#: The schemas whose upstream allocations make the clusterings `plan-tours` and `insert-tours`
+#: are measured on (`modules.upstream_times`; the loop's `plan-tour` on `deliver-each`'s).
 MEASURED_WITH = ("deliver", "deliver-best")
 #: The compiled totals (ticks) and the allocation lattice of each schema, both on the
 #: profiles' time step (the DAG's four modules are searched by the multi-start allocator).
