@@ -33,6 +33,7 @@ __all__ = [
     "Sites",
     "Tours",
     "World",
+    "closed_length",
     "clustering_quality",
     "demand_quality",
     "estimate_shares",
@@ -162,11 +163,14 @@ class Tours:
 
     @property
     def length(self) -> float:
-        total = 0.0
-        for k in range(len(self.orders)):
-            r = self.route(k)
-            total += float(np.sqrt(((r[1:] - r[:-1]) ** 2).sum(axis=1)).sum())
-        return total
+        c = self.clustering
+        return sum(closed_length(c.centres[k], c.points[o]) for k, o in enumerate(self.orders))
+
+
+def closed_length(depot: FloatArray, stops: FloatArray) -> float:
+    """The length of the closed route from `depot` through `stops` in order and back."""
+    route = np.vstack([depot, stops, depot])
+    return float(np.sqrt(((route[1:] - route[:-1]) ** 2).sum(axis=1)).sum())
 
 
 # --- true qualities -------------------------------------------------------------------------

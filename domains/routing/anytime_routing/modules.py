@@ -35,6 +35,7 @@ from .domain import (
     Sites,
     Tours,
     World,
+    closed_length,
     clustering_quality,
     demand_quality,
     estimate_shares,
@@ -198,9 +199,14 @@ def _result(clustering: Clustering, tours: list[_Tour], quality_in: float) -> Re
     quality."""
     length = sum(t.length for t in tours)
     bound = sum(t.bound for t in tours)
-    estimate = 1.0 if length <= 0 else min(1.0, bound / length)
     value = Tours(clustering, [t.visits() for t in tours])
-    return Result(value, min(estimate, quality_in))
+    return Result(value, _estimate(bound, length, quality_in))
+
+
+def _estimate(bound: float, length: float, quality_in: float) -> float:
+    """The tour planners' self-estimate: the 1-tree bound over the length, at most 1 and at
+    most the input's quality."""
+    return min(1.0 if length <= 0 else min(1.0, bound / length), quality_in)
 
 
 @interruptible(
@@ -273,10 +279,7 @@ class DepotTour:
     @property
     def length(self) -> float:
         clustering, k = self.depot.clustering, self.depot.index
-        stops = np.vstack(
-            [clustering.centres[k], clustering.points[self.visits], clustering.centres[k]]
-        )
-        return float(np.sqrt(((stops[1:] - stops[:-1]) ** 2).sum(axis=1)).sum())
+        return closed_length(clustering.centres[k], clustering.points[self.visits])
 
     def __repr__(self) -> str:
         return f"DepotTour({self.depot.index}, {len(self.visits)} stops, {self.length:.4f})"
@@ -320,9 +323,7 @@ def plan_tour(ctx: Context, depot: Result) -> Iterator[Result]:
 
 
 def _depot_result(depot: Depot, tour: _Tour, quality_in: float) -> Result:
-    length = tour.length
-    estimate = 1.0 if length <= 0 else min(1.0, tour.bound / length)
-    return Result(DepotTour(depot, tour.visits()), min(estimate, quality_in))
+    return Result(DepotTour(depot, tour.visits()), _estimate(tour.bound, tour.length, quality_in))
 
 
 @elementary("route")
