@@ -264,7 +264,9 @@ def measure_problem(
         if key not in routes:
             try:
                 with time_budget(budget * astar_best):
-                    routes[key] = execute(plan, problem.blocked, movement=movement)
+                    routes[key] = execute(  # planned on the map followed: its corridor holds
+                        plan, problem.blocked, movement=movement, keep_to_plan=True
+                    )
             except OverBudget:
                 routes[key] = None
         return routes[key]

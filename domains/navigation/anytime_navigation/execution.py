@@ -24,6 +24,18 @@ robot's base cell, each waypoint in turn is
    of a blocked cell, so there are finitely many, and since the memory only holds truly blocked
    cells a path exists in it whenever the block is reachable: the robot always arrives.
 
+   A plan made on the connectivity-aware abstraction says more than its blocks: each of its
+   nodes is a connected free region of its block on the map planned on, and consecutive nodes
+   are joined by a legal move. A robot told to trust it (`keep_to_plan`, for a plan made on the
+   map it follows) keeps to the plan's *corridor* (`MultiPath.corridor`, the cells of its
+   nodes) while a path into the block exists in it: on the map planned on, that is always, and
+   a coarse plan through a maze or a room's door is followed without trying the other cells of
+   its blocks. Where the true map cuts the corridor, the robot leaves it for that waypoint and
+   feels its way as above. Not by default: on a sensed map, noise splits blocks, and a corridor
+   of the sensed components leaves out free cells (measured on find-path's 128 x 128 sensed
+   worlds, 2,000 per cell: at 100 ticks 0.974 against 0.993 at map quality 0.85, equal from
+   400 ticks on).
+
 The robot never enters a blocked cell, every step is a legal move, and the route ends at the
 goal whenever the goal is reachable from the start (the goal is the last waypoint and every
 waypoint reachable is reached). An unreachable goal (or a blocked one) is not an error: the
@@ -139,6 +151,7 @@ def execute(
     movement: int = 4,
     ctx: Context | None = None,
     memory: BoolGrid | None = None,
+    keep_to_plan: bool = False,
 ) -> Execution:
     """Follow `plan` on the true map `blocked` (see the module docstring).
 
@@ -151,6 +164,11 @@ def execute(
         memory: the blocked cells the robot has seen so far, a writable boolean grid shaped like
             `blocked`, updated in place (a robot that executes plan after plan keeps it);
             default: nothing seen yet.
+        keep_to_plan: keep to the plan's corridor (`MultiPath.corridor`) while it holds a way:
+            for a plan made on the map it is followed on (a known map, as `anytime plan`'s).
+            Off by default: on a sensed map the corridor may leave out free cells the noise
+            hid, and a robot that feels its way does better early on (find-path's profile,
+            measured on sensed maps, is of that robot).
 
     Raises:
         ValueError: an empty plan, a start or a waypoint outside the grid, a blocked start, an
@@ -162,11 +180,13 @@ def execute(
     if movement not in (4, 8):
         raise ValueError(f"movement must be 4 or 8, got {movement!r}")
     regions: list[BoolGrid | None]
+    corridor: BoolGrid | None = None
     if isinstance(plan, MultiPath):
         start, goal = plan.start, plan.goal
         targets = _targets(plan)
         points = [(level, cell) for level, cell, _ in targets]
         regions = [plan.region(level, node) for level, _, node in targets]
+        corridor = plan.corridor() if keep_to_plan else None
     else:
         cells = [(int(x), int(y)) for x, y in plan]
         if not cells:
@@ -206,7 +226,9 @@ def execute(
         if step is not None:
             route.append(step)
             continue
-        path, work = _feel_into(grid, memory, route[-1], (x0, y0, x1, y1), target, movement)
+        path, work = _feel_into(
+            grid, memory, route[-1], (x0, y0, x1, y1), target, movement, corridor
+        )
         expansions += work
         if tick is not None:
             tick(work)
@@ -295,6 +317,7 @@ def _feel_into(
     box: Box,
     target: BoolGrid,
     movement: int,
+    corridor: BoolGrid | None = None,
 ) -> tuple[list[Position], int]:
     """Obstacle avoidance toward the `target` cells of `box` (a mask of the box) with the
     free-space assumption (see the module docstring): plan with A* on `memory` (the blocked
@@ -315,23 +338,30 @@ def _feel_into(
             wx0, wy0 = max(0, min(x, x0) - margin), max(0, min(y, y0) - margin)
             wx1, wy1 = min(width, max(x + 1, x1) + margin), min(height, max(y + 1, y1) + margin)
             seen = memory[wy0:wy1, wx0:wx1]
+            closed = seen
+            if corridor is not None:  # the robot may stand outside it (having left it before)
+                closed = seen | ~corridor[wy0:wy1, wx0:wx1]
+                closed[y - wy0, x - wx0] = False
             found = find_path_to_box(
                 seen,
                 [(x - wx0, y - wy0)],
                 (x0 - wx0, y0 - wy0, x1 - 1 - wx0, y1 - 1 - wy0),
                 movement=movement,
                 weight=0.0,
-                impassable=seen,
+                impassable=closed,
                 box_costs=ending,  # only at a target: the box's other cells may be crossed
             )
             if found is not None:
                 work += found.expansions
                 path = [(cx + wx0, cy + wy0) for cx, cy in found.path]
-            elif (wx0, wy0, wx1, wy1) == (0, 0, width, height):  # pragma: no cover
-                raise AssertionError(f"no way into {box} on the robot's map")  # ok said there is
-            else:
+            elif (wx0, wy0, wx1, wy1) != (0, 0, width, height):
                 work += seen.size
                 margin *= 4
+            elif corridor is not None:  # the plan's corridor is cut on the true map: leave it
+                work += seen.size
+                corridor, margin = None, 8
+            else:  # pragma: no cover
+                raise AssertionError(f"no way into {box} on the robot's map")  # ok said there is
         for nx, ny in path[1:]:
             if memory[ny, nx] or (nx != x and ny != y and (memory[y, nx] or memory[ny, x])):
                 break  # seen blocked since the path was planned: plan again from here

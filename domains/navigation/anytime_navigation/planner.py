@@ -130,6 +130,35 @@ class MultiPath:
             return None
         return self.abstraction.region(node, level)
 
+    def corridor(self) -> BoolGrid | None:
+        """The base cells the plan's nodes hold, a mask [y, x] shaped like the map planned on:
+        where the plan means the route to run (the start and goal among them, and the corner
+        cells of the diagonal moves that join two nodes: without cutting corners, such a move
+        needs them free, and they may be a third node's); None when the plan has no
+        abstraction."""
+        if self.abstraction is None:
+            return None
+        grids = self.abstraction.grids
+        meant = np.zeros(grids[0].shape, dtype=bool)
+        for level in {s.level for s in self.parts if s.nodes}:
+            held = np.zeros(len(self.abstraction.levels[level]) + 1, dtype=bool)  # last: -1
+            for segment in self.parts:
+                if segment.level == level and segment.nodes:
+                    held[list(segment.nodes)] = True
+            meant |= held[grids[level]]
+        for x, y in (self.start, self.goal):
+            meant[y, x] = True
+        if self.abstraction.movement == 8:
+            free = grids[0] >= 0
+            corners = np.zeros_like(meant)
+            for low, high in ((slice(None, -1), slice(1, None)), (slice(1, None), slice(None, -1))):
+                # the moves from (x, y) to (x + 1, y + 1) and to (x + 1, y - 1)
+                move = meant[low, :-1] & meant[high, 1:] & free[low, 1:] & free[high, :-1]
+                corners[low, 1:] |= move
+                corners[high, :-1] |= move
+            meant |= corners
+        return meant
+
     @property
     def parts(self) -> tuple[Segment, ...]:
         return self.head + self.segments + self.tail

@@ -241,7 +241,8 @@ def _solve(
         reference = find_path(blocked, problem.start, problem.goal, movement=movement, weight=0.0)
         assert reference is not None  # reachability was checked
         optimal = reference.length
-    final = execute(last, blocked, movement=movement)
+    # The map planned on is the map followed: the robot keeps to the plan's corridor.
+    final = execute(last, blocked, movement=movement, keep_to_plan=True)
     return Solution(
         problem.start,
         problem.goal,
@@ -249,7 +250,7 @@ def _solve(
         optimal,
         int(ctx.ticks),
         seconds,
-        _quality(execute(first, blocked, movement=movement).length, optimal),
+        _quality(execute(first, blocked, movement=movement, keep_to_plan=True).length, optimal),
         _quality(final.length, optimal),
     )
 
