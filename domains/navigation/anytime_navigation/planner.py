@@ -140,11 +140,13 @@ class MultiPath:
             return None
         grids = self.abstraction.grids
         meant = np.zeros(grids[0].shape, dtype=bool)
-        for level in {s.level for s in self.parts if s.nodes}:
+        by_level: dict[int, list[int]] = {}
+        for segment in self.parts:
+            if segment.nodes:  # SEGMENTIZE's one-cell segments have none
+                by_level.setdefault(segment.level, []).extend(segment.nodes)
+        for level, nodes in by_level.items():
             held = np.zeros(len(self.abstraction.levels[level]) + 1, dtype=bool)  # last: -1
-            for segment in self.parts:
-                if segment.level == level and segment.nodes:
-                    held[list(segment.nodes)] = True
+            held[nodes] = True
             meant |= held[grids[level]]
         for x, y in (self.start, self.goal):
             meant[y, x] = True
