@@ -1,7 +1,7 @@
 """Loader for MovingAI grid benchmark files (`.map` and `.scen`).
 
-Format (N. Sturtevant, "Benchmarks for Grid-Based Pathfinding", 2012; see
-../shared/benchmarks/movingai/README.md): a `.map` has the header lines `type octile`,
+Format (N. Sturtevant, "Benchmarks for Grid-Based Pathfinding", IEEE Transactions on
+Computational Intelligence and AI in Games, 2012; https://movingai.com/benchmarks/): a `.map` has the header lines `type octile`,
 `height H`, `width W`, `map`, then H rows of W characters, `.` `G` `S` passable and `@` `O` `T`
 `W` blocked. A `.scen` has an optional `version N` line, then one problem per line with nine
 tab-separated fields: bucket, map, width, height, start x, start y, goal x, goal y, optimal
