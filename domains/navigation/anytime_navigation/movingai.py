@@ -1,13 +1,13 @@
 """Loader for MovingAI grid benchmark files (`.map` and `.scen`).
 
 Format (N. Sturtevant, "Benchmarks for Grid-Based Pathfinding", IEEE Transactions on
-Computational Intelligence and AI in Games, 2012; https://movingai.com/benchmarks/): a `.map` has the header lines `type octile`,
-`height H`, `width W`, `map`, then H rows of W characters, `.` `G` `S` passable and `@` `O` `T`
-`W` blocked. A `.scen` has an optional `version N` line, then one problem per line with nine
-tab-separated fields: bucket, map, width, height, start x, start y, goal x, goal y, optimal
-length (optimal for octile movement without corner cutting). The old style (for example
-`arena.map.scen`: map field `maps/dao/arena.map`, short lengths, sometimes no version line) is
-read the same way. CRLF line ends are tolerated. Every error is a `MapError` whose message is
+Computational Intelligence and AI in Games, 2012; https://movingai.com/benchmarks/): a `.map`
+has the header lines `type octile`, `height H`, `width W`, `map`, then H rows of W characters,
+`.` `G` `S` passable and `@` `O` `T` `W` blocked. A `.scen` has an optional `version N` line,
+then one problem per line with nine tab-separated fields: bucket, map, width, height, start x,
+start y, goal x, goal y, optimal length (optimal for octile movement without corner cutting).
+The old style (for example `arena.map.scen`: map field `maps/dao/arena.map`, short lengths,
+sometimes no version line) is read the same way. CRLF line ends are tolerated. Every error is a `MapError` whose message is
 `FILE:LINE: what is wrong`.
 """
 
