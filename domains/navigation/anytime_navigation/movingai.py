@@ -7,8 +7,8 @@ has the header lines `type octile`, `height H`, `width W`, `map`, then H rows of
 then one problem per line with nine tab-separated fields: bucket, map, width, height, start x,
 start y, goal x, goal y, optimal length (optimal for octile movement without corner cutting).
 The old style (for example `arena.map.scen`: map field `maps/dao/arena.map`, short lengths,
-sometimes no version line) is read the same way. CRLF line ends are tolerated. Every error is a `MapError` whose message is
-`FILE:LINE: what is wrong`.
+sometimes no version line) is read the same way. CRLF line ends are tolerated.
+Every error is a `MapError` whose message is `FILE:LINE: what is wrong`.
 """
 
 from __future__ import annotations
