@@ -41,8 +41,9 @@ from scipy import ndimage
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components, dijkstra
 
+from .doors import Doors
 from .search import SearchLimit
-from .world import BoolGrid, Position, is_power_of_two
+from .world import BoolGrid, Position, is_power_of_two, move_distance
 
 __all__ = ["Components", "Level", "NodePath"]
 
@@ -145,6 +146,7 @@ class Components:
     grids: tuple[IntArray, ...]
     movement: int
     regions: IntArray  # the connected free region of each base cell (-1 where blocked)
+    doors: Doors | None = None  # the top level's, when it is above level 0 (first plans)
 
     @property
     def cell(self) -> IntArray:
@@ -230,7 +232,11 @@ class Components:
         else:
             labels, _ = ndimage.label(free)  # 4-connected: octile moves join the same cells
             regions = labels.astype(np.int64) - 1
-        return cls(levels, tuple(grids), movement, regions)
+        doors = None
+        if top > 0:
+            at = levels[top]
+            doors = Doors.build(top, grids[top], at.block, at.first, at.neighbour, movement)
+        return cls(levels, tuple(grids), movement, regions, doors)
 
     @property
     def top(self) -> int:
@@ -262,6 +268,25 @@ class Components:
         bx, by = self.block(node, level)
         window = self.grids[level][by * side : (by + 1) * side, bx * side : (bx + 1) * side]
         return np.asarray(window == node)
+
+    def route(
+        self, level: int, start: Position, goal: Position, *, limit: float = math.inf
+    ) -> NodePath:
+        """A first plan: the cheapest path of nodes at `level` > 0 from the start's node to the
+        goal's (they must be connected), searched over the level's doors (`doors`: built with
+        the hierarchy for its top level, here for another).
+
+        Raises:
+            SearchLimit: its work is more than `limit`.
+        """
+        doors = self.doors
+        if doors is None or doors.level != level:
+            here = self.levels[level]
+            doors = Doors.build(
+                level, self.grids[level], here.block, here.first, here.neighbour, self.movement
+            )
+        nodes, cost, expansions = doors.route(start, goal, limit=limit)
+        return NodePath(level, nodes, cost, expansions)
 
     def corridor(
         self,
@@ -323,13 +348,13 @@ class Components:
 
     def _heuristic(self, level: int, nodes: IntArray, targets: IntArray) -> FloatArray:
         """The distance from each of `nodes` to the nearest of `targets` (centre to centre):
-        Manhattan or octile, as the moves go (`_distance`), one target at a time."""
+        Manhattan or octile, as the moves go (`world.move_distance`), one target at a time."""
         centre = self.levels[level].centre
         x, y = centre[nodes, 0], centre[nodes, 1]
         nearest = np.full(len(nodes), np.inf)
         for tx, ty in centre[targets].tolist():
             np.minimum(
-                nearest, _distance(np.abs(x - tx), np.abs(y - ty), self.movement), out=nearest
+                nearest, move_distance(np.abs(x - tx), np.abs(y - ty), self.movement), out=nearest
             )
         return nearest
 
@@ -437,15 +462,6 @@ def _node_rows(
     ends = now[targets] + count[targets]
     cols[ends], data[ends] = n + 1, target_costs
     return cols, data, counts
-
-
-def _distance(dx: FloatArray, dy: FloatArray, movement: int) -> FloatArray:
-    """The length of the shortest move sequence across the offsets (dx, dy), both >= 0, on an
-    open grid: Manhattan for 4-connected moves, octile for 8-connected ones (a metric: the
-    heuristic it gives is consistent with edges that cost it)."""
-    if movement == 4:
-        return np.asarray(dx + dy)
-    return np.asarray(np.maximum(dx, dy) + (math.sqrt(2.0) - 1.0) * np.minimum(dx, dy))
 
 
 def _quad_labels() -> IntArray:
@@ -703,7 +719,7 @@ def _compressed(
     ups, downs = np.bincount(low, minlength=count), np.bincount(high, minlength=count)
     first = np.zeros(count + 1, dtype=np.int64)
     np.cumsum(ups + downs, out=first[1:])
-    step = _distance(np.abs(x[low] - x[high]), np.abs(y[low] - y[high]), movement)
+    step = move_distance(np.abs(x[low] - x[high]), np.abs(y[low] - y[high]), movement)
     bits = n.bit_length()
     # The edges by their high end, then their low one (the index follows the low end).
     back = np.sort(high << bits | np.arange(n)) & ((1 << bits) - 1)

@@ -421,18 +421,18 @@ class _Planner:
         self.start, self.goal, self.ctx = start, goal, ctx
 
     def first(self, level: int) -> NodePath:
-        """The first plan: a path of nodes at `level` from the start's node to the goal's."""
+        """The first plan: a path of nodes at `level` from the start's node to the goal's,
+        searched over the level's doors above level 0 (`doors`)."""
         c = self.components
-        every = np.arange(len(c.levels[level]))
-        found = c.corridor(
-            level,
-            every,
-            [c.node(self.start, level)],
-            [c.node(self.goal, level)],
-            limit=self.ctx.remaining,
-        )
-        if found is None:
-            raise AssertionError(f"no path at level {level} between connected nodes")
+        if level > 0:
+            found = c.route(level, self.start, self.goal, limit=self.ctx.remaining)
+        else:
+            every = np.arange(len(c.levels[0]))
+            start, goal = c.node(self.start, 0), c.node(self.goal, 0)
+            found_or_none = c.corridor(0, every, [start], [goal], limit=self.ctx.remaining)
+            if found_or_none is None:
+                raise AssertionError("no path between connected cells")
+            found = found_or_none
         self.ctx.tick(found.expansions)
         return found
 

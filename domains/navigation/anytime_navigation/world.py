@@ -17,6 +17,7 @@ corner cutting would make it the 8-connected component, which is larger.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import attrs
@@ -29,6 +30,7 @@ Position = tuple[int, int]
 BoolGrid = NDArray[np.bool_]
 
 MOVEMENTS = (4, 8)
+SQRT2 = math.sqrt(2.0)
 
 #: The structuring element of 4-connectivity, which is also reachability under octile movement
 #: without corner cutting (see the module docstring).
@@ -49,6 +51,17 @@ def _position(value: Any) -> Position:
 def _check_movement(movement: int) -> None:
     if movement not in MOVEMENTS:
         raise ValueError(f"movement must be 4 or 8, got {movement!r}")
+
+
+def move_distance(
+    dx: NDArray[np.float64], dy: NDArray[np.float64], movement: int
+) -> NDArray[np.float64]:
+    """The length of the shortest move sequence across the offsets (dx, dy), both >= 0, on an
+    open grid: Manhattan for 4-connected moves, octile for 8-connected ones (a metric: the
+    heuristic it gives is consistent with edges that cost it)."""
+    if movement == 4:
+        return np.asarray(dx + dy)
+    return np.asarray(np.maximum(dx, dy) + (SQRT2 - 1.0) * np.minimum(dx, dy))
 
 
 def is_power_of_two(n: int) -> bool:

@@ -1,0 +1,271 @@
+"""Doors: the first plan searched over where a route crosses from node to node (issue 17).
+
+Why. A plan of neighbouring nodes costed from centre to centre misjudges a route where the
+nodes are pieces of rooms: a block cut by a room's wall has a piece on each side, its centre is
+off the way through, and the search then picks the wrong doors. Measured on the 16 longest
+problems of MovingAI's 8room_000: first plans 0.944 and final plans 0.966 of the optimal length
+with centre costs; 0.999 and 0.995 with the first plan searched over doors, refinement
+unchanged (benchmarks/bench_navigation.py has the other kinds).
+
+What. The *door* from a node to a neighbour is the mean of the midpoints of the legal base
+moves that join them: where a route crosses. A route through nodes n0, n1, .., nm costs its
+length from the start through the doors n0|n1, n1|n2, .. to the goal (straight lines, Manhattan
+or octile as the robot moves), plus `CROSSING` per door: between routes of about equal length
+the one through fewer nodes wins, the one a robot follows straightest (at a tie, a staircase of
+side doors is as long as a diagonal through corners: measured on random512-10-0, first plans
+0.858 with no charge, 0.930 with one cell).
+
+How. The states are the directed doors u -> v (one per entry of the level's compressed rows); a
+state u -> v is followed by v -> w for every neighbour w of v but u. Dijkstra's algorithm over
+them, in C (`scipy.sparse.csgraph`), is made A*: each edge is reweighted by a consistent
+heuristic, the greatest of the straight distance to the goal plus a crossing per block still to
+cross and the bounds of four landmarks (ALT, Goldberg & Harrelson 2005: distances from and to
+each, searched once when the doors are built), and the search is cut at a limit on the
+reweighted cost, two blocks' width widened fourfold until the goal is reached; it settles only
+states whose cost plus heuristic is under the limit. Its work is counted as corridor searches
+count theirs: the states an A* expands, those whose cost plus heuristic is below the route's
+cost. On the 512 x 512 MovingAI maps the landmarks halve the states expanded on street and game
+maps; a route costs 0.4-1.8% of an A* on the base grid (benchmarks/bench_navigation.py).
+
+Arrays are indexed [y, x]; positions are (x, y).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from attrs import frozen
+from numpy.typing import NDArray
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components, dijkstra
+
+from .search import SearchLimit
+from .world import Position, move_distance
+
+__all__ = ["CROSSING", "Doors"]
+
+IntArray = NDArray[np.int64]
+FloatArray = NDArray[np.float64]
+
+#: What crossing a door costs on top of the route's length, in cells (see the module docstring).
+CROSSING = 1.0
+#: How many landmarks the heuristic uses (ALT: each costs a search over the doors at build).
+LANDMARKS = 4
+
+#: The forward base moves (dx, dy): each legal move once.
+_FORWARD_MOVES = {4: ((1, 0), (0, 1)), 8: ((1, 0), (0, 1), (1, 1), (-1, 1))}
+
+
+@frozen(eq=False)
+class Doors:
+    """The directed doors of one level: state j is the level's compressed-rows entry j, from
+    node `tail[j]` to node `head[j]` through `point[j]`; `reverse[j]` is the state back. The
+    states that may follow j are `after[after_first[j]:after_first[j + 1]]`, each `length[...]`
+    away (door to door). `first` holds the level's rows: the states leaving node i are
+    `first[i]:first[i + 1]`."""
+
+    level: int
+    grid: IntArray  # the level's node of each base cell (-1 where blocked)
+    head_block: IntArray  # each state's head's block at the level: x in row 0, y in row 1
+    movement: int
+    first: IntArray
+    tail: IntArray
+    head: IntArray
+    reverse: IntArray
+    point: FloatArray
+    after_first: IntArray
+    after: IntArray
+    after_tail: IntArray  # the state each entry of `after` follows
+    length: FloatArray
+    # The search graph's rows and columns (int32, as csgraph takes them): the states', then a
+    # row for the start with room for the most states a node has leaving it.
+    rows: NDArray[np.int32]
+    columns: NDArray[np.int32]
+    # The landmarks' distances (ALT): from landmark i to each state, and from each state to it.
+    landmark_from: FloatArray
+    landmark_to: FloatArray
+
+    @classmethod
+    def build(
+        cls,
+        level: int,
+        grid: IntArray,
+        block: IntArray,
+        first: IntArray,
+        neighbour: IntArray,
+        movement: int,
+    ) -> Doors:
+        """The doors of a level from its node of each base cell (`grid`), its nodes' blocks and
+        its compressed rows (`first`, `neighbour`: node i's neighbours are
+        `neighbour[first[i]:first[i + 1]]`)."""
+        count, states = len(first) - 1, len(neighbour)
+        tail = np.repeat(np.arange(count, dtype=np.int64), np.diff(first))
+        head = np.asarray(neighbour, dtype=np.int64)
+        keys = tail * count + head
+        order = np.argsort(keys, kind="stable")
+        reverse = order[np.searchsorted(keys[order], head * count + tail)]
+        point = _door_points(grid, movement, keys, order, count, states)
+        # Each state followed by the states leaving its head but the one back.
+        counts = np.diff(first)[head]
+        from_tail = np.repeat(np.arange(states, dtype=np.int64), counts)
+        after = np.repeat(first[head] - np.cumsum(counts) + counts, counts) + np.arange(
+            counts.sum()
+        )
+        keep = after != reverse[from_tail]
+        after, from_tail = after[keep], from_tail[keep]
+        after_first = np.zeros(states + 1, dtype=np.int64)
+        np.cumsum(np.bincount(from_tail, minlength=states), out=after_first[1:])
+        step = point[after] - point[from_tail]
+        length = move_distance(np.abs(step[:, 0]), np.abs(step[:, 1]), movement)
+        room = int(np.diff(first).max(initial=0))
+        rows = np.append(after_first, after_first[-1] + room).astype(np.int32)
+        columns = np.append(after, np.full(room, states)).astype(np.int32)
+        head_block = np.ascontiguousarray(block[head].T)
+        graph = csr_matrix((length + CROSSING, after, after_first), shape=(states, states))
+        landmark_from, landmark_to = _landmarks(graph, reverse, LANDMARKS)
+        return cls(
+            level, grid, head_block, movement, first, tail, head, reverse, point, after_first,
+            after, from_tail, length, rows, columns, landmark_from, landmark_to,
+        )  # fmt: skip
+
+    def route(
+        self, start: Position, goal: Position, *, limit: float = math.inf
+    ) -> tuple[tuple[int, ...], float, int]:
+        """The cheapest route of nodes from the start's node to the goal's (they must be
+        connected): (the nodes, its cost, the states an A* search for it expands).
+
+        Raises:
+            SearchLimit: that work is more than `limit`.
+        """
+        (sx, sy), (gx, gy) = start, goal
+        source, target = int(self.grid[sy, sx]), int(self.grid[gy, gx])
+        if source == target:
+            return (source,), float(self._distance_to(np.array([[sx + 0.5, sy + 0.5]]), goal)[0]), 0
+        states, after = len(self.tail), len(self.after)
+        leaving = np.arange(self.first[source], self.first[source + 1])
+        entering = self.reverse[self.first[target] : self.first[target + 1]]
+        h = self._heuristic(goal, entering)
+        out = self.point[leaving] - (sx + 0.5, sy + 0.5)
+        to_first = move_distance(np.abs(out[:, 0]), np.abs(out[:, 1]), self.movement) + CROSSING
+        h_start = float(np.min(to_first + h[leaving]))  # the start's: consistent, and tight
+        # Reweighted by the heuristic (A* as Dijkstra): no edge costs less than nothing
+        # (explicit zeros are no edges to csgraph: a hair more), and a route's reweighted
+        # cost is its cost less the heuristic at the start. The start's row: its states, then
+        # loops back to the start.
+        columns = self.columns.copy()
+        columns[after : after + len(leaving)] = leaving
+        weight = np.ones(len(columns))
+        body = weight[:after]
+        np.take(h, self.after, out=body)
+        body -= np.take(h, self.after_tail)
+        body += self.length + CROSSING
+        weight[after : after + len(leaving)] = to_first + h[leaving] - h_start
+        np.maximum(weight, 0.0, out=weight)
+        weight += 1e-9
+        graph = csr_matrix((weight, columns, self.rows), shape=(states + 1, states + 1))
+        # A* settles what is below the route's reweighted cost: cut there, from a guess up.
+        cut = float(2 << self.level)
+        while True:
+            distance, previous = dijkstra(
+                graph, indices=states, limit=cut, return_predecessors=True
+            )
+            reached = distance[entering]
+            if np.isfinite(reached).any() or math.isinf(cut):
+                break
+            cut = math.inf if cut > 4.0 * states * (1 << self.level) else 4.0 * cut
+        best = int(entering[np.argmin(reached)])
+        cost = float(distance[best])
+        expansions = int(np.count_nonzero(distance[:states] < cost - 1e-9 * max(1.0, cost)))
+        if expansions > limit:
+            raise SearchLimit(int(limit))
+        path = []
+        at = best
+        while at != states:
+            path.append(at)
+            at = int(previous[at])
+        nodes = (source, *self.head[path[::-1]].tolist())
+        return nodes, cost + h_start, expansions
+
+    def _heuristic(self, goal: Position, entering: IntArray) -> FloatArray:
+        """A lower bound on the cost from each state to the goal, consistent: the greatest of
+        the distance from its door to the goal plus a crossing per block between its head's
+        block and the goal's (a door leads to a neighbouring block), and the landmarks'
+        bounds (the triangle inequality through each, to the goal's entering states)."""
+        gx, gy = goal[0] >> self.level, goal[1] >> self.level
+        h = self._distance_to(self.point, goal)
+        away = np.abs(self.head_block[0] - gx)
+        np.maximum(away, np.abs(self.head_block[1] - gy), out=away)
+        h += CROSSING * away
+        last = self._distance_to(self.point[entering], goal)
+        with np.errstate(invalid="ignore"):  # a landmark of another region: inf - inf
+            for frm, to in zip(self.landmark_from, self.landmark_to, strict=True):
+                ahead = np.min(frm[entering] + last)  # d(x, goal) >= d(L, goal) - d(L, x)
+                if np.isfinite(ahead):
+                    np.fmax(h, ahead - frm, out=h)
+                behind = np.max(to[entering] - last)  # d(x, goal) >= d(x, L) - d(goal, L)
+                if np.isfinite(behind):  # (a state that cannot reach L is not reached)
+                    np.fmax(h, to - behind, out=h, where=np.isfinite(to))
+        return h
+
+    def _distance_to(self, points: FloatArray, goal: Position) -> FloatArray:
+        gx, gy = goal
+        return move_distance(
+            np.abs(points[:, 0] - (gx + 0.5)), np.abs(points[:, 1] - (gy + 0.5)), self.movement
+        )
+
+
+def _landmarks(graph: csr_matrix, reverse: IntArray, count: int) -> tuple[FloatArray, FloatArray]:
+    """ALT's landmarks (Goldberg & Harrelson, "Computing the shortest path: A* search meets
+    graph theory", 2005), chosen farthest first in the largest weakly connected part of the
+    graph: the distances from each to every state, and from every state to each (the route
+    back from a state is its reverse, `reverse`, travelled backwards at the same cost)."""
+    states = graph.shape[0]
+    if states == 0:
+        return np.zeros((0, 0)), np.zeros((0, 0))
+    _, part = connected_components(graph, directed=True, connection="weak")
+    largest = np.flatnonzero(part == np.bincount(part).argmax())
+    away = dijkstra(graph, indices=int(largest[0]))  # from an arbitrary state: not kept
+    chosen: list[int] = []
+    for _ in range(count):
+        # (a state no state leads to, out of a dead end, is infinitely far: not that one)
+        reach = away[largest]
+        at = int(largest[np.argmax(np.where(np.isfinite(reach), reach, -1.0))])
+        chosen.append(at)
+        here = dijkstra(graph, indices=at)
+        away = here if len(chosen) == 1 else np.minimum(away, here)
+    frm = dijkstra(graph, indices=chosen)
+    to = dijkstra(graph, indices=reverse[chosen])[:, reverse]  # d(x, L) = d(rev L, rev x)
+    return frm, to
+
+
+def _door_points(
+    grid: IntArray, movement: int, keys: IntArray, order: IntArray, count: int, states: int
+) -> FloatArray:
+    """Each state's door: the mean midpoint of the legal base moves between its two nodes
+    (`keys` = tail * count + head of each state, `order` their ascending order)."""
+    side = grid.shape[0]
+    sums = np.zeros((states, 2))
+    moves = np.zeros(states)
+    free = grid >= 0
+    for dx, dy in _FORWARD_MOVES[movement]:
+        # The moves from (x, y) to (x + dx, y + dy) inside the grid, as slices of it.
+        xs = slice(max(0, -dx), side - max(0, dx))
+        ys = slice(0, side - dy)
+        to_xs = slice(max(0, dx), side - max(0, -dx))
+        to_ys = slice(dy, side)
+        legal = free[ys, xs] & free[to_ys, to_xs]
+        if dx and dy:  # no corner cutting: both orthogonal neighbours free
+            legal &= free[ys, to_xs] & free[to_ys, xs]
+        a, b = grid[ys, xs], grid[to_ys, to_xs]
+        legal &= a != b
+        y, x = np.nonzero(legal)
+        u, v = a[y, x], b[y, x]
+        x0 = x + max(0, -dx)
+        midpoint = np.stack([x0 + 0.5 + dx / 2, y + 0.5 + dy / 2], axis=1)
+        for one, other in ((u, v), (v, u)):
+            where = order[np.searchsorted(keys[order], one * count + other)]
+            for i in (0, 1):
+                sums[:, i] += np.bincount(where, weights=midpoint[:, i], minlength=states)
+            moves += np.bincount(where, minlength=states)
+    return sums / np.maximum(moves, 1)[:, None]
