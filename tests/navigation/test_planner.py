@@ -85,8 +85,10 @@ def test_every_refinement_lowers_one_segment_one_level(movement: int, seed: int)
 @pytest.mark.parametrize("movement", MOVEMENTS)
 @pytest.mark.parametrize("seed", range(6))
 def test_segment_length_stays_within_one_move_on_an_open_map(movement: int, seed: int) -> None:
-    """Refining a segment of m moves gives halves of m - 1 .. m + 1 moves at the lower level
-    (on an open map, where no detour lengthens a half)."""
+    """Refining a segment of m moves gives halves of at most m + 1 moves at the lower level, one
+    at most a move longer than the other (on an open map, where no detour lengthens a half;
+    shorter where the first plan steps through the middles of its blocks' sides, as long as
+    a diagonal through their corners between the doors)."""
     rng = np.random.default_rng(seed)
     pyramid = Pyramid.build(np.zeros((64, 64), dtype=bool))
     start, goal = (tuple(int(v) for v in rng.integers(0, 64, 2)) for _ in range(2))
@@ -96,10 +98,8 @@ def test_segment_length_stays_within_one_move_on_an_open_map(movement: int, seed
             _, old, new = _changed(before.value, after.value)
             if old.moves == 0:
                 continue  # a one-cell segment is re-planned whole, not halved
-            assert [abs(s.moves - old.moves) <= 1 for s in new] == [True] * len(new), (
-                old.moves,
-                [s.moves for s in new],
-            )
+            moves = [s.moves for s in new]
+            assert max(moves) <= old.moves + 1 and max(moves) - min(moves) <= 1, (old.moves, moves)
 
 
 @pytest.mark.parametrize("movement", MOVEMENTS)

@@ -23,7 +23,10 @@ distance between them as the robot moves (Manhattan for 4-connected moves, octil
 8-connected ones; at level 0 that is the move's length, 1 or sqrt 2). The whole hierarchy is
 built once per map, bottom-up and vectorised (`Components.build`): level 1 read off the 2 x 2
 blocks' patterns, each level above from the graph of the one below (scipy's connected
-components); about linear in the free cells, but for sorting each level's edges.
+components); about linear in the free cells, but for sorting each level's edges. Centre costs
+serve refinement, within a corridor; the first plan, across the whole top level, is costed
+through the *doors* between nodes instead (`doors`, built with the hierarchy for its top
+level).
 
 Arrays are indexed [y, x]; positions are (x, y).
 """

@@ -176,14 +176,16 @@ class Doors:
             cut = math.inf if cut > 4.0 * states * (1 << self.level) else 4.0 * cut
         best = int(entering[np.argmin(reached)])
         cost = float(distance[best])
-        expansions = int(np.count_nonzero(distance[:states] < cost - 1e-9 * max(1.0, cost)))
-        if expansions > limit:
-            raise SearchLimit(int(limit))
-        path = []
+        path = []  # the route's states, last first
         at = best
         while at != states:
             path.append(at)
             at = int(previous[at])
+        expanded = distance[:states] < cost - 1e-9 * max(1.0, cost)
+        expanded[path[1:]] = True  # A* pops the route's states too; the last ends it
+        expansions = int(np.count_nonzero(expanded))
+        if expansions > limit:
+            raise SearchLimit(int(limit))
         nodes = (source, *self.head[path[::-1]].tolist())
         return nodes, cost + h_start, expansions
 

@@ -23,9 +23,11 @@ level-k cell with its node means "go into that connected region of the 2^k x 2^k
 (`MultiPath.region`).
 
 PATH-FINDER and REFINE work on the connectivity-aware abstraction (`components`): a level-k plan
-is a path of neighbouring nodes, each a connected free region of one block, and a refinement
-searches the children of the refined segment's nodes and of their neighbours, a corridor that
-always holds a path (Dijkstra's algorithm over it, in C: every node of the corridor is a tick).
+is a path of neighbouring nodes, each a connected free region of one block. PATH-FINDER searches
+the top level's doors (`doors`: where a route crosses from node to node, so that pieces of rooms
+are costed by the way through them, not by their centres), and a refinement searches the
+children of the refined segment's nodes and of their neighbours, a corridor that always holds a
+path (Dijkstra's algorithm over it, in C; a tick is a node an A* search would expand).
 """
 
 from __future__ import annotations
@@ -264,7 +266,8 @@ def atp(
 
     PATH-FINDER plans over the connectivity-aware abstraction (`components`): a level-k plan is
     a path of neighbouring *nodes*, each a connected free region of one 2^k x 2^k block, so a
-    coarse plan never runs through a wall that splits a block. The pyramid's obstacleness
+    coarse plan never runs through a wall that splits a block; the first plan is the cheapest
+    route through the doors between them (`doors`). The pyramid's obstacleness
     chooses the worst segment and makes the quality estimate.
 
     Args:
@@ -280,7 +283,8 @@ def atp(
             is what refinement keeps invariant, so it sets the grain of the anytime behaviour:
             how much one refinement costs and improves.
         components: the abstraction of the pyramid's map (`Components.build(pyramid.levels[0]
-            >= 1, movement)`), built here when not given; pass it to plan many times on one map.
+            >= 1, movement, top=top)`: its doors are its top level's), built here when not
+            given; pass it to plan many times on one map.
 
     REFINE re-plans the chosen level-k segment one level lower, through the children of its
     nodes only (they are connected: see `components`), so the search is local and always finds

@@ -1,0 +1,158 @@
+"""The doors of a level and the first plan's search over them (`doors`), against straightforward
+references: the doors as the mean midpoints of the legal moves between two nodes, the route as
+Dijkstra's algorithm over the directed doors in pure Python."""
+
+from __future__ import annotations
+
+import heapq
+import math
+
+import numpy as np
+import pytest
+from anytime_navigation.components import Components
+from anytime_navigation.doors import CROSSING
+from anytime_navigation.search import SearchLimit
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+maps = st.builds(
+    lambda seed, density, side: np.random.default_rng(seed).random((side, side)) < density,
+    st.integers(0, 2**31),
+    st.floats(0.0, 0.5),
+    st.sampled_from([8, 16, 32]),
+)
+
+MOVES = {4: ((1, 0), (0, 1)), 8: ((1, 0), (0, 1), (1, 1), (-1, 1))}
+
+
+def _distance(dx: float, dy: float, movement: int) -> float:
+    dx, dy = abs(dx), abs(dy)
+    return dx + dy if movement == 4 else max(dx, dy) + (math.sqrt(2) - 1) * min(dx, dy)
+
+
+def _doors(blocked: np.ndarray, grid: np.ndarray, movement: int) -> dict[tuple[int, int], tuple]:
+    """(u, v) -> the mean midpoint of the legal moves between nodes u and v, one move at a time."""
+    side = blocked.shape[0]
+    found: dict[tuple[int, int], list[tuple[float, float]]] = {}
+    for y in range(side):
+        for x in range(side):
+            for dx, dy in MOVES[movement]:
+                nx, ny = x + dx, y + dy
+                if not (0 <= nx < side and 0 <= ny < side) or blocked[y, x] or blocked[ny, nx]:
+                    continue
+                if dx and dy and (blocked[y, nx] or blocked[ny, x]):
+                    continue
+                u, v = int(grid[y, x]), int(grid[ny, nx])
+                if u != v:
+                    middle = (x + 0.5 + dx / 2, y + 0.5 + dy / 2)
+                    found.setdefault((u, v), []).append(middle)
+                    found.setdefault((v, u), []).append(middle)
+    return {pair: tuple(np.mean(points, axis=0)) for pair, points in found.items()}
+
+
+def _reference_route(
+    doors: dict[tuple[int, int], tuple], start: tuple[int, int], goal: tuple[int, int], grid, m
+) -> float:
+    """Dijkstra over the directed doors: start -> door, door -> door, door -> goal, each door
+    crossed costing CROSSING more."""
+    source, target = int(grid[start[1], start[0]]), int(grid[goal[1], goal[0]])
+    centre_start, centre_goal = (start[0] + 0.5, start[1] + 0.5), (goal[0] + 0.5, goal[1] + 0.5)
+    if source == target:
+        return _distance(centre_goal[0] - centre_start[0], centre_goal[1] - centre_start[1], m)
+    leaving: dict[int, list[tuple[int, int]]] = {}
+    for u, v in doors:
+        leaving.setdefault(u, []).append((u, v))
+    best: dict[tuple[int, int], float] = {}
+    heap = []
+    for state in leaving.get(source, []):
+        p = doors[state]
+        cost = _distance(p[0] - centre_start[0], p[1] - centre_start[1], m) + CROSSING
+        heapq.heappush(heap, (cost, state))
+    answer = math.inf
+    while heap:
+        cost, (u, v) = heapq.heappop(heap)
+        if (u, v) in best:
+            continue
+        best[u, v] = cost
+        p = doors[u, v]
+        if v == target:
+            answer = min(answer, cost + _distance(centre_goal[0] - p[0], centre_goal[1] - p[1], m))
+        for state in leaving.get(v, []):
+            if state[1] != u and state not in best:
+                q = doors[state]
+                heapq.heappush(
+                    heap, (cost + _distance(q[0] - p[0], q[1] - p[1], m) + CROSSING, state)
+                )
+    return answer
+
+
+@settings(max_examples=60, deadline=None)
+@given(maps, st.sampled_from([4, 8]), st.sampled_from([1, 2, 3]), st.data())
+def test_the_route_is_the_cheapest_through_the_doors(
+    blocked: np.ndarray, movement: int, level: int, data: st.DataObject
+) -> None:
+    c = Components.build(blocked, movement, top=level)
+    doors = c.doors
+    assert doors is not None and doors.level == level
+    grid = c.grids[level]
+    reference = _doors(blocked, grid, movement)
+    # Every state's door is the mean midpoint of the moves between its nodes.
+    assert len(reference) == len(doors.tail)
+    for j, (u, v) in enumerate(zip(doors.tail.tolist(), doors.head.tolist(), strict=True)):
+        assert np.allclose(doors.point[j], reference[u, v])
+        assert (doors.tail[doors.reverse[j]], doors.head[doors.reverse[j]]) == (v, u)
+    free = np.argwhere(~blocked)
+    if len(free) < 2:
+        return
+    i, k = data.draw(st.integers(0, len(free) - 1)), data.draw(st.integers(0, len(free) - 1))
+    (sy, sx), (gy, gx) = free[i], free[k]
+    if not c.connected((sx, sy), (gx, gy)):
+        return
+    nodes, cost, expansions = doors.route((sx, sy), (gx, gy))
+    assert math.isclose(
+        cost, _reference_route(reference, (sx, sy), (gx, gy), grid, movement), rel_tol=1e-9
+    )
+    assert nodes[0] == grid[sy, sx] and nodes[-1] == grid[gy, gx]
+    level_rows = c.levels[level]
+    for u, v in zip(nodes, nodes[1:], strict=False):  # neighbours, each step
+        assert v in level_rows.neighbour[level_rows.first[u] : level_rows.first[u + 1]]
+    # The cost is the route's own through its doors.
+    points = [(sx + 0.5, sy + 0.5)] + [
+        reference[u, v] for u, v in zip(nodes, nodes[1:], strict=False)
+    ]
+    points.append((gx + 0.5, gy + 0.5))
+    own = sum(
+        _distance(b[0] - a[0], b[1] - a[1], movement)
+        for a, b in zip(points, points[1:], strict=False)
+    )
+    assert math.isclose(cost, own + CROSSING * (len(nodes) - 1), rel_tol=1e-9)
+    assert expansions >= len(nodes) - 2  # the route's doors but the last, popped to end it
+
+
+def test_a_route_keeps_to_its_limit_and_counts_what_a_star_expands() -> None:
+    blocked = np.zeros((64, 64), dtype=bool)
+    blocked[8:56, 32] = True  # a wall between start and goal
+    c = Components.build(blocked, 8, top=3)
+    assert c.doors is not None
+    nodes, cost, expansions = c.doors.route((4, 32), (60, 32))
+    assert len(nodes) - 2 <= expansions < len(c.doors.tail)
+    with pytest.raises(SearchLimit):
+        c.doors.route((4, 32), (60, 32), limit=expansions - 1)
+    assert c.doors.route((4, 32), (60, 32), limit=expansions) == (nodes, cost, expansions)
+    # Around the wall's end, not through it: the route's blocks pass row 56 or row 7.
+    blocks = [c.block(node, 3) for node in nodes]
+    assert any(y == 0 or y == 7 for _, y in blocks)
+
+
+def test_a_route_within_one_node_is_that_node() -> None:
+    c = Components.build(np.zeros((16, 16), dtype=bool), 4, top=2)
+    assert c.doors is not None
+    assert c.doors.route((1, 1), (2, 3)) == ((c.node((1, 1), 2),), 3.0, 0)
+
+
+def test_a_level_of_its_own_gets_its_doors_when_asked() -> None:
+    c = Components.build(np.zeros((32, 32), dtype=bool), 8, top=3)
+    found = c.route(2, (0, 0), (31, 31))
+    assert found.level == 2 and found.nodes[0] == c.node((0, 0), 2)
+    assert found.nodes[-1] == c.node((31, 31), 2)
+    assert len(found.nodes) == 8  # the diagonal: fewest doors among the straightest routes
