@@ -19,8 +19,9 @@
    maps, the shipped three and ten more in benchmarks/data/movingai/ (rooms of 16, 32 and 64,
    mazes of corridor widths 2, 4 and 8, two street maps, a Baldur's Gate II and a Dragon Age
    map): first plan quality and time, final quality mean (min), time and expansions as
-   fractions of A*'s, the time with the abstraction's one-off build added, `pathfinding`'s query
-   time against ours (where it is installed), and issue 17's targets. Optimal lengths are our
+   fractions of A*'s, the time with the abstraction's one-off build added, the peers' query
+   times against ours (`pathfinding`, networkx and tcod, where installed: the `bench` extra),
+   and issue 17's targets. Optimal lengths are our
    A*'s: the old-style `.scen` files round theirs to 5 digits (all agree with A*'s to that).
 
 Timing: `time.perf_counter`, the garbage collector paused, the sides interleaved per problem
@@ -63,7 +64,7 @@ from anytime_navigation.components import Components
 from anytime_navigation.execution import Execution, execute, plan_quality, waypoints
 from anytime_navigation.movingai import Scenario, load_problems
 from anytime_navigation.planner import DEFAULT_TOP, MultiPath, atp
-from anytime_navigation.search import find_path
+from anytime_navigation.search import SQRT2, find_path
 from anytime_navigation.world import BoolGrid, Position, random_world
 from attrs import frozen
 from tables import machine, table  # benchmarks/tables.py: a script's own folder is on sys.path
@@ -116,6 +117,10 @@ FIRST_TARGET = (0.85, 0.02)
 #: obstacle avoidance along the coarse first plan takes a minute or more per problem, hundreds
 #: of times A*'s work.
 EXECUTION_BUDGET = 10
+
+#: networkx's A* (pure Python, a second or more per query on 512 x 512) races ours on the first
+#: few of each map's problems only.
+NETWORKX_PROBLEMS = 4
 
 
 @frozen
@@ -582,6 +587,89 @@ def bench_pathfinding(count: int, repeats: int) -> str:
     return table(header, rows) + "\n" + note
 
 
+def networkx_query(blocked: BoolGrid) -> Callable[[Position, Position], list[Position]] | None:
+    """networkx's A* on the grid's graph (free cells, the MovingAI moves: octile, no corner
+    cutting; the graph built here, once per map), octile heuristic; None when networkx is not
+    installed."""
+    try:
+        import networkx as nx  # type: ignore[import-untyped]
+    except ImportError:
+        return None
+    graph = nx.Graph()
+    free = ~np.asarray(blocked, dtype=bool)
+    side = free.shape[0]
+    for (dx, dy), weight in (((1, 0), 1.0), ((0, 1), 1.0), ((1, 1), SQRT2), ((-1, 1), SQRT2)):
+        ys, xs = np.nonzero(free)
+        nx_, ny = xs + dx, ys + dy
+        inside = (nx_ >= 0) & (nx_ < side) & (ny < side)
+        xs, ys, nx_, ny = xs[inside], ys[inside], nx_[inside], ny[inside]
+        legal = free[ny, nx_]
+        if dx and dy:
+            legal &= free[ys, nx_] & free[ny, xs]
+        graph.add_weighted_edges_from(
+            zip(
+                zip(xs[legal].tolist(), ys[legal].tolist(), strict=True),
+                zip(nx_[legal].tolist(), ny[legal].tolist(), strict=True),
+                [weight] * int(legal.sum()),
+                strict=True,
+            )
+        )
+
+    def octile(a: Position, b: Position) -> float:
+        dx, dy = abs(a[0] - b[0]), abs(a[1] - b[1])
+        return float(max(dx, dy) + (SQRT2 - 1.0) * min(dx, dy))
+
+    def query(start: Position, goal: Position) -> list[Position]:
+        found: list[Position] = nx.astar_path(graph, start, goal, heuristic=octile)
+        return found
+
+    return query
+
+
+def tcod_query(blocked: BoolGrid) -> Callable[[Position, Position], list[Position]] | None:
+    """tcod's A* (libtcod, C; diagonal moves cost sqrt 2 and may cut corners: its lengths can
+    be shorter than the MovingAI optimum); None when tcod is not installed."""
+    try:
+        import tcod.path
+    except ImportError:
+        return None
+    finder = tcod.path.AStar((~np.asarray(blocked, dtype=bool)).astype(np.int8).T, SQRT2)
+
+    def query(start: Position, goal: Position) -> list[Position]:
+        return [start, *finder.get_path(*start, *goal)]
+
+    return query
+
+
+def race_peer(
+    make: Callable[[BoolGrid], Callable[[Position, Position], list[Position]] | None],
+    blocked: BoolGrid,
+    chosen: list[Scenario],
+    repeats: int,
+) -> tuple[float, int] | None:
+    """A peer's total query time over our A*'s on the same problems (interleaved, the best of
+    `repeats` per problem and side) and how many of its routes are optimal; None when the peer
+    is not installed."""
+    query = make(blocked)
+    if query is None:
+        return None
+    ours = theirs = 0.0
+    optimal = 0
+    for scenario in chosen:
+        best_ours, best_theirs = math.inf, math.inf
+        for _ in range(repeats):
+            seconds, _ = timed(
+                partial(find_path, blocked, scenario.start, scenario.goal, movement=8, weight=0.0)
+            )
+            best_ours = min(best_ours, seconds)
+            seconds, route = timed(partial(query, scenario.start, scenario.goal))
+            best_theirs = min(best_theirs, seconds)
+        ours += best_ours
+        theirs += best_theirs
+        optimal += math.isclose(route_length(route), scenario.optimal, rel_tol=1e-4)
+    return theirs / ours, optimal
+
+
 # --- 3. per map kind ---------------------------------------------------------------------------
 
 
@@ -604,6 +692,11 @@ def bench_kinds(count: int, repeats: int, budget: float) -> str:
             blocked, width, height, scenarios = load_problems(path)
             run = race_pathfinding(peer, blocked, width, height, longest(scenarios, count), repeats)
             peer_ratio = f"{sum(run.theirs) / sum(run.ours):.2f}"
+        others = []
+        blocked, _, _, scenarios = load_problems(path)
+        for make, problems in ((networkx_query, NETWORKX_PROBLEMS), (tcod_query, count)):
+            raced = race_peer(make, blocked, longest(scenarios, problems), repeats)
+            others.append("-" if raced is None else f"{raced[0]:.2f} ({raced[1]}/{problems})")
         quality_mean, quality_min, time_target = KIND_TARGET
         first_quality, first_time = FIRST_TARGET
         met = (
@@ -627,6 +720,7 @@ def bench_kinds(count: int, repeats: int, budget: float) -> str:
                 f"{with_abstraction:.1%}",
                 f"{summary.expansions:.1%}",
                 peer_ratio,
+                *others,
                 "yes" if met else "NO",
             ]
         )
@@ -642,11 +736,19 @@ def bench_kinds(count: int, repeats: int, budget: float) -> str:
         "with abstraction / A* (totals)",
         "expansions / A*",
         "pathfinding / our A*",
+        "networkx / our A* (optimal)",
+        "tcod / our A* (optimal)",
         "issue 17 target",
     ]
-    peers = "networkx and tcod are not measured (not dependencies of the project)"
+    peers = (
+        "networkx / our A*, tcod / our A*: likewise (networkx's astar_path on the map's graph,\n"
+        f" octile heuristic, on the first {NETWORKX_PROBLEMS} problems; tcod's AStar, in C, which\n"
+        " cuts corners: its routes can be shorter than the optimum), with how many of their\n"
+        " routes are optimal; their graphs and grids are built once per map, outside the query\n"
+        " time ('-': not installed)"
+    )
     if peer is None:
-        peers = f"pathfinding: '-', {NO_PATHFINDING}; {peers}"
+        peers = f"pathfinding: '-', {NO_PATHFINDING};\n {peers}"
     note = (
         f"(the default ATP, the first plan one segment; the {count} problems of the longest\n"
         " buckets per map, octile without corner cutting, optimal lengths from our A*; A* and\n"
@@ -654,7 +756,7 @@ def bench_kinds(count: int, repeats: int, budget: float) -> str:
         f" but an execution is given up after {budget:g}x A*'s time;\n"
         " with abstraction: (total ATP time + building the abstraction once) / total A* time;\n"
         " pathfinding / our A*: its total query time / ours on the same problems, as in the\n"
-        f" second table; {peers};\n"
+        f" second table;\n {peers};\n"
         f" issue 17 target: final q mean >= {quality_mean} and min >= {quality_min} with\n"
         f" abstraction <= {time_target:.0%}, first q >= {first_quality} at first plan time <= "
         f"{first_time:.0%})"
