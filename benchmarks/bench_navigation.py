@@ -41,7 +41,8 @@ eight minutes in all; the full run takes longer, three runs of each problem). Pl
 executed keeping to their corridor (`execute(..., keep_to_plan=True)`): they are made on the
 map they are followed on.
 
-Run: .venv/bin/python benchmarks/bench_navigation.py [--quick] [--repeats N]
+Run: .venv/bin/python benchmarks/bench_navigation.py [--quick] [--repeats N] [--maps MAP ...]
+(--maps: the per-kind table alone, quick settings, on any MovingAI maps with their .scen files).
 """
 
 from __future__ import annotations
@@ -673,14 +674,16 @@ def race_peer(
 # --- 3. per map kind ---------------------------------------------------------------------------
 
 
-def bench_kinds(count: int, repeats: int, budget: float) -> str:
+def bench_kinds(
+    count: int, repeats: int, budget: float, kinds: tuple[tuple[str, Path], ...] = KINDS
+) -> str:
     """The default ATP against A* on the `count` longest problems of each map of `KINDS`, with
     `pathfinding`'s A* per query where it is installed; executing a plan is given up after
     `budget` times A*'s time."""
     peer = pathfinding_finder()
     default = {"one segment": CONFIGS["one segment"]}
     rows = []
-    for kind, path in KINDS:
+    for kind, path in kinds:
         suite = movingai_suite(path, count, repeats)
         measured = measure_suite(suite, repeats, default, budget)
         runs = measured.runs["one segment"]
@@ -770,8 +773,20 @@ def main() -> None:
     parser.add_argument(
         "--repeats", type=int, help="runs per problem and side, the best kept (3; quick: 2)"
     )
+    parser.add_argument(
+        "--maps",
+        nargs="+",
+        type=Path,
+        metavar="MAP",
+        help="only the per-kind table, on these MovingAI .map files (each with its .scen beside)",
+    )
     args = parser.parse_args()
     began = time.perf_counter()
+    if args.maps:  # maps of the user's: the per-kind table alone
+        given = tuple(("given", path) for path in args.maps)
+        print(bench_kinds(16, args.repeats or 1, 2, given))
+        print(f"\n(the whole run took {time.perf_counter() - began:.0f} s)")
+        return
     small, large, count, per_kind = (5, 2, 2, 16) if args.quick else (20, 10, 12, 16)
     repeats = args.repeats if args.repeats is not None else 2 if args.quick else 3
     # --quick: the per-kind table's problems once each, their first plans' executions given up
