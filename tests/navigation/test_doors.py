@@ -156,3 +156,35 @@ def test_a_level_of_its_own_gets_its_doors_when_asked() -> None:
     assert found.level == 2 and found.nodes[0] == c.node((0, 0), 2)
     assert found.nodes[-1] == c.node((31, 31), 2)
     assert len(found.nodes) == 8  # the diagonal: fewest doors among the straightest routes
+
+
+@settings(max_examples=30, deadline=None)
+@given(maps, st.sampled_from([4, 8]), st.data())
+def test_no_path_of_nodes_is_cheaper_through_its_doors_than_the_route(
+    blocked: np.ndarray, movement: int, data: st.DataObject
+) -> None:
+    """The route is the cheapest through the doors: the path from centre to centre (the
+    "centres" first plan) costs at least as much through its own doors."""
+    c = Components.build(blocked, movement, top=2)
+    assert c.doors is not None
+    free = np.argwhere(~blocked)
+    if len(free) < 2:
+        return
+    i, k = data.draw(st.integers(0, len(free) - 1)), data.draw(st.integers(0, len(free) - 1))
+    start, goal = (int(free[i][1]), int(free[i][0])), (int(free[k][1]), int(free[k][0]))
+    if not c.connected(start, goal):
+        return
+    _, cost, _ = c.doors.route(start, goal)
+    every = np.arange(len(c.levels[2]))
+    centres = c.corridor(2, every, [c.node(start, 2)], [c.node(goal, 2)])
+    assert centres is not None
+    doors = _doors(blocked, c.grids[2], movement)
+    nodes = centres.nodes
+    points = [(start[0] + 0.5, start[1] + 0.5)]
+    points += [doors[u, v] for u, v in zip(nodes, nodes[1:], strict=False)]
+    points.append((goal[0] + 0.5, goal[1] + 0.5))
+    own = sum(
+        _distance(b[0] - a[0], b[1] - a[1], movement)
+        for a, b in zip(points, points[1:], strict=False)
+    )
+    assert cost <= (own + CROSSING * (len(nodes) - 1)) * (1 + 1e-12)

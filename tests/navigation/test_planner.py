@@ -245,3 +245,19 @@ def test_a_coarse_plan_never_runs_through_a_wall_that_splits_a_block() -> None:
     route = final.base_route()
     assert route is not None and (35, 60) in route
     assert execute(first, blocked, movement=8).reached
+
+
+def test_an_unknown_first_plan_is_refused() -> None:
+    pyramid = Pyramid.build(np.zeros((16, 16), dtype=bool))
+    with pytest.raises(ValueError, match=r"^first must be one of doors, centres, got 'best'$"):
+        next(atp(Context(), (0, 0), (15, 15), pyramid, first="best"))  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("first", ["doors", "centres"])
+def test_either_first_plan_is_refined_to_a_free_base_route(first: str) -> None:
+    world = random_world(64, seed=3, density=0.25, movement=8)
+    pyramid = Pyramid.build(world.blocked)
+    results = list(atp(Context(), world.start, world.goal, pyramid, movement=8, first=first))  # type: ignore[arg-type]
+    route = results[-1].value.base_route()
+    assert route is not None and route[0] == world.start and route[-1] == world.goal
+    assert all(not world.blocked[y, x] for x, y in route)

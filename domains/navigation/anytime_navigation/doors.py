@@ -50,6 +50,8 @@ FloatArray = NDArray[np.float64]
 
 #: What crossing a door costs on top of the route's length, in cells (see the module docstring).
 CROSSING = 1.0
+#: What every edge of the search costs more (csgraph takes an explicit zero for no edge).
+_HAIR = 1e-9
 #: How many landmarks the heuristic uses (ALT: each costs a search over the doors at build).
 LANDMARKS = 4
 
@@ -162,7 +164,7 @@ class Doors:
         body += self.length + CROSSING
         weight[after : after + len(leaving)] = to_first + h[leaving] - h_start
         np.maximum(weight, 0.0, out=weight)
-        weight += 1e-9
+        weight += _HAIR
         graph = csr_matrix((weight, columns, self.rows), shape=(states + 1, states + 1))
         # A* settles what is below the route's reweighted cost: cut there, from a guess up.
         cut = float(2 << self.level)
@@ -187,7 +189,7 @@ class Doors:
         if expansions > limit:
             raise SearchLimit(int(limit))
         nodes = (source, *self.head[path[::-1]].tolist())
-        return nodes, cost + h_start, expansions
+        return nodes, cost + h_start - _HAIR * len(path), expansions
 
     def _heuristic(self, goal: Position, entering: IntArray) -> FloatArray:
         """A lower bound on the cost from each state to the goal, consistent: the greatest of
