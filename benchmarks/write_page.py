@@ -167,14 +167,15 @@ BENCHMARKS = [
         " and per map kind (issue 17), the default ATP on the longest problems of 13 MovingAI"
         " maps: random, rooms of 8 to 64, mazes of corridor widths 1 to 8, two street maps and"
         " two game maps (ten of them in `benchmarks/data/movingai/`), with the abstraction's"
-        " one-off cost and the issue's targets. `--quick` solves fewer problems in the first two"
+        " one-off cost, the peers' A*s per query (`pathfinding`, networkx, tcod) and the issue's"
+        " targets (`--maps MAP ...` runs that table on maps of your own). `--quick` solves fewer"
+        " problems in the first two"
         " tables and runs each problem of the per-kind table once (16 per map, so the one-off"
         " cost is shared by 16 problems, as the issue states). The ATP plans over connected"
         " free regions of blocks (a block a wall splits is two nodes), first over blocks of"
-        " 8 x 8 cells; its time is planning only. Plans are made on the map they are followed"
-        " on, so the robot keeps to the cells of the plan's nodes (`keep_to_plan`). Where it"
-        " still falls short: the final route on rooms of 8 (the first plan's rooms are chosen"
-        " by their centres, not their doors).",
+        " 8 x 8 cells from centre to centre, then again through the doors between them (the"
+        " second result); its time is planning only. Plans are made on the map they are"
+        " followed on, so the robot keeps to the cells of the plan's nodes (`keep_to_plan`).",
     ),
     (
         "bench_monitor.py",

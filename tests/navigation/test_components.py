@@ -14,6 +14,7 @@ from anytime_navigation.components import Components
 from anytime_navigation.movingai import load_map
 from anytime_navigation.resources import data_file
 from anytime_navigation.search import SearchLimit, find_path
+from grid_moves import legal_moves  # tests/navigation/grid_moves.py
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import ndimage
@@ -33,28 +34,6 @@ any_maps = st.builds(
     st.sampled_from([1, 2, 4, 8, 16, 32]),
 )
 
-MOVES = {
-    4: ((1, 0), (0, 1)),
-    8: ((1, 0), (0, 1), (1, 1), (-1, 1)),
-}
-
-
-def _legal_moves(
-    blocked: np.ndarray, movement: int
-) -> list[tuple[tuple[int, int], tuple[int, int]]]:
-    side = blocked.shape[0]
-    moves = []
-    for y in range(side):
-        for x in range(side):
-            for dx, dy in MOVES[movement]:
-                nx, ny = x + dx, y + dy
-                if not (0 <= nx < side and 0 <= ny < side) or blocked[y, x] or blocked[ny, nx]:
-                    continue
-                if dx and dy and (blocked[y, nx] or blocked[ny, x]):
-                    continue
-                moves.append(((x, y), (nx, ny)))
-    return moves
-
 
 @settings(max_examples=40, deadline=None)
 @given(maps, st.sampled_from([4, 8]))
@@ -63,7 +42,7 @@ def test_nodes_are_the_free_regions_of_each_block_and_neighbours_the_moves_betwe
 ) -> None:
     c = Components.build(blocked, movement)
     side = blocked.shape[0]
-    moves = _legal_moves(blocked, movement)
+    moves = legal_moves(blocked, movement)
     for k, level in enumerate(c.levels):
         grid, size = c.grids[k], 1 << k
         # The same partition of each block as labelling the block alone.

@@ -12,6 +12,7 @@ import pytest
 from anytime_navigation.components import Components
 from anytime_navigation.doors import CROSSING
 from anytime_navigation.search import SearchLimit
+from grid_moves import legal_moves  # tests/navigation/grid_moves.py
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -22,8 +23,6 @@ maps = st.builds(
     st.sampled_from([8, 16, 32]),
 )
 
-MOVES = {4: ((1, 0), (0, 1)), 8: ((1, 0), (0, 1), (1, 1), (-1, 1))}
-
 
 def _distance(dx: float, dy: float, movement: int) -> float:
     dx, dy = abs(dx), abs(dy)
@@ -32,21 +31,13 @@ def _distance(dx: float, dy: float, movement: int) -> float:
 
 def _doors(blocked: np.ndarray, grid: np.ndarray, movement: int) -> dict[tuple[int, int], tuple]:
     """(u, v) -> the mean midpoint of the legal moves between nodes u and v, one move at a time."""
-    side = blocked.shape[0]
     found: dict[tuple[int, int], list[tuple[float, float]]] = {}
-    for y in range(side):
-        for x in range(side):
-            for dx, dy in MOVES[movement]:
-                nx, ny = x + dx, y + dy
-                if not (0 <= nx < side and 0 <= ny < side) or blocked[y, x] or blocked[ny, nx]:
-                    continue
-                if dx and dy and (blocked[y, nx] or blocked[ny, x]):
-                    continue
-                u, v = int(grid[y, x]), int(grid[ny, nx])
-                if u != v:
-                    middle = (x + 0.5 + dx / 2, y + 0.5 + dy / 2)
-                    found.setdefault((u, v), []).append(middle)
-                    found.setdefault((v, u), []).append(middle)
+    for (x, y), (nx, ny) in legal_moves(blocked, movement):
+        u, v = int(grid[y, x]), int(grid[ny, nx])
+        if u != v:
+            middle = ((x + nx + 1) / 2, (y + ny + 1) / 2)
+            found.setdefault((u, v), []).append(middle)
+            found.setdefault((v, u), []).append(middle)
     return {pair: tuple(np.mean(points, axis=0)) for pair, points in found.items()}
 
 

@@ -4,10 +4,14 @@ a free base route from start to goal, quality estimates are in [0, 1], interrupt
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from anytime_navigation.abstraction import Pyramid, project
+from anytime_navigation.components import Components
 from anytime_navigation.execution import execute, optimal_length, plan_quality
+from anytime_navigation.movingai import load_map
 from anytime_navigation.planner import (
     DEFAULT_TOP,
     MultiPath,
@@ -16,6 +20,7 @@ from anytime_navigation.planner import (
     quality_estimate,
     segmentize,
 )
+from anytime_navigation.resources import data_file
 from anytime_navigation.world import random_world
 
 from anytime.modules import Context, Result
@@ -27,6 +32,15 @@ def _run(size: int, seed: int, movement: int, top: int | None = None) -> list[Re
     world = random_world(size, seed=seed, movement=movement)
     pyramid = Pyramid.build(world.blocked)
     return list(atp(Context(), world.start, world.goal, pyramid, movement=movement, top=top))
+
+
+def _refinements(results: list[Result]) -> list[tuple[Result, Result]]:
+    """The consecutive results of refinements: all but the first plan's re-routing through the
+    doors (a second plan at the top level, when there is one)."""
+    top = results[0].value.segments[0].level
+    rerouted = len(results) > 1 and all(s.level == top for s in results[1].value.segments)
+    pairs = list(zip(results, results[1:], strict=False))
+    return pairs[1:] if rerouted and top > 0 else pairs
 
 
 def _changed(before: MultiPath, after: MultiPath) -> tuple[int, Segment, tuple[Segment, ...]]:
@@ -72,7 +86,7 @@ def test_first_plan_is_at_the_top_level_in_equal_segments(movement: int, top: in
 def test_every_refinement_lowers_one_segment_one_level(movement: int, seed: int) -> None:
     results = _run(64, seed, movement)
     assert len(results) > 1
-    for before, after in zip(results, results[1:], strict=False):
+    for before, after in _refinements(results):
         _, old, new = _changed(before.value, after.value)
         assert old.level >= 1
         assert 1 <= len(new) <= 2
@@ -94,7 +108,7 @@ def test_segment_length_stays_within_one_move_on_an_open_map(movement: int, seed
     start, goal = (tuple(int(v) for v in rng.integers(0, 64, 2)) for _ in range(2))
     for top in (2, 3, 4):
         results = list(atp(Context(), start, goal, pyramid, movement=movement, top=top))
-        for before, after in zip(results, results[1:], strict=False):
+        for before, after in _refinements(results):
             _, old, new = _changed(before.value, after.value)
             if old.moves == 0:
                 continue  # a one-cell segment is re-planned whole, not halved
@@ -247,17 +261,31 @@ def test_a_coarse_plan_never_runs_through_a_wall_that_splits_a_block() -> None:
     assert execute(first, blocked, movement=8).reached
 
 
-def test_an_unknown_first_plan_is_refused() -> None:
-    pyramid = Pyramid.build(np.zeros((16, 16), dtype=bool))
-    with pytest.raises(ValueError, match=r"^first must be one of doors, centres, got 'best'$"):
-        next(atp(Context(), (0, 0), (15, 15), pyramid, first="best"))  # type: ignore[arg-type]
-
-
-@pytest.mark.parametrize("first", ["doors", "centres"])
-def test_either_first_plan_is_refined_to_a_free_base_route(first: str) -> None:
+@pytest.mark.parametrize("doors", [True, False])
+def test_either_way_the_plan_is_refined_to_a_free_base_route(doors: bool) -> None:
     world = random_world(64, seed=3, density=0.25, movement=8)
     pyramid = Pyramid.build(world.blocked)
-    results = list(atp(Context(), world.start, world.goal, pyramid, movement=8, first=first))  # type: ignore[arg-type]
+    results = list(atp(Context(), world.start, world.goal, pyramid, movement=8, doors=doors))
     route = results[-1].value.base_route()
     assert route is not None and route[0] == world.start and route[-1] == world.goal
     assert all(not world.blocked[y, x] for x, y in route)
+
+
+def test_the_first_plan_is_routed_again_through_the_doors_where_that_is_cheaper() -> None:
+    """On rooms of 8 cells the first plan by centres takes dearer doors: the second result is
+    the cheapest route through the doors, and what follows refines it."""
+    blocked = load_map(Path(str(data_file("maps"))) / "8room_000.map")[0]
+    pyramid = Pyramid.build(blocked)
+    components = Components.build(blocked, 8, top=3)
+    doors = components.doors
+    assert doors is not None
+    start, goal = (4, 4), (500, 500)
+    assert not blocked[4, 4] and not blocked[500, 500]
+    without = list(atp(Context(), start, goal, pyramid, movement=8, doors=False))
+    results = list(atp(Context(), start, goal, pyramid, movement=8, components=components))
+    first, second = (r.value.segments[0].nodes for r in results[:2])
+    assert first == without[0].value.segments[0].nodes
+    cheapest, cost, _ = doors.route(start, goal)
+    assert second == cheapest and doors.cost_of(second, start, goal) == pytest.approx(cost)
+    assert cost < doors.cost_of(first, start, goal)
+    assert len(results) == len(without) + 1

@@ -273,11 +273,18 @@ class Components:
         return np.asarray(window == node)
 
     def route(
-        self, level: int, start: Position, goal: Position, *, limit: float = math.inf
+        self,
+        level: int,
+        start: Position,
+        goal: Position,
+        *,
+        bound: Sequence[int] | None = None,
+        limit: float = math.inf,
     ) -> NodePath:
-        """A first plan: the cheapest path of nodes at `level` > 0 from the start's node to the
-        goal's (they must be connected), searched over the level's doors (`doors`: built with
-        the hierarchy for its top level, here for another).
+        """The cheapest path of nodes at `level` > 0 from the start's node to the goal's (they
+        must be connected) through the level's doors (`doors`: built with the hierarchy for
+        its top level, here for another); `bound`, a path of nodes between them, bounds the
+        search by its cost through its doors.
 
         Raises:
             SearchLimit: its work is more than `limit`.
@@ -288,7 +295,7 @@ class Components:
             doors = Doors.build(
                 level, self.grids[level], here.block, here.first, here.neighbour, self.movement
             )
-        nodes, cost, expansions = doors.route(start, goal, limit=limit)
+        nodes, cost, expansions = doors.route(start, goal, bound=bound, limit=limit)
         return NodePath(level, nodes, cost, expansions)
 
     def corridor(

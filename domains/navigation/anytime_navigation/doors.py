@@ -33,12 +33,13 @@ Arrays are indexed [y, x]; positions are (x, y).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 from attrs import frozen
 from numpy.typing import NDArray
 from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import connected_components, dijkstra
+from scipy.sparse.csgraph import dijkstra
 
 from .search import SearchLimit
 from .world import Position, move_distance
@@ -52,8 +53,6 @@ FloatArray = NDArray[np.float64]
 CROSSING = 1.0
 #: What every edge of the search costs more (csgraph takes an explicit zero for no edge).
 _HAIR = 1e-9
-#: How many landmarks the heuristic uses (ALT: each costs a search over the doors at build).
-LANDMARKS = 4
 
 #: The forward base moves (dx, dy): each legal move once.
 _FORWARD_MOVES = {4: ((1, 0), (0, 1)), 8: ((1, 0), (0, 1), (1, 1), (-1, 1))}
@@ -84,9 +83,8 @@ class Doors:
     # row for the start with room for the most states a node has leaving it.
     rows: NDArray[np.int32]
     columns: NDArray[np.int32]
-    # The landmarks' distances (ALT): from landmark i to each state, and from each state to it.
-    landmark_from: FloatArray
-    landmark_to: FloatArray
+    keys: IntArray  # tail * nodes + head of each state, ascending
+    order: IntArray  # the state of each of `keys`
 
     @classmethod
     def build(
@@ -108,6 +106,8 @@ class Doors:
         order = np.argsort(keys, kind="stable")
         reverse = order[np.searchsorted(keys[order], head * count + tail)]
         point = _door_points(grid, movement, keys, order, count, states)
+        downward = tail > head
+        point[downward] = point[reverse[downward]]  # the same door both ways
         # Each state followed by the states leaving its head but the one back.
         counts = np.diff(first)[head]
         from_tail = np.repeat(np.arange(states, dtype=np.int64), counts)
@@ -124,18 +124,23 @@ class Doors:
         rows = np.append(after_first, after_first[-1] + room).astype(np.int32)
         columns = np.append(after, np.full(room, states)).astype(np.int32)
         head_block = np.ascontiguousarray(block[head].T)
-        graph = csr_matrix((length + CROSSING, after, after_first), shape=(states, states))
-        landmark_from, landmark_to = _landmarks(graph, reverse, LANDMARKS)
         return cls(
             level, grid, head_block, movement, first, tail, head, reverse, point, after_first,
-            after, from_tail, length, rows, columns, landmark_from, landmark_to,
+            after, from_tail, length, rows, columns, keys[order], order,
         )  # fmt: skip
 
     def route(
-        self, start: Position, goal: Position, *, limit: float = math.inf
+        self,
+        start: Position,
+        goal: Position,
+        *,
+        bound: Sequence[int] | None = None,
+        limit: float = math.inf,
     ) -> tuple[tuple[int, ...], float, int]:
         """The cheapest route of nodes from the start's node to the goal's (they must be
-        connected): (the nodes, its cost, the states an A* search for it expands).
+        connected): (the nodes, its cost, the states an A* search for it expands). `bound`, a
+        route of nodes between them, cuts the search at its cost (`cost_of`): what is dearer
+        is not searched.
 
         Raises:
             SearchLimit: that work is more than `limit`.
@@ -147,7 +152,7 @@ class Doors:
         states, after = len(self.tail), len(self.after)
         leaving = np.arange(self.first[source], self.first[source + 1])
         entering = self.reverse[self.first[target] : self.first[target + 1]]
-        h = self._heuristic(goal, entering)
+        h = self._heuristic(goal)
         out = self.point[leaving] - (sx + 0.5, sy + 0.5)
         to_first = move_distance(np.abs(out[:, 0]), np.abs(out[:, 1]), self.movement) + CROSSING
         h_start = float(np.min(to_first + h[leaving]))  # the start's: consistent, and tight
@@ -166,8 +171,13 @@ class Doors:
         np.maximum(weight, 0.0, out=weight)
         weight += _HAIR
         graph = csr_matrix((weight, columns, self.rows), shape=(states + 1, states + 1))
-        # A* settles what is below the route's reweighted cost: cut there, from a guess up.
-        cut = float(2 << self.level)
+        # A* settles what is below the route's reweighted cost: cut there, at the bound's or
+        # from a guess up.
+        if bound is None:
+            cut = float(2 << self.level)
+        else:
+            dearest = self.cost_of(bound, start, goal)
+            cut = dearest - h_start + len(bound) * _HAIR + 1e-9 * max(1.0, dearest)
         while True:
             distance, previous = dijkstra(
                 graph, indices=states, limit=cut, return_predecessors=True
@@ -191,25 +201,29 @@ class Doors:
         nodes = (source, *self.head[path[::-1]].tolist())
         return nodes, cost + h_start - _HAIR * len(path), expansions
 
-    def _heuristic(self, goal: Position, entering: IntArray) -> FloatArray:
-        """A lower bound on the cost from each state to the goal, consistent: the greatest of
-        the distance from its door to the goal plus a crossing per block between its head's
-        block and the goal's (a door leads to a neighbouring block), and the landmarks'
-        bounds (the triangle inequality through each, to the goal's entering states)."""
+    def cost_of(self, nodes: Sequence[int], start: Position, goal: Position) -> float:
+        """What a route of neighbouring nodes from the start's to the goal's costs through
+        their doors (as `route` costs it)."""
+        tails, heads = np.asarray(nodes[:-1], np.int64), np.asarray(nodes[1:], np.int64)
+        count = len(self.first) - 1
+        states = self.order[np.searchsorted(self.keys, tails * count + heads)]
+        (sx, sy), (gx, gy) = start, goal
+        points = np.concatenate(
+            [[(sx + 0.5, sy + 0.5)], self.point[states], [(gx + 0.5, gy + 0.5)]]
+        )
+        step = np.abs(np.diff(points, axis=0))
+        length = move_distance(step[:, 0], step[:, 1], self.movement).sum()
+        return float(length + CROSSING * len(states))
+
+    def _heuristic(self, goal: Position) -> FloatArray:
+        """A lower bound on the cost from each state to the goal, consistent: the distance from
+        its door to the goal plus a crossing for every block between its head's block and the
+        goal's (a door leads to a neighbouring block)."""
         gx, gy = goal[0] >> self.level, goal[1] >> self.level
         h = self._distance_to(self.point, goal)
         away = np.abs(self.head_block[0] - gx)
         np.maximum(away, np.abs(self.head_block[1] - gy), out=away)
         h += CROSSING * away
-        last = self._distance_to(self.point[entering], goal)
-        with np.errstate(invalid="ignore"):  # a landmark of another region: inf - inf
-            for frm, to in zip(self.landmark_from, self.landmark_to, strict=True):
-                ahead = np.min(frm[entering] + last)  # d(x, goal) >= d(L, goal) - d(L, x)
-                if np.isfinite(ahead):
-                    np.fmax(h, ahead - frm, out=h)
-                behind = np.max(to[entering] - last)  # d(x, goal) >= d(x, L) - d(goal, L)
-                if np.isfinite(behind):  # (a state that cannot reach L is not reached)
-                    np.fmax(h, to - behind, out=h, where=np.isfinite(to))
         return h
 
     def _distance_to(self, points: FloatArray, goal: Position) -> FloatArray:
@@ -219,36 +233,14 @@ class Doors:
         )
 
 
-def _landmarks(graph: csr_matrix, reverse: IntArray, count: int) -> tuple[FloatArray, FloatArray]:
-    """ALT's landmarks (Goldberg & Harrelson, "Computing the shortest path: A* search meets
-    graph theory", 2005), chosen farthest first in the largest weakly connected part of the
-    graph: the distances from each to every state, and from every state to each (the route
-    back from a state is its reverse, `reverse`, travelled backwards at the same cost)."""
-    states = graph.shape[0]
-    if states == 0:
-        return np.zeros((0, 0)), np.zeros((0, 0))
-    _, part = connected_components(graph, directed=True, connection="weak")
-    largest = np.flatnonzero(part == np.bincount(part).argmax())
-    away = dijkstra(graph, indices=int(largest[0]))  # from an arbitrary state: not kept
-    chosen: list[int] = []
-    for _ in range(count):
-        # (a state no state leads to, out of a dead end, is infinitely far: not that one)
-        reach = away[largest]
-        at = int(largest[np.argmax(np.where(np.isfinite(reach), reach, -1.0))])
-        chosen.append(at)
-        here = dijkstra(graph, indices=at)
-        away = here if len(chosen) == 1 else np.minimum(away, here)
-    frm = dijkstra(graph, indices=chosen)
-    to = dijkstra(graph, indices=reverse[chosen])[:, reverse]  # d(x, L) = d(rev L, rev x)
-    return frm, to
-
-
 def _door_points(
     grid: IntArray, movement: int, keys: IntArray, order: IntArray, count: int, states: int
 ) -> FloatArray:
-    """Each state's door: the mean midpoint of the legal base moves between its two nodes
-    (`keys` = tail * count + head of each state, `order` their ascending order)."""
+    """The door of each state from its lower node to its higher one: the mean midpoint of the
+    legal base moves between the two (`keys` = tail * count + head of each state, `order`
+    their ascending order); the other states' are left 0."""
     side = grid.shape[0]
+    ordered = keys[order]
     sums = np.zeros((states, 2))
     moves = np.zeros(states)
     free = grid >= 0
@@ -266,10 +258,9 @@ def _door_points(
         y, x = np.nonzero(legal)
         u, v = a[y, x], b[y, x]
         x0 = x + max(0, -dx)
-        midpoint = np.stack([x0 + 0.5 + dx / 2, y + 0.5 + dy / 2], axis=1)
-        for one, other in ((u, v), (v, u)):
-            where = order[np.searchsorted(keys[order], one * count + other)]
-            for i in (0, 1):
-                sums[:, i] += np.bincount(where, weights=midpoint[:, i], minlength=states)
-            moves += np.bincount(where, minlength=states)
+        # Each move to the state from its lower node to its higher one, once.
+        where = order[np.searchsorted(ordered, np.minimum(u, v) * count + np.maximum(u, v))]
+        sums[:, 0] += np.bincount(where, weights=x0 + 0.5 + dx / 2, minlength=states)
+        sums[:, 1] += np.bincount(where, weights=y + 0.5 + dy / 2, minlength=states)
+        moves += np.bincount(where, minlength=states)
     return sums / np.maximum(moves, 1)[:, None]

@@ -35,7 +35,6 @@ from __future__ import annotations
 import heapq
 import itertools
 from collections.abc import Iterable, Iterator, Sequence
-from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -48,9 +47,6 @@ from .components import Components, NodePath
 from .search import SearchLimit, find_path
 from .world import BoolGrid, Position
 
-FirstPlan = Literal["doors", "centres"]
-FIRST_PLANS: tuple[FirstPlan, ...] = ("doors", "centres")
-
 #: The level of the first plan by default: blocks of 8 x 8 cells (measured on the MovingAI maps of
 #: every kind, benchmarks/bench_navigation.py: coarser first plans confine the refinements to
 #: worse corridors; finer ones cost more to refine).
@@ -58,8 +54,6 @@ DEFAULT_TOP = 3
 
 __all__ = [
     "DEFAULT_TOP",
-    "FIRST_PLANS",
-    "FirstPlan",
     "MultiPath",
     "Segment",
     "atp",
@@ -263,7 +257,7 @@ def atp(
     top: int | None = None,
     segment_moves: int | None = None,
     components: Components | None = None,
-    first: FirstPlan = "doors",
+    doors: bool = True,
 ) -> Iterator[Result]:
     """The anytime abstract planner: yields `Result(MultiPath, quality_estimate)` after the first
     plan and after every refinement; returns (SIGNAL(TERMINATION)) when nothing is refinable or
@@ -292,15 +286,15 @@ def atp(
         components: the abstraction of the pyramid's map (`Components.build(pyramid.levels[0]
             >= 1, movement, top=top)`: its doors are its top level's), built here when not
             given; pass it to plan many times on one map.
-        first: how the first plan is searched: "doors" (the default), the cheapest route
-            through the doors between nodes (`doors`), or "centres", the cheapest path of
-            nodes costed from centre to centre. Doors find the way through pieces of rooms
-            (MovingAI's rooms of 8: final plans 0.995 against 0.966) at more work: a door
-            search expands each node's doors, several per node. Where nodes are whole blocks
-            or rooms, centres do as well for less (the navigation task's random-rectangle
-            worlds of 128 x 128, 60 of them: first plans 0.965 against 0.957 after 60 ticks
-            against 130 on average, final plans 0.997 both; which is why `find-path` uses
-            centres).
+        doors: after the first plan (a path of nodes costed from centre to centre), search
+            the top level again through the doors between nodes (`doors`) and, when that
+            route is cheaper through its doors, go on from it (the second result). Centres
+            misjudge the way through pieces of rooms (MovingAI's rooms of 8: final plans 0.966
+            of the optimal length without, 0.995 with), and a door search costs more than
+            the first plan (each node's doors are expanded, several per node), so it comes
+            second. Where nodes are whole blocks or rooms, it seldom finds better: `find-path`
+            goes without (the navigation task's 128 x 128 worlds, 60 of them: final plans
+            0.997 either way, the door search 130 ticks on average).
 
     REFINE re-plans the chosen level-k segment one level lower, through the children of its
     nodes only (they are connected: see `components`), so the search is local and always finds
@@ -317,12 +311,10 @@ def atp(
     avoids the obstacles.
 
     Raises:
-        ValueError: a blocked start or goal, a top outside the pyramid, segment_moves < 1,
-            components of another map or movement, or an unknown `first`.
+        ValueError: a blocked start or goal, a top outside the pyramid, segment_moves < 1, or
+            components of another map or movement.
     """
     top = min(DEFAULT_TOP, pyramid.top) if top is None else top
-    if first not in FIRST_PLANS:
-        raise ValueError(f"first must be one of {', '.join(FIRST_PLANS)}, got {first!r}")
     if segment_moves is not None and segment_moves < 1:
         raise ValueError(f"segment_moves must be >= 1 or None, got {segment_moves}")
     if not 0 <= top <= pyramid.top:
@@ -346,20 +338,10 @@ def atp(
         components = Components.build(_opened(blocked, start, goal, movement), movement, top=top)
     planner = _Planner(components, pyramid, start, goal, ctx)
     try:
-        found = planner.first(top, first)
+        found = planner.first(top)
     except SearchLimit as stopped:  # the deadline came before the first plan
         ctx.tick(stopped.expansions)
         return
-    made = [planner.segment(top, part) for part in _pieces(found, segment_moves)]
-    segments = [segment for segment, _ in made]
-    plan = MultiPath(
-        start,
-        goal,
-        segmentize(start, top),
-        tuple(segments),
-        segmentize(goal, top)[::-1],
-        components,
-    )
     # WORST-SEGMENT as a heap of (-score, creation order, segment, its mean obstacleness),
     # stale entries skipped; the quality estimate as running sums: no rescan of the plan per
     # refinement.
@@ -376,9 +358,29 @@ def atp(
             live.add(id(segment))
             heapq.heappush(heap, (-_score(segment.level, o), next(order), segment, o))
 
-    for segment, o in made:
-        add(segment, o)
+    def begin(path: NodePath) -> tuple[list[Segment], MultiPath]:
+        """The plan of a top-level route, the heap and the sums made for it."""
+        live.clear()
+        heap.clear()
+        sums[:] = [0.0, 0.0]
+        made = [planner.segment(top, part) for part in _pieces(path, segment_moves)]
+        for segment, o in made:
+            add(segment, o)
+        route = [segment for segment, _ in made]
+        ends = segmentize(start, top), segmentize(goal, top)[::-1]
+        return route, MultiPath(start, goal, ends[0], tuple(route), ends[1], components)
+
+    segments, plan = begin(found)
     yield Result(plan, _clip(sums[1] / sums[0]))
+    if doors and top > 0:
+        try:
+            rerouted = planner.through_doors(top, found)
+        except SearchLimit as stopped:  # the deadline came first: keep the first plan
+            ctx.tick(stopped.expansions)
+            return
+        if rerouted is not None:
+            segments, plan = begin(rerouted)
+            yield Result(plan, _clip(sums[1] / sums[0]))
     while not ctx.expired:
         while heap and id(heap[0][2]) not in live:
             heapq.heappop(heap)
@@ -442,22 +444,26 @@ class _Planner:
         self.components, self.pyramid = components, pyramid
         self.start, self.goal, self.ctx = start, goal, ctx
 
-    def first(self, level: int, how: FirstPlan) -> NodePath:
-        """The first plan: a path of nodes at `level` from the start's node to the goal's,
-        searched over the level's doors or from centre to centre (`atp`'s `first`; always the
-        latter at level 0, where the nodes are cells)."""
+    def first(self, level: int) -> NodePath:
+        """The first plan: a path of nodes at `level` from the start's node to the goal's, the
+        cheapest from centre to centre."""
         c = self.components
-        if level > 0 and how == "doors":
-            found = c.route(level, self.start, self.goal, limit=self.ctx.remaining)
-        else:
-            every = np.arange(len(c.levels[level]))
-            start, goal = c.node(self.start, level), c.node(self.goal, level)
-            path = c.corridor(level, every, [start], [goal], limit=self.ctx.remaining)
-            if path is None:
-                raise AssertionError(f"no path at level {level} between connected nodes")
-            found = path
+        every = np.arange(len(c.levels[level]))
+        start, goal = c.node(self.start, level), c.node(self.goal, level)
+        found = c.corridor(level, every, [start], [goal], limit=self.ctx.remaining)
+        if found is None:
+            raise AssertionError(f"no path at level {level} between connected nodes")
         self.ctx.tick(found.expansions)
         return found
+
+    def through_doors(self, level: int, path: NodePath) -> NodePath | None:
+        """The cheapest route at `level` through the doors between nodes, when it is cheaper
+        there than `path` (None: `path` is as cheap)."""
+        found = self.components.route(
+            level, self.start, self.goal, bound=path.nodes, limit=self.ctx.remaining
+        )
+        self.ctx.tick(found.expansions)
+        return None if found.nodes == path.nodes else found
 
     def segment(self, level: int, nodes: Sequence[int]) -> tuple[Segment, float]:
         """The segment through `nodes` and its mean obstacleness (`_mean_obstacleness`, from
