@@ -1,11 +1,11 @@
-"""Doors: the first plan searched over where a route crosses from node to node (issue 17).
+"""Doors: the top level searched again where a route crosses from node to node (issue 17).
 
 Why. A plan of neighbouring nodes costed from centre to centre misjudges a route where the
 nodes are pieces of rooms: a block cut by a room's wall has a piece on each side, its centre is
 off the way through, and the search then picks the wrong doors. Measured on the 16 longest
-problems of MovingAI's 8room_000: first plans 0.944 and final plans 0.966 of the optimal length
-with centre costs; 0.999 and 0.995 with the first plan searched over doors, refinement
-unchanged (benchmarks/bench_navigation.py has the other kinds).
+problems of MovingAI's 8room_000: final plans 0.966 of the optimal length when the first plan
+is made from centres, 0.995 when it is then searched again through the doors (`atp`'s
+`doors`), refinement unchanged (benchmarks/bench_navigation.py has the other kinds).
 
 What. The *door* from a node to a neighbour is the mean of the midpoints of the legal base
 moves that join them: where a route crosses. A route through nodes n0, n1, .., nm costs its
@@ -18,14 +18,13 @@ side doors is as long as a diagonal through corners: measured on random512-10-0,
 How. The states are the directed doors u -> v (one per entry of the level's compressed rows); a
 state u -> v is followed by v -> w for every neighbour w of v but u. Dijkstra's algorithm over
 them, in C (`scipy.sparse.csgraph`), is made A*: each edge is reweighted by a consistent
-heuristic, the greatest of the straight distance to the goal plus a crossing per block still to
-cross and the bounds of four landmarks (ALT, Goldberg & Harrelson 2005: distances from and to
-each, searched once when the doors are built), and the search is cut at a limit on the
-reweighted cost, two blocks' width widened fourfold until the goal is reached; it settles only
-states whose cost plus heuristic is under the limit. Its work is counted as corridor searches
-count theirs: the states an A* expands, those whose cost plus heuristic is below the route's
-cost. On the 512 x 512 MovingAI maps the landmarks halve the states expanded on street and game
-maps; a route costs 0.4-1.8% of an A* on the base grid (benchmarks/bench_navigation.py).
+heuristic (the straight distance from its door to the goal plus a crossing per block still to
+cross), and the search is cut at a limit on the reweighted cost: a known route's cost through
+its doors when one is given (the first plan's), else two blocks' width widened fourfold until
+the goal is reached. It settles only the states whose cost plus heuristic is under the limit,
+and its work is counted as corridor searches count theirs: the states an A* expands, those
+whose cost plus heuristic is below the route's cost. (Landmarks, ALT, halved the states
+expanded on street and game maps but not the time, once the search is bounded: not used.)
 
 Arrays are indexed [y, x]; positions are (x, y).
 """

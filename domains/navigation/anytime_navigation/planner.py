@@ -24,10 +24,12 @@ level-k cell with its node means "go into that connected region of the 2^k x 2^k
 
 PATH-FINDER and REFINE work on the connectivity-aware abstraction (`components`): a level-k plan
 is a path of neighbouring nodes, each a connected free region of one block. PATH-FINDER searches
-the top level's doors (`doors`: where a route crosses from node to node, so that pieces of rooms
-are costed by the way through them, not by their centres), and a refinement searches the
-children of the refined segment's nodes and of their neighbours, a corridor that always holds a
-path (Dijkstra's algorithm over it, in C; a tick is a node an A* search would expand).
+the top level from node centre to node centre, and the next step searches it again through the
+doors between nodes (`doors`: where a route crosses from node to node, so that pieces of rooms
+are costed by the way through them, not by their centres) and goes on from that route when it
+is cheaper. A refinement searches the children of the refined segment's nodes and of their
+neighbours, a corridor that always holds a path (Dijkstra's algorithm over it, in C; a tick is
+a node an A* search would expand).
 """
 
 from __future__ import annotations
@@ -267,9 +269,10 @@ def atp(
 
     PATH-FINDER plans over the connectivity-aware abstraction (`components`): a level-k plan is
     a path of neighbouring *nodes*, each a connected free region of one 2^k x 2^k block, so a
-    coarse plan never runs through a wall that splits a block; the first plan is the cheapest
-    route through the doors between them (`doors`). The pyramid's obstacleness
-    chooses the worst segment and makes the quality estimate.
+    coarse plan never runs through a wall that splits a block; the first plan is costed from
+    node centre to node centre, then searched again through the doors between nodes
+    (`doors`). The pyramid's obstacleness chooses the worst segment and makes the quality
+    estimate.
 
     Args:
         ctx: the context; each node a search expands is one tick.
