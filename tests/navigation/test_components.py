@@ -263,3 +263,34 @@ def test_the_build_equals_the_straightforward_one_on_the_shipped_maps(name: str)
     blocked = load_map(Path(str(data_file("maps"))) / f"{name}.map")[0]
     for movement in (4, 8):
         _assert_same_as_reference(blocked, movement, 3)
+
+
+@settings(max_examples=40, deadline=None)
+@given(maps, st.sampled_from([4, 8]), st.sampled_from([1, 2, 3]), st.data())
+def test_a_path_over_a_level_is_the_corridor_over_every_node(
+    blocked: np.ndarray, movement: int, top: int, data: st.DataObject
+) -> None:
+    c = Components.build(blocked, movement, top=top)
+    rows = [a.copy() for a in (c.levels[top].first, c.levels[top].neighbour, c.levels[top].cost)]
+    free = np.argwhere(~blocked)
+    if len(free) < 2:
+        return
+    i, k = data.draw(st.integers(0, len(free) - 1)), data.draw(st.integers(0, len(free) - 1))
+    (sy, sx), (gy, gx) = free[i], free[k]
+    if not c.connected((sx, sy), (gx, gy)):
+        return
+    for level in range(1, top + 1):  # the top's graph made with the hierarchy, the others now
+        source, target = c.node((sx, sy), level), c.node((gx, gy), level)
+        found = c.path(level, source, target)
+        every = np.arange(len(c.levels[level]))
+        reference = c.corridor(level, every, [source], [target])
+        assert reference is not None
+        assert math.isclose(found.cost, reference.cost, rel_tol=1e-9, abs_tol=1e-9)
+        assert found.nodes[0] == source and found.nodes[-1] == target
+        assert found.expansions == reference.expansions
+        if found.expansions:
+            with pytest.raises(SearchLimit):
+                c.path(level, source, target, limit=found.expansions - 1)
+    # The level's rows are as they were (its graph is a sorted copy).
+    after = (c.levels[top].first, c.levels[top].neighbour, c.levels[top].cost)
+    assert all(np.array_equal(a, b) for a, b in zip(rows, after, strict=True))

@@ -150,6 +150,7 @@ class Components:
     movement: int
     regions: IntArray  # the connected free region of each base cell (-1 where blocked)
     doors: Doors | None = None  # the top level's, when it is above level 0 (first plans)
+    graph: csr_matrix | None = None  # the top level's edges, canonical, likewise
 
     @property
     def cell(self) -> IntArray:
@@ -235,11 +236,12 @@ class Components:
         else:
             labels, _ = ndimage.label(free)  # 4-connected: octile moves join the same cells
             regions = labels.astype(np.int64) - 1
-        doors = None
+        doors = graph = None
         if top > 0:
             at = levels[top]
             doors = Doors.build(top, grids[top], at.block, at.first, at.neighbour, movement)
-        return cls(levels, tuple(grids), movement, regions, doors)
+            graph = _level_graph(at)
+        return cls(levels, tuple(grids), movement, regions, doors, graph)
 
     @property
     def top(self) -> int:
@@ -297,6 +299,35 @@ class Components:
             )
         nodes, cost, expansions = doors.route(start, goal, bound=bound, limit=limit)
         return NodePath(level, nodes, cost, expansions)
+
+    def path(self, level: int, source: int, target: int, *, limit: float = math.inf) -> NodePath:
+        """A cheapest path of neighbouring nodes at `level` > 0 between two nodes over the whole
+        level (as `corridor` over every node finds it, from centre to centre, without making
+        the corridor's graph: the top level's is made with the hierarchy).
+
+        Raises:
+            SearchLimit: its work, counted as `corridor` counts it, is more than `limit`.
+        """
+        graph = self.graph if level == self.top and self.graph is not None else None
+        if graph is None:
+            graph = _level_graph(self.levels[level])
+        distance, previous = dijkstra(graph, indices=source, return_predecessors=True)
+        best = float(distance[target])
+        if not np.isfinite(best):
+            raise AssertionError(f"no path at level {level} between nodes {source} and {target}")
+        every = np.arange(len(distance))
+        expanded = distance + self._heuristic(level, every, np.array([target])) < best - 1e-9 * max(
+            1.0, best
+        )
+        back: list[int] = previous.tolist()
+        path = [target]
+        while path[-1] != source:
+            path.append(back[path[-1]])
+        expanded[path[1:]] = True  # A* pops the path's nodes too; the target ends it
+        expansions = int(np.count_nonzero(expanded))
+        if expansions > limit:
+            raise SearchLimit(int(limit))
+        return NodePath(level, tuple(path[::-1]), best, expansions)
 
     def corridor(
         self,
@@ -392,6 +423,16 @@ def _summed(local: IntArray, costs: FloatArray) -> tuple[IntArray, FloatArray]:
     total = np.zeros(len(distinct))
     np.add.at(total, np.searchsorted(distinct, local), costs)
     return distinct, total
+
+
+def _level_graph(level: Level) -> csr_matrix:
+    """A level's edges above level 0 as a canonical sparse matrix (each row's columns
+    ascending, as `_corridor_graph` makes them: Dijkstra's ties go the same way)."""
+    count = len(level)
+    rows = (level.cost, level.neighbour, level.first)
+    graph = csr_matrix(rows, shape=(count, count), copy=True)  # sorted below, in place
+    graph.sort_indices()
+    return graph
 
 
 def _corridor_graph(

@@ -451,11 +451,15 @@ class _Planner:
         """The first plan: a path of nodes at `level` from the start's node to the goal's, the
         cheapest from centre to centre."""
         c = self.components
-        every = np.arange(len(c.levels[level]))
         start, goal = c.node(self.start, level), c.node(self.goal, level)
-        found = c.corridor(level, every, [start], [goal], limit=self.ctx.remaining)
-        if found is None:
-            raise AssertionError(f"no path at level {level} between connected nodes")
+        if level > 0:
+            found = c.path(level, start, goal, limit=self.ctx.remaining)
+        else:  # the cells: a corridor over all of them
+            every = np.arange(len(c.levels[0]))
+            at_base = c.corridor(0, every, [start], [goal], limit=self.ctx.remaining)
+            if at_base is None:
+                raise AssertionError("no path between connected cells")
+            found = at_base
         self.ctx.tick(found.expansions)
         return found
 
