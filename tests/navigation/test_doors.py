@@ -179,3 +179,17 @@ def test_no_path_of_nodes_is_cheaper_through_its_doors_than_the_route(
         for a, b in zip(points, points[1:], strict=False)
     )
     assert cost <= (own + CROSSING * (len(nodes) - 1)) * (1 + 1e-12)
+
+
+def test_the_doors_of_a_map_with_blocked_margins_are_where_its_moves_are() -> None:
+    """A map padded with blocked cells (as a non-square one is): the doors are those of the
+    free part, placed on the whole map."""
+    inner = np.random.default_rng(5).random((20, 13)) < 0.3
+    blocked = np.ones((32, 32), dtype=bool)
+    blocked[7:27, 11:24] = inner
+    c = Components.build(blocked, 8, top=2)
+    assert c.doors is not None
+    reference = _doors(blocked, c.grids[2], 8)
+    assert len(reference) == len(c.doors.tail)
+    for j, (u, v) in enumerate(zip(c.doors.tail.tolist(), c.doors.head.tolist(), strict=True)):
+        assert np.allclose(c.doors.point[j], reference[u, v])

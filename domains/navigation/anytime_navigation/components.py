@@ -319,10 +319,9 @@ class Components:
         expanded = distance + self._heuristic(level, every, np.array([target])) < best - 1e-9 * max(
             1.0, best
         )
-        back: list[int] = previous.tolist()
         path = [target]
         while path[-1] != source:
-            path.append(back[path[-1]])
+            path.append(int(previous[path[-1]]))
         expanded[path[1:]] = True  # A* pops the path's nodes too; the target ends it
         expansions = int(np.count_nonzero(expanded))
         if expansions > limit:
