@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from hypothesis import strategies as st
 
 #: Each move once: the forward half of the 4- or 8-neighbourhood.
 MOVES = {
@@ -28,3 +29,16 @@ def legal_moves(
                     continue
                 moves.append(((x, y), (nx, ny)))
     return moves
+
+
+def draw_free_pair(
+    blocked: np.ndarray, data: st.DataObject
+) -> tuple[tuple[int, int], tuple[int, int]] | None:
+    """Two free cells (x, y) drawn by hypothesis (possibly the same one); None when the map
+    has fewer than two."""
+    free = np.argwhere(~blocked)
+    if len(free) < 2:
+        return None
+    i, k = data.draw(st.integers(0, len(free) - 1)), data.draw(st.integers(0, len(free) - 1))
+    (sy, sx), (gy, gx) = free[i], free[k]
+    return (int(sx), int(sy)), (int(gx), int(gy))

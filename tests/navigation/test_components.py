@@ -14,7 +14,7 @@ from anytime_navigation.components import Components
 from anytime_navigation.movingai import load_map
 from anytime_navigation.resources import data_file
 from anytime_navigation.search import SearchLimit, find_path
-from grid_moves import legal_moves  # tests/navigation/grid_moves.py
+from grid_moves import draw_free_pair, legal_moves  # tests/navigation/grid_moves.py
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import ndimage
@@ -272,13 +272,10 @@ def test_a_path_over_a_level_is_the_corridor_over_every_node(
 ) -> None:
     c = Components.build(blocked, movement, top=top)
     rows = [a.copy() for a in (c.levels[top].first, c.levels[top].neighbour, c.levels[top].cost)]
-    free = np.argwhere(~blocked)
-    if len(free) < 2:
+    pair = draw_free_pair(blocked, data)
+    if pair is None or not c.connected(*pair):
         return
-    i, k = data.draw(st.integers(0, len(free) - 1)), data.draw(st.integers(0, len(free) - 1))
-    (sy, sx), (gy, gx) = free[i], free[k]
-    if not c.connected((sx, sy), (gx, gy)):
-        return
+    (sx, sy), (gx, gy) = pair
     for level in range(1, top + 1):  # the top's graph made with the hierarchy, the others now
         source, target = c.node((sx, sy), level), c.node((gx, gy), level)
         found = c.path(level, source, target)

@@ -12,7 +12,7 @@ import pytest
 from anytime_navigation.components import Components
 from anytime_navigation.doors import CROSSING
 from anytime_navigation.search import SearchLimit
-from grid_moves import legal_moves  # tests/navigation/grid_moves.py
+from grid_moves import draw_free_pair, legal_moves  # tests/navigation/grid_moves.py
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -92,13 +92,10 @@ def test_the_route_is_the_cheapest_through_the_doors(
     for j, (u, v) in enumerate(zip(doors.tail.tolist(), doors.head.tolist(), strict=True)):
         assert np.allclose(doors.point[j], reference[u, v])
         assert (doors.tail[doors.reverse[j]], doors.head[doors.reverse[j]]) == (v, u)
-    free = np.argwhere(~blocked)
-    if len(free) < 2:
+    pair = draw_free_pair(blocked, data)
+    if pair is None or not c.connected(*pair):
         return
-    i, k = data.draw(st.integers(0, len(free) - 1)), data.draw(st.integers(0, len(free) - 1))
-    (sy, sx), (gy, gx) = free[i], free[k]
-    if not c.connected((sx, sy), (gx, gy)):
-        return
+    (sx, sy), (gx, gy) = pair
     nodes, cost, expansions = doors.route((sx, sy), (gx, gy))
     assert math.isclose(
         cost, _reference_route(reference, (sx, sy), (gx, gy), grid, movement), rel_tol=1e-9
@@ -158,13 +155,10 @@ def test_no_path_of_nodes_is_cheaper_through_its_doors_than_the_route(
     "centres" first plan) costs at least as much through its own doors."""
     c = Components.build(blocked, movement, top=2)
     assert c.doors is not None
-    free = np.argwhere(~blocked)
-    if len(free) < 2:
+    pair = draw_free_pair(blocked, data)
+    if pair is None or not c.connected(*pair):
         return
-    i, k = data.draw(st.integers(0, len(free) - 1)), data.draw(st.integers(0, len(free) - 1))
-    start, goal = (int(free[i][1]), int(free[i][0])), (int(free[k][1]), int(free[k][0]))
-    if not c.connected(start, goal):
-        return
+    start, goal = pair
     _, cost, _ = c.doors.route(start, goal)
     every = np.arange(len(c.levels[2]))
     centres = c.corridor(2, every, [c.node(start, 2)], [c.node(goal, 2)])
