@@ -65,8 +65,8 @@ from anytime_navigation.components import Components
 from anytime_navigation.execution import Execution, execute, plan_quality, waypoints
 from anytime_navigation.movingai import MapError, Scenario, load_problems
 from anytime_navigation.planner import DEFAULT_TOP, MultiPath, atp
-from anytime_navigation.search import SQRT2, find_path
-from anytime_navigation.world import BoolGrid, Position, random_world
+from anytime_navigation.search import find_path
+from anytime_navigation.world import SQRT2, BoolGrid, Position, random_world
 from attrs import frozen
 from tables import machine, table  # benchmarks/tables.py: a script's own folder is on sys.path
 

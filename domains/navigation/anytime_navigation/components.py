@@ -23,10 +23,10 @@ distance between them as the robot moves (Manhattan for 4-connected moves, octil
 8-connected ones; at level 0 that is the move's length, 1 or sqrt 2). The whole hierarchy is
 built once per map, bottom-up and vectorised (`Components.build`): level 1 read off the 2 x 2
 blocks' patterns, each level above from the graph of the one below (scipy's connected
-components); about linear in the free cells, but for sorting each level's edges. Centre costs
-serve refinement, within a corridor; the first plan, across the whole top level, is costed
-through the *doors* between nodes instead (`doors`, built with the hierarchy for its top
-level).
+components); about linear in the free cells, but for sorting each level's edges. The top level
+also gets its graph as a sparse matrix (`Components.path`, the first plan from centre to
+centre) and its *doors* (`doors`: where a route crosses from node to node, for searching the
+first plan's level again by the way through the nodes rather than their centres).
 
 Arrays are indexed [y, x]; positions are (x, y).
 """
@@ -315,10 +315,8 @@ class Components:
         best = float(distance[target])
         if not np.isfinite(best):
             raise AssertionError(f"no path at level {level} between nodes {source} and {target}")
-        every = np.arange(len(distance))
-        expanded = distance + self._heuristic(level, every, np.array([target])) < best - 1e-9 * max(
-            1.0, best
-        )
+        estimate = distance + self._heuristic(level, np.arange(len(distance)), np.array([target]))
+        expanded = estimate < best - 1e-9 * max(1.0, best)
         path = [target]
         while path[-1] != source:
             path.append(int(previous[path[-1]]))

@@ -68,8 +68,8 @@ from anytime.plugin import Context
 
 from .abstraction import cell_bounds
 from .planner import MultiPath
-from .search import SQRT2, find_path, find_path_to_box
-from .world import BoolGrid, Position
+from .search import find_path, find_path_to_box
+from .world import SQRT2, BoolGrid, Position
 
 __all__ = [
     "Execution",

@@ -31,11 +31,12 @@ import numpy as np
 import numpy.typing as npt
 from attrs import frozen
 
+from .world import SQRT2
+
 __all__ = ["PathResult", "SearchLimit", "find_path", "find_path_to_box"]
 
 Position = tuple[int, int]
 
-SQRT2 = math.sqrt(2.0)
 _BLOCKED = -1.0  # the step multiplier of an impassable cell in the padded grid
 
 
