@@ -24,8 +24,7 @@ distance between them as the robot moves (Manhattan for 4-connected moves, octil
 built once per map, bottom-up and vectorised (`Components.build`): level 1 read off the 2 x 2
 blocks' patterns, each level above from the graph of the one below (scipy's connected
 components); about linear in the free cells, but for sorting each level's edges. The top level
-also gets its graph as a sparse matrix (`Components.path`, the first plan from centre to
-centre) and its *doors* (`doors`: where a route crosses from node to node, for searching the
+also gets its *doors* (`doors`: where a route crosses from node to node, for searching the
 first plan's level again by the way through the nodes rather than their centres).
 
 Arrays are indexed [y, x]; positions are (x, y).
@@ -38,12 +37,13 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from attrs import frozen
+from attrs import field, frozen
 from numpy.typing import NDArray
 from scipy import ndimage
 from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import connected_components, dijkstra
+from scipy.sparse.csgraph import connected_components
 
+from . import corridor_search
 from .doors import Doors
 from .search import SearchLimit
 from .world import BoolGrid, Position, is_power_of_two, move_distance
@@ -118,13 +118,6 @@ class Level:
 _SQRT2 = math.sqrt(2.0)
 _STRAIGHT_MOVES = ((1, 0, 1.0), (-1, 0, 1.0), (0, 1, 1.0), (0, -1, 1.0))
 _DIAGONAL_MOVES = ((1, 1, _SQRT2), (-1, 1, _SQRT2), (1, -1, _SQRT2), (-1, -1, _SQRT2))
-#: The moves in the order of their heads in raster order (dy, then dx).
-_RASTER_MOVES = {
-    movement: sorted(
-        _STRAIGHT_MOVES + (_DIAGONAL_MOVES if movement == 8 else ()), key=lambda m: (m[1], m[0])
-    )
-    for movement in (4, 8)
-}
 
 
 @frozen
@@ -150,7 +143,13 @@ class Components:
     movement: int
     regions: IntArray  # the connected free region of each base cell (-1 where blocked)
     doors: Doors | None = None  # the top level's, when it is above level 0 (first plans)
-    graph: csr_matrix | None = None  # the top level's edges, canonical, likewise
+    # Each level's scratch for its searches: -1 for every node between them (made here, so that
+    # a plan's pickle, which holds its abstraction, is the same before and after a search).
+    _scratch: tuple[IntArray, ...] = field(init=False, repr=False)
+
+    @_scratch.default
+    def _no_nodes(self) -> tuple[IntArray, ...]:
+        return tuple(np.full(len(level), -1, dtype=np.int64) for level in self.levels)
 
     @property
     def cell(self) -> IntArray:
@@ -236,12 +235,11 @@ class Components:
         else:
             labels, _ = ndimage.label(free)  # 4-connected: octile moves join the same cells
             regions = labels.astype(np.int64) - 1
-        doors = graph = None
+        doors = None
         if top > 0:
             at = levels[top]
             doors = Doors.build(top, grids[top], at.block, at.first, at.neighbour, movement)
-            graph = _level_graph(at)
-        return cls(levels, tuple(grids), movement, regions, doors, graph)
+        return cls(levels, tuple(grids), movement, regions, doors)
 
     @property
     def top(self) -> int:
@@ -301,30 +299,17 @@ class Components:
         return NodePath(level, nodes, cost, expansions)
 
     def path(self, level: int, source: int, target: int, *, limit: float = math.inf) -> NodePath:
-        """A cheapest path of neighbouring nodes at `level` > 0 between two nodes over the whole
-        level (as `corridor` over every node finds it, from centre to centre, without making
-        the corridor's graph: the top level's is made with the hierarchy).
+        """A cheapest path of neighbouring nodes at `level` between two nodes over the whole
+        level, from centre to centre: `corridor` over every node.
 
         Raises:
             SearchLimit: its work, counted as `corridor` counts it, is more than `limit`.
         """
-        graph = self.graph if level == self.top and self.graph is not None else None
-        if graph is None:
-            graph = _level_graph(self.levels[level])
-        distance, previous = dijkstra(graph, indices=source, return_predecessors=True)
-        best = float(distance[target])
-        if not np.isfinite(best):
+        every = np.arange(len(self.levels[level]))
+        found = self.corridor(level, every, [source], [target], limit=limit)
+        if found is None:
             raise AssertionError(f"no path at level {level} between nodes {source} and {target}")
-        estimate = distance + self._heuristic(level, np.arange(len(distance)), np.array([target]))
-        expanded = estimate < best - 1e-9 * max(1.0, best)
-        path = [target]
-        while path[-1] != source:
-            path.append(int(previous[path[-1]]))
-        expanded[path[1:]] = True  # A* pops the path's nodes too; the target ends it
-        expansions = int(np.count_nonzero(expanded))
-        if expansions > limit:
-            raise SearchLimit(int(limit))
-        return NodePath(level, tuple(path[::-1]), best, expansions)
+        return found
 
     def corridor(
         self,
@@ -341,175 +326,49 @@ class Components:
         `targets` through the `allowed` nodes (sources and targets among them), with the extra
         costs of starting and ending at each; None when no target can be reached.
 
-        Dijkstra's algorithm over the corridor, in C (`scipy.sparse.csgraph`). Its work is
-        counted as the nodes an A* search for the same path expands, those whose cost from a
-        source plus the heuristic (the distance to the nearest target, consistent with the
-        edges' costs) is below the path's cost: a measure of the search, not of how it is
-        computed.
+        Dijkstra's algorithm over the corridor, compiled (`corridor_search`), stopped once the
+        cheapest way to a target is known. Its work is counted as the nodes an A* search for the
+        same path expands, those whose cost from a source plus the heuristic (the distance to the
+        nearest target, consistent with the edges' costs) is below the path's cost: a measure
+        of the search, not of how it is computed.
 
         Raises:
             SearchLimit: that work is more than `limit`.
         """
-        nodes = _sorted_unique(np.asarray(allowed, dtype=np.int64))
-        n = len(nodes)
-        start, finish = n, n + 1  # a source before every source, a target after every target
-        local = np.full(len(self.levels[level]) + 1, -1, dtype=np.int64)  # the last: for -1
-        local[nodes] = np.arange(n)
-        s_local = local[np.asarray(sources, dtype=np.int64)]
-        t_local = local[np.asarray(targets, dtype=np.int64)]
-        s_costs = np.zeros(len(s_local)) if source_costs is None else np.asarray(source_costs)
-        t_costs = np.zeros(len(t_local)) if target_costs is None else np.asarray(target_costs)
-        # Explicit zeros are no edges to csgraph: the free ends cost a hair.
-        ends = (s_local, s_costs + 1e-12, t_local, t_costs + 1e-12)
-        graph = _corridor_graph(self.levels[level], nodes, local, *ends)
-        distance, previous = dijkstra(graph, indices=start, return_predecessors=True)
-        best = float(distance[finish])
-        estimate = distance[:n] + self._heuristic(level, nodes, nodes[t_local])
-        expanded = (
-            estimate < best - 1e-9 * max(1.0, best) if np.isfinite(best) else estimate < np.inf
+        at = self.levels[level]
+        local = self._scratch[level]
+        none = np.zeros(0, dtype=np.int64)
+        padded = at.padded if at.padded is not None else none
+        wide = at.grid.shape[1] + 2 if at.grid is not None else 0
+        sources_ = np.asarray(sources, dtype=np.int64)
+        targets_ = np.asarray(targets, dtype=np.int64)
+        path, best, expansions = corridor_search.search(
+            np.asarray(allowed, dtype=np.int64),
+            local,
+            at.first if at.k else none,
+            at.neighbour if at.k else none,
+            at.cost if at.k else np.zeros(0),
+            padded,
+            wide,
+            at.block,
+            at.centre,
+            self.movement,
+            sources_,
+            np.zeros(len(sources_)) if source_costs is None else np.asarray(source_costs, float),
+            targets_,
+            np.zeros(len(targets_)) if target_costs is None else np.asarray(target_costs, float),
         )
-        path = []
-        if np.isfinite(best):
-            back: list[int] = previous.tolist()
-            at = back[finish]
-            while at != start:
-                path.append(at)
-                at = back[at]
-            expanded[path[1:]] = True  # A* pops the path's nodes too; the target ends it
-        expansions = int(np.count_nonzero(expanded))
         if expansions > limit:
             raise SearchLimit(int(limit))
-        if not path:
+        if not len(path):
             return None
-        nodes_path = tuple(nodes[path[::-1]].tolist())
-        return NodePath(level, nodes_path, best, expansions)
-
-    def _heuristic(self, level: int, nodes: IntArray, targets: IntArray) -> FloatArray:
-        """The distance from each of `nodes` to the nearest of `targets` (centre to centre):
-        Manhattan or octile, as the moves go (`world.move_distance`), one target at a time."""
-        centre = self.levels[level].centre
-        x, y = centre[nodes, 0], centre[nodes, 1]
-        nearest = np.full(len(nodes), np.inf)
-        for tx, ty in centre[targets].tolist():
-            np.minimum(
-                nearest, move_distance(np.abs(x - tx), np.abs(y - ty), self.movement), out=nearest
-            )
-        return nearest
-
-
-def _sorted_unique(values: IntArray) -> IntArray:
-    """`np.unique` of integers, by a sort (numpy's hash table is slower on these)."""
-    ordered = np.sort(values)
-    return (
-        ordered[np.concatenate(([True], ordered[1:] != ordered[:-1]))] if len(values) else ordered
-    )
+        return NodePath(level, tuple(path.tolist()), best, expansions)
 
 
 def _rows(first: IntArray, nodes: IntArray) -> IntArray:
     """The indices of the entries of `nodes`' rows in compressed rows `first`, row by row."""
     counts = first[nodes + 1] - first[nodes]
     return np.repeat(first[nodes] - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())
-
-
-def _summed(local: IntArray, costs: FloatArray) -> tuple[IntArray, FloatArray]:
-    """The distinct `local` nodes, ascending, each with the sum of its costs (as csgraph sums
-    duplicate edges)."""
-    if len(local) < 2 or bool((local[1:] > local[:-1]).all()):  # a node or children: as they are
-        return local, costs
-    distinct = _sorted_unique(local)
-    total = np.zeros(len(distinct))
-    np.add.at(total, np.searchsorted(distinct, local), costs)
-    return distinct, total
-
-
-def _level_graph(level: Level) -> csr_matrix:
-    """A level's edges above level 0 as a canonical sparse matrix (each row's columns
-    ascending, as `_corridor_graph` makes them: Dijkstra's ties go the same way)."""
-    count = len(level)
-    rows = (level.cost, level.neighbour, level.first)
-    graph = csr_matrix(rows, shape=(count, count), copy=True)  # sorted below, in place
-    graph.sort_indices()
-    return graph
-
-
-def _corridor_graph(
-    level: Level,
-    nodes: IntArray,
-    local: IntArray,
-    sources: IntArray,
-    source_costs: FloatArray,
-    targets: IntArray,
-    target_costs: FloatArray,
-) -> csr_matrix:
-    """The graph a corridor search runs on: the edges among `nodes` (`local[node]` its index
-    there, -1 outside), an edge from a start (index n) to each source and from each target to
-    a finish (n + 1), as canonical compressed rows (each row's columns ascending): the graph
-    scipy would make of the same edges, so that Dijkstra's ties go the same way."""
-    n = len(nodes)
-    targets, target_costs = _summed(targets, target_costs)
-    sources, source_costs = _summed(sources, source_costs)
-    if level.grid is not None and level.padded is not None:
-        cols, data, counts = _cell_rows(level, level.grid.shape[0], nodes, local, targets)
-        data[np.cumsum(counts)[targets] - 1] = target_costs  # a target's last column: finish
-    else:
-        cols, data, counts = _node_rows(level, nodes, local, targets, target_costs)
-    first = np.zeros(n + 3, dtype=np.int64)
-    np.cumsum(counts, out=first[1 : n + 1])
-    first[n + 1 :] = first[n] + len(sources)
-    cols = np.concatenate([cols, sources])
-    data = np.concatenate([data, source_costs])
-    return csr_matrix((data, cols, first), shape=(n + 2, n + 2))
-
-
-def _cell_rows(
-    level: Level, side: int, nodes: IntArray, local: IntArray, targets: IntArray
-) -> tuple[IntArray, FloatArray, IntArray]:
-    """Level 0's rows of a corridor graph (columns, weights, counts): each cell's moves in
-    raster order of their heads, then the finish for a target (weight left 0)."""
-    n, wide = len(nodes), side + 2
-    moves = _RASTER_MOVES[level.movement]
-    padded = level.padded
-    assert padded is not None
-    at = ((level.block[nodes, 1] + 1) * wide + level.block[nodes, 0] + 1)[:, None]
-    heads = np.full((n, len(moves) + 1), -1, dtype=np.int64)
-    heads[:, :-1] = local[padded[at + np.array([dy * wide + dx for dx, dy, _ in moves])]]
-    diagonal = [j for j, (dx, dy, _) in enumerate(moves) if dx and dy]
-    if diagonal:  # no corner cutting: both orthogonal neighbours free
-        across = np.array([moves[j][0] for j in diagonal])
-        along = np.array([moves[j][1] * wide for j in diagonal])
-        cut = (padded[at + across] < 0) | (padded[at + along] < 0)
-        heads[:, diagonal] = np.where(cut, -1, heads[:, diagonal])
-    heads[targets, -1] = n + 1
-    edge = heads >= 0
-    weights = np.tile(np.array([step for _, _, step in moves] + [0.0]), (n, 1))
-    return heads[edge], weights[edge], np.count_nonzero(edge, axis=1)
-
-
-def _node_rows(
-    level: Level, nodes: IntArray, local: IntArray, targets: IntArray, target_costs: FloatArray
-) -> tuple[IntArray, FloatArray, IntArray]:
-    """The rows of a corridor graph above level 0 (columns, weights, counts), from the level's:
-    each row's lower neighbours first (the level's rows hold the higher ones first), then the
-    finish for a target."""
-    n = len(nodes)
-    index = _rows(level.first, nodes)
-    head = local[level.neighbour[index]]
-    edge = head >= 0
-    row = np.repeat(np.arange(n), level.first[nodes + 1] - level.first[nodes])[edge]
-    col, weight = head[edge], level.cost[index][edge]
-    lower = col < row
-    count, lows = np.bincount(row, minlength=n), np.bincount(row[lower], minlength=n)
-    counts = count.copy()
-    counts[targets] += 1
-    was, now = np.cumsum(count) - count, np.cumsum(counts) - counts  # each row's first entry
-    rank = np.arange(len(row)) - was[row]
-    at = now[row] + np.where(lower, rank - (count - lows)[row], rank + lows[row])
-    cols = np.zeros(len(row) + len(targets), dtype=np.int64)
-    data = np.zeros(len(cols))
-    cols[at], data[at] = col, weight
-    ends = now[targets] + count[targets]
-    cols[ends], data[ends] = n + 1, target_costs
-    return cols, data, counts
 
 
 def _quad_labels() -> IntArray:

@@ -16,15 +16,13 @@ side doors is as long as a diagonal through corners: measured on random512-10-0,
 0.858 with no charge, 0.930 with one cell).
 
 How. The states are the directed doors u -> v (one per entry of the level's compressed rows); a
-state u -> v is followed by v -> w for every neighbour w of v but u. Dijkstra's algorithm over
-them, in C (`scipy.sparse.csgraph`), is made A*: each edge is reweighted by a consistent
-heuristic (the straight distance from its door to the goal plus a crossing per block still to
-cross), and the search is cut at a limit on the reweighted cost: a known route's cost through
-its doors when one is given (the first plan's), else two blocks' width widened fourfold until
-the goal is reached. It settles only the states whose cost plus heuristic is under the limit,
-and its work is counted as corridor searches count theirs: the states an A* expands, those
-whose cost plus heuristic is below the route's cost. (Landmarks, ALT, halved the states
-expanded on street and game maps but not the time, once the search is bounded: not used.)
+state u -> v is followed by v -> w for every neighbour w of v but u. A* over them, compiled
+(`corridor_search.door_search`), with a consistent heuristic: the straight distance from a
+door to the goal plus a crossing per block still to cross. A known route's cost through its
+doors (the first plan's) bounds it: what is dearer is not searched. Its work is counted as
+corridor searches count theirs: the states an A* expands, those whose cost plus heuristic is
+below the route's cost. (Landmarks, ALT, halved the states expanded on street and game maps but
+not the time, once the search is bounded: not used.)
 
 Arrays are indexed [y, x]; positions are (x, y).
 """
@@ -37,9 +35,8 @@ from collections.abc import Sequence
 import numpy as np
 from attrs import frozen
 from numpy.typing import NDArray
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
 
+from . import corridor_search
 from .search import SearchLimit
 from .world import Position, move_distance
 
@@ -50,8 +47,6 @@ FloatArray = NDArray[np.float64]
 
 #: What crossing a door costs on top of the route's length, in cells (see the module docstring).
 CROSSING = 1.0
-#: What every edge of the search costs more (csgraph takes an explicit zero for no edge).
-_HAIR = 1e-9
 
 #: The forward base moves (dx, dy): each legal move once.
 _FORWARD_MOVES = {4: ((1, 0), (0, 1)), 8: ((1, 0), (0, 1), (1, 1), (-1, 1))}
@@ -78,10 +73,6 @@ class Doors:
     after: IntArray
     after_tail: IntArray  # the state each entry of `after` follows
     length: FloatArray
-    # The search graph's rows and columns (int32, as csgraph takes them): the states', then a
-    # row for the start with room for the most states a node has leaving it.
-    rows: NDArray[np.int32]
-    columns: NDArray[np.int32]
     keys: IntArray  # tail * nodes + head of each state, ascending
     order: IntArray  # the state of each of `keys`
 
@@ -119,13 +110,10 @@ class Doors:
         np.cumsum(np.bincount(from_tail, minlength=states), out=after_first[1:])
         step = point[after] - point[from_tail]
         length = move_distance(np.abs(step[:, 0]), np.abs(step[:, 1]), movement)
-        room = int(np.diff(first).max(initial=0))
-        rows = np.append(after_first, after_first[-1] + room).astype(np.int32)
-        columns = np.append(after, np.full(room, states)).astype(np.int32)
         head_block = np.ascontiguousarray(block[head].T)
         return cls(
             level, grid, head_block, movement, first, tail, head, reverse, point, after_first,
-            after, from_tail, length, rows, columns, keys[order], order,
+            after, from_tail, length, keys[order], order,
         )  # fmt: skip
 
     def route(
@@ -148,57 +136,35 @@ class Doors:
         source, target = int(self.grid[sy, sx]), int(self.grid[gy, gx])
         if source == target:
             return (source,), float(self._distance_to(np.array([[sx + 0.5, sy + 0.5]]), goal)[0]), 0
-        states, after = len(self.tail), len(self.after)
         leaving = np.arange(self.first[source], self.first[source + 1])
-        entering = self.reverse[self.first[target] : self.first[target + 1]]
-        h = self._heuristic(goal)
         out = self.point[leaving] - (sx + 0.5, sy + 0.5)
         to_first = move_distance(np.abs(out[:, 0]), np.abs(out[:, 1]), self.movement) + CROSSING
-        h_start = float(np.min(to_first + h[leaving]))  # the start's: consistent, and tight
-        # Reweighted by the heuristic (A* as Dijkstra): no edge costs less than nothing
-        # (explicit zeros are no edges to csgraph: a hair more), and a route's reweighted
-        # cost is its cost less the heuristic at the start. The start's row: its states, then
-        # loops back to the start.
-        columns = self.columns.copy()
-        columns[after : after + len(leaving)] = leaving
-        weight = np.ones(len(columns))
-        body = weight[:after]
-        np.take(h, self.after, out=body)
-        body -= np.take(h, self.after_tail)
-        body += self.length + CROSSING
-        weight[after : after + len(leaving)] = to_first + h[leaving] - h_start
-        np.maximum(weight, 0.0, out=weight)
-        weight += _HAIR
-        graph = csr_matrix((weight, columns, self.rows), shape=(states + 1, states + 1))
-        # A* settles what is below the route's reweighted cost: cut there, at the bound's or
-        # from a guess up.
-        if bound is None:
-            cut = float(2 << self.level)
-        else:
+        cut = math.inf
+        if bound is not None:  # what is dearer than the bound's route is not searched
             dearest = self.cost_of(bound, start, goal)
-            cut = dearest - h_start + len(bound) * _HAIR + 1e-9 * max(1.0, dearest)
-        while True:
-            distance, previous = dijkstra(
-                graph, indices=states, limit=cut, return_predecessors=True
-            )
-            reached = distance[entering]
-            if np.isfinite(reached).any() or math.isinf(cut):
-                break
-            cut = math.inf if cut > 4.0 * states * (1 << self.level) else 4.0 * cut
-        best = int(entering[np.argmin(reached)])
-        cost = float(distance[best])
-        path = []  # the route's states, last first
-        at = best
-        while at != states:
-            path.append(at)
-            at = int(previous[at])
-        expanded = distance[:states] < cost - 1e-9 * max(1.0, cost)
-        expanded[path[1:]] = True  # A* pops the route's states too; the last ends it
-        expansions = int(np.count_nonzero(expanded))
+            cut = dearest + 1e-9 * max(1.0, dearest)
+        states, cost, expansions = corridor_search.door_search(
+            self.after_first,
+            self.after,
+            self.length,
+            self.point,
+            self.head_block,
+            self.head,
+            self.level,
+            self.movement,
+            CROSSING,
+            leaving,
+            to_first,
+            target,
+            gx + 0.5,
+            gy + 0.5,
+            cut,
+        )
+        if not len(states):
+            raise AssertionError(f"no route from node {source} to node {target}")
         if expansions > limit:
             raise SearchLimit(int(limit))
-        nodes = (source, *self.head[path[::-1]].tolist())
-        return nodes, cost + h_start - _HAIR * len(path), expansions
+        return (source, *self.head[states].tolist()), cost, expansions
 
     def cost_of(self, nodes: Sequence[int], start: Position, goal: Position) -> float:
         """What a route of neighbouring nodes from the start's to the goal's costs through
@@ -213,17 +179,6 @@ class Doors:
         step = np.abs(np.diff(points, axis=0))
         length = move_distance(step[:, 0], step[:, 1], self.movement).sum()
         return float(length + CROSSING * len(states))
-
-    def _heuristic(self, goal: Position) -> FloatArray:
-        """A lower bound on the cost from each state to the goal, consistent: the distance from
-        its door to the goal plus a crossing for every block between its head's block and the
-        goal's (a door leads to a neighbouring block)."""
-        gx, gy = goal[0] >> self.level, goal[1] >> self.level
-        h = self._distance_to(self.point, goal)
-        away = np.abs(self.head_block[0] - gx)
-        np.maximum(away, np.abs(self.head_block[1] - gy), out=away)
-        h += CROSSING * away
-        return h
 
     def _distance_to(self, points: FloatArray, goal: Position) -> FloatArray:
         gx, gy = goal

@@ -28,7 +28,7 @@ the top level from node centre to node centre, and the next step searches it aga
 doors between nodes (`doors`: where a route crosses from node to node, so that pieces of rooms
 are costed by the way through them, not by their centres) and goes on from that route when it
 is cheaper. A refinement searches the children of the refined segment's nodes and of their
-neighbours, a corridor that always holds a path (Dijkstra's algorithm over it, in C; a tick is
+neighbours, a corridor that always holds a path (A* over it, compiled: `corridor_search`; a tick is
 a node an A* search would expand).
 """
 

@@ -1,0 +1,331 @@
+"""The planner's searches compiled (issue 17, part 3: where the anytime planner's time goes).
+
+A refinement searches a corridor of a few thousand nodes. Done with scipy's Dijkstra, making its
+sparse graph cost three times the search, the search settled the whole corridor, and the fixed
+cost of the numpy calls around it dominated short problems. Compiled with numba, `search` is A*
+over the corridor reading the level's own rows (at level 0, the moves off the grid), and
+`door_search` is A* over a level's directed doors (`doors`): the ATP runs 2x faster on the
+MovingAI maps (random512-10-0: 355 -> 165 ms for the 16 longest problems; ost003d, a cave:
+175 -> 86 ms). Both are compiled on their first call and cached on disk (numba's cache, beside
+this file or in the user's cache directory), so a later process loads them in a fraction of a
+second.
+
+What they return is what their callers promise: a cheapest path (ties may go either way) and
+its work counted as the states an A* search for it expands, those whose cost plus heuristic is
+below the path's, and the path's own but the last. (A* with a consistent heuristic expands
+exactly those before it stops, so the count is also the search's own.)
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any, TypeVar, cast
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+IntArray = NDArray[np.int64]
+FloatArray = NDArray[np.float64]
+
+_SQRT2 = math.sqrt(2.0)
+_F = TypeVar("_F", bound=Callable[..., Any])
+
+
+def _compiled(function: _F) -> _F:
+    """Compiled to machine code on the first call and cached on disk for the next process."""
+    return cast(_F, numba.njit(cache=True, nogil=True)(function))
+
+
+# The moves: straight ones first (all a 4-connected search takes), then the diagonals.
+_DX = np.array([1, -1, 0, 0, 1, -1, 1, -1])
+_DY = np.array([0, 0, 1, -1, 1, 1, -1, -1])
+_STEP = np.array([1.0, 1.0, 1.0, 1.0, _SQRT2, _SQRT2, _SQRT2, _SQRT2])
+
+
+@_compiled
+def _push(keys: FloatArray, items: IntArray, size: int, key: float, item: int) -> int:
+    """Push (key, item) on the binary heap of the first `size` entries; the new size."""
+    i = size
+    while i > 0:
+        parent = (i - 1) >> 1
+        if keys[parent] <= key:
+            break
+        keys[i], items[i] = keys[parent], items[parent]
+        i = parent
+    keys[i], items[i] = key, item
+    return size + 1
+
+
+@_compiled
+def _pop(keys: FloatArray, items: IntArray, size: int) -> int:
+    """Remove the heap's least entry (read it from keys[0], items[0] first); the new size."""
+    size -= 1
+    key, item = keys[size], items[size]
+    i = 0
+    while True:
+        child = 2 * i + 1
+        if child >= size:
+            break
+        if child + 1 < size and keys[child + 1] < keys[child]:
+            child += 1
+        if keys[child] >= key:
+            break
+        keys[i], items[i] = keys[child], items[child]
+        i = child
+    if size > 0:
+        keys[i], items[i] = key, item
+    return size
+
+
+@_compiled
+def search(
+    nodes: IntArray,
+    local: IntArray,
+    first: IntArray,
+    neighbour: IntArray,
+    cost: FloatArray,
+    padded: IntArray,
+    wide: int,
+    block: IntArray,
+    centre: FloatArray,
+    movement: int,
+    sources: IntArray,
+    source_costs: FloatArray,
+    targets: IntArray,
+    target_costs: FloatArray,
+) -> tuple[IntArray, float, int]:
+    """A* from `sources` (each starting at its cost) to any of `targets` (each adding its cost at
+    the end) through `nodes` (level node numbers; duplicates are fine), with `_nearest` as the
+    heuristic (admissible: a target's cost is never negative).
+
+    The level's edges are its compressed rows (`first`, `neighbour`, `cost`) above level 0; at
+    level 0 (`padded` not empty: the level-0 node of each cell, ravelled with a border of -1,
+    `wide` cells a row) they are the legal moves from each cell (`block`), diagonals without
+    corner cutting when `movement` is 8. `local` is scratch, one entry per node of the level
+    and -1 everywhere; it is left so.
+
+    Returns (the path's nodes, source first; empty when no target is reached), its cost (inf
+    when none), and the expansions as `Components.corridor` counts them."""
+    n = 0
+    for node in nodes:
+        if local[node] < 0:
+            local[node] = n
+            n += 1
+    members = np.empty(n, dtype=np.int64)
+    for node in nodes:
+        members[local[node]] = node
+    distance = np.full(n, np.inf)
+    estimate = np.full(n, -1.0)  # the heuristic, made when the node is first reached
+    previous = np.full(n, -1, dtype=np.int64)
+    settled = np.zeros(n, dtype=np.bool_)
+    finish = np.full(n, np.inf)  # a target's cost to end there
+    for j in range(len(targets)):
+        t = local[targets[j]]
+        finish[t] = min(finish[t], target_costs[j])
+    capacity = 8 * n + len(sources) + 1
+    keys = np.empty(capacity, dtype=np.float64)
+    items = np.empty(capacity, dtype=np.int64)
+    size = 0
+    for j in range(len(sources)):
+        s = local[sources[j]]
+        if source_costs[j] < distance[s]:
+            if estimate[s] < 0.0:
+                estimate[s] = _nearest(centre, members[s], targets, movement)
+            distance[s] = source_costs[j]
+            size = _push(keys, items, size, source_costs[j] + estimate[s], s)
+    best, end = np.inf, -1
+    moves = 8 if movement == 8 else 4
+    while size > 0:
+        f, u = keys[0], items[0]
+        size = _pop(keys, items, size)
+        if settled[u] or f > distance[u] + estimate[u]:
+            continue
+        if f >= best:  # no way through a node left is cheaper than the path found
+            break
+        settled[u] = True
+        d = distance[u]
+        if finish[u] < np.inf and d + finish[u] < best:
+            best, end = d + finish[u], u
+        node = members[u]
+        if len(padded):  # level 0: the moves off the grid
+            at = (block[node, 1] + 1) * wide + block[node, 0] + 1
+            for m in range(moves):
+                dx, dy, step = _DX[m], _DY[m], _STEP[m]
+                head = padded[at + dy * wide + dx]
+                if head < 0:
+                    continue
+                if dx != 0 and dy != 0 and (padded[at + dx] < 0 or padded[at + dy * wide] < 0):
+                    continue  # no corner cutting: both orthogonal neighbours free
+                v = local[head]
+                if v >= 0 and d + step < distance[v]:
+                    if estimate[v] < 0.0:
+                        estimate[v] = _nearest(centre, head, targets, movement)
+                    distance[v], previous[v] = d + step, u
+                    if size == len(keys):
+                        keys, items = _grown(keys, items)
+                    size = _push(keys, items, size, d + step + estimate[v], v)
+        else:
+            for e in range(first[node], first[node + 1]):
+                v = local[neighbour[e]]
+                if v >= 0 and d + cost[e] < distance[v]:
+                    if estimate[v] < 0.0:
+                        estimate[v] = _nearest(centre, neighbour[e], targets, movement)
+                    distance[v], previous[v] = d + cost[e], u
+                    if size == len(keys):
+                        keys, items = _grown(keys, items)
+                    size = _push(keys, items, size, d + cost[e] + estimate[v], v)
+    expanded = np.zeros(n, dtype=np.bool_)
+    tolerance = 1e-9 * max(1.0, best) if best < np.inf else 0.0
+    for u in range(n):
+        expanded[u] = settled[u] and distance[u] + estimate[u] < best - tolerance
+    path = _traced(previous, end, expanded)
+    expansions = int(np.count_nonzero(expanded))
+    path = members[path]
+    for node in nodes:
+        local[node] = -1
+    return path, best, expansions
+
+
+@_compiled
+def _traced(previous: IntArray, end: int, expanded: NDArray[np.bool_]) -> IntArray:
+    """The path back from `end` by `previous` (-1 before its first), first to last (empty when
+    `end` is -1); its entries but the last marked `expanded` (A* pops them too; the last ends
+    it)."""
+    count = 0
+    u = end
+    while u >= 0:
+        count += 1
+        u = previous[u]
+    path = np.empty(count, dtype=np.int64)
+    u = end
+    for i in range(count - 1, -1, -1):
+        path[i] = u
+        if i < count - 1:
+            expanded[u] = True
+        u = previous[u]
+    return path
+
+
+@_compiled
+def _nearest(centre: FloatArray, node: int, targets: IntArray, movement: int) -> float:
+    """The heuristic: the distance from the node's centre to the nearest target's, as the
+    robot moves (octile or Manhattan; consistent with every level's edges)."""
+    x, y = centre[node, 0], centre[node, 1]
+    nearest = np.inf
+    for t in targets:
+        dx, dy = abs(x - centre[t, 0]), abs(y - centre[t, 1])
+        if movement == 8:
+            h = max(dx, dy) + (_SQRT2 - 1.0) * min(dx, dy)
+        else:
+            h = dx + dy
+        nearest = min(nearest, h)
+    return float(nearest)
+
+
+@_compiled
+def _grown(keys: FloatArray, items: IntArray) -> tuple[FloatArray, IntArray]:
+    more_keys = np.empty(2 * len(keys), dtype=np.float64)
+    more_items = np.empty(2 * len(items), dtype=np.int64)
+    more_keys[: len(keys)] = keys
+    more_items[: len(items)] = items
+    return more_keys, more_items
+
+
+@_compiled
+def door_search(
+    after_first: IntArray,
+    after: IntArray,
+    length: FloatArray,
+    point: FloatArray,
+    head_block: IntArray,
+    head: IntArray,
+    level: int,
+    movement: int,
+    crossing: float,
+    leaving: IntArray,
+    to_first: FloatArray,
+    target: int,
+    goal_x: float,
+    goal_y: float,
+    cut: float,
+) -> tuple[IntArray, float, int]:
+    """A* over the directed doors of a level (`doors.Doors`: state j is followed by
+    `after[after_first[j]:after_first[j + 1]]`, each `length` + `crossing` away) from the states
+    `leaving` the start's node (each `to_first` from the start) to a state whose head is node
+    `target`, ending with the straight way from its door to the goal (`goal_x`, `goal_y`). The
+    heuristic is `Doors`' (the distance to the goal plus a crossing per block still to cross:
+    consistent), and no state whose cost plus heuristic is above `cut` is searched.
+
+    Returns (the route's states, first to last; empty when none is found under `cut`), its cost,
+    and the states an A* expands: those whose cost plus heuristic is below the route's, and the
+    route's own but the last."""
+    states = len(head)
+    g = np.full(states, np.inf)
+    previous = np.full(states, -1, dtype=np.int64)
+    closed = np.zeros(states, dtype=np.bool_)
+    popped = np.empty(states, dtype=np.int64)  # the closed states, in order
+    f_of = np.empty(states, dtype=np.float64)
+    gbx, gby = int(goal_x) >> level, int(goal_y) >> level
+    capacity = 4 * len(leaving) + 64
+    keys = np.empty(capacity, dtype=np.float64)
+    items = np.empty(capacity, dtype=np.int64)
+    size = 0
+    for i in range(len(leaving)):
+        j = leaving[i]
+        h = _door_heuristic(point, head_block, j, goal_x, goal_y, gbx, gby, movement, crossing)
+        if to_first[i] < g[j] and to_first[i] + h <= cut:
+            g[j], f_of[j] = to_first[i], to_first[i] + h
+            size = _push(keys, items, size, to_first[i] + h, j)
+    count, best, end = 0, np.inf, -1
+    while size > 0:
+        f, u = keys[0], items[0]
+        size = _pop(keys, items, size)
+        if closed[u] or f > f_of[u]:
+            continue
+        if head[u] == target:  # its heuristic is the last leg, exact: the route is found
+            best, end = f, u
+            break
+        closed[u] = True
+        popped[count] = u
+        count += 1
+        for e in range(after_first[u], after_first[u + 1]):
+            v = after[e]
+            cost = g[u] + length[e] + crossing
+            if cost < g[v] and not closed[v]:
+                h = _door_heuristic(
+                    point, head_block, v, goal_x, goal_y, gbx, gby, movement, crossing
+                )
+                if cost + h <= cut:
+                    g[v], f_of[v], previous[v] = cost, cost + h, u
+                    if size == len(keys):
+                        keys, items = _grown(keys, items)
+                    size = _push(keys, items, size, cost + h, v)
+    expanded = np.zeros(states, dtype=np.bool_)
+    tolerance = 1e-9 * max(1.0, best) if best < np.inf else 0.0
+    for i in range(count):
+        expanded[popped[i]] = f_of[popped[i]] < best - tolerance
+    route = _traced(previous, end, expanded)
+    return route, best, int(np.count_nonzero(expanded))
+
+
+@_compiled
+def _door_heuristic(
+    point: FloatArray,
+    head_block: IntArray,
+    j: int,
+    goal_x: float,
+    goal_y: float,
+    gbx: int,
+    gby: int,
+    movement: int,
+    crossing: float,
+) -> float:
+    dx, dy = abs(point[j, 0] - goal_x), abs(point[j, 1] - goal_y)
+    if movement == 8:
+        h = max(dx, dy) + (_SQRT2 - 1.0) * min(dx, dy)
+    else:
+        h = dx + dy
+    away = max(abs(head_block[0, j] - gbx), abs(head_block[1, j] - gby))
+    return float(h + crossing * away)
