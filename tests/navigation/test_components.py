@@ -291,3 +291,23 @@ def test_a_path_over_a_level_is_the_corridor_over_every_node(
     # The level's rows are as they were (its graph is a sorted copy).
     after = (c.levels[top].first, c.levels[top].neighbour, c.levels[top].cost)
     assert all(np.array_equal(a, b) for a, b in zip(rows, after, strict=True))
+
+
+@settings(max_examples=40, deadline=None)
+@given(maps, st.sampled_from([4, 8]), st.sampled_from([1, 2, 3]), st.integers(0, 3), st.data())
+def test_a_widened_corridor_is_the_children_of_the_nodes_a_few_edges_from_the_route(
+    blocked: np.ndarray, movement: int, level: int, rings: int, data: st.DataObject
+) -> None:
+    c = Components.build(blocked, movement, top=level)
+    count = len(c.levels[level])
+    if count == 0:
+        return
+    route = data.draw(st.lists(st.integers(0, count - 1), min_size=1, max_size=6))
+    # The reference: rings of neighbours by the level's edges, then each node's children.
+    reached = set(route)
+    for _ in range(rings):
+        tails = np.array(sorted(reached), dtype=np.int64)
+        reached |= set(c.levels[level].edges_of(tails)[1].tolist())
+    expected = [int(x) for node in sorted(reached) for x in c.levels[level].children(node)]
+    assert c.widened(level, route, rings).tolist() == expected
+    assert (c._scratch[level] == -1).all()  # left as found, for the next search

@@ -43,7 +43,6 @@ from scipy import ndimage
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
-from . import corridor_search
 from .doors import Doors
 from .search import SearchLimit
 from .world import BoolGrid, Position, is_power_of_two, move_distance
@@ -86,10 +85,6 @@ class Level:
     def children(self, node: int) -> list[int]:
         found: list[int] = self.child[self.first_child[node] : self.first_child[node + 1]].tolist()
         return found
-
-    def children_of(self, nodes: Sequence[int] | IntArray) -> IntArray:
-        """The children of all of `nodes`, as one array."""
-        return self.child[_rows(self.first_child, np.asarray(nodes, dtype=np.int64))]
 
     def edges_of(self, nodes: IntArray) -> tuple[IntArray, IntArray, FloatArray]:
         """Every edge leaving `nodes`: (tail, head, cost) arrays, tails among `nodes`."""
@@ -311,6 +306,17 @@ class Components:
             raise AssertionError(f"no path at level {level} between nodes {source} and {target}")
         return found
 
+    def widened(self, level: int, nodes: Sequence[int], rings: int) -> IntArray:
+        """The children (at `level` - 1) of `nodes` (at `level`) and of every node up to
+        `rings` edges from them, each once, in node order: the corridor a refinement searches."""
+        from . import corridor_search  # numba's: loaded by the first search, not the plugin
+
+        at = self.levels[level]
+        return corridor_search.widened_children(
+            at.first, at.neighbour, at.first_child, at.child,
+            np.asarray(nodes, dtype=np.int64), rings, self._scratch[level],
+        )  # fmt: skip
+
     def corridor(
         self,
         level: int,
@@ -326,8 +332,8 @@ class Components:
         `targets` through the `allowed` nodes (sources and targets among them), with the extra
         costs of starting and ending at each; None when no target can be reached.
 
-        Dijkstra's algorithm over the corridor, compiled (`corridor_search`), stopped once the
-        cheapest way to a target is known. Its work is counted as the nodes an A* search for the
+        A* over the corridor, compiled (`corridor_search`), stopped once the cheapest way to a
+        target is known. Its work is counted as the nodes an A* search for the
         same path expands, those whose cost from a source plus the heuristic (the distance to the
         nearest target, consistent with the edges' costs) is below the path's cost: a measure
         of the search, not of how it is computed.
@@ -342,6 +348,8 @@ class Components:
         wide = at.grid.shape[1] + 2 if at.grid is not None else 0
         sources_ = np.asarray(sources, dtype=np.int64)
         targets_ = np.asarray(targets, dtype=np.int64)
+        from . import corridor_search  # numba's: loaded by the first search, not the plugin
+
         path, best, expansions = corridor_search.search(
             np.asarray(allowed, dtype=np.int64),
             local,

@@ -329,3 +329,51 @@ def _door_heuristic(
         h = dx + dy
     away = max(abs(head_block[0, j] - gbx), abs(head_block[1, j] - gby))
     return float(h + crossing * away)
+
+
+@_compiled
+def widened_children(
+    first: IntArray,
+    neighbour: IntArray,
+    first_child: IntArray,
+    child: IntArray,
+    route: IntArray,
+    rings: int,
+    mark: IntArray,
+) -> IntArray:
+    """The children of the nodes of `route` and of those up to `rings` edges from them (a
+    level's compressed rows `first`, `neighbour`; node i's children are
+    `child[first_child[i]:first_child[i + 1]]`), each node's once, in node order. `mark` is
+    scratch, one entry per node of the level and -1 everywhere; it is left so."""
+    around = np.empty(len(mark), dtype=np.int64)
+    n = 0
+    for node in route:
+        if mark[node] < 0:
+            mark[node] = 0
+            around[n] = node
+            n += 1
+    begin = 0
+    for _ in range(rings):
+        end = n
+        for i in range(begin, end):
+            u = around[i]
+            for e in range(first[u], first[u + 1]):
+                v = neighbour[e]
+                if mark[v] < 0:
+                    mark[v] = 0
+                    around[n] = v
+                    n += 1
+        begin = end
+    around = np.sort(around[:n])  # children in node order, as the level stores them
+    total = 0
+    for i in range(n):
+        total += first_child[around[i] + 1] - first_child[around[i]]
+    children = np.empty(total, dtype=np.int64)
+    k = 0
+    for i in range(n):
+        u = around[i]
+        mark[u] = -1
+        for c in range(first_child[u], first_child[u + 1]):
+            children[k] = child[c]
+            k += 1
+    return children

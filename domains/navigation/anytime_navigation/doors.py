@@ -36,7 +36,6 @@ import numpy as np
 from attrs import frozen
 from numpy.typing import NDArray
 
-from . import corridor_search
 from .search import SearchLimit
 from .world import Position, move_distance
 
@@ -143,6 +142,8 @@ class Doors:
         if bound is not None:  # what is dearer than the bound's route is not searched
             dearest = self.cost_of(bound, start, goal)
             cut = dearest + 1e-9 * max(1.0, dearest)
+        from . import corridor_search  # numba's: loaded by the first search, not the plugin
+
         states, cost, expansions = corridor_search.door_search(
             self.after_first,
             self.after,
