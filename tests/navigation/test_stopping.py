@@ -13,8 +13,6 @@ from anytime_navigation.world import random_world
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from anytime.plugin import DeadlineValue
-
 
 @pytest.fixture(scope="module")
 def program():
@@ -22,10 +20,10 @@ def program():
 
 
 def stuck_task():
-    """A 64 x 64 world (with `bench_monitor --quick`'s deadline value) where planning, not
-    walking, takes a frame's time: the policy stops a planner before its contract."""
-    value = DeadlineValue(1000.0, 3000.0, 0.5)
-    return NavigationTask(random_world(64, seed=53), radius=16, value=value, seed=53)
+    """A 128 x 128 world (docs/navigation.md's) where planning, not walking, takes the first
+    frame's time (the robot waits for its first plan): the policy stops that planner before
+    its contract."""
+    return NavigationTask(random_world(128, seed=3), radius=32, seed=3)
 
 
 @pytest.fixture(scope="module")
@@ -82,12 +80,13 @@ def test_a_planner_is_never_stopped_after_its_contract(report):
 
 def test_where_the_policy_stops_planners_early(report):
     stopped = [(r.index, r.contract, r.stopped_at) for r in report.records if r.stopped_at]
-    assert stopped == [(7, 200.0, 100.0)]
-    reasons = [e.data["reason"] for e in report.log.of_kind("stopping") if e.data["frame"] == 7]
+    assert stopped == [(0, 800.0, 769.0)]
+    reasons = [e.data["reason"] for e in report.log.of_kind("stopping") if e.data["frame"] == 0]
     assert reasons == [
-        "expected utility 403.827",
-        "going on is worth 403.827",
-        "stopping now is worth 403.827, going on less",
+        "expected utility 685.082",
+        "going on is worth 685.044",
+        "going on is worth 685.087",
+        "stopping now is worth 674.013, going on less",
     ]
 
 
@@ -96,14 +95,14 @@ def test_a_planner_stopped_early_ends_its_frames_planning(program, report):
     monitored = run_task(stuck_task(), compiled, trace, policy="monitored")
     assert report.predicted_utility == monitored.predicted_utility
     assert report.records[0].contract == monitored.records[0].contract
-    # Until the early stop the two runs are the same. Frame 7's planner, stopped at 100 ticks
-    # instead of its contract of 200, ends that frame 20 ticks sooner (300, not 320), and the
-    # robot is that much ahead from frame 9 on.
-    assert [r.start for r in report.records[:8]] == [r.start for r in monitored.records[:8]]
-    assert report.records[7].frame_time == pytest.approx(300.0)
-    assert monitored.records[7].frame_time == 320.0
-    assert report.records[9].start == monitored.records[9].start - 20.0
-    assert report.utility > monitored.utility
+    # Frame 0's planner, stopped at 769 ticks instead of its contract of 800, ends that frame's
+    # planning 31 ticks sooner: every later frame starts that much sooner, and so does the
+    # task end. The utility is the same: the value is the full 1000 at either time.
+    assert report.records[0].start == monitored.records[0].start == 0.0
+    ahead = [b.start - a.start for a, b in zip(report.records, monitored.records, strict=True)]
+    assert ahead[1:] == [31.0] * (len(ahead) - 1)
+    assert report.completion_time == monitored.completion_time - 31.0
+    assert report.utility == monitored.utility
 
 
 @pytest.fixture(scope="module")
