@@ -53,6 +53,7 @@ $(INSTALLED): pyproject.toml domains/navigation/pyproject.toml domains/routing/p
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev]' -e domains/navigation \
 		-e 'domains/routing[measure]'
+	$(BIN)/python -c 'from anytime_navigation.planner import compile_searches; compile_searches()'
 	touch $@
 
 clean:

@@ -64,7 +64,7 @@ from anytime_navigation.abstraction import Pyramid
 from anytime_navigation.components import Components
 from anytime_navigation.execution import Execution, execute, plan_quality, waypoints
 from anytime_navigation.movingai import MapError, Scenario, load_problems
-from anytime_navigation.planner import DEFAULT_TOP, MultiPath, atp
+from anytime_navigation.planner import DEFAULT_TOP, MultiPath, atp, compile_searches
 from anytime_navigation.search import find_path
 from anytime_navigation.world import SQRT2, BoolGrid, Position, random_world
 from attrs import frozen
@@ -768,15 +768,9 @@ def bench_kinds(
 
 
 def compiled_searches() -> str:
-    """Plan once on a small world, so that the planner's compiled searches
-    (`corridor_search`, numba) are loaded, or compiled, before anything is timed: a cost paid
-    once per process, said here and left out of the tables."""
-    world = random_world(64, seed=0, movement=8)
-    seconds, _ = timed(
-        lambda: list(
-            atp(Context(), world.start, world.goal, Pyramid.build(world.blocked), movement=8)
-        )
-    )
+    """Load the planner's compiled searches (`corridor_search`, numba), or compile them, before
+    anything is timed: a cost paid once per process, said here and left out of the tables."""
+    seconds, _ = timed(compile_searches)
     return (
         f"(the planner's compiled searches loaded in {seconds:.2f} s, once per process:"
         " not in the times below)"

@@ -69,6 +69,7 @@ __all__ = [
     "MultiPath",
     "Segment",
     "atp",
+    "compile_searches",
     "quality_estimate",
     "segmentize",
     "worst_segment",
@@ -557,3 +558,17 @@ class _Planner:
 def _mean_obstacleness(segment: Segment, pyramid: Pyramid) -> float:
     xs, ys = zip(*segment.cells, strict=True)
     return float(pyramid.levels[segment.level][list(ys), list(xs)].mean())
+
+
+def compile_searches() -> None:
+    """Plan once on a small world, so that numba compiles the planner's searches
+    (`corridor_search`) into its on-disk cache, or loads them from it: otherwise the first plan
+    of a process pays that (tens of seconds the first time after an install, about a second
+    from the cache). `make` runs it once after installing."""
+    from .world import random_world
+
+    for movement in (4, 8):
+        world = random_world(64, seed=0, movement=movement)
+        pyramid = Pyramid.build(world.blocked)
+        for _ in atp(Context(), world.start, world.goal, pyramid, movement=movement):
+            pass
