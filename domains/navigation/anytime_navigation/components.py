@@ -44,7 +44,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
 from .doors import Doors
-from .search import SearchLimit
+from .search import SearchLimit, compiled
 from .world import BoolGrid, Position, is_power_of_two, move_distance
 
 __all__ = ["Components", "Level", "NodePath"]
@@ -309,13 +309,12 @@ class Components:
     def widened(self, level: int, nodes: Sequence[int], rings: int) -> IntArray:
         """The children (at `level` - 1) of `nodes` (at `level`) and of every node up to
         `rings` edges from them, each once, in node order: the corridor a refinement searches."""
-        from . import corridor_search  # numba's: loaded by the first search, not the plugin
-
         at = self.levels[level]
-        return corridor_search.widened_children(
+        children: IntArray = compiled().widened_children(
             at.first, at.neighbour, at.first_child, at.child,
             np.asarray(nodes, dtype=np.int64), rings, self._scratch[level],
         )  # fmt: skip
+        return children
 
     def corridor(
         self,
@@ -348,9 +347,7 @@ class Components:
         wide = at.grid.shape[1] + 2 if at.grid is not None else 0
         sources_ = np.asarray(sources, dtype=np.int64)
         targets_ = np.asarray(targets, dtype=np.int64)
-        from . import corridor_search  # numba's: loaded by the first search, not the plugin
-
-        path, best, expansions = corridor_search.search(
+        path, best, expansions = compiled().search(
             np.asarray(allowed, dtype=np.int64),
             local,
             at.first if at.k else none,

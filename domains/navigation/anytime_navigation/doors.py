@@ -36,7 +36,7 @@ import numpy as np
 from attrs import frozen
 from numpy.typing import NDArray
 
-from .search import SearchLimit
+from .search import SearchLimit, compiled
 from .world import Position, move_distance
 
 __all__ = ["CROSSING", "Doors"]
@@ -142,9 +142,7 @@ class Doors:
         if bound is not None:  # what is dearer than the bound's route is not searched
             dearest = self.cost_of(bound, start, goal)
             cut = dearest + 1e-9 * max(1.0, dearest)
-        from . import corridor_search  # numba's: loaded by the first search, not the plugin
-
-        states, cost, expansions = corridor_search.door_search(
+        states, cost, expansions = compiled().door_search(
             self.after_first,
             self.after,
             self.length,

@@ -377,7 +377,7 @@ def atp(
         live.clear()
         heap.clear()
         sums[:] = [0.0, 0.0]
-        made = [planner.segment(top, part) for part in _pieces(path, segment_moves)]
+        made = planner.segments(top, path.nodes, _runs(len(path.nodes) - 1, segment_moves))
         for segment, o in made:
             add(segment, o)
         route = [segment for segment, _ in made]
@@ -420,14 +420,12 @@ def atp(
         yield Result(plan, 1.0 if not live else _clip(sums[1] / sums[0]))
 
 
-def _pieces(path: NodePath, most: int | None) -> list[tuple[int, ...]]:
-    """The path's nodes cut into the fewest runs of at most `most` moves, of about equal
-    length (consecutive runs share their junction node)."""
-    nodes = path.nodes
-    n = len(nodes) - 1
-    count = 1 if most is None or n <= most else -(-n // most)
-    bounds = [round(i * n / count) for i in range(count + 1)]
-    return [nodes[a : b + 1] for a, b in zip(bounds, bounds[1:], strict=False)]
+def _runs(moves: int, most: int | None) -> list[tuple[int, int]]:
+    """A path of `moves` moves cut into the fewest runs of at most `most` moves, of about equal
+    length: each run's (first, last) node index (consecutive runs share their junction node)."""
+    count = 1 if most is None or moves <= most else -(-moves // most)
+    bounds = [round(i * moves / count) for i in range(count + 1)]
+    return list(zip(bounds, bounds[1:], strict=False))
 
 
 def _opened(blocked: BoolGrid, start: Position, goal: Position, movement: int) -> BoolGrid:
@@ -483,14 +481,21 @@ class _Planner:
         self.ctx.tick(found.expansions)
         return None if found.nodes == path.nodes else found
 
-    def segment(self, level: int, nodes: Sequence[int]) -> tuple[Segment, float]:
-        """The segment through `nodes` and its mean obstacleness (`_mean_obstacleness`, from
-        the cells' array)."""
+    def segments(
+        self, level: int, nodes: tuple[int, ...], runs: Sequence[tuple[int, int]]
+    ) -> list[tuple[Segment, float]]:
+        """The segments through the runs (first, last) of `nodes`, each with its mean
+        obstacleness (`_mean_obstacleness`): the cells and their obstacleness looked up once
+        for the whole path (a refinement makes two segments per step)."""
         cells = self.components.levels[level].block[np.array(nodes, dtype=np.int64)]
-        obstacleness = float(self.pyramid.levels[level][cells[:, 1], cells[:, 0]].mean())
-        return Segment(level, cells, tuple(nodes)), obstacleness
+        obstacleness = self.pyramid.levels[level][cells[:, 1], cells[:, 0]]
+        made = []
+        for first, last in runs:
+            mean = float(np.add.reduce(obstacleness[first : last + 1])) / (last + 1 - first)
+            made.append((Segment(level, cells[first : last + 1], nodes[first : last + 1]), mean))
+        return made
 
-    def refine(self, segments: list[Segment], index: int) -> tuple[tuple[Segment, float], ...]:
+    def refine(self, segments: list[Segment], index: int) -> list[tuple[Segment, float]]:
         """REFINE route segment `index`: its replacement, two halves one level lower (one
         segment when the path found has fewer than two moves), each with its mean
         obstacleness."""
@@ -536,11 +541,9 @@ class _Planner:
         if found is None:
             raise AssertionError(f"no path at level {lower} through the children of a path")
         self.ctx.tick(found.expansions)
-        path = found.nodes
-        n = len(path) - 1
-        if n < 2:
-            return (self.segment(lower, path),)
-        return (self.segment(lower, path[: n // 2 + 1]), self.segment(lower, path[n // 2 :]))
+        n = len(found.nodes) - 1
+        halves = [(0, n)] if n < 2 else [(0, n // 2), (n // 2, n)]
+        return self.segments(lower, found.nodes, halves)
 
     def _approach(
         self, nodes: list[int], level: int, neighbour: int, neighbour_level: int

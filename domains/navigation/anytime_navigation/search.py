@@ -25,6 +25,7 @@ from __future__ import annotations
 import heapq
 import math
 from collections.abc import Sequence
+from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -38,6 +39,20 @@ __all__ = ["PathResult", "SearchLimit", "find_path", "find_path_to_box"]
 Position = tuple[int, int]
 
 _BLOCKED = -1.0  # the step multiplier of an impassable cell in the padded grid
+
+
+_compiled: ModuleType | None = None
+
+
+def compiled() -> ModuleType:
+    """The planner's compiled searches (`corridor_search`), imported on the first call: numba
+    is not loaded with the plugin, and a search pays no import statement after the first."""
+    global _compiled
+    if _compiled is None:
+        from . import corridor_search
+
+        _compiled = corridor_search
+    return _compiled
 
 
 class SearchLimit(Exception):
