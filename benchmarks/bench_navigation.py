@@ -15,10 +15,10 @@
    only when both orthogonal neighbours are free: the MovingAI rule) on the same MovingAI
    problems: query time, and whether each finds the `.scen` optimal length. An optional
    dependency: skipped, with a line saying so, when it is not installed.
-3. Per map kind (issue 17): the default ATP against A* on the longest problems of 13 MovingAI
-   maps, the shipped three and ten more in benchmarks/data/movingai/ (rooms of 16, 32 and 64,
-   mazes of corridor widths 2, 4 and 8, two street maps, a Baldur's Gate II and a Dragon Age
-   map): first plan quality and time, final quality mean (min), time and expansions as
+3. Per map kind (issue 17): the default ATP against A* on the longest problems of 14 MovingAI
+   maps, the shipped three and eleven more in benchmarks/data/movingai/ (random with 20% of
+   cells blocked, rooms of 16, 32 and 64, mazes of corridor widths 2, 4 and 8, two street maps,
+   a Baldur's Gate II and a Dragon Age map): first plan quality and time, final quality mean (min), time and expansions as
    fractions of A*'s, the time with the abstraction's one-off build added, the peers' query
    times against ours (`pathfinding`, networkx and tcod, where installed: the `bench` extra),
    and issue 17's targets. Optimal lengths are our
@@ -86,6 +86,7 @@ MOVINGAI = tuple(MAPS / f"{name}.map" for name in ("8room_000", "maze512-1-0", "
 #: The per-kind table's maps, (kind, map file): the shipped sample's 512 x 512 maps and more.
 KINDS: tuple[tuple[str, Path], ...] = (
     ("random 10%", MAPS / "random512-10-0.map"),
+    ("random 20%", MORE_MAPS / "random512-20-0.map"),
     ("rooms of 8", MAPS / "8room_000.map"),
     ("rooms of 16", MORE_MAPS / "16room_000.map"),
     ("rooms of 32", MORE_MAPS / "32room_000.map"),
