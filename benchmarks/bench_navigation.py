@@ -18,11 +18,11 @@
 3. Per map kind (issue 17): the default ATP against A* on the longest problems of 14 MovingAI
    maps, the shipped three and eleven more in benchmarks/data/movingai/ (random with 20% of
    cells blocked, rooms of 16, 32 and 64, mazes of corridor widths 2, 4 and 8, two street maps,
-   a Baldur's Gate II and a Dragon Age map): first plan quality and time, final quality mean (min), time and expansions as
-   fractions of A*'s, the time with the abstraction's one-off build added, the peers' query
-   times against ours (`pathfinding`, networkx and tcod, where installed: the `bench` extra),
-   and issue 17's targets. Optimal lengths are our
-   A*'s: the old-style `.scen` files round theirs to 5 digits (all agree with A*'s to that).
+   a Baldur's Gate II and a Dragon Age map): first plan quality and time, final quality mean
+   (min), time and expansions as fractions of A*'s, the time with the abstraction's one-off
+   build added, the peers' query times against ours (`pathfinding`, networkx and tcod, where
+   installed: the `bench` extra), and issue 17's targets. Optimal lengths are our A*'s: the
+   old-style `.scen` files round theirs to 5 digits (all agree with A*'s to that).
 
 Timing: `time.perf_counter`, the garbage collector paused, the sides interleaved per problem
 (A*, then each ATP configuration; ours, then theirs), the best of `--repeats` runs per problem

@@ -62,14 +62,13 @@ from collections.abc import Sequence
 
 import numpy as np
 from attrs import frozen
-from scipy import ndimage
 
 from anytime.plugin import Context
 
 from .abstraction import cell_bounds
 from .planner import MultiPath
 from .search import find_path, find_path_to_box
-from .world import SQRT2, BoolGrid, Position
+from .world import SQRT2, BoolGrid, Position, reachable
 
 __all__ = [
     "Execution",
@@ -83,9 +82,6 @@ __all__ = [
 Waypoint = tuple[int, Position]
 Box = tuple[int, int, int, int]  # (x0, y0, x1, y1), half-open: blocked[y0:y1, x0:x1]
 
-#: 4-connectivity, which is also reachability under octile moves without corner cutting (see
-#: `world`).
-_FOUR = ndimage.generate_binary_structure(2, 1)
 _STRAIGHT = ((1, 0), (-1, 0), (0, 1), (0, -1))
 _DIAGONAL = ((1, 1), (-1, 1), (1, -1), (-1, -1))
 
@@ -200,10 +196,9 @@ def execute(
     if grid[sy, sx]:
         raise ValueError(f"the start {start} is a blocked cell")
 
-    # The cells reachable from the start: 4-connected components (also octile reachability
-    # without corner cutting). Every cell the robot stands on is one of them.
-    labels, _ = ndimage.label(~grid, structure=_FOUR)
-    ok = np.asarray(labels == labels[sy, sx])
+    # The cells reachable from the start (the same for 4- and 8-connected moves, `world`).
+    # Every cell the robot stands on is one of them.
+    ok = reachable(grid, start)
     tick = ctx.tick if ctx is not None else None
     if memory is None:
         memory = np.zeros_like(grid)

@@ -24,7 +24,6 @@ import attrs
 import numpy as np
 from attrs import field, frozen
 from numpy.typing import NDArray
-from scipy import ndimage
 
 Position = tuple[int, int]
 BoolGrid = NDArray[np.bool_]
@@ -34,7 +33,7 @@ SQRT2 = math.sqrt(2.0)
 
 #: The structuring element of 4-connectivity, which is also reachability under octile movement
 #: without corner cutting (see the module docstring).
-_FOUR = ndimage.generate_binary_structure(2, 1)
+_FOUR = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
 
 
 def _read_only_grid(value: Any) -> BoolGrid:
@@ -81,6 +80,9 @@ def reachable(blocked: BoolGrid, start: Position, movement: int = 4) -> BoolGrid
         raise ValueError(f"start {start} is outside the {width}x{height} grid")
     if blocked[y, x]:
         return np.zeros_like(blocked)
+    # imported here, not with the plugin: scipy.ndimage takes ~0.7 s, every command paid it
+    from scipy import ndimage
+
     labels, _ = ndimage.label(~blocked, structure=_FOUR)
     return np.asarray(labels == labels[y, x])
 
