@@ -36,8 +36,9 @@ per map and reset before each query, both outside its query time and shown separ
 Problems: 20 worlds of 128 x 128 per movement, 10 of 512 x 512, the 12 problems of the
 longest buckets of each shipped MovingAI map, and 16 per map in the per-kind table (the issue's
 count, so the abstraction's build is spread over as many problems); --quick: 5, 2, 2 and 16,
-the best of 2 runs (the per-kind table: 1 run, executions given up after 2x A*'s time; about
-eight minutes in all; the full run takes longer, three runs of each problem). Plans are
+the best of 2 runs (the per-kind table: 1 run, executions given up after 2x A*'s time; 24
+minutes in all on a 2-core machine, most of it the peers' A*s, `pathfinding` alone more than
+half; the full run takes longer, three runs of each problem). Plans are
 executed keeping to their corridor (`execute(..., keep_to_plan=True)`): they are made on the
 map they are followed on.
 
@@ -780,7 +781,7 @@ def compiled_searches() -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="fewer problems: about eight minutes")
+    parser.add_argument("--quick", action="store_true", help="fewer problems: about 25 minutes")
     parser.add_argument(
         "--repeats", type=int, help="runs per problem and side, the best kept (3; quick: 2)"
     )
