@@ -56,6 +56,7 @@ if TYPE_CHECKING:
         elementary,
         interruptible,
     )
+    from anytime.problems import ProgramProblems
     from anytime.profiles import ConditionalPerformanceProfile, PerformanceProfile
     from anytime.profiles.io import load_profile, save_profile
     from anytime.runtime import (
@@ -72,6 +73,7 @@ if TYPE_CHECKING:
         run,
         run_program,
     )
+    from anytime.verification import BudgetCheck, Verification, verify
 
 __version__ = "0.1.0"
 
@@ -79,6 +81,7 @@ __all__ = [
     "AnytimeError",
     "AnytimeLibrary",
     "AnytimeModule",
+    "BudgetCheck",
     "CompiledProgram",
     "ConditionalPerformanceProfile",
     "Context",
@@ -99,6 +102,7 @@ __all__ = [
     "ProfileDirectory",
     "ProfileError",
     "Program",
+    "ProgramProblems",
     "ProgramRecord",
     "ProjectedStopping",
     "REGISTRY",
@@ -114,6 +118,7 @@ __all__ = [
     "Step",
     "StoppingPolicy",
     "UnknownModuleError",
+    "Verification",
     "WallClock",
     "WorkClock",
     "__version__",
@@ -133,6 +138,7 @@ __all__ = [
     "run_program",
     "save_compiled",
     "save_profile",
+    "verify",
 ]
 
 #: Where each public name is defined: `import anytime` imports none of them until one is used
@@ -194,6 +200,10 @@ _WHERE = {
     "run_program": "anytime.runtime",
     "load_profile": "anytime.profiles.io",
     "save_profile": "anytime.profiles.io",
+    "ProgramProblems": "anytime.problems",
+    "BudgetCheck": "anytime.verification",
+    "Verification": "anytime.verification",
+    "verify": "anytime.verification",
 }
 
 

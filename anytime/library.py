@@ -32,6 +32,7 @@ from attrs import field, frozen
 
 from anytime.errors import AnytimeError, ProfileError
 from anytime.modules import REGISTRY, AnytimeModule, Registry
+from anytime.problems import ProgramProblems
 from anytime.profiles.builder import Measurement, registered_measurements, registered_problems
 from anytime.profiles.dynamic import DynamicProfile
 from anytime.profiles.dynamic_io import (
@@ -42,7 +43,7 @@ from anytime.profiles.dynamic_io import (
 )
 from anytime.profiles.io import load_profile
 from anytime.profiles.profile import ConditionalPerformanceProfile
-from anytime.text import suggest
+from anytime.text import did_you_mean, suggest
 
 #: The entry-point group installed plugins register under.
 PLUGIN_GROUP = "anytime.plugins"
@@ -294,7 +295,16 @@ def _check_measurements(_: Any, attribute: Any, values: Mapping[str, Any]) -> No
             )
 
 
-def _lower_keys(values: Mapping[str, Measurement]) -> Mapping[str, Measurement]:
+def _check_program_problems(_: Any, attribute: Any, values: Mapping[str, Any]) -> None:
+    for name, value in values.items():
+        if not isinstance(value, ProgramProblems):
+            raise TypeError(
+                f"Plugin.program_problems[{name!r}]: expected ProgramProblems"
+                f" (ProgramProblems.of(problems)), got {type(value).__name__}"
+            )
+
+
+def _lower_keys(values: Mapping[str, Any]) -> Mapping[str, Any]:
     return types.MappingProxyType({name.lower(): m for name, m in values.items()})
 
 
@@ -309,6 +319,8 @@ class Plugin:
         problem_sets: module name -> how `anytime profile` / `check` / `calibrate` measure it.
         critical_events: its critical-event estimators (made with `critical_event`).
         add_commands: a function adding the plugin's subcommands to a `CommandGroup`.
+        program_problems: schema name -> the problems `anytime verify` runs the compiled
+            schema on (`ProgramProblems.of(problems)`, see `anytime.problems`).
     """
 
     name: str
@@ -322,17 +334,22 @@ class Plugin:
         default=(), converter=_as_tuple, validator=_check_modules
     )
     add_commands: Callable[[CommandGroup], None] | None = None
+    program_problems: Mapping[str, ProgramProblems] = field(
+        factory=dict, converter=_lower_keys, validator=_check_program_problems
+    )
 
 
 @frozen
 class Loaded:
     """What one source gave: its entries, the measurements of its modules, the plugins it
-    loaded, and the problems it reported instead of raising."""
+    loaded, the program problem sets of its schemas, and the problems it reported instead of
+    raising."""
 
     entries: tuple[LibraryEntry, ...] = ()
     problems: tuple[str, ...] = ()
     measurements: Mapping[str, Measurement] = field(factory=dict)
     plugins: tuple[Plugin, ...] = ()
+    program_problems: Mapping[str, ProgramProblems] = field(factory=dict)
 
 
 class Source(Protocol):
@@ -427,6 +444,7 @@ class PluginSource:
         entries: list[LibraryEntry] = []
         problems: list[str] = []
         measurements: dict[str, Measurement] = {}
+        program_problems: dict[str, ProgramProblems] = {}
         plugins: list[Plugin] = []
         for entry_point in found:
             label = f"plugin '{entry_point.name}' ({entry_point.value})"
@@ -438,7 +456,11 @@ class PluginSource:
             plugins.append(plugin)
             entries.extend(LibraryEntry.of_module(m, origin=label) for m in plugin.modules)
             measurements.update(plugin.problem_sets)
-        return Loaded(tuple(entries), tuple(problems), measurements, tuple(plugins))
+            for name, declared in plugin.program_problems.items():
+                program_problems.setdefault(name, declared)
+        return Loaded(
+            tuple(entries), tuple(problems), measurements, tuple(plugins), program_problems
+        )
 
     def _plugin(self, entry_point: metadata.EntryPoint) -> Plugin:
         before = set(map(id, self.registry))
@@ -499,6 +521,7 @@ class AnytimeLibrary:
         self._entries: dict[str, LibraryEntry] = {}
         self._generic: set[str] = set()  # names whose entry came from a generic source
         self._measurements: dict[str, Measurement] = {}
+        self._program_problems: dict[str, ProgramProblems] = {}
         problems: list[str] = []
         plugins: list[Plugin] = []
         for source in self.sources:
@@ -509,6 +532,8 @@ class AnytimeLibrary:
                 self._add(entry, generic=source.generic)
             for name, measurement in loaded.measurements.items():
                 self._measurements.setdefault(name, measurement)
+            for name, declared in loaded.program_problems.items():
+                self._program_problems.setdefault(name, declared)
         self.problems = tuple(problems)
         self.plugins = tuple(plugins)
 
@@ -584,6 +609,26 @@ class AnytimeLibrary:
             BuildError: no source declares one; the message lists those that do.
         """
         return registered_problems(name, self._measurements)
+
+    def program_problems(self, schema: str) -> ProgramProblems:
+        """The problems `anytime verify` runs schema `schema` on, as a plugin declares them
+        (`Plugin.program_problems`; the first plugin's, by entry-point name, where two do).
+
+        Raises:
+            LibraryError: no plugin declares any; the message lists the schemas that have them.
+        """
+        found = self._program_problems.get(schema.lower())
+        if found is not None:
+            return found
+        known = sorted(self._program_problems)
+        head = f"no program problem set is declared for schema '{schema}'"
+        hint = did_you_mean(schema.lower(), known)
+        if hint:
+            raise LibraryError(head + hint)
+        listed = ", ".join(known) if known else "none"
+        raise LibraryError(
+            f"{head} (declared for: {listed}); a plugin declares them in Plugin.program_problems"
+        )
 
     def profile(self, name: str) -> ConditionalPerformanceProfile | None:
         """The profile of `name` (read on first use); None for a module without one."""

@@ -48,6 +48,7 @@ from anytime.modules import elementary as _elementary
 from anytime.modules import interruptible as _interruptible
 from anytime.outdir import owned_directory
 from anytime.plot import new_figure, require_matplotlib, save_figure
+from anytime.problems import ProgramProblems
 from anytime.profiles import ConditionalPerformanceProfile, VisionHyperbola, tabulate
 from anytime.profiles.builder import Measurement
 from anytime.profiles.profile import Array
@@ -70,6 +71,7 @@ from anytime.runtime.monitor import (
     ValueModel,
 )
 from anytime.runtime.program import ProgramRecord, program_module, run_program
+from anytime.verification import BudgetCheck, Verification, verify
 
 __all__ = [
     "EXIT_INPUT",
@@ -81,6 +83,7 @@ __all__ = [
     "AnytimeLibrary",
     "AnytimeModule",
     "Array",
+    "BudgetCheck",
     "Clock",
     "CommandGroup",
     "CompiledProgram",
@@ -102,6 +105,7 @@ __all__ = [
     "ModuleMargin",
     "Monitor",
     "Move",
+    "ProgramProblems",
     "ProgramRecord",
     "Plugin",
     "ProblemSet",
@@ -116,6 +120,7 @@ __all__ = [
     "Unit",
     "UsageError",
     "ValueModel",
+    "Verification",
     "VisionHyperbola",
     "WallClock",
     "WorkClock",
@@ -148,6 +153,7 @@ __all__ = [
     "run_program",
     "save_figure",
     "tabulate",
+    "verify",
     "write_atomic",
 ]
 

@@ -1,0 +1,573 @@
+"""`anytime.verify`: the compiled promise, checked by running the program.
+
+A compiled program promises, for every total T of its table and every input quality, the
+expected quality of its result (`CompiledProgram.expected`). `verify` runs the program as the
+runtime runs it (`run_program`, fixed allocation, on the work clock) on fresh problems drawn by
+its program-level problem set (`anytime.problems.ProgramProblems`) at every total of the table,
+the smallest included, and compares the realised mean quality with the promise at each
+problem's input qualities:
+
+- realised: the problem set's score of the program's result where it declares `score`, else
+  the quality the result reports (0 without a result);
+- se: sqrt(se_runs^2 + se_promise^2), the standard error of the realised mean and the table's
+  own standard error where its cell is estimated by sampling
+  (`CompiledProgram.standard_error`, 0 where it is exact; 0 when the program has none);
+- a total fails when |realised - promised| > max(0.01, 3 se), or when any run used more than
+  T on the work clock (beyond the executor's rounding, 1e-9 relative).
+
+Run i at the table's total j draws its problem from `SeedSequence(seed, spawn_key=(j, i))`:
+the same seed gives the same problems and the same result for any number of workers, any chunk
+size and any executor, and a total checked alone (`budgets=`) meets the problems it meets in a
+full check.
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from collections.abc import Iterable, Iterator, Sequence
+from concurrent.futures import Executor
+from typing import Any
+
+import numpy as np
+from attrs import cmp_using, field, frozen
+
+from anytime.clocks import WorkClock
+from anytime.compiler.compile import CompiledProgram
+from anytime.errors import AnytimeError
+from anytime.isolation import ISOLATIONS, WATCHDOG, Isolation
+from anytime.modules import Result
+from anytime.pool import spread
+from anytime.problems import ProgramProblems, ProgramProblemSet
+from anytime.profiles.profile import Array
+from anytime.profiles.progress import ProgressBar
+from anytime.profiles.trials import Instance
+from anytime.runtime.executor import Status
+from anytime.runtime.program import ExecutionError, bind_inputs, run_program
+
+__all__ = [
+    "SIGMAS",
+    "TOLERANCE",
+    "BudgetCheck",
+    "Verification",
+    "VerifyError",
+    "format_verification",
+    "verification_to_dict",
+    "verify",
+]
+
+#: The least difference between realised and promised that fails a total.
+TOLERANCE = 0.01
+#: Standard errors a difference may reach before it fails a total.
+SIGMAS = 3.0
+#: Relative rounding of the work clock tolerated before a run counts as over its budget (the
+#: executor's own, `anytime.runtime.executor`).
+_SLACK = 1e-9
+
+
+class VerifyError(AnytimeError, ValueError):
+    """A verification cannot run as asked: bad options, or a problem set that breaks its
+    contract (the message names it and the run)."""
+
+
+def _array(value: Any) -> Array:
+    array = np.array(value, dtype=np.float64)
+    array.setflags(write=False)
+    return array
+
+
+@frozen
+class BudgetCheck:
+    """The promise at one total of the table against the runs there.
+
+    Attributes:
+        total: the total T (in the table's time unit).
+        promised: the mean over the runs of the compiled expectation at each run's input
+            qualities.
+        realised: the mean realised quality of the runs.
+        se: the standard error of the difference, sqrt(se_runs^2 + se_promise^2).
+        se_runs: the standard error of the realised mean (sample deviation / sqrt(runs)).
+        se_promise: the table's own standard error there (0 where the table is exact).
+        z: (realised - promised) / se (0 when both are equal; +-inf when se is 0 and they
+            differ).
+        tolerance: max(0.01, 3 se), the most |realised - promised| may be.
+        runs: how many runs.
+        over_budget: runs that used more than T on the work clock.
+        no_result: runs whose program ended without a result.
+        failed: runs in which a module failed or crashed (their results still count).
+        passed: within the tolerance, and no run over budget.
+        qualities: each run's realised quality, in run order.
+        time_used: each run's time used, in run order.
+    """
+
+    total: float
+    promised: float
+    realised: float
+    se: float
+    se_runs: float
+    se_promise: float
+    z: float
+    tolerance: float
+    runs: int
+    over_budget: int
+    no_result: int
+    failed: int
+    passed: bool
+    qualities: Array = field(converter=_array, eq=cmp_using(eq=np.array_equal), repr=False)
+    time_used: Array = field(converter=_array, eq=cmp_using(eq=np.array_equal), repr=False)
+
+
+@frozen
+class Verification:
+    """What `verify` found: one `BudgetCheck` per total checked, and how it was run.
+
+    Attributes:
+        schema: the program's name.
+        time_unit: the table's time unit.
+        problems: the problem set's name.
+        scored: whether runs were scored by the problem set (else by their reported quality).
+        runs: runs per total.
+        seed: the root seed (pass it again to reproduce).
+        budgets: the checks, by increasing total.
+        tolerance, sigmas: a total failed when |realised - promised| > max(tolerance,
+            sigmas * se).
+        seconds: wall time of the whole verification.
+    """
+
+    schema: str
+    time_unit: str
+    problems: str
+    scored: bool
+    runs: int
+    seed: int
+    budgets: tuple[BudgetCheck, ...]
+    tolerance: float = TOLERANCE
+    sigmas: float = SIGMAS
+    seconds: float = field(default=0.0, eq=False)
+
+    @property
+    def passed(self) -> bool:
+        """Every total within its tolerance, and no run over its budget."""
+        return all(check.passed for check in self.budgets)
+
+    @property
+    def failed(self) -> tuple[BudgetCheck, ...]:
+        """The totals that failed."""
+        return tuple(check for check in self.budgets if not check.passed)
+
+
+# --- the work: runs spread over workers --------------------------------------------------------
+
+
+@frozen(eq=False)
+class _Job:
+    """What every run of one verification shares (handed to local workers once, at fork)."""
+
+    compiled: CompiledProgram
+    problems: ProgramProblems
+    totals: tuple[tuple[int, float], ...]  # (index in the table's time grid, total) per check
+    runs: int
+    entropy: int
+    isolation: Isolation
+    watchdog: float
+
+
+@frozen(eq=False)
+class _Chunk:
+    """Runs `start` to `stop` (flat index `check * runs + run`); `job` is None where the worker
+    was handed the job when it started."""
+
+    job: _Job | None
+    start: int
+    stop: int
+
+
+@frozen(eq=False)
+class _Ran:
+    """One run: its realised quality, time used, input qualities and how it ended."""
+
+    flat: int
+    quality: float
+    used: float
+    qualities: tuple[float, ...]
+    no_result: bool
+    failed: bool
+
+
+_WORKER_JOB: list[_Job] = []  # the job a local worker was handed when it started
+
+
+def _install(job: _Job) -> None:
+    _WORKER_JOB[:] = [job]
+
+
+def _run_chunk(chunk: _Chunk) -> list[_Ran]:
+    job = chunk.job if chunk.job is not None else _WORKER_JOB[0]
+    return [_run_one(job, flat) for flat in range(chunk.start, chunk.stop)]
+
+
+def _run_one(job: _Job, flat: int) -> _Ran:
+    check, run = divmod(flat, job.runs)
+    j, total = job.totals[check]
+    where = f"run {run} at T = {total:g}"
+    problems = job.problems
+    rng = np.random.default_rng(np.random.SeedSequence(job.entropy, spawn_key=(j, run)))
+    try:
+        instance = problems.problems.instance(rng)
+    except Exception as exc:
+        raise VerifyError(f"{problems.name}.instance failed ({where}): {_headline(exc)}") from exc
+    if not isinstance(instance, Instance):
+        raise VerifyError(
+            f"{problems.name}.instance: expected an Instance, got {type(instance).__name__}"
+            f" ({where})"
+        )
+    compiled = job.compiled
+    try:
+        values = bind_inputs(compiled.name, compiled.model.program.inputs, instance.args)
+        record = run_program(
+            compiled,
+            instance.args,
+            total,
+            clock=WorkClock(),
+            isolation=job.isolation,
+            watchdog=job.watchdog,
+        )
+    except ExecutionError as exc:
+        raise VerifyError(
+            f"{problems.name}.instance: its problem does not fit the program ({where}): {exc}"
+        ) from exc
+    qualities = tuple(
+        float(values[name].quality) if isinstance(values[name], Result) else 1.0
+        for name in compiled.model.quality_inputs
+    )
+    result = record.result
+    if problems.scored:
+        quality = _score(problems, instance, None if result is None else result.value, where)
+    else:
+        quality = 0.0 if result is None else float(result.quality)
+    return _Ran(
+        flat,
+        quality,
+        float(record.time_used),
+        qualities,
+        result is None,
+        record.status is Status.FAILED,
+    )
+
+
+def _score(problems: ProgramProblems, instance: Instance, value: Any, where: str) -> float:
+    scorer: ProgramProblemSet = problems.problems
+    try:
+        quality = scorer.score(instance, value)  # type: ignore[attr-defined]  # it has one
+    except Exception as exc:
+        raise VerifyError(f"{problems.name}.score failed ({where}): {_headline(exc)}") from exc
+    try:
+        q = float(quality)
+    except (TypeError, ValueError):
+        q = math.nan
+    if not 0.0 <= q <= 1.0:  # NaN too
+        raise VerifyError(
+            f"{problems.name}.score: expected a quality in [0, 1], got {quality!r} ({where})"
+        )
+    return q
+
+
+def _headline(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
+
+
+# --- verify ------------------------------------------------------------------------------------
+
+
+def verify(
+    compiled: CompiledProgram,
+    problems: ProgramProblems | ProgramProblemSet,
+    *,
+    runs: int = 100,
+    budgets: Iterable[float] | None = None,
+    workers: int = 1,
+    seed: int = 0,
+    executor: Executor | None = None,
+    progress: bool | None = None,
+    chunk_size: int | None = None,
+    isolation: Isolation = "none",
+    watchdog: float = WATCHDOG,
+    tolerance: float = TOLERANCE,
+    sigmas: float = SIGMAS,
+) -> Verification:
+    """Run `compiled` on `runs` fresh problems of `problems` at every total of its table (or
+    those of `budgets`, each a total of the table) and compare the realised mean quality with
+    the promise (see the module's docstring).
+
+    Args:
+        compiled: the compiled program.
+        problems: its program-level problem set (a `ProgramProblems`, or the problem set
+            itself).
+        runs: runs per total.
+        budgets: the totals to check (default: every total of the table).
+        workers: local worker processes (1: run here).
+        seed: the root seed of the problems.
+        executor: where to run them instead (any `concurrent.futures.Executor`, such as a Dask
+            cluster's, `anytime.profiles.builder.dask_executor`; left running): the program
+            and the problem set travel with every chunk of runs, so they must pickle.
+        progress: draw a progress bar on standard error (None: only on a terminal).
+        chunk_size: runs per task; it changes the overhead, never the result.
+        isolation, watchdog: how each module call of a run is run (see `run_program`).
+        tolerance, sigmas: a total fails when |realised - promised| > max(tolerance,
+            sigmas * se).
+
+    Raises:
+        VerifyError: bad arguments, or the problem set fails or breaks its contract.
+    """
+    started = _time.perf_counter()
+    plan = problems if isinstance(problems, ProgramProblems) else _wrap(problems)
+    totals = _totals(compiled, budgets)
+    _check_counts(runs=runs, workers=workers, seed=seed, chunk_size=chunk_size)
+    if isolation not in ISOLATIONS:
+        raise VerifyError(f"isolation: expected 'process' or 'none', got {isolation!r}")
+    if not watchdog > 0:  # NaN too
+        raise VerifyError(f"watchdog: expected a positive number of seconds, got {watchdog!r}")
+    if not (tolerance >= 0 and sigmas >= 0):
+        raise VerifyError(
+            f"tolerance and sigmas: expected numbers >= 0, got {tolerance!r} and {sigmas!r}"
+        )
+    job = _Job(compiled, plan, totals, runs, int(seed), isolation, float(watchdog))
+    count = runs * len(totals)
+    if chunk_size is None:
+        chunk_size = max(1, min(64, math.ceil(count / max(16, 8 * workers))))
+    local = executor is None
+    chunks = [
+        _Chunk(None if local else job, start, min(start + chunk_size, count))
+        for start in range(0, count, chunk_size)
+    ]
+    ran: list[_Ran | None] = [None] * count
+    with ProgressBar(count, label=compiled.name, unit="runs", enabled=progress) as bar:
+        for done in spread(
+            _run_chunk,
+            chunks,
+            executor=executor,
+            workers=workers,
+            initializer=_install if local else None,
+            initargs=(job,) if local else (),
+        ):
+            for one in done:
+                ran[one.flat] = one
+            bar.update(len(done))
+    _WORKER_JOB.clear()  # a verification run here must not keep its job
+    checks = tuple(
+        _check(compiled, total, _complete(ran[k * runs : (k + 1) * runs]), tolerance, sigmas)
+        for k, (_, total) in enumerate(totals)
+    )
+    return Verification(
+        schema=compiled.name,
+        time_unit=compiled.profile.time_unit,
+        problems=plan.name,
+        scored=plan.scored,
+        runs=runs,
+        seed=int(seed),
+        budgets=checks,
+        tolerance=float(tolerance),
+        sigmas=float(sigmas),
+        seconds=_time.perf_counter() - started,
+    )
+
+
+def _wrap(problems: ProgramProblemSet) -> ProgramProblems:
+    try:
+        return ProgramProblems.of(problems)
+    except TypeError as exc:
+        raise VerifyError(
+            f"problems: expected ProgramProblems or a problem set with an instance(rng)"
+            f" method, got {type(problems).__name__}"
+        ) from exc
+
+
+def _complete(ran: Sequence[_Ran | None]) -> list[_Ran]:
+    out = [one for one in ran if one is not None]
+    assert len(out) == len(ran), "every run reports back"
+    return out
+
+
+def _totals(
+    compiled: CompiledProgram, budgets: Iterable[float] | None
+) -> tuple[tuple[int, float], ...]:
+    """(index in the time grid, total) of each total to check, by increasing total."""
+    grid = [float(t) for t in compiled.profile.time]
+    if budgets is None:
+        return tuple(enumerate(grid))
+    chosen: dict[int, float] = {}
+    for budget in budgets:
+        value = float(budget)
+        matches = [j for j, t in enumerate(grid) if abs(t - value) <= _SLACK * max(1.0, abs(t))]
+        if not matches:
+            raise VerifyError(
+                f"budget {value:g} is not a total of the compiled table of schema"
+                f" '{compiled.name}' ({_grid_text(grid)})"
+            )
+        chosen[matches[0]] = grid[matches[0]]
+    if not chosen:
+        raise VerifyError("budgets: expected at least one total of the compiled table")
+    return tuple(sorted(chosen.items()))
+
+
+def _grid_text(grid: Sequence[float]) -> str:
+    if len(grid) <= 6:
+        return ", ".join(f"{t:g}" for t in grid)
+    return f"{grid[0]:g}, {grid[1]:g}, ..., {grid[-1]:g}"
+
+
+def _check_counts(**values: int | None) -> None:
+    for name, value in values.items():
+        if value is None and name == "chunk_size":
+            continue
+        least = 0 if name == "seed" else 1
+        if not isinstance(value, int | np.integer) or isinstance(value, bool) or value < least:
+            raise VerifyError(f"{name}: expected an integer >= {least}, got {value!r}")
+
+
+def _check(
+    compiled: CompiledProgram, total: float, ran: list[_Ran], tolerance: float, sigmas: float
+) -> BudgetCheck:
+    qualities = np.array([one.quality for one in ran])
+    used = np.array([one.used for one in ran])
+    n = len(ran)
+    profile = compiled.profile
+    at = np.array([one.qualities for one in ran], dtype=np.float64).reshape(n, profile.n_inputs)
+    times = np.full(n, total)
+    promised = float(profile.interpolate(compiled.expected, at, times).mean())
+    table = getattr(compiled, "standard_error", None)  # 0 where the table is exact
+    se_promise = 0.0
+    if table is not None:
+        own = profile.interpolate(np.asarray(table, dtype=np.float64), at, times)
+        se_promise = float(own.mean())
+    realised = float(qualities.mean())
+    se_runs = float(qualities.std(ddof=1) / math.sqrt(n)) if n > 1 else 0.0
+    se = math.hypot(se_runs, se_promise)
+    difference = realised - promised
+    if se > 0:
+        z = difference / se
+    else:
+        z = 0.0 if difference == 0 else math.copysign(math.inf, difference)
+    limit = max(tolerance, sigmas * se)
+    over = int(np.sum(used > total + _SLACK * max(1.0, abs(total))))
+    return BudgetCheck(
+        total=total,
+        promised=promised,
+        realised=realised,
+        se=se,
+        se_runs=se_runs,
+        se_promise=se_promise,
+        z=z,
+        tolerance=limit,
+        runs=n,
+        over_budget=over,
+        no_result=sum(one.no_result for one in ran),
+        failed=sum(one.failed for one in ran),
+        passed=abs(difference) <= limit and over == 0,
+        qualities=qualities,
+        time_used=used,
+    )
+
+
+# --- reports -----------------------------------------------------------------------------------
+
+
+def verification_to_dict(verification: Verification) -> dict[str, Any]:
+    """The verification as JSON-ready data (`anytime verify --json`)."""
+    return {
+        "schema": verification.schema,
+        "time_unit": verification.time_unit,
+        "problems": verification.problems,
+        "scored": verification.scored,
+        "runs": verification.runs,
+        "seed": verification.seed,
+        "passed": verification.passed,
+        "tolerance": verification.tolerance,
+        "sigmas": verification.sigmas,
+        "budgets": [
+            {
+                "total": check.total,
+                "promised": check.promised,
+                "realised": check.realised,
+                "se": check.se,
+                "se_runs": check.se_runs,
+                "se_promise": check.se_promise,
+                "z": check.z,
+                "tolerance": check.tolerance,
+                "runs": check.runs,
+                "over_budget": check.over_budget,
+                "no_result": check.no_result,
+                "failed": check.failed,
+                "passed": check.passed,
+            }
+            for check in verification.budgets
+        ],
+        "seconds": round(verification.seconds, 3),
+    }
+
+
+def format_verification(verification: Verification) -> str:
+    """The promise against the runs, one row per total, and the verdict."""
+    how = "scored by" if verification.scored else "the quality its result reports, on"
+    lines = [
+        f"schema {verification.schema}: {verification.runs} runs per budget, seed"
+        f" {verification.seed}, realised quality {how} {verification.problems}"
+    ]
+    header = [
+        f"T ({verification.time_unit})",
+        "promised",
+        "realised ± se",
+        "z",
+        "over budget",
+        "ok",
+    ]
+    rows = [header]
+    for check in verification.budgets:
+        rows.append(
+            [
+                f"{check.total:g}",
+                f"{check.promised:.3f}",
+                f"{check.realised:.3f} ± {check.se:.3f}",
+                _z(check.z),
+                f"{check.over_budget}/{check.runs}",
+                "yes" if check.passed else "NO",
+            ]
+        )
+    widths = [max(len(row[i]) for row in rows) for i in range(len(header))]
+    for row in rows:
+        cells = [cell.rjust(width) for cell, width in zip(row, widths, strict=True)]
+        lines.append("  " + "  ".join(cells).rstrip())
+    lines.extend(_verdict(verification))
+    return "\n".join(lines) + "\n"
+
+
+def _z(z: float) -> str:
+    if math.isinf(z):
+        return "+inf" if z > 0 else "-inf"
+    return f"{z:+.2f}"
+
+
+def _verdict(verification: Verification) -> Iterator[str]:
+    checks = verification.budgets
+    rule = (
+        f"|realised - promised| <= max({verification.tolerance:g}, {verification.sigmas:g} se),"
+        " no run over its budget"
+    )
+    failed = verification.failed
+    if not failed:
+        yield f"  passed at all {len(checks)} budgets ({rule})"
+        return
+    yield f"  FAILED at {len(failed)} of {len(checks)} budgets ({rule}):"
+    for check in failed:
+        reasons = []
+        difference = check.realised - check.promised
+        if abs(difference) > check.tolerance:
+            side = "above" if difference > 0 else "below"
+            reasons.append(
+                f"realised {abs(difference):.3f} {side} the promise (tolerance"
+                f" {check.tolerance:.3f})"
+            )
+        if check.over_budget:
+            reasons.append(f"{check.over_budget} of {check.runs} runs over budget")
+        yield f"    T = {check.total:g}: {'; '.join(reasons)}"
