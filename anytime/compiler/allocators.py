@@ -34,7 +34,14 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import ArrayLike
 
-from anytime.compiler.evaluate import FOLD_GRID, MAX_SUPPORT, Evaluator
+from anytime.compiler.evaluate import (
+    ENUMERATION_LIMIT,
+    FOLD_GRID,
+    MAX_SUPPORT,
+    SAMPLES,
+    Evaluator,
+    shared_nodes,
+)
 from anytime.compiler.model import (
     ChoiceNode,
     CompileError,
@@ -114,11 +121,13 @@ def composition_blocks(total: int, parts: int, limit: int) -> Iterator[np.ndarra
 def row_bytes(model: CompileModel) -> int:
     """About how many bytes evaluating one allocation of `model` holds at its peak: every
     node's output distribution (they are kept to the end) and the largest node's working
-    arrays (its input combinations), from the support sizes the evaluator's distributions
-    reach (a deterministic module's is its inputs' product, a stochastic one's its bins, a
-    support past `MAX_SUPPORT` is folded)."""
+    arrays (its input combinations, a called program's own evaluation for each), from the
+    support sizes the evaluator's distributions reach (a deterministic module's is its inputs'
+    product, a stochastic one's its bins, a support past `MAX_SUPPORT` is folded), times the
+    rows the evaluator makes of each for the shared results' outcomes (see `Evaluator`)."""
     support: dict[int, int] = {}
-    kept, peak = 0, 0
+    shared = shared_nodes(model)
+    kept, peak, factor = 0, 0, 1
     for node in model.nodes:
         sizes = [support[s.index] if s.kind == "node" else 1 for s in node.slots]
         combos = prod(sizes)
@@ -131,7 +140,13 @@ def row_bytes(model: CompileModel) -> int:
                 prod(sizes[a] for a in plan.axes) * (plan.compiled.profile.n_bins + 1)
                 for plan in node.branches
             )
-            work = out * (len(sizes) + 6)
+            work = out * (len(sizes) + 6) + sum(
+                prod(sizes[a] for a in plan.axes) * row_bytes(plan.compiled.model) // 8
+                for plan in node.branches
+            )
+        elif isinstance(node, ModuleNode) and node.callee is not None:
+            out = combos * (node.profile.n_bins + 1)
+            work = combos * (len(sizes) + 6) + combos * row_bytes(node.callee.model) // 8
         elif isinstance(node, ModuleNode | LoopNode):
             if not node.deterministic:
                 out = node.profile.n_bins
@@ -141,9 +156,12 @@ def row_bytes(model: CompileModel) -> int:
         if out > MAX_SUPPORT:
             out = len(FOLD_GRID) + 1
         support[node.index] = out
+        if node.index in shared:
+            factor *= out
         kept += 2 * out
         peak = max(peak, work)
-    return 8 * WORKSPACE * (kept + peak)
+    factor = min(factor, max(ENUMERATION_LIMIT, SAMPLES))
+    return 8 * WORKSPACE * (kept + peak) * factor
 
 
 def chunk_rows(model: CompileModel, memory: int, per_row: int = 0) -> int:
@@ -420,6 +438,14 @@ def dp_obstacle(model: CompileModel) -> str | None:
                 )
             case ElementaryNode():
                 continue
+            case ModuleNode(callee=callee) if callee is not None and any(
+                slot.kind == "node" for slot in node.slots
+            ):
+                return (
+                    f"the called schema '{node.name}' reads a result computed in the program, "
+                    "whose quality falls between its table's grid points, where the schema "
+                    "runs the allocation its table gives there, not the optimum dp would assume"
+                )
         if not node.deterministic:
             return (
                 f"module '{node.name}' has a stochastic profile; local compilation is exact "

@@ -21,6 +21,7 @@ import numpy as np
 from attrs import frozen
 from numpy.typing import ArrayLike
 
+from anytime.compiler import evaluate
 from anytime.compiler.allocators import (
     DEFAULT_MEMORY,
     DynamicProgramming,
@@ -37,7 +38,6 @@ from anytime.compiler.loops import loop_profiles
 from anytime.compiler.model import (
     CompileError,
     CompileModel,
-    IfNode,
     ModuleNode,
     Timed,
     build_model,
@@ -120,8 +120,10 @@ class CompiledProgram:
             `profile.mean`.
         exhaustive_gap: the largest amount by which the exhaustive optimum beats the table
             (None when the exhaustive search was not computable).
-        approximations: what the evaluation of allocations approximates, one sentence each
-            (a DAG's shared results taken as independent).
+        standard_error: the standard error of each cell's expected quality, shaped like
+            `profile.mean`: 0 where it is exact under the profiles' model (every cell, unless
+            the joint outcomes of a DAG's shared results were too many to enumerate and were
+            sampled there; see `anytime.compiler.evaluate`). None: every cell exact.
         kept_smaller: the totals of the time grid at which a smaller total's allocation does
             better and is kept, the rest of the time left unused (for some input quality).
         warnings: what the table cannot vouch for, one sentence each: a module fed input
@@ -141,7 +143,7 @@ class CompiledProgram:
     resolution: float
     requested: str = "auto"
     dp_obstacle: str | None = None
-    approximations: tuple[str, ...] = ()
+    standard_error: Array | None = None
     kept_smaller: tuple[float, ...] = ()
     warnings: tuple[str, ...] = ()
 
@@ -154,6 +156,26 @@ class CompiledProgram:
             self.allocator == "dp" and self.dp_obstacle is None
         )
         return optimal and not self.approximations
+
+    @property
+    def exact_cells(self) -> np.ndarray:
+        """Per cell of the table, whether its expected quality is exact (not sampled)."""
+        if self.standard_error is None:
+            return np.ones(self.expected.shape, dtype=bool)
+        return np.asarray(self.standard_error == 0)
+
+    @property
+    def approximations(self) -> tuple[str, ...]:
+        """What the table's expectations approximate, one sentence each, from the fields."""
+        sampled = ~self.exact_cells
+        if not sampled.any():
+            return ()
+        assert self.standard_error is not None
+        return (
+            f"the shared results' joint outcomes were sampled ({evaluate.SAMPLES} draws) at"
+            f" {int(sampled.sum())} of {sampled.size} cells of the table: their expected"
+            f" quality has a standard error of up to {float(self.standard_error.max()):.2g}",
+        )
 
     @property
     def note(self) -> str:
@@ -189,6 +211,17 @@ class CompiledProgram:
         total's split."""
         q = np.asarray(quality, dtype=np.float64)
         return self.profile.interpolate(self.allocation, q, np.float64(total))
+
+
+def callee_grid(input_quality: ArrayLike) -> Array:
+    """The input-quality grid a called schema or an if's branch is compiled on: the program's
+    grid and the default one together, so that every quality a result computed in the program
+    can reach it with, 0 to 1, lies within the grid (the callee runs the allocation its table
+    gives at the quality that reaches it, never a clamped one)."""
+    merged = np.union1d(np.asarray(input_quality, dtype=np.float64), DEFAULT_INPUT_QUALITY)
+    keep = np.concatenate([[True], np.diff(merged) > 1e-9])
+    grid: Array = merged[keep]
+    return grid
 
 
 def compile_program(
@@ -232,7 +265,7 @@ def compile_program(
             branch,
             library,
             lattice,
-            q_grid,
+            callee_grid(q_grid),
             allocator=allocator,
             resolution=dt,
             source=source,
@@ -268,13 +301,6 @@ def compile_program(
         check_memory(chosen, needed, cap)
     except CompileError as error:
         raise CompileError(f"schema '{program.name}': {error}", where=filename) from None
-    approximations = []
-    stochastic = [n for n in model.anytime_nodes if isinstance(n, IfNode) or not n.deterministic]
-    if model.graph.shape == "dag" and stochastic:
-        approximations.append(
-            "the program is a DAG: a shared result makes later inputs correlated, and "
-            "evaluation treats them as independent (exact for trees, approximate here)"
-        )
     allocation, _ = search.allocate(evaluator, q_rows, u_rows, dt)
     seen: dict[int, list[Dist]] = {}
     output = evaluator.evaluate(q_rows, allocation * dt, seen=seen)
@@ -304,7 +330,7 @@ def compile_program(
         allocator=chosen,
         requested=allocator,
         dp_obstacle=dp_obstacle(model),
-        approximations=tuple(approximations),
+        standard_error=None if output.error is None else output.error.reshape(cell_shape),
         kept_smaller=tuple(float(t) for t in time[kept]),
         baselines=baselines,
         exhaustive_gap=gap,
@@ -362,40 +388,56 @@ def compile_file(
     uses the callee's compiled profile (and, at run time, runs the callee's program).
 
     Only `schema` and the schemas it calls are compiled when it is given. A callee is compiled
-    on every multiple of the resolution up to the largest total, so its callers can give it any
-    share of their time on the lattice. Returns the compiled programs, callees first. Errors
+    on every multiple of the resolution up to the largest total and on `callee_grid`'s input
+    qualities, so that its callers can give it any share of their time on the lattice and any
+    quality (a schema both asked for and called is compiled once for each role where the two
+    grids differ). Returns the compiled programs, callees first. Errors
     are placed in the file's own source (`schemas.source`). `memory` caps each compilation's
     search (see `compile_program`).
     """
     wanted = [schemas[schema]] if schema is not None else list(schemas.programs)
-    needed: set[str] = set()
-    stack = [p.name for p in wanted]
+    called: set[str] = set()
+    stack = [callee for p in wanted for callee in p.callees()]
     while stack:
         name = stack.pop()
-        if name not in needed:
-            needed.add(name)
+        if name not in called:
+            called.add(name)
             stack.extend(schemas[name].callees())
     top = {p.name for p in wanted}
     time = _check_time_grid(time_grid, schemas.filename)
     dt = _resolution(time, resolution, schemas.filename)
     lattice = np.arange(int(np.rint(time[-1] / dt)) + 1) * dt
-    compiled: dict[str, CompiledProgram] = {}
+    grids = {
+        "top": (time, np.asarray(input_quality, dtype=np.float64)),
+        "callee": (lattice, callee_grid(input_quality)),
+    }
+    same = all(np.array_equal(a, b) for a, b in zip(grids["top"], grids["callee"], strict=True))
+    callees: dict[str, CompiledProgram] = {}  # as their callers see them
+    compiled: dict[str, CompiledProgram] = {}  # as asked for
     for program in schemas.dependency_order():
-        if program.name not in needed:
-            continue
-        result = compile_program(
-            program,
-            library,
-            time if program.name in top else lattice,
-            input_quality,
-            allocator=allocator,
-            resolution=dt,
-            source=schemas.source,
-            callees=compiled,
-            memory=memory,
-        )
-        compiled[program.name] = result
-    return list(compiled.values())
+        roles = [r for r, names in (("callee", called), ("top", top)) if program.name in names]
+        for role in roles:
+            if role == "top" and "callee" in roles and same:
+                compiled[program.name] = callees[program.name]
+                continue
+            totals, qualities = grids[role]
+            result = compile_program(
+                program,
+                library,
+                totals,
+                qualities,
+                allocator=allocator,
+                resolution=dt,
+                source=schemas.source,
+                callees=callees,
+                memory=memory,
+            )
+            (callees if role == "callee" else compiled)[program.name] = result
+    order = [p.name for p in schemas.dependency_order()]
+    return [
+        *(callees[name] for name in order if name in callees and name not in top),
+        *(compiled[name] for name in order if name in compiled),
+    ]
 
 
 def _choose(model: CompileModel, allocator: str, cheap: bool = False) -> str:
@@ -486,7 +528,7 @@ def _never_worse_with_more_time(
     if not changed.any():
         return allocation, output, changed
     rows = (np.arange(expected.shape[0])[:, None] * n_times + best).reshape(-1)
-    return allocation[rows], Dist(output.values[rows], output.probs[rows]), changed
+    return allocation[rows], output.rows(rows), changed
 
 
 def _compiled_profile(

@@ -1,10 +1,23 @@
 """Evaluating allocations: the output-quality distribution of a program for batches of them.
 
 Distributions flow through the dataflow graph in topological order, each as a batch of discrete
-distributions: `values (B, K)` with `probs (B, K)`. The inputs of a call are taken as
-independent (their joint distribution is the product), which is exact for trees and an
-approximation for DAGs, where a shared result makes later inputs correlated.
+distributions: `values (B, K)` with `probs (B, K)`. Given their inputs' qualities, the outcomes
+of different calls are independent (each module's profile is conditioned on its inputs'
+qualities and nothing else): that is the profiles' model, and the evaluation is exact under it.
 
+- **Shared results.** Where a result is read more than once (a best-of over one sensed map, a
+  diamond, a join reading a result twice), the readers' inputs are correlated, and taking them
+  as independent is wrong (a best-of of two planners on one map is not the better of two
+  independent draws). The evaluator conditions on each shared result's outcome: it replicates
+  the batch's row once per outcome of the shared result (its quality values and no result),
+  weighted by its probability, evaluates the rest of the program given that outcome, and mixes
+  the rows back at the end -- variable elimination by enumeration over the shared results,
+  which makes the expectation exact for any DAG. Where the joint outcomes of the shared results
+  would exceed `ENUMERATION_LIMIT` rows per row, it samples them instead: `SAMPLES` draws of
+  the shared results per row (stratified, the same uniforms for every row and every
+  allocation, so that allocations are compared on common draws), each evaluated exactly given
+  the draw; the expectation is then an estimate, and its standard error is returned with it
+  (`Dist.error`).
 - A module whose profile is deterministic (a point mass at the cell mean everywhere) maps each
   combination of input qualities to the exact quality its curve gives there: no binning.
 - A module with a stochastic profile gives a distribution over its quality bins (the profile's
@@ -12,20 +25,25 @@ approximation for DAGs, where a shared result makes later inputs correlated.
   representative (`ConditionalPerformanceProfile.representatives`): so the expected quality is
   the profile's exact mean where it has one, never a bin midpoint.
 - An elementary function combines the input qualities (min by default). A `best-of` is one:
-  its quality is the maximum of its alternatives', so its distribution is that of the maximum
-  of independent variables (the product of their CDFs), computed exactly on the joint support.
-- An `if` is the mixture of its branches' compiled output distributions, weighted by the
-  branches' probabilities.
+  its quality is the maximum of its alternatives' (independent given the shared results).
+- An `if` is the mixture of its branches, and a called schema is its callee: each is evaluated
+  as the program it is, at the allocation its compiled table gives for the qualities that reach
+  it (what the runtime runs), never by interpolating its compiled profile between input grid
+  points (which over-claims: the table's optimum interpolated is above what any one
+  allocation delivers).
 - A loop (`map`, `repeat`) is looked up in its own compiled profile for the count it is planned
   for (`anytime.compiler.loops`), as a module is in its profile.
 
-When a support grows past `MAX_SUPPORT` values it is folded onto a fixed grid by splitting each
-value's mass between its two neighbouring grid points, which keeps the mean exact.
+Equal values of a support are merged (`compact`). A support still larger than `MAX_SUPPORT`
+values is, for the program's output, folded onto a fixed grid by splitting each value's mass
+between its two neighbouring grid points (which keeps the mean exact); for a result that other
+calls read, the evaluation samples it instead (folding would move the qualities they see).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 from attrs import frozen
@@ -46,6 +64,12 @@ from anytime.profiles.profile import Array, ConditionalPerformanceProfile, new_p
 
 MAX_SUPPORT = 64
 FOLD_GRID = np.linspace(0.0, 1.0, 41)
+#: The most joint outcomes of the shared results enumerated per evaluated row; beyond, sampled.
+ENUMERATION_LIMIT = 4096
+#: Draws of the shared results per row where they are sampled.
+SAMPLES = 4096
+#: The seed of the sampling's uniforms (fixed: the same program is evaluated on the same draws).
+SAMPLING_SEED = 20_260_417
 
 #: The value that stands for "no result" in a distribution's support: its own outcome, never a
 #: quality. It counts 0 in an expectation; a call one of whose inputs has it is not made (it
@@ -56,10 +80,12 @@ NO_RESULT = -1.0
 
 @frozen
 class Dist:
-    """A batch of discrete quality distributions."""
+    """A batch of discrete quality distributions; `error` (B,), where set, is the standard
+    error of each row's expectation, estimated by sampling the shared results (None: exact)."""
 
     values: Array  # (B, K)
     probs: Array  # (B, K)
+    error: Array | None = None
 
     def expected(self) -> Array:
         """The expected quality, no result counting 0."""
@@ -70,6 +96,16 @@ class Dist:
         """The probability of no result."""
         missing: Array = np.einsum("bk,bk->b", self.values == NO_RESULT, self.probs)
         return missing
+
+    def rows(self, index: np.ndarray) -> Dist:
+        """The distributions of rows `index`."""
+        error = None if self.error is None else self.error[index]
+        return Dist(self.values[index], self.probs[index], error)
+
+    @property
+    def standard_error(self) -> Array:
+        """`error`, with 0 for an exact row."""
+        return np.zeros(len(self.values)) if self.error is None else self.error
 
     @classmethod
     def point(cls, quality: ArrayLike) -> Dist:
@@ -91,7 +127,130 @@ def fold(dist: Dist, grid: Array = FOLD_GRID) -> Dist:
     np.add.at(out, (rows, i + 1), probs * upper)
     out[:, -1] = dist.missing()
     values = np.broadcast_to(np.append(grid, NO_RESULT), out.shape).copy()
-    return Dist(values, out)
+    return Dist(values, out, dist.error)
+
+
+def compact(dist: Dist) -> Dist:
+    """The same distributions with equal values merged and values without mass dropped (rows
+    padded with massless zeros to the widest row's support)."""
+    if dist.values.shape[1] <= 1:
+        return dist
+    key = np.where(dist.probs > 0, dist.values, np.inf)
+    order = np.argsort(key, axis=1, kind="stable")
+    key = np.take_along_axis(key, order, axis=1)
+    probs = np.take_along_axis(dist.probs, order, axis=1)
+    new = np.ones(key.shape, dtype=bool)
+    new[:, 1:] = key[:, 1:] != key[:, :-1]
+    group = np.cumsum(new, axis=1) - 1
+    kept = np.isfinite(key)
+    width = max(int(np.max(np.where(kept, group + 1, 0), initial=0)), 1)
+    rows = np.broadcast_to(np.arange(len(key))[:, None], key.shape)
+    out_p = np.zeros((len(key), width))
+    out_v = np.zeros((len(key), width))
+    np.add.at(out_p, (rows[kept], group[kept]), probs[kept])
+    out_v[rows[kept], group[kept]] = key[kept]
+    return Dist(out_v, out_p, dist.error)
+
+
+def bounded(dist: Dist) -> Dist:
+    """`dist` compacted, and folded if its support is still past `MAX_SUPPORT` (the mean kept):
+    for a distribution no call reads."""
+    if dist.values.shape[1] <= MAX_SUPPORT:
+        return dist
+    dist = compact(dist)
+    return fold(dist) if dist.values.shape[1] > MAX_SUPPORT else dist
+
+
+class _Sample(Exception):
+    """Enumerating the shared results' joint outcomes would take too many rows: sample them."""
+
+
+class _Rows:
+    """The rows an evaluation works on: each of the batch's rows, replicated once per joint
+    outcome (or draw) of the shared results conditioned on so far. Replicas of one batch row
+    are contiguous; `origin` maps a row to its batch row, `weight` is the probability of its
+    outcome (1/draws where sampled), `draw` the index of its draw."""
+
+    def __init__(self, batch: int, sampled: bool) -> None:
+        self.batch, self.sampled = batch, sampled
+        self.origin = np.arange(batch)
+        self.weight = np.ones(batch)
+        self.draw = np.zeros(batch, dtype=np.intp)
+        self.variance = np.zeros(batch)  # of nested sampled evaluations, per row
+
+    @property
+    def count(self) -> int:
+        return len(self.origin)
+
+    @property
+    def factor(self) -> int:
+        return self.count // self.batch if self.batch else 1
+
+    def replicate(self, copies: int, outputs: dict[int, Dist]) -> None:
+        """Every row `copies` times (the outputs so far with them)."""
+        self.origin = np.repeat(self.origin, copies)
+        self.weight = np.repeat(self.weight, copies)
+        self.draw = np.repeat(self.draw, copies)
+        self.variance = np.repeat(self.variance, copies)
+        for index, dist in outputs.items():
+            outputs[index] = dist.rows(np.repeat(np.arange(len(dist.values)), copies))
+
+    def condition(self, dist: Dist, outputs: dict[int, Dist], index: int) -> Dist:
+        """Condition on the outcome of `dist` (a shared result's distribution, compacted):
+        enumerate its outcomes, or draw one per row; returns it as a point per row."""
+        width = dist.values.shape[1]
+        if not self.sampled:
+            if self.factor * width > ENUMERATION_LIMIT:
+                raise _Sample
+            self.replicate(width, outputs)
+            self.weight = self.weight * dist.probs.reshape(-1)
+            return Dist.point(dist.values.reshape(-1))
+        if self.factor == 1:  # the first draw: SAMPLES replicas of each row
+            self.replicate(SAMPLES, outputs)
+            self.weight = self.weight / SAMPLES
+            self.draw = np.tile(np.arange(SAMPLES), self.batch)
+            dist = dist.rows(np.repeat(np.arange(len(dist.values)), SAMPLES))
+        u = _uniforms(index)[self.draw]
+        cdf = np.cumsum(dist.probs, axis=1)
+        pick = np.minimum((cdf < u[:, None] * cdf[:, -1:]).sum(axis=1), width - 1)
+        return Dist.point(np.take_along_axis(dist.values, pick[:, None], axis=1)[:, 0])
+
+    def collapse(self, dist: Dist) -> Dist:
+        """Per batch row, the mixture of its replicas' distributions."""
+        if self.factor == 1 and not self.variance.any():
+            return dist
+        values = dist.values.reshape(self.batch, -1)
+        probs = (self.weight[:, None] * dist.probs).reshape(self.batch, -1)
+        variance = (self.weight**2 * self.variance).reshape(self.batch, -1).sum(axis=1)
+        if self.sampled and self.factor > 1:  # the draws' spread
+            means = dist.expected().reshape(self.batch, -1)
+            spread = np.ptp(means, axis=1) > 1e-12  # draws that all agree are no estimate
+            variance = variance + np.where(spread, means.var(axis=1, ddof=1), 0.0) / self.factor
+        error = np.sqrt(variance) if self.sampled or self.variance.any() else None
+        return Dist(values, probs, error)
+
+
+def _uniforms(index: int) -> Array:
+    """The stratified uniforms of node `index`'s draws: one in each of `SAMPLES` equal strata,
+    in an order of their own (Latin hypercube sampling across nodes)."""
+    rng = np.random.default_rng([SAMPLING_SEED, index])
+    u: Array = (rng.permutation(SAMPLES) + rng.random(SAMPLES)) / SAMPLES
+    return u
+
+
+def shared_nodes(model: CompileModel) -> frozenset[int]:
+    """The nodes whose result is read more than once (by two calls, or twice by one)."""
+    reads: dict[int, int] = {}
+    slots = [s for node in model.nodes for s in node.slots] + [model.output]
+    for slot in slots:
+        if slot.kind == "node":
+            reads[slot.index] = reads.get(slot.index, 0) + 1
+    return frozenset(i for i, n in reads.items() if n > 1)
+
+
+def read_nodes(model: CompileModel) -> frozenset[int]:
+    """The nodes whose result some call reads."""
+    return frozenset(s.index for node in model.nodes for s in node.slots if s.kind == "node")
 
 
 class Evaluator:
@@ -99,6 +258,8 @@ class Evaluator:
 
     def __init__(self, model: CompileModel) -> None:
         self.model = model
+        self.shared = shared_nodes(model)
+        self.read = read_nodes(model)
 
     @property
     def n_modules(self) -> int:
@@ -111,10 +272,12 @@ class Evaluator:
         observed: Mapping[int, float] | None = None,
         seen: dict[int, list[Dist]] | None = None,
     ) -> Dist:
-        """Output distributions for a batch.
+        """Output distributions for a batch, exact under the profiles' model unless the shared
+        results had to be sampled (then `error` holds each row's standard error).
 
         Args:
-            quality: program input qualities, shape (B, m) or (m,) (broadcast).
+            quality: program input qualities, shape (B, m) or (m,) (broadcast); a quality of
+                `NO_RESULT` is an input without a result.
             allocation: time per anytime module, shape (B, n) in allocation-vector order.
             observed: node index -> the quality its result was seen to have (a node that has
                 already run); its output is that quality, whatever its allocation.
@@ -125,16 +288,42 @@ class Evaluator:
         m = len(self.model.quality_inputs)
         q = np.asarray(quality, dtype=np.float64)
         q = np.broadcast_to(q.reshape(-1, m) if q.size else np.zeros((1, m)), (batch, m))
+        try:
+            return self._evaluate(q, alloc, observed, seen, _Rows(batch, sampled=False))
+        except _Sample:
+            if seen is not None:
+                seen.clear()
+            return self._evaluate(q, alloc, observed, seen, _Rows(batch, sampled=True))
+
+    def _evaluate(
+        self,
+        q: Array,
+        alloc: Array,
+        observed: Mapping[int, float] | None,
+        seen: dict[int, list[Dist]] | None,
+        rows: _Rows,
+    ) -> Dist:
         outputs: dict[int, Dist] = {}
         for node in self.model.nodes:
             if observed is not None and node.index in observed:
-                outputs[node.index] = Dist.point(np.full(batch, observed[node.index]))
+                outputs[node.index] = Dist.point(np.full(rows.count, observed[node.index]))
                 continue
-            inputs = [self._source(slot, outputs, q, batch) for slot in node.slots]
+            here = q[rows.origin]
+            inputs = [self._source(slot, outputs, here, rows.count) for slot in node.slots]
             if seen is not None:
-                seen[node.index] = inputs
-            outputs[node.index] = self._node(node, inputs, alloc, batch)
-        return self._source(self.model.output, outputs, q, batch)
+                seen[node.index] = [rows.collapse(d) for d in inputs]
+            out = self._node(node, inputs, alloc[rows.origin], rows)
+            if out.values.shape[1] > MAX_SUPPORT or node.index in self.shared:
+                out = compact(out)
+            if node.index in self.read and out.values.shape[1] > MAX_SUPPORT:
+                if not rows.sampled:
+                    raise _Sample  # folding it would move the qualities its readers see
+                out = rows.condition(out, outputs, node.index)
+            elif node.index in self.shared and out.values.shape[1] > 1:
+                out = rows.condition(out, outputs, node.index)
+            outputs[node.index] = out
+        final = self._source(self.model.output, outputs, q[rows.origin], rows.count)
+        return bounded(rows.collapse(final))
 
     def expected(
         self,
@@ -154,15 +343,15 @@ class Evaluator:
         return Dist.point(np.full(batch, slot.value))
 
     @staticmethod
-    def _node(node: CompileNode, inputs: list[Dist], alloc: Array, batch: int) -> Dist:
+    def _node(node: CompileNode, inputs: list[Dist], alloc: Array, rows: _Rows) -> Dist:
+        batch = rows.count
         if isinstance(node, IfNode):
-            return _mixture(node, inputs, alloc, batch)
+            return _conditional(node, inputs, alloc, rows)
         if isinstance(node, TestNode):  # its quality flows nowhere
             return Dist.point(np.ones(batch))
         q, p = _combinations(inputs, batch)  # (B, C1..Cm, m), (B, C1..Cm)
         if isinstance(node, ChoiceNode):
-            out = _choice(node, inputs, q, p, batch)
-            return fold(out) if out.values.shape[1] > MAX_SUPPORT else out
+            return _choice(node, inputs, q, p, batch)
         missing = np.any(q == NO_RESULT, axis=-1)  # some input has no result
         q = np.maximum(q, 0.0)  # what a module that accepts a missing input is looked up at
         match node:
@@ -171,7 +360,7 @@ class Evaluator:
                 module = entry.module if entry is not None else None
                 if module is None or not module.accepts_missing:
                     values = np.where(missing, NO_RESULT, values)
-                out = Dist(values.reshape(batch, -1), p.reshape(batch, -1))
+                return Dist(values.reshape(batch, -1), p.reshape(batch, -1))
             case ModuleNode() | LoopNode():  # a loop: its profile for the count planned
                 t = np.broadcast_to(
                     alloc[:, node.time_index].reshape((batch,) + (1,) * (p.ndim - 1)), p.shape
@@ -181,14 +370,18 @@ class Evaluator:
                 present = p if node.accepts_missing else np.where(missing, 0.0, p)
                 present = np.where(node.starts(t), present, 0.0)
                 run = node.run_time(t)
-                out = _from_profile(node.profile, node.deterministic, q, run, present, batch)
+                if isinstance(node, ModuleNode) and node.callee is not None:
+                    out = _from_program(node.callee, q, run, present, rows)
+                else:
+                    out = _from_profile(node.profile, node.deterministic, q, run, present, batch)
                 gone = (p - present).reshape(batch, -1).sum(axis=1)
                 if np.any(gone > 0):
                     out = Dist(
                         np.column_stack([out.values, np.full(batch, NO_RESULT)]),
                         np.column_stack([out.probs, gone]),
                     )
-        return fold(out) if out.values.shape[1] > MAX_SUPPORT else out
+                return out
+        raise AssertionError(node)
 
 
 def _choice(node: ChoiceNode, inputs: list[Dist], q: Array, p: Array, batch: int) -> Dist:
@@ -293,22 +486,54 @@ def _binned(
     return Dist(np.clip(values, 0.0, 1.0), probs)
 
 
-def _mixture(node: IfNode, inputs: list[Dist], alloc: Array, batch: int) -> Dist:
-    """An if: each branch's output distribution (its compiled profile at the if's time),
-    weighted by the branch's probability; the supports are concatenated (a mixture)."""
+def _conditional(node: IfNode, inputs: list[Dist], alloc: Array, rows: _Rows) -> Dist:
+    """An if: each branch run as its program, with the if's time, on the qualities that reach
+    it, weighted by the branch's probability; the supports are concatenated (a mixture)."""
+    batch = rows.count
     values, probs = [], []
     for plan in node.branches:
-        profile = plan.compiled.profile
         q, p = _combinations([inputs[a] for a in plan.axes], batch)
         t = np.broadcast_to(
             alloc[:, node.time_index].reshape((batch,) + (1,) * (p.ndim - 1)), p.shape
         )
-        q = np.maximum(q, 0.0)  # a branch's own program decides what a missing input means
-        branch = _from_profile(profile, plan.deterministic, q, t, p, batch)
+        branch = _from_program(plan.compiled, q, t, plan.probability * p, rows)
         values.append(branch.values)
-        probs.append(plan.probability * branch.probs)
-    out = Dist(np.concatenate(values, axis=1), np.concatenate(probs, axis=1))
-    return fold(out) if out.values.shape[1] > MAX_SUPPORT else out
+        probs.append(branch.probs)
+    return Dist(np.concatenate(values, axis=1), np.concatenate(probs, axis=1))
+
+
+def _from_program(compiled: Any, q: Array, t: Array, weight: Array, rows: _Rows) -> Dist:
+    """A compiled program (a called schema, an if's branch) for every input combination
+    (qualities `q` (B, C.., m), time `t`, probabilities `weight` (B, C..)): the mixture of its
+    output distributions, each evaluated at the allocation its table gives for that
+    combination and time, as the runtime runs it. A combination without mass is not
+    evaluated; the variance of a sampled evaluation goes to `rows`."""
+    batch = rows.count
+    w = weight.reshape(-1)
+    live = w > 0
+    qf = q.reshape(len(w), -1)[live]
+    out = _run_compiled(compiled, qf, t.reshape(-1)[live])
+    k = out.values.shape[1]
+    values, probs = np.zeros((len(w), k)), np.zeros((len(w), k))
+    values[live] = out.values
+    probs[live] = w[live, None] * out.probs
+    if out.error is not None:
+        variance = np.zeros(len(w))
+        variance[live] = (w[live] * out.error) ** 2
+        rows.variance = rows.variance + variance.reshape(batch, -1).sum(axis=1)
+    return Dist(values.reshape(batch, -1), probs.reshape(batch, -1))
+
+
+def _run_compiled(compiled: Any, q: Array, t: Array) -> Dist:
+    """A compiled program's output at input qualities `q` (N, m) and totals `t` (N,): its
+    model evaluated at `allocation_at` of each (an input without a result is looked up as
+    the runtime does, at quality 1, and reaches the program as no result)."""
+    if len(t) == 0:
+        return Dist(np.zeros((0, 1)), np.zeros((0, 1)))
+    looked = np.where(q == NO_RESULT, 1.0, q)
+    split = compiled.profile.interpolate(compiled.allocation, looked, t)
+    out: Dist = Evaluator(compiled.model).evaluate(q, split)
+    return out
 
 
 def _combinations(inputs: list[Dist], batch: int) -> tuple[Array, Array]:

@@ -30,6 +30,9 @@ def compiled_to_dict(compiled: CompiledProgram) -> dict[str, Any]:
         "exact": compiled.exact,
         "dp_obstacle": compiled.dp_obstacle,
         "approximations": list(compiled.approximations),
+        "standard_error": (
+            None if compiled.standard_error is None else compiled.standard_error.tolist()
+        ),
         "kept_smaller": list(compiled.kept_smaller),
         "method_note": compiled.note,
         "warnings": list(compiled.warnings),

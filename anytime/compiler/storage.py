@@ -42,7 +42,6 @@ _FIELDS = (
     "allocator",
     "requested",
     "dp_obstacle",
-    "approximations",
     "kept_smaller",
     "warnings",
     "resolution",
@@ -103,6 +102,8 @@ def _document(compiled: CompiledProgram) -> dict[str, Any]:
         value = getattr(compiled, field)
         document[field] = list(value) if isinstance(value, tuple) else value
     document["baselines"] = {k: _plain(v) for k, v in compiled.baselines.items()}
+    if compiled.standard_error is not None:
+        document["standard_error"] = _plain(compiled.standard_error)
     document["profiles"] = {
         node.name: fingerprint(node.profile)
         for node in _modules_of(compiled.model.anytime_nodes)
@@ -231,10 +232,26 @@ class _Loader:
             resolution=float(values["resolution"] or 1.0),
             requested=str(values["requested"] or "auto"),
             dp_obstacle=_optional(values["dp_obstacle"], str),
-            approximations=tuple(str(a) for a in values["approximations"] or ()),
+            standard_error=self.standard_error(document, field, profile),
             kept_smaller=tuple(float(t) for t in values["kept_smaller"] or ()),
             warnings=tuple(str(w) for w in values["warnings"] or ()),
         )
+
+    def standard_error(
+        self, document: Mapping[str, Any], field: str, profile: ConditionalPerformanceProfile
+    ) -> np.ndarray | None:
+        """The table's standard errors (None: every cell exact), shaped like its cells."""
+        value = document.get("standard_error")
+        if value is None:
+            return None
+        error = np.asarray(value, dtype=np.float64)
+        cells = profile.probability.shape[:-1]
+        if error.shape != cells or not np.all(error >= 0):
+            raise self.fail(
+                f"{field}.standard_error",
+                f"expected numbers >= 0 of shape {cells}, got {error.shape}",
+            )
+        return error
 
     def nested(self, program: Program, document: Any, field: str) -> CompiledProgram:
         if not isinstance(document, Mapping):

@@ -117,6 +117,7 @@ def test_json_report_fields_and_shapes(cli: Cli, setup: tuple[Path, Path]) -> No
         "exact",
         "dp_obstacle",
         "approximations",
+        "standard_error",
         "kept_smaller",
         "method_note",
         "warnings",

@@ -52,8 +52,10 @@ def test_the_shipped_navigate_schema_says_why_and_where_as_fields(navigation_any
     )
     compiled = compile_file(schemas, library, range(0, 1001, 250), schema="navigate-two-planners")
     two = compiled[-1]
-    assert two.approximations and two.approximations[0].startswith("the program is a DAG")
-    assert not two.exact
+    # A DAG (one sensed map, two planners): its shared result is conditioned on, so every
+    # cell's expectation is exact, and so is the table, found by the exhaustive search.
+    assert (two.approximations, two.standard_error, two.exact_cells.all()) == ((), None, True)
+    assert (two.allocator, two.exact) == ("exhaustive", True)
 
 
 def test_the_navigation_demo_table_starts_at_zero_and_is_what_runs_are_given(
