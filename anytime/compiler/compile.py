@@ -235,6 +235,7 @@ def compile_program(
     source: Source | None = None,
     callees: Mapping[str, CompiledProgram] | None = None,
     memory: int | str = DEFAULT_MEMORY,
+    strict: bool = False,
 ) -> CompiledProgram:
     """Compile one program; the schemas it calls must be compiled already (`callees`, by
     name), or be modules of the library. Errors are placed in `source`, the program's file
@@ -250,6 +251,8 @@ def compile_program(
         memory: the most memory the search may hold at once, in bytes or as a size ("1GB");
             it evaluates in chunks within it, and a table whose search cannot fit is refused
             before it starts (a CompileError with the estimate).
+        strict: refuse (a CompileError) a table that feeds a module input qualities outside
+            the grid its profile was measured on, instead of warning.
     """
     filename = source.filename if source is not None else "<schema>"
     cap = memory_bytes(memory)
@@ -271,6 +274,7 @@ def compile_program(
             source=source,
             callees=callees,
             memory=cap,
+            strict=strict,
         )
 
     def compile_loop(
@@ -305,6 +309,10 @@ def compile_program(
     seen: dict[int, list[Dist]] = {}
     output = evaluator.evaluate(q_rows, allocation * dt, seen=seen)
     warnings = _outside_input_grids(model, seen)
+    if strict and warnings:
+        raise CompileError(
+            f"schema '{program.name}' (--strict): " + "; ".join(warnings), where=filename
+        )
     allocation, output, kept = _never_worse_with_more_time(allocation, output, len(time))
     baselines = {
         name: evaluator.expected(q_rows, split * dt).reshape(cell_shape)
@@ -363,7 +371,10 @@ def _outside_input_grids(model: CompileModel, seen: Mapping[int, list[Dist]]) ->
                 f"module '{node.name}': input '{name}' receives qualities {low:.3g} to"
                 f" {high:.3g}, but its profile was measured on {grid[0]:g} to {grid[-1]:g};"
                 f" outside that range (up to {_percent(share)} of its inputs at some total)"
-                " the profile is clamped to its nearest end"
+                " the profile is clamped to its nearest end, and the table may count on it:"
+                f" measure '{node.name}' on input qualities that cover {low:.3g} to"
+                f" {high:.3g} (its Measurement's input_grids), or compile with --strict to"
+                " refuse such a table"
             )
     return tuple(warnings)
 
@@ -383,6 +394,7 @@ def compile_file(
     allocator: str = "auto",
     resolution: float | None = None,
     memory: int | str = DEFAULT_MEMORY,
+    strict: bool = False,
 ) -> list[CompiledProgram]:
     """Compile the schemas of a file bottom-up (callees first), so that a call of a schema
     uses the callee's compiled profile (and, at run time, runs the callee's program).
@@ -393,7 +405,7 @@ def compile_file(
     quality (a schema both asked for and called is compiled once for each role where the two
     grids differ). Returns the compiled programs, callees first. Errors
     are placed in the file's own source (`schemas.source`). `memory` caps each compilation's
-    search (see `compile_program`).
+    search and `strict` refuses clamped tables (see `compile_program`).
     """
     wanted = [schemas[schema]] if schema is not None else list(schemas.programs)
     called: set[str] = set()
@@ -431,6 +443,7 @@ def compile_file(
                 source=schemas.source,
                 callees=callees,
                 memory=memory,
+                strict=strict,
             )
             (callees if role == "callee" else compiled)[program.name] = result
     order = [p.name for p in schemas.dependency_order()]

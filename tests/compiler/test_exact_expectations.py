@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from anytime.clocks import WorkClock
-from anytime.compiler import compile_program
+from anytime.compiler import CompileError, compile_program
 from anytime.dsl import parse_schemas
 from anytime.library import AnytimeLibrary, LibraryEntry
 from anytime.modules import AnytimeModule, Context, Registry, Result, interruptible
@@ -109,8 +109,13 @@ def test_qualities_outside_a_profiles_input_grid_are_a_warning() -> None:
     assert compiled.warnings == (
         "module 'refine': input 'x' receives qualities 0 to 1, but its profile was measured on"
         " 0.5 to 1; outside that range (up to 100% of its inputs at some total) the profile is"
-        " clamped to its nearest end",
+        " clamped to its nearest end, and the table may count on it: measure 'refine' on input"
+        " qualities that cover 0 to 1 (its Measurement's input_grids), or compile with --strict"
+        " to refuse such a table",
     )
+    with pytest.raises(CompileError) as refused:
+        compile_program(program, library, TIME, strict=True)
+    assert str(refused.value) == f"schema 'p' (--strict): {compiled.warnings[0]}"
     within = compile_program(program, _library(), TIME)
     assert within.warnings == ()
     # What has no result upstream is no quality: `refine` is not called on it, so a chain
