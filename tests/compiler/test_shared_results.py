@@ -128,7 +128,7 @@ def _library(stochastic_planners: bool) -> AnytimeLibrary:
     registry = Registry()
     interruptible("sense", inputs=[], profile=sensed_map(), registry=registry)(_none)
     interruptible("sense-x", inputs=["x"], profile=sensed_map(("x",)), registry=registry)(_sensor)
-    for name, rate in (("plan1", 0.08), ("plan2", 0.03)):
+    for name, rate in (("plan1", 0.08), ("plan2", 0.06)):
         profile = planner(name, rate, stochastic_planners)
         interruptible(name, inputs=["m"], profile=profile, registry=registry)(_one)
     interruptible("join", inputs=["a", "b"], profile=joined(), registry=registry)(_two)
@@ -210,17 +210,20 @@ def test_a_branch_or_a_callee_on_an_internal_result_never_claims_more_than_the_o
     within_sampling_error(z_scores(compiled, [1.0], seed=len(schema) + len(grid)))
 
 
-def brute_force(library: AnytimeLibrary, schema: str) -> Array:
+def brute_force(
+    library: AnytimeLibrary, schema: str, p: float = 0.25, totals: Array = TOTALS
+) -> Array:
     """At input quality 1 and every total: the best over every split of the time between the
     sensing and what follows it, of the expected quality, summed over the map's outcomes
     (the planner then gets all the time left: its curve rises with time)."""
     sense = library["sense-x"].profile
     plans = {name: library[name].profile for name in ("plan1", "plan2")}
-    weights = {"call": {"plan1": 1.0}, "branch": {"plan1": 0.25, "plan2": 0.75}}[schema]
+    weights = {"call": {"plan1": 1.0}, "branch": {"plan1": p, "plan2": 1 - p}}[schema]
+    assert sense is not None and all(plan is not None for plan in plans.values())
     best = []
-    for total in TOTALS:
+    for total in totals:
         values = []
-        for first in TOTALS[TOTALS <= total]:
+        for first in totals[totals <= total]:
             p = sense.distribution([[1.0]], [first])[0]
             v = sense.representatives([[1.0]], [first])[0]
             rest = np.full(len(v), total - first)
@@ -228,6 +231,39 @@ def brute_force(library: AnytimeLibrary, schema: str) -> Array:
             values.append(float(p @ plan))
         best.append(max(values))
     return np.asarray(best)
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    module_specs("sense-x", ("a",), 1, True),
+    module_specs("plan1", ("a",), 1, False),
+    module_specs("plan2", ("a",), 1, True),
+    st.sampled_from(["call", "branch"]),
+    st.sampled_from([[1.0], [0.0, 0.5, 1.0]]),
+    st.floats(0.05, 0.95),
+)
+def test_random_branches_and_callees_equal_the_brute_force_optimum(
+    sense: ModuleSpec,
+    plan1: ModuleSpec,
+    plan2: ModuleSpec,
+    schema: str,
+    grid: list[float],
+    p: float,
+) -> None:
+    """Random profiles (a stochastic sensor, deterministic and stochastic planners rising with
+    time): the table at input quality 1 is the brute-force optimum, never above it."""
+    text = f"""
+    (defschema sub (a) (plan1 a))
+    (defschema call (x) (setf m (sense-x x)) (sub m))
+    (defschema branch (x) (setf m (sense-x x)) (if (ok m) (plan1 m) (plan2 m) :p {p!r}))
+    """
+    library = library_of(
+        [sense, plan1, plan2],
+        lambda registry: elementary("ok", combine=min, registry=registry)(lambda m: True),
+    )
+    compiled = compile_file(parse_schemas(text), library, TIME, grid, schema=schema)[-1]
+    optimum = brute_force(library, schema, p, TIME)
+    np.testing.assert_allclose(compiled.expected[-1], optimum, atol=1e-9)
 
 
 def test_dp_does_not_claim_a_callee_on_an_internal_result_is_exact() -> None:
