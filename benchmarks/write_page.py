@@ -121,6 +121,21 @@ BENCHMARKS = [
         " worlds per cell) and their interpolation between measured input qualities.",
     ),
     (
+        "bench_shapes.py",
+        [],
+        "Compiler: promises on every program shape",
+        "Programs over one uncertain shared result (a sensed map of quality 0.15 or 0.95) read"
+        " by two planners: a best-of of the two plans, a diamond with a product-like join, a"
+        " join reading the map twice, with deterministic and stochastic planners. At every"
+        " other total, 20,000 simulated runs in which each module draws from its own profile"
+        " given the qualities its inputs had in that run, against the compiled promise now and"
+        " before (the readers' inputs taken as independent: the promise and what its own"
+        " allocation delivered). Then a called schema and an if branch reading the map,"
+        " compiled with the input grid {1} and the default one, against the brute-force"
+        " optimum. Target: within two standard errors at every total (about one row in twenty"
+        " outside by chance), never above the optimum.",
+    ),
+    (
         "bench_routing.py",
         ["--quick"],
         "Routing: promised against delivered, and 2-opt/Or-opt on TSPLIB",
