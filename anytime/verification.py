@@ -88,8 +88,8 @@ class BudgetCheck:
         se: the standard error of the difference, sqrt(se_runs^2 + se_promise^2).
         se_runs: the standard error of the realised mean (sample deviation / sqrt(runs)).
         se_promise: the table's own standard error there (0 where the table is exact).
-        z: (realised - promised) / se (0 when both are equal; +-inf when se is 0 and they
-            differ).
+        z: (realised - promised) / se; where se is 0 (every run scored alike, an exact
+            table), the difference over 1 / runs.
         tolerance: max(0.01, 3 se), the most |realised - promised| may be.
         runs: how many runs.
         over_budget: runs that used more than T on the work clock.
@@ -201,9 +201,23 @@ def _install(job: _Job) -> None:
     _WORKER_JOB[:] = [job]
 
 
-def _run_chunk(chunk: _Chunk) -> list[_Ran]:
+@frozen(eq=False)
+class _Done:
+    """A chunk's runs, up to the first whose problem set failed (its index and message)."""
+
+    ran: list[_Ran]
+    error: tuple[int, str] | None = None
+
+
+def _run_chunk(chunk: _Chunk) -> _Done:
     job = chunk.job if chunk.job is not None else _WORKER_JOB[0]
-    return [_run_one(job, flat) for flat in range(chunk.start, chunk.stop)]
+    ran = []
+    for flat in range(chunk.start, chunk.stop):
+        try:
+            ran.append(_run_one(job, flat))
+        except VerifyError as error:  # reported once every chunk is in: the first, by run
+            return _Done(ran, (flat, str(error)))
+    return _Done(ran)
 
 
 def _run_one(job: _Job, flat: int) -> _Ran:
@@ -342,19 +356,26 @@ def verify(
         for start in range(0, count, chunk_size)
     ]
     ran: list[_Ran | None] = [None] * count
-    with ProgressBar(count, label=compiled.name, unit="runs", enabled=progress) as bar:
-        for done in spread(
-            _run_chunk,
-            chunks,
-            executor=executor,
-            workers=workers,
-            initializer=_install if local else None,
-            initargs=(job,) if local else (),
-        ):
-            for one in done:
-                ran[one.flat] = one
-            bar.update(len(done))
-    _WORKER_JOB.clear()  # a verification run here must not keep its job
+    errors: list[tuple[int, str]] = []
+    try:
+        with ProgressBar(count, label=compiled.name, unit="runs", enabled=progress) as bar:
+            for done in spread(
+                _run_chunk,
+                chunks,
+                executor=executor,
+                workers=workers,
+                initializer=_install if local else None,
+                initargs=(job,) if local else (),
+            ):
+                for one in done.ran:
+                    ran[one.flat] = one
+                if done.error is not None:
+                    errors.append(done.error)
+                bar.update(len(done.ran))
+    finally:
+        _WORKER_JOB.clear()  # a verification run here must not keep its job
+    if errors:  # the first in run order, whichever worker met it first
+        raise VerifyError(min(errors)[1])
     checks = tuple(
         _check(compiled, total, _complete(ran[k * runs : (k + 1) * runs]), tolerance, sigmas)
         for k, (_, total) in enumerate(totals)
@@ -441,14 +462,14 @@ def _check(
     if table is not None:
         own = profile.interpolate(np.asarray(table, dtype=np.float64), at, times)
         se_promise = float(own.mean())
-    realised = float(qualities.mean())
-    se_runs = float(qualities.std(ddof=1) / math.sqrt(n)) if n > 1 else 0.0
+    alike = bool(np.all(qualities == qualities[0]))  # no spread (the std would be rounding)
+    realised = float(qualities[0]) if alike else float(qualities.mean())
+    se_runs = 0.0 if alike or n < 2 else float(qualities.std(ddof=1) / math.sqrt(n))
     se = math.hypot(se_runs, se_promise)
     difference = realised - promised
-    if se > 0:
-        z = difference / se
-    else:
-        z = 0.0 if difference == 0 else math.copysign(math.inf, difference)
+    # Where every run scored alike and the table is exact, se is 0: the difference is measured
+    # in 1 / runs instead, the resolution of a mean of `runs` scores.
+    z = difference / (se if se > 0 else 1.0 / n)
     limit = max(tolerance, sigmas * se)
     over = int(np.sum(used > total + _SLACK * max(1.0, abs(total))))
     return BudgetCheck(
@@ -509,10 +530,11 @@ def verification_to_dict(verification: Verification) -> dict[str, Any]:
 
 def format_verification(verification: Verification) -> str:
     """The promise against the runs, one row per total, and the verdict."""
-    how = "scored by" if verification.scored else "the quality its result reports, on"
+    name = verification.problems
+    how = f"{name}.score" if verification.scored else "the quality each result reports"
     lines = [
-        f"schema {verification.schema}: {verification.runs} runs per budget, seed"
-        f" {verification.seed}, realised quality {how} {verification.problems}"
+        f"schema {verification.schema}: {verification.runs} runs per budget on {name} problems,"
+        f" seed {verification.seed}, scored by {how}"
     ]
     header = [
         f"T ({verification.time_unit})",
@@ -543,8 +565,6 @@ def format_verification(verification: Verification) -> str:
 
 
 def _z(z: float) -> str:
-    if math.isinf(z):
-        return "+inf" if z > 0 else "-inf"
     return f"{z:+.2f}"
 
 

@@ -21,7 +21,7 @@ from collections.abc import Callable, Sequence
 from typing import NoReturn
 
 from anytime import __version__
-from anytime.cli import library, measure, plot, schemas
+from anytime.cli import library, measure, plot, schemas, verify
 from anytime.cli.common import (
     EXIT_INPUT,
     EXIT_OK,
@@ -136,7 +136,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"anytime {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for group in (schemas, library, measure, plot):
+    for group in (schemas, verify, library, measure, plot):
         group.add_commands(commands)
     plugins, _ = load_plugins()  # a plugin that fails to load is reported by the library
     for plugin in plugins:

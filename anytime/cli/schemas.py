@@ -78,47 +78,7 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     compile_.add_argument("file", metavar="FILE", help="a schema file (.any)")
     compile_.add_argument("--schema", metavar="NAME", help="only this schema (and its callees)")
-    compile_.add_argument(
-        "--allocator",
-        choices=ALLOCATOR_NAMES,
-        default="auto",
-        help="auto (default): dp where local compilation is exact, else exhaustive where it is "
-        "cheap, else multi-start",
-    )
-    compile_.add_argument(
-        "--time-grid",
-        type=time_grid,
-        metavar="START:STOP:STEP",
-        help="the totals to compile for (default: 0 to the sum of the modules' longest "
-        f"profiled times, in about 20 steps; at most {MAX_TIME_POINTS:,} totals)",
-    )
-    compile_.add_argument(
-        "--resolution",
-        type=positive_float,
-        metavar="DT",
-        help="allocations are multiples of DT (default: the time grid's STEP; at most "
-        f"{MAX_LATTICE_POINTS:,} multiples up to the largest total)",
-    )
-    compile_.add_argument(
-        "--input-quality",
-        type=quality_list,
-        metavar="Q,Q,...",
-        default=",".join(f"{q:g}" for q in DEFAULT_INPUT_QUALITY),
-        help="the grid of program input qualities, each from 0 to 1 (default: 0,0.1,...,1)",
-    )
-    compile_.add_argument(
-        "--time-unit",
-        choices=["ticks", "seconds"],
-        help="the unit the time grid is in; it must be the profiles' unit",
-    )
-    compile_.add_argument(
-        "--memory",
-        type=memory_size,
-        metavar="SIZE",
-        default=DEFAULT_MEMORY,
-        help="the most memory a search may hold at once, e.g. 512MB, 1GB, 2GiB (default: 1GB); "
-        "it evaluates in chunks within it, and a table that cannot fit is refused up front",
-    )
+    compile_options(compile_)
     compile_.add_argument("-o", "--output", metavar="OUT.yaml", help="write the compiled profile")
     compile_.add_argument("--json", action="store_true", help="print the report as JSON")
     compile_.add_argument(
@@ -133,6 +93,82 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     library_options(compile_)
     compile_.set_defaults(run=run_compile)
+
+
+def compile_options(
+    parser: argparse.ArgumentParser | argparse._ArgumentGroup,
+    *,
+    time_grid_default: str | None = None,
+    resolution_default: str | None = None,
+) -> None:
+    """How a schema is compiled: --allocator, --time-grid, --resolution, --input-quality,
+    --time-unit and --memory, as `compile_schemas` and `check_time_unit` read them (the options
+    of `anytime compile`, shared by the commands that compile a schema). The defaults' help
+    text of --time-grid and --resolution can be replaced (`anytime verify` takes a problem
+    set's own first)."""
+    grid_text = time_grid_default or DEFAULT_GRID_TEXT
+    resolution_text = resolution_default or "the time grid's STEP"
+    parser.add_argument(
+        "--allocator",
+        choices=ALLOCATOR_NAMES,
+        default="auto",
+        help="auto (default): dp where local compilation is exact, else exhaustive where it is "
+        "cheap, else multi-start",
+    )
+    parser.add_argument(
+        "--time-grid",
+        type=time_grid,
+        metavar="START:STOP:STEP",
+        help=f"the totals to compile for (default: {grid_text}; at most {MAX_TIME_POINTS:,}"
+        " totals)",
+    )
+    parser.add_argument(
+        "--resolution",
+        type=positive_float,
+        metavar="DT",
+        help=f"allocations are multiples of DT (default: {resolution_text}; at most"
+        f" {MAX_LATTICE_POINTS:,} multiples up to the largest total)",
+    )
+    parser.add_argument(
+        "--input-quality",
+        type=quality_list,
+        metavar="Q,Q,...",
+        default=",".join(f"{q:g}" for q in DEFAULT_INPUT_QUALITY),
+        help="the grid of program input qualities, each from 0 to 1 (default: 0,0.1,...,1)",
+    )
+    parser.add_argument(
+        "--time-unit",
+        choices=["ticks", "seconds"],
+        help="the unit the time grid is in; it must be the profiles' unit",
+    )
+    parser.add_argument(
+        "--memory",
+        type=memory_size,
+        metavar="SIZE",
+        default=DEFAULT_MEMORY,
+        help="the most memory a search may hold at once, e.g. 512MB, 1GB, 2GiB (default: 1GB); "
+        "it evaluates in chunks within it, and a table that cannot fit is refused up front",
+    )
+
+
+#: What --time-grid is by default (`default_time_grid`).
+DEFAULT_GRID_TEXT = "0 to the sum of the modules' longest profiled times, in about 20 steps"
+
+
+def check_time_unit(
+    compiled: Sequence[CompiledProgram], time_unit: str | None, filename: str
+) -> None:
+    """--time-unit, when given, must be the unit of the compiled programs' profiles."""
+    if time_unit is None:
+        return
+    for result in compiled:
+        if result.profile.time_unit != time_unit:
+            raise InputError(
+                f"schema '{result.name}': the time grid is in "
+                f"{time_unit} but its modules' profiles are in "
+                f"{result.profile.time_unit}",
+                where=filename,
+            )
 
 
 def memory_size(text: str) -> int:
@@ -207,15 +243,7 @@ def run_compile(args: argparse.Namespace) -> int:
         memory=args.memory,
     )
     wanted = [c for c in compiled if args.schema is None or c.name == args.schema.lower()]
-    if args.time_unit is not None:
-        for result in wanted:
-            if result.profile.time_unit != args.time_unit:
-                raise InputError(
-                    f"schema '{result.name}': the time grid is in "
-                    f"{args.time_unit} but its modules' profiles are in "
-                    f"{result.profile.time_unit}",
-                    where=args.file,
-                )
+    check_time_unit(wanted, args.time_unit, args.file)
     if args.output is not None:
         try:
             save_compiled(wanted[0], args.output)

@@ -183,3 +183,10 @@ def test_ctrl_c_while_the_command_starts(tmp_path: Path, after: float) -> None:
     stdout, stderr = process.communicate(timeout=60)
     assert (process.returncode, stdout, stderr) == (130, "", INTERRUPTED)
     assert os.listdir(tmp_path) == []
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="SIGINT to a process")
+def test_ctrl_c_in_verifys_worker_pool(tmp_path: Path, navigation_any: Path) -> None:
+    argv = ["verify", str(navigation_any), "--schema", "navigate", "--runs", "10000"]
+    done = _interrupt([*argv, "--workers", "2"], tmp_path)
+    assert (done.returncode, done.stdout, done.stderr) == (130, "", INTERRUPTED)

@@ -296,6 +296,23 @@ def test_each_total_delivers_what_the_compiler_expects(installed: Installed, sch
 
 
 @pytest.mark.parametrize("schema", SCHEMAS)
+def test_anytime_verify_passes_on_the_plugins_own_program_problems(
+    installed: Installed, schema: str
+) -> None:
+    """The plugin declares, per schema, the problems its promise is for (`program_problems`):
+    `anytime.verify` on them passes at every total, T = 0 included, and no run is over."""
+    from anytime import verify
+
+    declared = installed.library.program_problems(schema)
+    assert declared.time_grid == tuple(float(t) for t in TOTALS) and declared.resolution == 2
+    checked = verify(installed.programs[schema], declared, runs=200)
+    assert checked.passed, [
+        (c.total, round(c.promised, 4), round(c.realised, 4), round(c.z, 2)) for c in checked.failed
+    ]
+    assert [c.total for c in checked.budgets] == [float(t) for t in TOTALS]
+
+
+@pytest.mark.parametrize("schema", SCHEMAS)
 def test_no_run_ends_over_its_total(installed: Installed, schema: str) -> None:
     compiled = installed.programs[schema]
     over = []

@@ -8,6 +8,7 @@ from anytime.plugin import Plugin
 from . import modules, overcoming_modules
 from .cli import add_commands
 from .overcoming import obstacle_arrival
+from .program_problems import PROGRAM_PROBLEMS
 
 __all__ = ["PLUGIN"]
 
@@ -24,4 +25,5 @@ PLUGIN = Plugin(
     problem_sets={**modules.PROBLEM_SETS, **overcoming_modules.PROBLEM_SETS},
     critical_events=(obstacle_arrival,),
     add_commands=add_commands,
+    program_problems=PROGRAM_PROBLEMS,
 )

@@ -7,6 +7,7 @@ from anytime.plugin import Plugin
 
 from .cli import add_commands
 from .modules import MODULES, PROBLEM_SETS
+from .program import PROGRAM_PROBLEMS
 
 __all__ = ["PLUGIN"]
 
@@ -15,4 +16,5 @@ PLUGIN = Plugin(
     modules=MODULES,
     problem_sets=PROBLEM_SETS,
     add_commands=add_commands,
+    program_problems=PROGRAM_PROBLEMS,
 )

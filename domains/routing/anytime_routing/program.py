@@ -12,6 +12,8 @@ from attrs import frozen
 from anytime.plugin import (
     AnytimeLibrary,
     CompiledProgram,
+    Instance,
+    ProgramProblems,
     ProgramRecord,
     WorkClock,
     compile_file,
@@ -32,10 +34,12 @@ from .resources import load_schema_file
 
 __all__ = [
     "MEASURED_WITH",
+    "PROGRAM_PROBLEMS",
     "RESOLUTIONS",
     "SCHEMAS",
     "TIME_GRIDS",
     "Delivery",
+    "DeliveryProblems",
     "compiled_program",
     "deliver",
     "reference_for",
@@ -128,3 +132,29 @@ def deliver(
     clustering, length = reference if reference is not None else reference_for(world)
     quality = tour_quality(tours, length) if length is not None else None
     return Delivery(record, tours, clustering, length, quality)
+
+
+class DeliveryProblems:
+    """The problems the packaged schemas are promised for (`anytime verify`): a fresh world of
+    the profiles' size (24 customers, 3 depots), the inputs `orders customers`; a result is
+    scored as `anytime deliver` scores it, against the world's reference delivery (its optimal
+    tours over the best candidate clusterings, `reference_delivery`)."""
+
+    def instance(self, rng: np.random.Generator) -> Instance:
+        world = random_world(rng)
+        length, _ = reference_delivery(world)
+        return Instance((world.orders, world.sites), reference=length)
+
+    def score(self, instance: Instance, value: Tours | None) -> float:
+        return tour_quality(value, instance.reference)
+
+
+#: How `anytime verify` checks each packaged schema: on the totals and lattice it is compiled
+#: for (`TIME_GRIDS`, `RESOLUTIONS`), the allocations whose clusterings the tour planners'
+#: profiles were measured on.
+PROGRAM_PROBLEMS = {
+    schema: ProgramProblems.of(
+        DeliveryProblems(), time_grid=TIME_GRIDS[schema], resolution=RESOLUTIONS[schema]
+    )
+    for schema in SCHEMAS
+}

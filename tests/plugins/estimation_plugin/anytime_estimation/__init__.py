@@ -35,6 +35,7 @@ from anytime.plugin import (
     Instance,
     Measurement,
     Plugin,
+    ProgramProblems,
     Result,
     contract,
     elementary,
@@ -250,11 +251,54 @@ class VolumeEstimatePairs:
         return quality(value, instance.reference)
 
 
+# --- program problem sets: how `anytime verify` checks each schema's promise ----------------
+
+
+class TankSideProblems:
+    """Problems for `tank-side`: a fresh tank with a sensor, scored against its true side."""
+
+    def instance(self, rng: np.random.Generator) -> Instance:
+        tank = _tank(rng)
+        return Instance(args=(tank,), reference=tank.volume ** (1 / 3))
+
+    def score(self, instance: Instance, value: Any) -> float:
+        return quality(value, instance.reference)
+
+
+class TwoTankProblems:
+    """Problems for `two-tank-side`: two fresh tanks, scored against the side of the cube that
+    holds both."""
+
+    def instance(self, rng: np.random.Generator) -> Instance:
+        a, b = _tank(rng), _tank(rng)
+        return Instance(args=(a, b), reference=(a.volume + b.volume) ** (1 / 3))
+
+    def score(self, instance: Instance, value: Any) -> float:
+        return quality(value, instance.reference)
+
+
+class LabelledTankProblems:
+    """Problems for `labelled-tank-side`: a fresh tank with a sensor and a label (both
+    preconditions hold, as the compiler assumes), readable with probability `READABLE`."""
+
+    def instance(self, rng: np.random.Generator) -> Instance:
+        volume = float(rng.uniform(*VOLUMES))
+        seed = int(rng.integers(2**32))
+        readable = bool(rng.random() < READABLE)
+        tank = Tank(volume, seed, label=volume, label_readable=readable)
+        return Instance(args=(tank,), reference=volume ** (1 / 3))
+
+    def score(self, instance: Instance, value: Any) -> float:
+        return quality(value, instance.reference)
+
+
 #: The time grids: every even tick (the compiled programs allocate on a lattice of 2 ticks, so
 #: the compiler never interpolates a profile between grid times, where a module's quality is a
 #: step function of time).
 TIMES = list(range(0, 41, 2))
 JOINT_TIMES = list(range(0, 27, 2))
+#: The totals the schemas are compiled for and checked at (on a lattice of 2 ticks).
+PROGRAM_TIMES = list(range(0, 41, 4))
 #: Input-quality grids, finest where the estimator's qualities lie.
 QUALITIES = [0.0, 0.25, 0.5, 0.75, 0.85, 0.9, 0.95, 1.0]
 JOINT_QUALITIES = [0.0, 0.25, 0.5, 0.75, 0.9, 1.0]
@@ -280,5 +324,13 @@ PLUGIN = Plugin(
             input_grids=[JOINT_QUALITIES, JOINT_QUALITIES],
             bins=JOINT_BINS,
         ),
+    },
+    program_problems={
+        name: ProgramProblems.of(problems, time_grid=PROGRAM_TIMES, resolution=2)
+        for name, problems in (
+            ("tank-side", TankSideProblems()),
+            ("two-tank-side", TwoTankProblems()),
+            ("labelled-tank-side", LabelledTankProblems()),
+        )
     },
 )
