@@ -17,6 +17,7 @@ from anytime.plugin import (
     Instance,
     Measurement,
     Plugin,
+    ProgramProblems,
     Result,
     compile_file,
     interruptible,
@@ -106,6 +107,18 @@ class Areas:
         return quality(value, instance.reference)
 
 
+class Surveys:
+    """The problems the schema side-length is promised for (`anytime verify`): a plot of 10 to
+    1000 square units; a result is scored against its true side."""
+
+    def instance(self, rng: np.random.Generator) -> Instance:
+        area = float(rng.uniform(10, 1000))
+        return Instance(args=(Plot(area, int(rng.integers(2**32))),), reference=math.sqrt(area))
+
+    def score(self, instance: Instance, value: Any) -> float:
+        return quality(value, instance.reference)
+
+
 def survey(args: argparse.Namespace) -> int:
     """`anytime survey`: compile the schema for the time given and run it on one plot."""
     library = AnytimeLibrary.default()
@@ -145,4 +158,7 @@ PLUGIN = Plugin(
         ),
     },
     add_commands=add_commands,
+    program_problems={
+        "side-length": ProgramProblems.of(Surveys(), time_grid=range(0, 65, 8), resolution=2)
+    },
 )
