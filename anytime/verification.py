@@ -238,6 +238,11 @@ def _run_one(job: _Job, flat: int) -> _Ran:
     compiled = job.compiled
     try:
         values = bind_inputs(compiled.name, compiled.model.program.inputs, instance.args)
+    except ExecutionError as exc:
+        raise VerifyError(
+            f"{problems.name}.instance: its problem does not fit the program ({where}): {exc}"
+        ) from exc
+    try:
         record = run_program(
             compiled,
             instance.args,
@@ -247,9 +252,7 @@ def _run_one(job: _Job, flat: int) -> _Ran:
             watchdog=job.watchdog,
         )
     except ExecutionError as exc:
-        raise VerifyError(
-            f"{problems.name}.instance: its problem does not fit the program ({where}): {exc}"
-        ) from exc
+        raise VerifyError(f"schema '{compiled.name}' cannot run ({where}): {exc}") from exc
     qualities = tuple(
         float(values[name].quality) if isinstance(values[name], Result) else 1.0
         for name in compiled.model.quality_inputs

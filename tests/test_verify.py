@@ -11,7 +11,13 @@ import numpy as np
 import pytest
 import verify_modules as lab
 
-from anytime import CompiledProgram, compile_file, verify
+from anytime import (
+    CompiledProgram,
+    ConditionalPerformanceProfile,
+    compile_file,
+    parse_schemas,
+    verify,
+)
 from anytime.library import AnytimeLibrary, LibraryError, Plugin, PluginSource
 from anytime.plugin import Instance, ProgramProblems
 from anytime.verification import (
@@ -362,3 +368,26 @@ def test_a_shipped_schema_on_a_few_of_its_problems(schema: str, budgets: list[fl
     assert [c.total for c in checked.budgets] == budgets
     assert all(c.over_budget == 0 for c in checked.budgets)
     assert checked.budgets[0].realised == 0.0 and checked.budgets[-1].realised > 0.5
+
+
+def test_a_module_known_by_its_profile_alone_cannot_run() -> None:
+    from pathlib import Path
+
+    from anytime.library import LibraryEntry
+
+    guess, _, polish, _ = lab.modules()
+    library = AnytimeLibrary()
+    assert isinstance(guess.profile_source, ConditionalPerformanceProfile)
+    library.add(LibraryEntry.of_profile(guess.profile_source, Path("guess.yaml")))
+    library.add(LibraryEntry.of_module(polish))
+    (fair, *_) = compile_file(
+        parse_schemas(lab.SCHEMAS.splitlines()[1], "lab.any", library.known_functions()),
+        library,
+        lab.TOTALS,
+    )
+    with pytest.raises(VerifyError) as error:
+        verify(fair, lab.HiddenNumbers(), runs=2, budgets=[4])
+    assert str(error.value) == (
+        "schema 'fair' cannot run (run 0 at T = 4): schema 'fair': 'guess' is known only by its"
+        " profile (no code to run)"
+    )
