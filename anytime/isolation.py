@@ -377,6 +377,7 @@ def _answers(
     index = start
     since = time.monotonic()
     while index < len(items):
+        gone = process.gone  # before the read: then what it sent before it went is read too
         messages = process.receive(min(0.05, max(0.0, since + watchdog - time.monotonic())))
         for kind, value in messages:
             if kind == "raised":
@@ -386,7 +387,7 @@ def _answers(
             since = time.monotonic()
         if messages:
             continue
-        if process.gone:
+        if gone:
             yield Lost(died(process.exit_code), process.exit_code)
             return index + 1
         if time.monotonic() - since >= watchdog:

@@ -23,10 +23,13 @@ the ticks a module reports and does not depend on how busy the machine is.
   watches its time between ticks, and its last stretch counts as its longest tick there); for
   a contract module the most a run used past its allocation (0 if none did). It is as
   reproducible as the profile: on the work clock, the same for any workers and chunks.
-- A module that raises, or yields something that is not a `Result`, is a failed run: it keeps
-  the last result it registered before failing (interruptible) or has none (contract). Failures
-  are counted and the first one's traceback is kept; they never stop the build. A contract run
-  that uses more than its allocation keeps its result and is counted as an overrun.
+- A module that raises (`SystemExit` too), or yields something that is not a `Result`, is a
+  failed run, and so is an isolated run whose process dies or that the watchdog ends. It is
+  scored by what `anytime.runtime.run` keeps of such a run: an interruptible run the last
+  result it registered up to each grid time (after the failure, the last one before it; none
+  if it failed before its first), a contract run none. Failures are counted and the first
+  one's traceback is kept; they never stop the build. A contract run that uses more than its
+  allocation keeps its result and is counted as an overrun.
 
 With `traces=True` the build also keeps what the profile is tabulated from, every trial's
 scored quality at every grid time and whether it had a result there, and for a module that
@@ -255,8 +258,8 @@ class ProfileRequest:
         chunk_size: trials per task (default: enough tasks to keep every worker busy).
         traces: keep every trial's quality trace (`ProfileBuild.traces`).
         isolation: "process" (each trial in a child process; a crash or hang is a failed
-            trial) or "none".
-        watchdog: wall-clock seconds an isolated trial may take.
+            run) or "none".
+        watchdog: wall-clock seconds an isolated run may take.
     """
 
     trials: int = 100
@@ -370,11 +373,12 @@ def build_profile(
         traces: also keep every trial's scored quality at every grid time, and for a module
             that reports an estimate its `Result.quality` there (`ProfileBuild.traces`).
         isolation: "process" (default) runs the trials in child processes
-            (`anytime.isolation`): a trial that crashes its process, or takes longer than
-            `watchdog` seconds of wall time, is a failed trial without a result, and the build
-            goes on; "none" runs them in the worker itself (a little faster, and a module that
-            crashes or hangs takes the build with it).
-        watchdog: the wall-clock seconds one isolated trial may take.
+            (`anytime.isolation`): a run that crashes its process, or takes longer than
+            `watchdog` seconds of wall time, is a failed run that keeps what it had registered
+            before (see above), and the build goes on; "none" runs them in the worker itself
+            (a little faster, and a module that crashes or hangs takes the build with it).
+        watchdog: the wall-clock seconds one isolated run may take (an interruptible
+            module's trial, or one time of a contract module's).
     """
     started = _time.perf_counter()
     grid = _check(module, time, input_grids, bins, trials, seed, workers, clock, chunk_size)

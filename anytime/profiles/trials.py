@@ -8,6 +8,10 @@ from __future__ import annotations
 
 import inspect
 import math
+import mmap
+import pickle
+import struct
+import time as _time
 import traceback
 from collections.abc import Callable, Iterator, Sequence
 from functools import partial
@@ -20,7 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from anytime.clocks import Clock, WallClock, WorkClock
 from anytime.errors import AnytimeError
-from anytime.isolation import WATCHDOG, Isolation, Lost, calls
+from anytime.isolation import WATCHDOG, Channel, Child, Isolation, Lost, calls, died
 from anytime.modules import AnytimeModule, Context, Result
 from anytime.profiles.profile import Array, default_bins
 
@@ -120,7 +124,7 @@ class Chunk:
     start: int
     stop: int
     isolation: Isolation = "process"  # each trial's run in a child process (see `measure_chunk`)
-    watchdog: float = WATCHDOG  # seconds of wall time a trial may take, isolated
+    watchdog: float = WATCHDOG  # wall seconds an isolated run may take (see `_isolated`)
 
 
 @frozen(eq=False)
@@ -145,9 +149,9 @@ class Done:
 
 def measure_chunk(chunk: Chunk) -> Done:
     """Run one chunk of trials. Isolated (the default), they run in turn in a child process
-    (`anytime.isolation.calls`): a trial whose process dies, or that takes longer than the
-    watchdog, is a failed trial without a result (its row scores 0), and the next trials go
-    on in a new process."""
+    (see `_isolated`): a trial whose process dies, or that takes longer than the watchdog, is a
+    failed trial that keeps what its run had registered before, as `anytime.runtime.run` keeps
+    it, and the next trials go on in a new process."""
     return next(measure_chunks([chunk]))
 
 
@@ -158,17 +162,16 @@ def measure_chunks(chunks: Sequence[Chunk]) -> Iterator[Done]:
         return
     first = chunks[0]
     flats = [flat for chunk in chunks for flat in range(chunk.start, chunk.stop)]
-    measure = partial(_measured, first)
-    outcomes: Iterator[Measured | Lost]
+    outcomes: Iterator[Measured]
     if first.isolation == "process":
-        outcomes = calls(measure, flats, watchdog=first.watchdog)
+        outcomes = _isolated(first, flats)
     else:
-        outcomes = map(measure, flats)
+        outcomes = (_measured(first, flat) for flat in flats)
     for chunk in chunks:
         yield _done(chunk, islice(outcomes, chunk.stop - chunk.start))
 
 
-def _done(chunk: Chunk, outcomes: Iterator[Measured | Lost]) -> Done:
+def _done(chunk: Chunk, outcomes: Iterator[Measured]) -> Done:
     """The chunk's measurements from its trials' outcomes (in trial order)."""
     grid = chunk.grid
     quality = np.zeros((chunk.stop - chunk.start, len(grid.time)))
@@ -181,14 +184,11 @@ def _done(chunk: Chunk, outcomes: Iterator[Measured | Lost]) -> Done:
     reasons: dict[str, int] = {}
     flats = range(chunk.start, chunk.stop)
     for row, (flat, outcome) in enumerate(zip(flats, outcomes, strict=True)):
-        if isinstance(outcome, Lost):
-            failed = [(outcome.reason, "")]
-        else:
-            quality[row], scored[row], reported[row] = outcome.row
-            finished[row] = outcome.finished
-            failed = outcome.failed
-            overruns += outcome.overruns
-            step = max(step, outcome.step)
+        quality[row], scored[row], reported[row] = outcome.row
+        finished[row] = outcome.finished
+        failed = outcome.failed
+        overruns += outcome.overruns
+        step = max(step, outcome.step)
         failures += len(failed)
         for headline, _ in failed:
             reasons[headline] = reasons.get(headline, 0) + 1
@@ -228,15 +228,24 @@ def _trial(chunk: Chunk, flat: int) -> Trial:
     )
 
 
-def _measured(chunk: Chunk, flat: int) -> Measured:
-    """Run trial `flat` of the chunk."""
+def _measured(chunk: Chunk, flat: int, sender: _Sender | None = None, begin: int = 0) -> Measured:
+    """Run trial `flat` of the chunk (a contract module's from grid index `begin` on: the
+    rows before it stay without a result). Isolated, `sender` keeps the caller informed of
+    what the run has done, should its process die (see `_Sender`)."""
     times = chunk.grid.time
-    n = len(times)
-    out = Row(np.zeros(n), np.zeros(n, dtype=np.bool_), np.zeros(n), np.full(1, float(times[-1])))
-    measure = _interruptible if chunk.module.kind == "interruptible" else _contract
-    failed, overran, longest = measure(_trial(chunk, flat), times, out)
+    out = _empty_row(times)
+    trial = _trial(chunk, flat)
+    if chunk.module.kind == "interruptible":
+        failed, overran, longest = _interruptible(trial, times, out, sender)
+    else:
+        failed, overran, longest = _contract(trial, times, out, sender, begin)
     row = (out.quality, out.scored, out.reported)
     return Measured(row, float(out.finished[0]), failed, overran, longest)
+
+
+def _empty_row(times: Array) -> Row:
+    n = len(times)
+    return Row(np.zeros(n), np.zeros(n, dtype=np.bool_), np.zeros(n), np.full(1, float(times[-1])))
 
 
 @frozen(eq=False)
@@ -339,10 +348,19 @@ def _arguments(
 Failures = list[tuple[str, str]]  # (headline, traceback) of each failed run
 
 
-def _interruptible(trial: Trial, time: Array, out: Row) -> tuple[Failures, int, float]:
+def _interruptible(
+    trial: Trial,
+    time: Array,
+    out: Row,
+    sender: _Sender | None = None,
+    limit: int | None = None,
+) -> tuple[Failures, int, float]:
     """One run up to the last grid time; `out` records at each `time[j]` the score of the
     answer there and the quality the module reported of it, where there is one (before its
-    first result the run has none).
+    first result the run has none). A run that fails (raises, `SystemExit` included, as
+    `anytime.runtime.run` counts it) keeps the last result it registered before. With a
+    `limit`, the run ends once it has registered that many results (a replay, see
+    `_Progress.lost`).
 
     Also returns the run's step: the largest gap between the moments it gave control back (its
     start, every yield, the end of the run), so the gap to a yield past the last grid time (the
@@ -354,11 +372,16 @@ def _interruptible(trial: Trial, time: Array, out: Row) -> tuple[Failures, int, 
     interval between its reports of work there, not as one gap. The clean-up after the run is
     closed counts as part of its last stretch.
     """
+    if sender is not None:
+        sender.run_begins()
     instance, args = trial.problem()
     allocation = float(time[-1])
-    clock = _Watch(trial.clock())
+    clock = _Watch(trial.clock(), None if sender is None else sender.memory)
     ctx = Context(allocation=allocation, clock=clock)
+    if sender is not None:
+        sender.started(ctx.start)
     answers: list[tuple[int, Result]] = []  # (first grid index it answers for, the result)
+    registered = 0
     failed: Failures = []
     last = step = 0.0  # the last moment it gave control back, and the largest gap so far
     cut = False  # the run was ended here, at a yield past the last grid time
@@ -369,7 +392,7 @@ def _interruptible(trial: Trial, time: Array, out: Row) -> tuple[Failures, int, 
                 item = next(generator)
             except StopIteration:
                 break
-            except Exception as exc:  # the module failed: its last result stands
+            except (Exception, SystemExit) as exc:  # the module failed: its last result stands
                 failed.append(_failure(exc))
                 break
             at = ctx.elapsed
@@ -386,10 +409,15 @@ def _interruptible(trial: Trial, time: Array, out: Row) -> tuple[Failures, int, 
                 answers[-1] = (first, item)  # superseded before the next grid time
             else:
                 answers.append((first, item))
+            registered += 1
+            if sender is not None:  # for the caller, should the process die
+                sender.registered(registered, at, step)
+            if registered == limit:
+                break
     finally:
         try:
             generator.close()
-        except Exception as exc:
+        except (Exception, SystemExit) as exc:
             failed.append(_failure(exc))
         end = ctx.elapsed
         if not cut and end < allocation:  # it returned (or failed) by itself, before the end
@@ -409,10 +437,12 @@ def _interruptible(trial: Trial, time: Array, out: Row) -> tuple[Failures, int, 
 
 class _Watch:
     """A clock that notes, since its last `mark()`, the longest interval between the module's
-    reports of work (from the mark to the first, between them), and when the last one began."""
+    reports of work (from the mark to the first, between them), and when the last one began.
+    With `memory` (an isolated trial, see `_Sender`), it writes its time there at each."""
 
-    def __init__(self, clock: Clock) -> None:
+    def __init__(self, clock: Clock, memory: mmap.mmap | None = None) -> None:
         self.clock = clock
+        self.memory = memory
         self.unit = clock.unit
         self.longest = 0.0
         self.previous = self.began = clock.now()  # the last report's end, and its start
@@ -428,6 +458,8 @@ class _Watch:
         self.longest = max(self.longest, now - self.previous)
         self.began, self.previous = began, now
         self.reports += 1
+        if self.memory is not None:
+            _NOW.pack_into(self.memory, 8, now)
 
     def mark(self) -> None:
         self.longest, self.previous, self.reports = 0.0, self.clock.now(), 0
@@ -438,10 +470,12 @@ class _Watch:
         return self.reports > 0 and self.began < deadline - slack <= self.previous
 
 
-def _contract(trial: Trial, time: Array, out: Row) -> tuple[Failures, int, float]:
-    """One run per grid time on the same instance, with that time as its allocation; `out`
-    records at `time[j]` the score of its result and the quality it reported, where it
-    returned one (a run that raised or returned None has none).
+def _contract(
+    trial: Trial, time: Array, out: Row, sender: _Sender | None = None, begin: int = 0
+) -> tuple[Failures, int, float]:
+    """One run per grid time (from index `begin` on) on the same instance, with that time as
+    its allocation; `out` records at `time[j]` the score of its result and the quality it
+    reported, where it returned one (a run that raised or returned None has none).
 
     Also returns the step: the most any of the runs used past its allocation (0 if none did),
     whether it returned a result, none, or raised.
@@ -449,24 +483,264 @@ def _contract(trial: Trial, time: Array, out: Row) -> tuple[Failures, int, float
     failed: Failures = []
     overruns = 0
     step = 0.0
-    for j, allocation in enumerate(time):
-        instance, args = trial.problem()  # made afresh: a module may change its arguments
-        ctx = Context(allocation=float(allocation), clock=trial.clock())
-        try:
-            result = trial.module(ctx, *args)
-        except Exception as exc:
-            failed.append(_failure(exc))
-            step = max(step, float(ctx.elapsed - allocation))
-            continue
-        used = ctx.elapsed
-        step = max(step, float(used - allocation))
-        if result is None:  # no result: the row keeps quality 0, unscored
-            overruns += used > allocation
-            continue
-        if not isinstance(result, Result):
-            failed.append((f"returned a {type(result).__name__}, not a Result", ""))
-            continue
-        if used > allocation:  # counted as a plain int (a numpy bool would make it int64)
-            overruns += 1
-        out.record(j, trial.score(instance, result.value), result.quality)
+    for j in range(begin, len(time)):
+        ran_failed, overran, past = _contract_run(trial, j, float(time[j]), out, sender)
+        failed += ran_failed
+        overruns += overran
+        step = max(step, past)
+        if sender is not None:
+            sender.ran(j, out, ran_failed, overran, past)
     return failed, overruns, step
+
+
+def _contract_run(
+    trial: Trial, j: int, allocation: float, out: Row, sender: _Sender | None
+) -> tuple[Failures, int, float]:
+    """The run at grid index `j`: its failures, whether it overran (0 or 1), and how much it
+    used past its allocation (negative when it used less)."""
+    if sender is not None:
+        sender.run_begins()
+    instance, args = trial.problem()  # made afresh: a module may change its arguments
+    clock = trial.clock()
+    ctx = Context(allocation=allocation, clock=clock if sender is None else sender.noting(clock))
+    if sender is not None:
+        sender.started(ctx.start)
+    try:
+        result = trial.module(ctx, *args)
+    except (Exception, SystemExit) as exc:
+        return [_failure(exc)], 0, float(ctx.elapsed - allocation)
+    used = ctx.elapsed
+    past = float(used - allocation)
+    if result is None:  # no result: the row keeps quality 0, unscored
+        return [], int(used > allocation), past  # a plain int (a numpy bool would be int64)
+    if not isinstance(result, Result):
+        return [(f"returned a {type(result).__name__}, not a Result", "")], 0, past
+    out.record(j, trial.score(instance, result.value), result.quality)
+    return [], int(used > allocation), past
+
+
+# Isolated trials. The trials of a sequential build (or of a worker's chunk) run in turn in a
+# child process (`anytime.isolation.Child`). A trial whose process dies, or that the watchdog
+# ends, keeps what `anytime.runtime.run` keeps of such a run:
+# - An interruptible trial, the last result it registered up to each grid time (after its
+#   death, the last one before it). `run` has each result sent to it as it comes, which costs
+#   pickling every result (find-path's are 3 MB each: sending them doubled the time of its
+#   isolated build), so the child here notes, in memory the fork shares, only how many results
+#   the run has registered, when the last came, its largest gap so far and its clock's time.
+#   After a death, the trial runs again in a fresh child, on the same instance from the same
+#   seed, and stops right after that many results: it registers the same results (on the work
+#   clock a run is determined by its instance), and is scored there as any trial is.
+# - A contract trial, the runs it finished (each sent to the caller, scored: a few numbers);
+#   the lost run has no result, and the trial goes on at its next grid time in a new process,
+#   as separate runs of `run` would.
+
+# In the shared memory: the run's start, its clock's latest time (at each report of work), and
+# of what it registered: how many results, when the last came, its largest gap so far.
+_NOTE = struct.Struct("5d")
+_NOW = struct.Struct("d")
+
+
+class _Noting:
+    """A clock that writes its time, at every report of work, to memory the caller can read."""
+
+    def __init__(self, clock: Clock, memory: mmap.mmap) -> None:
+        self.clock, self.memory = clock, memory
+        self.unit = clock.unit
+
+    def now(self) -> float:
+        return self.clock.now()
+
+    def advance(self, n: float) -> None:
+        clock = self.clock
+        clock.advance(n)
+        _NOW.pack_into(self.memory, 8, clock.now())
+
+
+class _Sender:
+    """The child's side of an isolated trial (see above)."""
+
+    def __init__(self, channel: Channel, memory: mmap.mmap) -> None:
+        self.channel, self.memory = channel, memory
+
+    def noting(self, clock: Clock) -> Clock:
+        return _Noting(clock, self.memory)
+
+    def run_begins(self) -> None:
+        """A run begins: nothing yet (a process that dies now has used no time)."""
+        _NOTE.pack_into(self.memory, 0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+    def started(self, start: float) -> None:
+        struct.pack_into("dd", self.memory, 0, start, start)
+
+    def registered(self, count: int, at: float, step: float) -> None:
+        """An interruptible run has registered `count` results, the last at `at`, with
+        `step` the largest gap between its yields so far."""
+        struct.pack_into("3d", self.memory, 16, count, at, step)
+
+    def ran(self, j: int, out: Row, failed: Failures, overran: int, past: float) -> None:
+        """The contract run at grid index `j` ended as `out[j]` says."""
+        row = (float(out.quality[j]), bool(out.scored[j]), float(out.reported[j]))
+        self.channel.send(("ran", j, row, failed, overran, past))
+
+
+def _measuring(
+    chunk: Chunk, flats: Sequence[int], position: int, begin: int, memory: mmap.mmap, out: Channel
+) -> None:
+    """The child: trials `flats[position:]` in turn, the first from grid index `begin` on."""
+    sender = _Sender(out, memory)
+    for index in range(position, len(flats)):
+        sender.run_begins()  # nothing of the trial before is its
+        try:
+            value = _measured(chunk, flats[index], sender, begin if index == position else 0)
+        except BaseException as exc:  # a problem set that breaks its contract, and the like
+            out.send(("raised", _portable(exc)))
+            return
+        out.send(("value", value))
+
+
+def _portable(exc: BaseException) -> BaseException:
+    """`exc` if it pickles, else a RuntimeError carrying its traceback's text."""
+    try:
+        pickle.loads(pickle.dumps(exc))
+    except Exception:
+        text = "".join(traceback.format_exception(exc)).rstrip()
+        return RuntimeError(f"in an isolated process:\n{text}")
+    return exc
+
+
+def _isolated(chunk: Chunk, flats: Sequence[int]) -> Iterator[Measured]:
+    """The outcomes of trials `flats` of the chunk's build, in order, run in child processes:
+    one makes them in turn, and a new one goes on after a trial whose process dies or that
+    takes longer than the watchdog (an interruptible trial, or each run of a contract trial).
+    An error the trial raises in the caller's code (the problem set) is raised here."""
+    if not flats:
+        return
+    memory = mmap.mmap(-1, _NOTE.size)  # anonymous and shared with the forks
+    watchdog = chunk.watchdog
+    position = 0
+    progress = _Progress(chunk, flats[0])
+    while True:
+        target = partial(_measuring, chunk, flats, position, progress.begin, memory)
+        process = Child(target)
+        lost = ""
+        try:
+            since = _time.monotonic()
+            while not lost:
+                gone = process.gone  # then whatever it sent before it went is read below
+                messages = process.receive(
+                    min(0.05, max(0.0, since + watchdog - _time.monotonic()))
+                )
+                for kind, *data in messages:
+                    if kind == "raised":
+                        raise data[0]
+                    if kind == "value":
+                        yield progress.measured(data[0])
+                        position += 1
+                        if position == len(flats):
+                            return
+                        progress = _Progress(chunk, flats[position])
+                        since = _time.monotonic()
+                    elif kind == "ran":
+                        progress.ran(*data)
+                        since = _time.monotonic()  # each contract run has its watchdog
+                if messages:
+                    continue
+                if gone:
+                    lost = died(process.exit_code)
+                elif _time.monotonic() - since >= watchdog:
+                    lost = f"watchdog: no answer after {watchdog:g} s of wall time"
+        finally:
+            process.end()
+        done = progress.lost(lost, _NOTE.unpack_from(memory, 0))
+        if done is not None:
+            yield done
+            position += 1
+            if position == len(flats):
+                return
+            progress = _Progress(chunk, flats[position])
+
+
+class _Progress:
+    """What the caller has of the isolated trial under way (see `_isolated`)."""
+
+    def __init__(self, chunk: Chunk, flat: int) -> None:
+        self.chunk, self.flat = chunk, flat
+        self.time = chunk.grid.time
+        # A contract trial: the grid index it goes on from (after a lost run), its row, and
+        # each finished (or lost) run's failures, overrun and step.
+        self.begin = 0
+        self.row = _empty_row(self.time)
+        self.runs: dict[int, tuple[Failures, int, float]] = {}
+
+    def ran(
+        self, j: int, row: tuple[float, bool, float], failed: Failures, overran: int, past: float
+    ) -> None:
+        quality, scored, reported = row
+        if scored:
+            self.row.record(j, quality, reported)
+        self.runs[j] = (failed, overran, past)
+
+    def measured(self, value: Measured) -> Measured:
+        """The trial's outcome, from what the last process measured (`value`: a contract
+        trial's runs from `begin` on) and the runs before."""
+        if self.begin == 0:
+            return value
+        b = self.begin
+        row = self.row  # the runs before `begin`, and from it on the last process's
+        row.quality[b:], row.scored[b:], row.reported[b:] = (part[b:] for part in value.row)
+        before = [self.runs[j] for j in range(b)]
+        return Measured(
+            (row.quality, row.scored, row.reported),
+            value.finished,
+            [f for run_failed, _, _ in before for f in run_failed] + value.failed,
+            sum(overran for _, overran, _ in before) + value.overruns,
+            max([value.step, *(past for _, _, past in before)]),
+        )
+
+    def lost(self, reason: str, note: tuple[float, ...]) -> Measured | None:
+        """The trial's process died, or the watchdog ended it, with `note` in the shared
+        memory (see `_NOTE`): its outcome, or None for a contract trial that goes on at its
+        next grid time."""
+        failed = [(reason, "")]
+        start, now, count, last, step = note
+        elapsed = now - start  # as far as its clock's reports of work say
+        if self.chunk.module.kind != "interruptible":
+            j = max(self.runs, default=-1) + 1  # the run under way (they come in order)
+            if j < len(self.time):  # (else it went after its last run: none is lost)
+                self.runs[j] = (failed, 0, elapsed - float(self.time[j]))
+                j += 1
+            self.begin = j
+            if self.begin < len(self.time):
+                return None
+            runs = [self.runs[i] for i in range(len(self.time))]
+            return Measured(
+                (self.row.quality, self.row.scored, self.row.reported),
+                float(self.time[-1]),
+                [f for run_failed, _, _ in runs for f in run_failed],
+                sum(overran for _, overran, _ in runs),
+                max([0.0, *(past for _, _, past in runs)]),
+            )
+        end = max(elapsed, last)
+        allocation = float(self.time[-1])
+        finished = end if end < allocation else allocation
+        return Measured(self._replayed(int(count)), finished, failed, 0, max(step, end - last))
+
+    def _replayed(self, count: int) -> tuple[Array, NDArray[np.bool_], Array]:
+        """The row of an interruptible trial whose process died after registering `count`
+        results: the trial run again in a child of its own up to its `count`-th result, and
+        scored there (no result at any time if it registered none, or if the replay dies too,
+        as a run whose crash does not come from its instance may)."""
+        if count > 0:
+            replay = partial(_replay, self.chunk, self.flat)
+            [value] = list(calls(replay, [count], watchdog=self.chunk.watchdog))
+            if not isinstance(value, Lost):
+                return value  # type: ignore[no-any-return]
+        out = _empty_row(self.time)
+        return out.quality, out.scored, out.reported
+
+
+def _replay(chunk: Chunk, flat: int, count: int) -> tuple[Array, NDArray[np.bool_], Array]:
+    """(In a child process.) Trial `flat` run up to its `count`-th result: its row."""
+    out = _empty_row(chunk.grid.time)
+    _interruptible(_trial(chunk, flat), chunk.grid.time, out, limit=count)
+    return out.quality, out.scored, out.reported

@@ -761,10 +761,15 @@ def _isolated(
     process = Child(child, limits)
     try:
         while outcome is None:
+            # Whether it had gone before this read: a child that has gone is crashed only once
+            # everything it sent before it went is read (it may send its last results, and
+            # even "done", after a read and before the next look).
+            gone = process.gone
             wait = min(0.01, max(0.0, began + watchdog - time.monotonic()))
             if ticks is None:
                 wait = min(wait, max(0.0, allocation - (clock.now() - start)))
-            for message in process.receive(wait):
+            messages = process.receive(wait)
+            for message in messages:
                 kind = message[0]
                 if kind == "result":
                     slot.offer(message[1])
@@ -780,9 +785,11 @@ def _isolated(
                     break
             if outcome is not None:
                 break
-            if process.gone:
+            if gone and not messages:
                 exit_code = process.exit_code
                 outcome = _Outcome(Status.CRASHED, died(exit_code))
+            elif gone:
+                continue  # read the rest of what it sent first
             elif caller_stop.is_set():
                 outcome = _Outcome(Status.INTERRUPTED)
             elif ticks is None and clock.now() - start >= allocation:
