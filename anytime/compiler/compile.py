@@ -29,8 +29,10 @@ from anytime.compiler.allocators import (
     HillClimbing,
     Proportional,
     check_memory,
+    chunk_rows,
     dp_obstacle,
     equal_split,
+    expected_in_chunks,
     row_bytes,
 )
 from anytime.compiler.evaluate import Dist, Evaluator, binned_profile
@@ -300,14 +302,14 @@ def compile_program(
     chosen = _choose(model, allocator, cheap)
     search = ALLOCATORS[chosen](cap)
     # The search, and the evaluation of the whole table after it.
-    needed = search.memory_needed(evaluator, u_rows) + len(u_rows) * row_bytes(model)
+    needed = search.memory_needed(evaluator, u_rows) + row_bytes(model)
     try:
         check_memory(chosen, needed, cap)
     except CompileError as error:
         raise CompileError(f"schema '{program.name}': {error}", where=filename) from None
     allocation, _ = search.allocate(evaluator, q_rows, u_rows, dt)
     seen: dict[int, list[Dist]] = {}
-    output = evaluator.evaluate(q_rows, allocation * dt, seen=seen)
+    output = evaluate_in_chunks(evaluator, q_rows, allocation * dt, cap, seen)
     warnings = _outside_input_grids(model, seen)
     if strict and warnings:
         raise CompileError(
@@ -315,7 +317,7 @@ def compile_program(
         )
     allocation, output, kept = _never_worse_with_more_time(allocation, output, len(time))
     baselines = {
-        name: evaluator.expected(q_rows, split * dt).reshape(cell_shape)
+        name: expected_in_chunks(evaluator, q_rows, split * dt, cap).reshape(cell_shape)
         for name, split in _baselines(model, u_rows, dt).items()
     }
     gap = None
@@ -345,6 +347,31 @@ def compile_program(
         resolution=dt,
         warnings=warnings,
     )
+
+
+def evaluate_in_chunks(
+    evaluator: Evaluator,
+    quality: Array,
+    allocation: Array,
+    memory: int,
+    seen: dict[int, list[Dist]] | None = None,
+) -> Dist:
+    """`evaluator.evaluate` of rows `quality (R, m)`, `allocation (R, n)`, a chunk of rows at a
+    time within `memory` bytes (a DAG's shared results multiply the rows it works on), with
+    `seen` filled for all of them."""
+    step = chunk_rows(evaluator.model, memory)
+    parts: list[Dist] = []
+    inputs: dict[int, list[list[Dist]]] = {}
+    for first in range(0, max(len(allocation), 1), step):
+        rows = slice(first, first + step)
+        part_seen: dict[int, list[Dist]] = {}
+        parts.append(evaluator.evaluate(quality[rows], allocation[rows], seen=part_seen))
+        for index, dists in part_seen.items():
+            inputs.setdefault(index, []).append(dists)
+    if seen is not None:
+        for index, chunks in inputs.items():
+            seen[index] = [Dist.concatenate(list(column)) for column in zip(*chunks, strict=True)]
+    return Dist.concatenate(parts)
 
 
 def _outside_input_grids(model: CompileModel, seen: Mapping[int, list[Dist]]) -> tuple[str, ...]:

@@ -108,6 +108,26 @@ class Dist:
         return np.zeros(len(self.values)) if self.error is None else self.error
 
     @classmethod
+    def concatenate(cls, parts: Sequence[Dist]) -> Dist:
+        """The rows of `parts` one after another (supports padded with massless zeros)."""
+        if len(parts) == 1:
+            return parts[0]
+        width = max(part.values.shape[1] for part in parts)
+
+        def padded(table: Array) -> Array:
+            return np.pad(table, ((0, 0), (0, width - table.shape[1])))
+
+        errors = [part.error for part in parts]
+        error = None
+        if any(e is not None for e in errors):
+            error = np.concatenate([part.standard_error for part in parts])
+        return cls(
+            np.concatenate([padded(part.values) for part in parts]),
+            np.concatenate([padded(part.probs) for part in parts]),
+            error,
+        )
+
+    @classmethod
     def point(cls, quality: ArrayLike) -> Dist:
         q = np.asarray(quality, dtype=np.float64).reshape(-1, 1)
         return cls(q, np.ones_like(q))

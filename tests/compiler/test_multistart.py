@@ -121,19 +121,19 @@ def chain_library() -> AnytimeLibrary:
     [
         (
             "dp",
-            "schema 'p': the dp search needs about 11.7 kB of memory at the least, more than"
+            "schema 'p': the dp search needs about 9.62 kB of memory at the least, more than"
             " the cap of 1 kB: raise the cap (memory=, --memory), or use a coarser time grid,"
             " fewer input qualities or another allocator",
         ),
         (
             "exhaustive",
-            "schema 'p': the exhaustive search needs about 2.98 kB of memory at the least, more"
-            " than the cap of 1 kB: raise the cap (memory=, --memory), or use a coarser time"
+            "schema 'p': the exhaustive search needs about 864 B of memory at the least, more"
+            " than the cap of 500 B: raise the cap (memory=, --memory), or use a coarser time"
             " grid, fewer input qualities or another allocator",
         ),
         (
             "multi-start",
-            "schema 'p': the multi-start search needs about 446 kB of memory at the least,"
+            "schema 'p': the multi-start search needs about 444 kB of memory at the least,"
             " more than the cap of 1 kB: raise the cap (memory=, --memory), or use a coarser"
             " time grid, fewer input qualities or another allocator",
         ),
@@ -148,7 +148,7 @@ def test_a_search_over_the_cap_is_refused_with_its_estimate(allocator: str, mess
             TIME,
             QUALITY,
             allocator=allocator,
-            memory="1kB",
+            memory="500B" if allocator == "exhaustive" else "1kB",
             source=schemas.source,
         )
     assert str(raised.value) == message
