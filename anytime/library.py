@@ -28,6 +28,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any, Protocol
 
+import attrs
 from attrs import field, frozen
 
 from anytime.errors import AnytimeError, ProfileError
@@ -633,6 +634,17 @@ class AnytimeLibrary:
     def profile(self, name: str) -> ConditionalPerformanceProfile | None:
         """The profile of `name` (read on first use); None for a module without one."""
         return self[name].profile
+
+    def with_profile(self, name: str, profile: ConditionalPerformanceProfile) -> AnytimeLibrary:
+        """A copy of the library in which module `name` has `profile` (a profile measured
+        again, say); the sources are not read again."""
+        entry = self[name]
+        copy = object.__new__(AnytimeLibrary)
+        copy.__dict__.update(self.__dict__)
+        copy._entries = dict(self._entries)
+        copy._generic = set(self._generic)
+        copy._entries[entry.name] = attrs.evolve(entry, profile_source=profile, profile_file=None)
+        return copy
 
     def __repr__(self) -> str:
         return f"<AnytimeLibrary of {len(self)} modules from {len(self.sources)} sources>"

@@ -25,6 +25,9 @@ from anytime.cli.common import (
     trial_count,
     worker_count,
 )
+from anytime.cli.schemas import check_schema_name
+from anytime.compiler.model import CompileError
+from anytime.dsl import load_schemas
 from anytime.files import format_size
 from anytime.isolation import ISOLATIONS, WATCHDOG
 from anytime.library import AnytimeLibrary
@@ -39,6 +42,7 @@ from anytime.profiles.io import load_profile, save_profile
 from anytime.profiles.progress import timed_progress
 from anytime.runtime.calibrate import calibrate, convert_profile
 from anytime.testing import check_module
+from anytime.upstream import Round, UpstreamError, measure_upstream
 
 #: The largest table of measured qualities `anytime profile` makes (trials x cells x times).
 MAX_TABLE_BYTES = 1 << 30
@@ -48,6 +52,10 @@ MAX_CHECK_RUNS = 100_000
 MAX_CALIBRATION_SECONDS = 3600
 #: The most states of a dynamic profile `anytime profile --dynamic` derives.
 MAX_STATES = 100
+#: The most rounds of `anytime profile --upstream`.
+MAX_ROUNDS = 10
+#: `--upstream` stops when the compiled expectations move by at most this.
+UPSTREAM_TOLERANCE = 0.005
 
 
 def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -111,6 +119,26 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
         " profile directory does not read it as a profile)",
     )
     profile.add_argument("--json", action="store_true", help="print a JSON summary")
+    upstream = profile.add_argument_group("measuring a module where a program puts it")
+    upstream.add_argument(
+        "--upstream",
+        metavar="SCHEMA_FILE",
+        help="measure the module on the inputs a schema's upstream modules feed it under its"
+        " compiled allocations (problems from the schema's program problem set), compiling"
+        " again with the new profile and measuring again until the compiled table stops"
+        " changing",
+    )
+    upstream.add_argument(
+        "--schema", metavar="NAME", help="the schema of --upstream's file (default: its only one)"
+    )
+    upstream.add_argument(
+        "--rounds",
+        type=int_in_range(1, MAX_ROUNDS),
+        default=3,
+        metavar="N",
+        help=f"at most N rounds of measuring and compiling (3; at most {MAX_ROUNDS}); it stops"
+        f" when the compiled expectations move by at most {UPSTREAM_TOLERANCE}",
+    )
     _isolation_options(profile, "trial")
     library_options(profile)
     profile.set_defaults(run=run_profile, usage_error=profile.error)
@@ -208,6 +236,10 @@ def _isolation_options(parser: argparse.ArgumentParser, what: str) -> None:
 def run_profile(args: argparse.Namespace) -> int:
     if args.states is not None and not args.dynamic:
         args.usage_error("--states K goes with --dynamic")
+    if args.upstream is None and args.schema is not None:
+        args.usage_error("--schema NAME goes with --upstream SCHEMA_FILE")
+    if args.upstream is not None:
+        return _run_upstream(args)
     module, library = _runnable(args)
     output = Path(args.output if args.output is not None else f"{module.name}.yaml")
     refuse_colliding_outputs(
@@ -257,6 +289,65 @@ def run_profile(args: argparse.Namespace) -> int:
     else:
         print(build.summary())
         print(f"wrote {', '.join(str(path) for path in written.values())}")
+    return EXIT_OK
+
+
+def _run_upstream(args: argparse.Namespace) -> int:
+    """`anytime profile MODULE --upstream SCHEMA_FILE`: `measure_upstream`, its rounds told."""
+    for option, given in (
+        ("--dynamic", args.dynamic),
+        ("--traces", args.traces),
+        ("--scheduler", args.scheduler),
+    ):
+        if given:
+            args.usage_error(f"{option} does not go with --upstream")
+    module, library = _runnable(args)
+    output = Path(args.output if args.output is not None else f"{module.name}.yaml")
+    refuse_overwriting_inputs(output, args.upstream)
+    schemas = load_schemas(args.upstream)
+    check_schema_name(schemas, args.schema)
+    if args.schema is None and len(schemas) != 1:
+        raise InputError(
+            f"{args.upstream} defines {len(schemas)} schemas: say which one feeds the module"
+            " with --schema NAME",
+        )
+    name = args.schema if args.schema is not None else schemas.names[0]
+
+    def told(index: int, done: Round) -> None:
+        if not (args.quiet or args.json):
+            print(
+                f"round {index}: {done.reached} of {done.cells} input cells reached; the"
+                f" compiled expectations moved by up to {done.change:.4f}",
+                flush=True,
+            )
+
+    try:
+        measured = measure_upstream(
+            module.name,
+            schemas,
+            name,
+            library,
+            trials=args.trials,
+            seed=args.seed,
+            workers=args.workers,
+            rounds=args.rounds,
+            tolerance=UPSTREAM_TOLERANCE,
+            progress=False if args.quiet or args.json else None,
+            on_round=told,
+        )
+    except (UpstreamError, CompileError) as error:
+        raise InputError(str(error), where=getattr(error, "where", None)) from None
+    _save(output, lambda path: save_profile(measured.profile, path))
+    if args.json:
+        rounds = [
+            {"change": r.change, "reached": r.reached, "cells": r.cells} for r in measured.rounds
+        ]
+        summary = {"module": module.name, "file": str(output), "schema": name}
+        print(json_text(summary | {"rounds": rounds, "converged": measured.converged}))
+    else:
+        verdict = "converged" if measured.converged else "not converged: give more --rounds"
+        print(f"{module.name} on schema {name}: {len(measured.rounds)} rounds, {verdict}")
+        print(f"wrote {output}")
     return EXIT_OK
 
 

@@ -119,6 +119,39 @@ def run_program(
     return execution.run()
 
 
+@frozen
+class Call:
+    """What one call of a program is given in a run: its arguments, as the runtime passes
+    them (`Result`s where they carry quality), and its share of the time."""
+
+    args: tuple[Any, ...]
+    kwargs: Mapping[str, Any]
+    share: float
+
+
+def run_until(
+    compiled: CompiledProgram,
+    inputs: Sequence[Any] | Mapping[str, Any],
+    total: float,
+    node: int,
+    *,
+    clock: Clock | None = None,
+) -> Call | None:
+    """Run `compiled` with `total` time as `run_program` does, up to the call of graph node
+    `node` (a module's call, not made), and return what that call is given; None when it would
+    not be made (an input without a result, an alternative found inapplicable). This is how a
+    module is measured on the inputs its program feeds it (`anytime profile --upstream`)."""
+    execution = _Execution(compiled, inputs, total, clock or WorkClock(), False, _How(), None)
+    target = compiled.model.node(node)
+    if not isinstance(target, ModuleNode) or target.callee is not None:
+        raise ExecutionError(f"node {node} of schema '{compiled.name}' is not a module's call")
+    execution.run(until=node)
+    if not execution.active(target) or execution.not_run(target) is not None:
+        return None
+    _, args, kwargs = execution.arguments(target)
+    return Call(tuple(args), kwargs, execution.budget(target))
+
+
 def program_module(compiled: CompiledProgram, origin: str | None = None) -> AnytimeModule:
     """A compiled program as a contract module with its compiled profile: it runs the program
     with its allocation, on its context's clock."""
@@ -210,9 +243,12 @@ class _Execution:
         self.judged: dict[int, float] = {}  # the qualities decisions go by
         self.applicable: dict[int, list[bool]] = {}  # each best-of's, once decided
 
-    def run(self) -> ProgramRecord:
+    def run(self, until: int | None = None) -> ProgramRecord:
+        """Run the program's calls in order (up to, not including, node `until` when given)."""
         self.count_input_collections()
         for node in self.model.nodes:
+            if node.index == until:
+                break
             if not self.active(node):
                 continue
             record = self.step(node)

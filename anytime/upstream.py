@@ -1,0 +1,431 @@
+"""Measuring a module where the program puts it: on the inputs its upstream modules produce.
+
+A conditional profile says what a module does with an input of each quality, and it is measured
+on inputs that its problem set makes for each quality. Where one quality number does not carry
+everything the module's result depends on (an estimate's quality says how far off it is, not
+on which side; a clustering's, not whether its demand was a prior), the inputs a program feeds
+the module at a quality are not the ones the problem set made, and the compiled promise is off
+by the difference (`anytime verify` measures by how much).
+
+`measure_upstream` measures the module on what its program feeds it instead. Each trial of the
+profile builder asks for an input of given qualities (a cell of the module's input grid); the
+trial draws a problem from the schema's program-level problem set and one of the compiled
+table's totals, runs the program up to the module's call (`anytime.runtime.run_until`, the
+compiled allocation for that problem and total) and keeps the input when the quality of each
+quality-carrying argument is within `TOLERANCE` of the cell's, else draws again; after
+`MAX_DRAWS` draws it keeps the closest input drawn in the cell (a quality lands in the cell of
+its nearest grid point), so that a program whose inputs take a few qualities only still
+measures the cells around them. A cell the program does not reach (none of `PROBES` draws of
+its inputs, made first, lands in it) is measured on the module's own problem set, as before,
+where it declares one, else keeps its current profile's measurement (the program never asks
+for it). An argument's quality is its true quality
+where the problem set scores intermediate results (`score_step(instance, module, value)`),
+else the quality the result reports. The module's result is scored by the problem set: by
+`score` where the module's call is the program's output, else by `score_step`.
+
+The allocations depend on the profile and the profile on the allocations, so the measurement
+is iterated: compile, measure on the compiled program's inputs, compile again with the new
+profile, until the compiled table's expectations move by at most `tolerance` (a fixed point;
+a second round usually changes little).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import attrs
+import numpy as np
+from attrs import frozen
+from numpy.typing import ArrayLike
+
+from anytime.compiler.compile import DEFAULT_INPUT_QUALITY, CompiledProgram, compile_file
+from anytime.compiler.compile import default_time_grid as default_totals
+from anytime.compiler.model import ModuleNode
+from anytime.dsl.graph import NodeRef
+from anytime.dsl.program import SchemaFile
+from anytime.errors import AnytimeError
+from anytime.library import AnytimeLibrary
+from anytime.modules import AnytimeModule, Result
+from anytime.problems import ProgramProblems
+from anytime.profiles.builder import build_profile
+from anytime.profiles.profile import Array, ConditionalPerformanceProfile
+from anytime.profiles.trials import Instance, ProblemSet
+from anytime.runtime.program import run_until
+
+__all__ = [
+    "MAX_DRAWS",
+    "PROBES",
+    "TOLERANCE",
+    "Round",
+    "UpstreamError",
+    "UpstreamMeasurement",
+    "measure_upstream",
+]
+
+#: An input is kept for a cell when its qualities are within this of the cell's.
+TOLERANCE = 0.01
+#: Problems drawn for one trial before the closest input drawn in its cell is kept instead.
+MAX_DRAWS = 200
+#: Inputs drawn first to find the cells the program reaches.
+PROBES = 1000
+
+
+class UpstreamError(AnytimeError, ValueError):
+    """A module cannot be measured on its program's inputs; the message says why."""
+
+
+@frozen
+class _FromProgram:
+    """A trial's reference: the program problem its input came from."""
+
+    problem: Instance
+
+
+@frozen
+class _StandIn:
+    """A trial's reference for a cell the program does not reach, without a problem set of the
+    module's own: its result is replaced by the current profile's cell."""
+
+    problem: Instance
+
+
+@frozen
+class _Own:
+    """A trial's reference: the module's own problem set's (its cell was not reached)."""
+
+    reference: Any
+
+
+#: A drawn program problem, the call's arguments, and their qualities.
+_Drawn = tuple[Instance, list[Any], tuple[float, ...]]
+
+
+class UpstreamProblems:
+    """A module's problem set made of what a compiled program feeds it (see the module's
+    docstring): `reached` are the cells the program's inputs land in; `fallback`, where the
+    module has a problem set of its own, makes the others."""
+
+    def __init__(
+        self,
+        compiled: CompiledProgram,
+        node: ModuleNode,
+        problems: ProgramProblems,
+        grids: Sequence[ArrayLike],
+        fallback: ProblemSet | None,
+        reached: frozenset[tuple[float, ...]] = frozenset(),
+    ) -> None:
+        self.compiled, self.node, self.problems = compiled, node, problems
+        self.grids = [np.asarray(g, dtype=np.float64) for g in grids]
+        self.fallback, self.reached = fallback, reached
+        module = _module(node)
+        self.name = module.name
+        self.positions = [module.parameters.index(name) for name in module.inputs]
+        self.sources = _producers(compiled, node)
+        self.is_output = _output(compiled) == node.index
+
+    def draw(
+        self, rng: np.random.Generator
+    ) -> tuple[Instance, list[Any], tuple[float, ...]] | None:
+        """One program problem and total, run up to the module's call: the problem, the call's
+        arguments and the qualities of its quality-carrying ones (None: the call is not
+        made)."""
+        totals = self.compiled.profile.time
+        problem = self.problems.problems.instance(rng)
+        total = float(totals[int(rng.integers(len(totals)))])
+        call = run_until(self.compiled, problem.args, total, self.node.index)
+        if call is None or not bool(self.node.starts(call.share)) or call.share <= 0:
+            return None
+        qualities = tuple(self._quality(problem, call.args[p], s) for p, s in self.sources)
+        return problem, list(call.args), qualities
+
+    def _cell(self, qualities: tuple[float, ...]) -> tuple[float, ...]:
+        """The cell of the input grid qualities land in: each axis's nearest grid point."""
+        return tuple(_nearest(g, q) for g, q in zip(self.grids, qualities, strict=True))
+
+    def instance(self, rng: np.random.Generator, input_qualities: tuple[float, ...]) -> Instance:
+        cell = tuple(float(q) for q in input_qualities)
+        if cell not in self.reached and self.fallback is not None:
+            own = self.fallback.instance(rng, input_qualities)
+            return Instance(own.args, _Own(own.reference))
+        stand_in, closest, nearest = None, None, np.inf
+        for _ in range(MAX_DRAWS):
+            drawn = self.draw(rng)
+            if drawn is None:
+                continue
+            problem, args, qualities = drawn
+            stand_in = (problem, args)
+            if cell not in self.reached:  # its result is not kept: any input will do
+                break
+            if self._cell(qualities) != cell:
+                continue
+            distance = max(abs(q - c) for q, c in zip(qualities, cell, strict=True))
+            if distance <= TOLERANCE:
+                return Instance(self._given(args, cell), _FromProgram(problem))
+            if distance < nearest:
+                closest, nearest = (problem, args), distance
+        if closest is not None:
+            problem, args = closest
+            return Instance(self._given(args, cell), _FromProgram(problem))
+        if stand_in is None:
+            raise UpstreamError(
+                f"'{self.name}': schema '{self.compiled.name}' did not call it in {MAX_DRAWS}"
+                " runs of its problems"
+            )
+        problem, args = stand_in
+        return Instance(self._given(args, cell), _StandIn(problem))
+
+    def score(self, instance: Instance, value: Any) -> float:
+        reference = instance.reference
+        if isinstance(reference, _Own):
+            assert self.fallback is not None
+            return float(self.fallback.score(Instance(instance.args, reference.reference), value))
+        problem = reference.problem
+        if self.is_output and self.problems.scored:
+            return float(self.problems.problems.score(problem, value))  # type: ignore[attr-defined]
+        return float(self.problems.problems.score_step(problem, self.name, value))  # type: ignore[attr-defined]
+
+    def _given(self, args: list[Any], cell: tuple[float, ...]) -> tuple[Any, ...]:
+        """The call's arguments, each quality-carrying one with the cell's quality (as the
+        builder asks)."""
+        given = list(args)
+        for position, quality in zip(self.positions, cell, strict=True):
+            value = (
+                given[position].value if isinstance(given[position], Result) else given[position]
+            )
+            given[position] = Result(value, quality)
+        return tuple(given)
+
+    def _quality(self, problem: Instance, argument: Any, source: str | None) -> float:
+        """An argument's true quality where the problem set scores it, else its reported one."""
+        value = argument.value if isinstance(argument, Result) else argument
+        score_step = getattr(self.problems.problems, "score_step", None)
+        if source is not None and callable(score_step):
+            return float(score_step(problem, source, value))
+        return float(argument.quality) if isinstance(argument, Result) else 1.0
+
+
+def reached_cells(
+    upstream: UpstreamProblems, seed: int, probes: int = PROBES
+) -> frozenset[tuple[float, ...]]:
+    """The cells of the module's input grid that `probes` runs of the program's problems feed
+    it inputs in."""
+    rng = np.random.default_rng([seed, 1])
+    cells = set()
+    for _ in range(probes):
+        drawn = upstream.draw(rng)
+        if drawn is not None:
+            cells.add(upstream._cell(drawn[2]))
+    return frozenset(cells)
+
+
+def _keep_unreached(
+    built: ConditionalPerformanceProfile,
+    current: ConditionalPerformanceProfile,
+    reached: frozenset[tuple[float, ...]],
+) -> ConditionalPerformanceProfile:
+    """`built` with the cells the program does not reach taken from `current` (same grid)."""
+    mesh = np.meshgrid(*built.input_grids, indexing="ij")
+    points = np.stack([m.reshape(-1) for m in mesh], axis=-1) if mesh else np.zeros((1, 0))
+    keep = np.array([tuple(float(q) for q in p) not in reached for p in points])
+    keep = keep.reshape(built.cell_shape[:-1]) if built.n_inputs else keep.reshape(())
+    changes: dict[str, Any] = {}
+    for name in ("probability", "mean", "bin_mean", "samples", "std", "no_result_table"):
+        new, old = getattr(built, name), getattr(current, name)
+        if new is None or old is None:
+            continue
+        mask = keep.reshape(keep.shape + (1,) * (new.ndim - keep.ndim))
+        changes[name] = np.where(mask, old, new)
+    return attrs.evolve(built, **changes)
+
+
+@frozen
+class Round:
+    """One round of the fixed point: the profile measured on the compiled program's inputs,
+    how far the compiled expectations moved with it (the largest change over the table's
+    cells), and how many cells of the module's input grid the program reached."""
+
+    profile: ConditionalPerformanceProfile
+    change: float
+    reached: int
+    cells: int
+
+
+@frozen
+class UpstreamMeasurement:
+    """The rounds of `measure_upstream`; the last one's profile is the result."""
+
+    module: str
+    schema: str
+    rounds: tuple[Round, ...]
+    tolerance: float
+
+    @property
+    def profile(self) -> ConditionalPerformanceProfile:
+        return self.rounds[-1].profile
+
+    @property
+    def converged(self) -> bool:
+        return self.rounds[-1].change <= self.tolerance
+
+
+def measure_upstream(
+    name: str,
+    schemas: SchemaFile,
+    schema: str,
+    library: AnytimeLibrary,
+    *,
+    trials: int = 100,
+    seed: int = 0,
+    workers: int = 1,
+    rounds: int = 3,
+    tolerance: float = 0.005,
+    time_grid: ArrayLike | None = None,
+    resolution: float | None = None,
+    input_quality: ArrayLike = DEFAULT_INPUT_QUALITY,
+    allocator: str = "auto",
+    progress: bool | None = None,
+    on_round: Callable[[int, Round], None] | None = None,
+) -> UpstreamMeasurement:
+    """Measure module `name` on the inputs schema `schema` feeds it, compiled against
+    `library` (see the module's docstring), for up to `rounds` rounds, until the compiled
+    expectations move by at most `tolerance`. The grid (times, input qualities, bins) is the
+    module's declared measurement's, else its current profile's; the program's problems are
+    the schema's `ProgramProblems`, whose time grid and resolution, when declared, are the
+    compilation's (else `time_grid`, `resolution`).
+
+    Raises:
+        UpstreamError: the module is not called once, as a module, by the schema; or its
+            result cannot be scored; or a cell cannot be measured.
+        LibraryError: no program problem set is declared for the schema.
+    """
+    problems = library.program_problems(schema)
+    entry = library[name]
+    module = entry.module
+    if module is None or module.kind not in ("interruptible", "contract"):
+        raise UpstreamError(f"'{name}' is not an interruptible or contract module with code")
+    try:
+        measurement = library.measurement(name)
+    except AnytimeError:
+        measurement = None
+    current = entry.profile
+    if measurement is not None:
+        grid = measurement.grid
+        times, grids, bins = grid.time, grid.input_grids, grid.bins
+        fallback: ProblemSet | None = measurement.problems
+    elif current is not None:
+        times, grids, bins = current.time, current.input_grids, current.bins
+        fallback = None
+    else:
+        raise UpstreamError(f"'{name}' has neither a profile nor a declared measurement")
+    totals = problems.time_grid or time_grid
+    if totals is None:
+        totals = default_totals(schemas, library, schema)
+    step = problems.resolution or resolution
+
+    def compiled_with(lib: AnytimeLibrary) -> CompiledProgram:
+        return compile_file(
+            schemas,
+            lib,
+            totals,
+            input_quality,
+            schema=schema,
+            allocator=allocator,
+            resolution=step,
+        )[-1]
+
+    compiled = compiled_with(library)
+    node = _the_call(compiled, entry.name, schema)
+    if not (node.index == _output(compiled) and problems.scored) and not callable(
+        getattr(problems.problems, "score_step", None)
+    ):
+        raise UpstreamError(
+            f"'{name}' is not the output of schema '{schema}', so its results are scored by the"
+            f" schema's problem set ({problems.name}): give it a"
+            " score_step(instance, module, value) method"
+        )
+    if fallback is None and current is not None:
+        same = np.array_equal(current.time, times) and all(
+            np.array_equal(a, b) for a, b in zip(current.input_grids, grids, strict=True)
+        )
+        assert same  # the grid is the current profile's
+    done: list[Round] = []
+    for index in range(rounds):
+        probe = UpstreamProblems(compiled, node, problems, grids, fallback)
+        reached = reached_cells(probe, seed + index)
+        upstream = UpstreamProblems(compiled, node, problems, grids, fallback, reached)
+        build = build_profile(
+            module,
+            upstream,
+            time=times,
+            input_grids=grids,
+            bins=bins,
+            trials=trials,
+            seed=seed + index,
+            workers=workers,
+            progress=progress,
+            isolation="none",
+        )
+        profile = attrs.evolve(build.profile, module=module.name)
+        if fallback is None and current is not None:
+            profile = _keep_unreached(profile, current, reached)
+        library = library.with_profile(entry.name, profile)
+        current = profile
+        again = compiled_with(library)
+        change = float(np.max(np.abs(again.expected - compiled.expected)))
+        done.append(Round(profile, change, len(reached), int(np.prod(profile.cell_shape[:-1]))))
+        if on_round is not None:
+            on_round(index + 1, done[-1])
+        compiled = again
+        node = _the_call(compiled, entry.name, schema)
+        if change <= tolerance:
+            break
+    return UpstreamMeasurement(module.name, schema, tuple(done), tolerance)
+
+
+def _module(node: ModuleNode) -> AnytimeModule:
+    module = node.entry.module if node.entry is not None else None
+    if module is None:
+        raise UpstreamError(f"'{node.name}' has no code to run")
+    return module
+
+
+def _output(compiled: CompiledProgram) -> int:
+    output = compiled.model.output
+    return output.index if output.kind == "node" else -1
+
+
+def _the_call(compiled: CompiledProgram, name: str, schema: str) -> ModuleNode:
+    """The node that calls module `name` in the compiled schema (exactly one)."""
+    calls = [
+        n
+        for n in compiled.model.nodes
+        if isinstance(n, ModuleNode) and n.callee is None and n.name == name
+    ]
+    if len(calls) != 1:
+        how = "does not call" if not calls else f"calls {len(calls)} times"
+        raise UpstreamError(
+            f"schema '{schema}' {how} module '{name}' (outside an if's branches and called"
+            " schemas): measure it on its own problem set, or on a schema that calls it once"
+        )
+    return calls[0]
+
+
+def _producers(compiled: CompiledProgram, node: ModuleNode) -> list[tuple[int, str | None]]:
+    """For each quality-carrying argument of the call, its position and the module whose
+    result it is (None: a program input or a constant)."""
+    module = _module(node)
+    call = compiled.model.graph.nodes[node.index]
+    out = []
+    for name in module.inputs:
+        position = module.parameters.index(name)
+        source = call.args[position] if position < len(call.args) else None
+        producer = None
+        if isinstance(source, NodeRef):
+            producer = compiled.model.graph.nodes[source.index].function
+        out.append((position, producer))
+    return out
+
+
+def _nearest(grid: Array, quality: float) -> float:
+    return float(grid[int(np.argmin(np.abs(grid - quality)))])
