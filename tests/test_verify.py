@@ -391,3 +391,35 @@ def test_a_module_known_by_its_profile_alone_cannot_run() -> None:
         "schema 'fair' cannot run (run 0 at T = 4): schema 'fair': 'guess' is known only by its"
         " profile (no code to run)"
     )
+
+
+class Roughs:
+    """Problems for `refine`: an estimate of a random quality from 0.3 to 1, above or below
+    the hidden number alike, as `polish` was measured on."""
+
+    def instance(self, rng: np.random.Generator) -> Instance:
+        q = float(rng.uniform(0.3, 1.0))
+        rough, problem = lab.Roughs().instance(rng, (q,)).args
+        return Instance((rough, problem), problem.x)
+
+    def score(self, instance: Instance, value: Any) -> float:
+        return lab.quality(value, instance.reference)
+
+
+def test_the_promise_is_read_at_each_problems_input_qualities() -> None:
+    library = lab.library()
+    schemas = parse_schemas("(defschema refine (rough x) (polish rough x))", "refine.any", None)
+    (refine,) = compile_file(schemas, library, [0, 1, 2, 4], input_quality=lab.POLISH_QUALITIES)
+    assert refine.model.quality_inputs == ("rough",)
+    checked = verify(refine, Roughs(), runs=RUNS)
+    assert checked.passed
+    ones = verify(refine, ProgramProblems.of(Roughs()), runs=RUNS, budgets=[2])
+    rng_qualities = []
+    for i in range(RUNS):  # the problems run 2's draws: SeedSequence(0, spawn_key=(2, i))
+        rng = np.random.default_rng(np.random.SeedSequence(0, spawn_key=(2, i)))
+        rng_qualities.append(Roughs().instance(rng).args[0].quality)
+    expected = refine.profile.interpolate(
+        refine.expected, np.array(rng_qualities)[:, None], np.full(RUNS, 2.0)
+    )
+    assert ones.budgets[0].promised == pytest.approx(float(expected.mean()))
+    assert 0.5 < ones.budgets[0].promised < float(refine.expected[-1, 2])
