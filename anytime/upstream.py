@@ -12,7 +12,8 @@ profile builder asks for an input of given qualities (a cell of the module's inp
 trial draws a problem from the schema's program-level problem set and one of the compiled
 table's totals, runs the program up to the module's call (`anytime.runtime.run_until`, the
 compiled allocation for that problem and total) and keeps the input when the quality of each
-quality-carrying argument is within `TOLERANCE` of the cell's, else draws again; after
+quality-carrying argument is within `TOLERANCE` of the way from the cell's to the next grid
+point, else draws again; after
 `MAX_DRAWS` draws it keeps the closest input drawn in the cell (a quality lands in the cell of
 its nearest grid point), so that a program whose inputs take a few qualities only still
 measures the cells around them. A cell the program does not reach (none of `PROBES` draws of
@@ -63,8 +64,9 @@ __all__ = [
     "measure_upstream",
 ]
 
-#: An input is kept for a cell when its qualities are within this of the cell's.
-TOLERANCE = 0.01
+#: An input is kept for a cell when each of its qualities is within this share of the way
+#: from the cell's to the nearest other grid point (0.025 on a grid of step 0.1).
+TOLERANCE = 0.25
 #: Problems drawn for one trial before the closest input drawn in its cell is kept instead.
 MAX_DRAWS = 200
 #: Inputs drawn first to find the cells the program reaches.
@@ -148,6 +150,7 @@ class UpstreamProblems:
         if cell not in self.reached and self.fallback is not None:
             own = self.fallback.instance(rng, input_qualities)
             return Instance(own.args, _Own(own.reference))
+        widths = [_width(g, c) for g, c in zip(self.grids, cell, strict=True)]
         stand_in, closest, nearest = None, None, np.inf
         for _ in range(MAX_DRAWS):
             drawn = self.draw(rng)
@@ -159,8 +162,8 @@ class UpstreamProblems:
                 break
             if self._cell(qualities) != cell:
                 continue
-            distance = max(abs(q - c) for q, c in zip(qualities, cell, strict=True))
-            if distance <= TOLERANCE:
+            distance = max(abs(q - c) / w for q, c, w in zip(qualities, cell, widths, strict=True))
+            if distance <= 1:
                 return Instance(self._given(args, cell), _FromProgram(problem))
             if distance < nearest:
                 closest, nearest = (problem, args), distance
@@ -425,6 +428,13 @@ def _producers(compiled: CompiledProgram, node: ModuleNode) -> list[tuple[int, s
             producer = compiled.model.graph.nodes[source.index].function
         out.append((position, producer))
     return out
+
+
+def _width(grid: Array, quality: float) -> float:
+    """How far from grid point `quality` an input is taken as of its quality: `TOLERANCE` of
+    the way to its nearest neighbour on the grid (any distance on a grid of one point)."""
+    others = np.abs(grid[grid != quality] - quality)
+    return float(TOLERANCE * others.min()) if len(others) else np.inf
 
 
 def _nearest(grid: Array, quality: float) -> float:
