@@ -73,6 +73,7 @@ if TYPE_CHECKING:
         run,
         run_program,
     )
+    from anytime.upstream import measure_upstream
     from anytime.verification import BudgetCheck, Verification, verify
 
 __version__ = "0.1.0"
@@ -132,6 +133,7 @@ __all__ = [
     "load_compiled",
     "load_profile",
     "load_schemas",
+    "measure_upstream",
     "parse_schemas",
     "program_module",
     "run",
@@ -204,6 +206,7 @@ _WHERE = {
     "BudgetCheck": "anytime.verification",
     "Verification": "anytime.verification",
     "verify": "anytime.verification",
+    "measure_upstream": "anytime.upstream",
 }
 
 

@@ -227,18 +227,34 @@ def _keep_unreached(
     current: ConditionalPerformanceProfile,
     reached: frozenset[tuple[float, ...]],
 ) -> ConditionalPerformanceProfile:
-    """`built` with the cells the program does not reach taken from `current` (same grid)."""
+    """`built` with the cells the program does not reach taken from `current` (same grid): its
+    distribution, expected quality, bin means (its representatives where it has none) and
+    probability of no result (0 where it has none)."""
     mesh = np.meshgrid(*built.input_grids, indexing="ij")
     points = np.stack([m.reshape(-1) for m in mesh], axis=-1) if mesh else np.zeros((1, 0))
     keep = np.array([tuple(float(q) for q in p) not in reached for p in points])
-    keep = keep.reshape(built.cell_shape[:-1]) if built.n_inputs else keep.reshape(())
+    keep = keep.reshape(built.cell_shape[:-1])[..., None]  # (inputs..., 1): every time
+    cells = np.meshgrid(*built.input_grids, built.time, indexing="ij")
+    q = np.stack(cells[:-1], axis=-1) if built.n_inputs else np.zeros((*cells[-1].shape, 0))
+    old = {
+        "probability": current.probability,
+        "mean": current.mean_table,
+        "bin_mean": current.representatives(q, cells[-1]),
+        "no_result_table": (
+            current.no_result_table
+            if current.no_result_table is not None
+            else np.zeros(current.cell_shape)
+        ),
+        "samples": current.samples,
+        "std": current.std,
+    }
     changes: dict[str, Any] = {}
-    for name in ("probability", "mean", "bin_mean", "samples", "std", "no_result_table"):
-        new, old = getattr(built, name), getattr(current, name)
-        if new is None or old is None:
+    for name, previous in old.items():
+        new = getattr(built, name)
+        if new is None or previous is None:
             continue
         mask = keep.reshape(keep.shape + (1,) * (new.ndim - keep.ndim))
-        changes[name] = np.where(mask, old, new)
+        changes[name] = np.where(mask, previous, new)
     return attrs.evolve(built, **changes)
 
 
@@ -289,20 +305,23 @@ def measure_upstream(
     allocator: str = "auto",
     progress: bool | None = None,
     on_round: Callable[[int, Round], None] | None = None,
+    problems: ProgramProblems | None = None,
 ) -> UpstreamMeasurement:
     """Measure module `name` on the inputs schema `schema` feeds it, compiled against
     `library` (see the module's docstring), for up to `rounds` rounds, until the compiled
     expectations move by at most `tolerance`. The grid (times, input qualities, bins) is the
     module's declared measurement's, else its current profile's; the program's problems are
-    the schema's `ProgramProblems`, whose time grid and resolution, when declared, are the
-    compilation's (else `time_grid`, `resolution`).
+    `problems` (default: the ones a plugin declares for the schema), whose time grid and
+    resolution, when declared, are the compilation's (else `time_grid`, `resolution`).
+    `on_round(k, round)` is told of each round as it ends.
 
     Raises:
         UpstreamError: the module is not called once, as a module, by the schema; or its
             result cannot be scored; or a cell cannot be measured.
         LibraryError: no program problem set is declared for the schema.
     """
-    problems = library.program_problems(schema)
+    if problems is None:
+        problems = library.program_problems(schema)
     entry = library[name]
     module = entry.module
     if module is None or module.kind not in ("interruptible", "contract"):
