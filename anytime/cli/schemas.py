@@ -102,10 +102,10 @@ def compile_options(
     resolution_default: str | None = None,
 ) -> None:
     """How a schema is compiled: --allocator, --time-grid, --resolution, --input-quality,
-    --time-unit and --memory, as `compile_schemas` and `check_time_unit` read them (the options
-    of `anytime compile`, shared by the commands that compile a schema). The defaults' help
-    text of --time-grid and --resolution can be replaced (`anytime verify` takes a problem
-    set's own first)."""
+    --time-unit, --memory and --strict, as `compile_schemas` and `check_time_unit` read them
+    (the options of `anytime compile`, shared by the commands that compile a schema). The
+    defaults' help text of --time-grid and --resolution can be replaced (`anytime verify`
+    takes a problem set's own first)."""
     grid_text = time_grid_default or DEFAULT_GRID_TEXT
     resolution_text = resolution_default or "the time grid's STEP"
     parser.add_argument(
@@ -148,6 +148,12 @@ def compile_options(
         default=DEFAULT_MEMORY,
         help="the most memory a search may hold at once, e.g. 512MB, 1GB, 2GiB (default: 1GB); "
         "it evaluates in chunks within it, and a table that cannot fit is refused up front",
+    )
+    parser.add_argument(
+        "--strict",
+        action="store_true",
+        help="refuse a table that feeds a module input qualities outside the grid its profile"
+        " was measured on (by default a warning: the profile is clamped there)",
     )
 
 
@@ -241,6 +247,7 @@ def run_compile(args: argparse.Namespace) -> int:
         input_quality=args.input_quality,
         resolution=args.resolution,
         memory=args.memory,
+        strict=args.strict,
     )
     wanted = [c for c in compiled if args.schema is None or c.name == args.schema.lower()]
     check_time_unit(wanted, args.time_unit, args.file)
@@ -301,6 +308,7 @@ def compile_schemas(
     input_quality: Sequence[float] = DEFAULT_INPUT_QUALITY,
     resolution: float | None = None,
     memory: int = DEFAULT_MEMORY,
+    strict: bool = False,
 ) -> list[CompiledProgram]:
     """`compile_file` as the commands run it: the time grid given (by the `time_grid` option
     type) or the default, a lattice too large refused up front (a usage error), compile errors
@@ -321,6 +329,7 @@ def compile_schemas(
             allocator=allocator,
             resolution=resolution,
             memory=memory,
+            strict=strict,
         )
     except CompileError as error:
         raise InputError(str(error), where=error.where or schemas.filename) from None

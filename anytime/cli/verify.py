@@ -119,6 +119,7 @@ def run_verify(args: argparse.Namespace) -> int:
         input_quality=args.input_quality,
         resolution=resolution,
         memory=args.memory,
+        strict=args.strict,
     )
     (program,) = [c for c in compiled if c.name == name.lower()]
     check_time_unit([program], args.time_unit, args.file)

@@ -307,3 +307,26 @@ def test_the_shipped_navigation_schema_compiles_exactly(
     assert np.array(report["allocation"]).shape == (len(report["time"]), 2)
     for baseline in report["baselines"].values():
         assert (expected >= np.array(baseline) - 1e-12).all()
+
+
+def test_strict_refuses_a_table_that_leans_on_a_clamped_profile(
+    cli: Cli, setup: tuple[Path, Path]
+) -> None:
+    """`plan` measured on maps of quality 0.5 to 1 only: the table feeds it worse maps, which
+    its profile clamps (a warning), and with --strict the compilation is refused (exit 1)."""
+    _, library = setup
+    narrow = tabulate(
+        lambda t, q: q * -np.expm1(-PLAN_RATE * t),
+        TIME,
+        input_grids=[[0.5, 1.0]],
+        inputs=["map"],
+        module="plan",
+    )
+    save_profile(narrow, library / "plan.yaml")
+    code, out, err = compile_p(cli, setup, "--time-grid", "0:40:10")
+    assert (code, err) == (0, "")
+    warning = next(line for line in out.splitlines() if line.startswith("  warning: "))
+    assert warning.startswith("  warning: module 'plan': input 'map' receives qualities 0 to")
+    code, out, err = compile_p(cli, setup, "--time-grid", "0:40:10", "--strict")
+    assert (code, out) == (1, "")
+    assert err == f"{setup[0]}: error: schema 'p' (--strict): {warning[11:]}\n"
