@@ -14,6 +14,7 @@ the property tests, of which many are checked, within 4 se each."""
 from __future__ import annotations
 
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -32,7 +33,7 @@ from hypothesis import strategies as st
 from program_sampler import simulate
 
 import anytime.compiler.evaluate as evaluate
-from anytime.compiler import compile_file, compile_program
+from anytime.compiler import compile_file, compile_program, load_compiled, save_compiled
 from anytime.dsl import parse_schemas
 from anytime.library import AnytimeLibrary, RegistrySource
 from anytime.modules import Context, Registry, Result, elementary, interruptible
@@ -281,11 +282,12 @@ def test_dp_does_not_claim_a_callee_on_an_internal_result_is_exact() -> None:
 
 
 def test_too_many_joint_outcomes_are_sampled_with_a_standard_error(
-    monkeypatch: pytest.MonkeyPatch,
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:
     """Past the enumeration limit the shared results are sampled: the table says where and by
-    how much (a standard error per cell, as a field), is not called exact, is the same on
-    every compilation (common draws), and is within its error of runs."""
+    how much (a standard error per cell, as a field, kept by a saved program), is not called
+    exact, is the same on every compilation (common draws), and is within its error of
+    runs."""
     monkeypatch.setattr(evaluate, "ENUMERATION_LIMIT", 1)
     monkeypatch.setattr(evaluate, "SAMPLES", 512)
     program = parse_schemas(SHAPES["best-of over a shared map"])["p"]
@@ -301,6 +303,11 @@ def test_too_many_joint_outcomes_are_sampled_with_a_standard_error(
         f" of 9 cells of the table: their expected quality has a standard error of up to"
         f" {error.max():.2g}",
     )
+    path = tmp_path / "sampled.yaml"
+    save_compiled(compiled, path)
+    loaded = load_compiled(path, _library(True))
+    np.testing.assert_array_equal(loaded.standard_error, error)
+    assert (loaded.exact, loaded.approximations) == (False, compiled.approximations)
     rng = np.random.default_rng(5)
     for j, total in enumerate(TOTALS):
         runs = simulate(compiled, [], total, RUNS, rng)
