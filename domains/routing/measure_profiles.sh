@@ -3,16 +3,31 @@
 # clock, and write them into the package. Run with the environment's `anytime` on the PATH (or
 # ANYTIME=path/to/anytime) and the plugin installed with its `measure` extra; the same seed
 # gives the same files for any --workers.
+#
+# The tour planners are measured where the programs put them (`--upstream`): `plan-tours` on
+# the clusterings `deliver` hands it under its compiled allocations, then `insert-tours` on
+# those `deliver-best` hands it (compiled with the new `plan-tours`), each compiled and
+# measured again until the compiled table moves by at most 0.005 (at most ROUNDS rounds); the
+# input cells a program never reaches are measured on the module's own problem set. Each round
+# is told as it ends (its reached cells and how far the compiled table moved).
+# `plan-tour`, called in `deliver-each`'s loop (`map`), which `--upstream` does not reach, is
+# measured on its own problem set, made with `deliver-each`'s compiled allocations: measure it
+# after the other four.
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 anytime="${ANYTIME:-anytime}"
 workers="${WORKERS:-2}"
-measure() {  # MODULE TRIALS
-  "$anytime" profile "$1" --trials "$2" --workers "$workers" --seed 0 --quiet \
-    -o "$here/anytime_routing/profiles/$1.yaml"
+schemas="$here/anytime_routing/schemas/routing.any"
+measure() {  # MODULE TRIALS [OPTION...]
+  local module="$1" trials="$2"
+  shift 2
+  "$anytime" profile "$module" --trials "$trials" --workers "$workers" --seed 0 "$@" \
+    -o "$here/anytime_routing/profiles/$module.yaml"
 }
-measure estimate-demand "${DEMAND_TRIALS:-2000}"
-measure cluster-stops "${CLUSTER_TRIALS:-500}"
-measure plan-tours "${TOUR_TRIALS:-300}"
-measure insert-tours "${INSERT_TRIALS:-100}"
-measure plan-tour "${DEPOT_TRIALS:-300}"
+measure estimate-demand "${DEMAND_TRIALS:-2000}" --quiet
+measure cluster-stops "${CLUSTER_TRIALS:-500}" --quiet
+measure plan-tours "${TOUR_TRIALS:-300}" \
+  --upstream "$schemas" --schema deliver --rounds "${ROUNDS:-3}"
+measure insert-tours "${INSERT_TRIALS:-100}" \
+  --upstream "$schemas" --schema deliver-best --rounds "${ROUNDS:-3}"
+measure plan-tour "${DEPOT_TRIALS:-300}" --quiet

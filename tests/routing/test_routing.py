@@ -22,6 +22,7 @@ from anytime_routing.domain import (
     reference_delivery,
     reference_length,
     run_kmeans,
+    tour_quality,
 )
 from anytime_routing.modules import (
     PROBLEM_SETS,
@@ -31,6 +32,7 @@ from anytime_routing.modules import (
     demand_of_quality,
     depots,
     estimate_demand,
+    insert_tours,
     plan_tour,
     plan_tours,
     route,
@@ -38,15 +40,18 @@ from anytime_routing.modules import (
 from anytime_routing.plugin import PLUGIN
 from anytime_routing.program import (
     SCHEMAS,
+    DeliveryProblems,
     compiled_program,
     deliver,
+    depot_tour_quality,
     fresh_problems,
 )
+from anytime_routing.resources import load_schema_file
 from conftest import Cli
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from anytime import Context, Result
+from anytime import AnytimeLibrary, Context, Result, measure_upstream
 from anytime.plugin import MISSING
 from anytime.testing import assert_module_passes
 
@@ -206,6 +211,49 @@ def test_a_clustering_input_of_quality_q_is_cluster_stops_answer(q: float) -> No
         world, clustering = clustering_of_quality(rng, q)
         best, _ = reference_clustering(world.points, world.shares, world.depots)
         assert abs(clustering_quality(clustering.value, world.shares, best) - q) <= 0.01
+
+
+def test_the_program_problems_score_each_modules_result_as_its_problem_set_does() -> None:
+    """`score_step`, what `anytime profile --upstream` scores a module inside a program by
+    (and its inputs' true qualities): a demand estimate, a clustering and its depots, tours, a
+    depot's tour and the route, each as the modules' own problem sets and `score` do."""
+    for schema in SCHEMAS:
+        assert isinstance(PLUGIN.program_problems[schema].problems, DeliveryProblems)
+    problems = DeliveryProblems()
+    instance = problems.instance(np.random.default_rng([SEED, 8]))
+    orders, sites = instance.args
+    world = instance.reference.world
+    length, _ = reference_delivery(world)
+    best, _ = reference_clustering(world.points, world.shares, world.depots)
+    demand = estimate_demand(Context(10), orders)
+    assert demand is not None
+    quality = problems.score_step(instance, "estimate-demand", demand.value)
+    assert quality == demand_quality(demand.value, world.shares)
+    *_, clusters = cluster_stops(Context(16), demand, sites)
+    quality = clustering_quality(clusters.value, world.shares, best)
+    assert problems.score_step(instance, "cluster-stops", clusters.value) == quality
+    assert problems.score_step(instance, "depots", depots(clusters)) == quality
+    for planner in (plan_tours, insert_tours):
+        *_, tours = planner(Context(40), clusters)
+        quality = tour_quality(tours.value, length)
+        assert problems.score_step(instance, planner.name, tours.value) == quality
+        assert problems.score(instance, tours.value) == quality
+    *_, tour = plan_tour(Context(), Result(depots(clusters)[0], 0.9))
+    quality = problems.score_step(instance, "plan-tour", tour.value)
+    assert quality == depot_tour_quality(tour.value, length) and 0 < quality <= 1
+    joined = route(Result([tour.value], 0.9))
+    assert problems.score_step(instance, "route", joined) == tour_quality(joined, length)
+    assert problems.score_step(instance, "cluster-stops", None) == 0.0
+    with pytest.raises(ValueError, match="no true quality for module 'has-customers[?]'"):
+        problems.score_step(instance, "has-customers?", True)
+
+
+def test_plan_tour_in_the_loop_is_beyond_measuring_upstream() -> None:
+    """`anytime profile --upstream` measures a module called once, outside loops: `plan-tour`,
+    called in `deliver-each`'s `map`, keeps its own problem set (`DepotInputs`)."""
+    library = AnytimeLibrary.default()
+    with pytest.raises(ValueError, match="schema 'deliver-each' does not call module 'plan-tour'"):
+        measure_upstream("plan-tour", load_schema_file(), "deliver-each", library, trials=1)
 
 
 # --- the catalogue --------------------------------------------------------------------------

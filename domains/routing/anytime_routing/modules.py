@@ -62,7 +62,7 @@ from .geometry import (
     one_tree_bound,
     tour_length,
 )
-from .program import MEASURED_WITH, compiled_program
+from .program import compiled_program
 
 __all__ = [
     "MODULES",
@@ -94,8 +94,9 @@ CLUSTER_GRID = [0.4, 0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95, 0.98, 1.0]
 LOW_CLUSTER_TICKS = 12
 #: The schema whose upstream allocations make the clusterings `plan-tour` is measured on: the
 #: loop's own (`deliver-each` gives the demand less time than `deliver` does, and clusterings
-#: of one quality but other upstream times give other tours).
-LOOPED = ("deliver-each",)
+#: of one quality but other upstream times give other tours). `anytime profile --upstream`
+#: measures a module called once, outside loops: not `plan-tour`, called in a `map`.
+LOOPED = "deliver-each"
 #: Most Lloyd iterations of one k-means restart.
 MAX_ITERATIONS = 30
 
@@ -439,36 +440,37 @@ class DemandInputs:
         return clustering_quality(value, shares, cost)
 
 
+#: The (`estimate-demand`, `cluster-stops`) allocations the tour planners' own problem set
+#: draws clusterings with: every pair of their grids' times at which `cluster-stops` runs.
+GRID_TIMES = tuple((float(d), float(c)) for d in DEMAND_TIME for c in CLUSTER_TIME if c > 0)
+
+
 @cache
-def upstream_times(schemas: tuple[str, ...] = MEASURED_WITH) -> tuple[tuple[float, float], ...]:
-    """The (`estimate-demand`, `cluster-stops`) allocations the packaged `schemas` (default
-    `deliver` and `deliver-best`) give at their compiled budgets under the installed profiles,
-    those at which `cluster-stops` runs: the clusterings a program actually hands to the tour
-    planners are made with these."""
+def loop_times(schema: str = LOOPED) -> tuple[tuple[float, float], ...]:
+    """The (`estimate-demand`, `cluster-stops`) allocations the packaged loop `schema` gives
+    at its compiled budgets under the installed profiles, those at which `cluster-stops` runs:
+    the clusterings the loop actually hands to `plan-tour` (one call per depot in a `map`,
+    which `anytime profile --upstream` does not reach) are made with these."""
+    program = compiled_program(schema)
+    demand, clusters = (program.modules.index(m) for m in ("estimate-demand", "cluster-stops"))
+    quality = [1.0] * program.profile.n_inputs
     pairs = set()
-    for schema in schemas:
-        program = compiled_program(schema)
-        demand, clusters = (program.modules.index(m) for m in ("estimate-demand", "cluster-stops"))
-        quality = [1.0] * program.profile.n_inputs
-        for total in program.profile.time:
-            split = program.allocation_at(quality, float(total))
-            if split[clusters]:
-                pairs.add((float(split[demand]), float(split[clusters])))
+    for total in program.profile.time:
+        split = program.allocation_at(quality, float(total))
+        if split[clusters]:
+            pairs.add((float(split[demand]), float(split[clusters])))
     return tuple(sorted(pairs))
 
 
 def clustering_of_quality(
-    rng: np.random.Generator, q: float, schemas: tuple[str, ...] = MEASURED_WITH
+    rng: np.random.Generator, q: float, times: tuple[tuple[float, float], ...] = GRID_TIMES
 ) -> tuple[World, Result]:
     """A world and a `cluster-stops` answer of true quality within TOLERANCE of `q`, made by
     the two upstream modules themselves: draw a world, then (up to 20 times on it) one of the
-    allocations the compiled programs give them (`upstream_times`; below quality 0.8 those with
-    at most LOW_CLUSTER_TICKS for `cluster-stops`, the only ones at which such clusterings occur
-    often), run `estimate-demand` and `cluster-stops` with it, and keep the first answer close
-    enough. At one quality, a clustering of uniform demand run to convergence gives shorter
-    tours than one of good demand stopped early (see README.md): drawing the allocations the
-    programs use makes the mix the one they meet."""
-    times = upstream_times(schemas)
+    (`estimate-demand`, `cluster-stops`) allocations `times` (default: any pair of their grids'
+    times; below quality 0.8 those with at most LOW_CLUSTER_TICKS for `cluster-stops`, the only
+    ones at which such clusterings occur often), run both with it, and keep the first answer
+    close enough (no result is not an input: the module would not be called)."""
     if q < 0.8:
         times = tuple(t for t in times if t[1] <= LOW_CLUSTER_TICKS)
     for _ in range(MAX_DRAWS // 20):
@@ -489,9 +491,12 @@ def clustering_of_quality(
 
 
 class ClusteringInputs:
-    """Problems for `plan-tours` and `insert-tours`: a clustering of the quality asked for
-    (`clustering_of_quality`); the truth is the world's reference delivery (`reference_delivery`:
-    the shortest optimal tours over many candidate clusterings, exact)."""
+    """Problems for `plan-tours` and `insert-tours` on their own: a clustering of the quality
+    asked for (`clustering_of_quality`, upstream allocations drawn from the modules' grids);
+    the truth is the world's reference delivery (`reference_delivery`: the shortest optimal
+    tours over many candidate clusterings, exact). Their packaged profiles are measured where
+    the programs put them (`anytime profile --upstream`, on `DeliveryProblems`); this problem
+    set measures the input cells the programs never reach."""
 
     def instance(self, rng: np.random.Generator, input_qualities: tuple[float, ...]) -> Instance:
         (q,) = input_qualities
@@ -506,7 +511,8 @@ class ClusteringInputs:
 
 class DepotInputs:
     """Problems for `plan-tour`: one depot, drawn at random, of a clustering of the quality
-    asked for (`clustering_of_quality`, with `deliver-each`'s upstream allocations). The
+    asked for (`clustering_of_quality`, with `deliver-each`'s upstream allocations,
+    `loop_times`). The
     truth: the depot's optimal tour over this one, times the reference delivery over the
     clustering's optimal tours (at most 1), so that the mean over a clustering's depots is
     close to the route's quality (`tour_quality`): exactly that where the depots' tours are
@@ -515,7 +521,7 @@ class DepotInputs:
 
     def instance(self, rng: np.random.Generator, input_qualities: tuple[float, ...]) -> Instance:
         (q,) = input_qualities
-        world, clustering = clustering_of_quality(rng, q, LOOPED)
+        world, clustering = clustering_of_quality(rng, q, loop_times())
         length, _ = reference_delivery(world)
         value: Clustering = clustering.value
         optimal = [optimal_length(value.nodes(k)) for k in range(len(value.centres))]

@@ -5,6 +5,7 @@ budget on the work clock, and score it against the reference."""
 from __future__ import annotations
 
 from functools import cache
+from typing import Any
 
 import numpy as np
 from attrs import frozen
@@ -22,9 +23,13 @@ from anytime.plugin import (
 
 from .domain import (
     Clustering,
+    Depot,
     ReferenceUnavailable,
     Tours,
     World,
+    clustering_quality,
+    demand_quality,
+    optimal_length,
     random_world,
     reference_clustering,
     reference_delivery,
@@ -33,13 +38,13 @@ from .domain import (
 from .resources import load_schema_file
 
 __all__ = [
-    "MEASURED_WITH",
     "PROGRAM_PROBLEMS",
     "RESOLUTIONS",
     "SCHEMAS",
     "TIME_GRIDS",
     "Delivery",
     "DeliveryProblems",
+    "DeliveryReference",
     "compiled_program",
     "deliver",
     "reference_for",
@@ -49,9 +54,6 @@ __all__ = [
 #: The packaged schemas: the chain, the DAG with a best-of, and the chain with a tour per depot
 #: in a loop (`map`).
 SCHEMAS = ("deliver", "deliver-best", "deliver-each")
-#: The schemas whose upstream allocations make the clusterings `plan-tours` and `insert-tours`
-#: are measured on (`modules.upstream_times`; the loop's `plan-tour` on `deliver-each`'s).
-MEASURED_WITH = ("deliver", "deliver-best")
 #: The compiled totals (ticks) and the allocation lattice of each schema, both on the
 #: profiles' time step (the DAG's four modules are searched by the multi-start allocator).
 TIME_GRIDS = {
@@ -134,24 +136,90 @@ def deliver(
     return Delivery(record, tours, clustering, length, quality)
 
 
+class DeliveryReference:
+    """What a delivery problem's results are scored against, each computed when first asked
+    for (a problem drawn only to run the program up to a module's call, as `anytime profile
+    --upstream` draws many, needs the clustering's reference at most): the world, the
+    reference delivery's length (`reference_delivery`) and the reference clustering's cost
+    (`reference_clustering`)."""
+
+    def __init__(self, world: World) -> None:
+        self.world = world
+        self._length: float | None = None
+        self._cost: float | None = None
+
+    @property
+    def length(self) -> float:
+        """The length of the reference delivery's tours."""
+        if self._length is None:
+            self._length, _ = reference_delivery(self.world)
+        return self._length
+
+    @property
+    def clustering_cost(self) -> float:
+        """The demand-weighted k-means cost of the reference clustering (true shares)."""
+        if self._cost is None:
+            world = self.world
+            self._cost, _ = reference_clustering(world.points, world.shares, world.depots)
+        return self._cost
+
+
 class DeliveryProblems:
-    """The problems the packaged schemas are promised for (`anytime verify`): a fresh world of
-    the profiles' size (24 customers, 3 depots), the inputs `orders customers`; a result is
-    scored as `anytime deliver` scores it, against the world's reference delivery (its optimal
-    tours over the best candidate clusterings, `reference_delivery`)."""
+    """The problems the packaged schemas are promised for (`anytime verify`) and measured on
+    (`anytime profile --upstream`): a fresh world of the profiles' size (24 customers, 3
+    depots), the inputs `orders customers`; a result is scored as `anytime deliver` scores it,
+    against the world's reference delivery (its optimal tours over the best candidate
+    clusterings, `reference_delivery`), and every module's result inside a program as the
+    modules' problem sets score it (`score_step`)."""
 
     def instance(self, rng: np.random.Generator) -> Instance:
         world = random_world(rng)
-        length, _ = reference_delivery(world)
-        return Instance((world.orders, world.sites), reference=length)
+        return Instance((world.orders, world.sites), reference=DeliveryReference(world))
 
     def score(self, instance: Instance, value: Tours | None) -> float:
-        return tour_quality(value, instance.reference)
+        return tour_quality(value, instance.reference.length)
+
+    def score_step(self, instance: Instance, module: str, value: Any) -> float:
+        """The true quality of `value`, the result of `module` (None: no result), on the
+        problem: a demand estimate by its L1 error against the true shares, a clustering (or
+        its depots) by the reference clustering's cost over its own, tours (or the route) by
+        the reference delivery's length over theirs, one depot's tour by its share of the
+        reference (`modules.DepotInputs`)."""
+        reference: DeliveryReference = instance.reference
+        world = reference.world
+        if value is None:
+            return 0.0
+        match module:
+            case "estimate-demand":
+                return demand_quality(value, world.shares)
+            case "cluster-stops":
+                return clustering_quality(value, world.shares, reference.clustering_cost)
+            case "depots":
+                if not value:
+                    return 0.0
+                first: Depot = value[0]
+                return clustering_quality(first.clustering, world.shares, reference.clustering_cost)
+            case "plan-tours" | "insert-tours" | "route":
+                return tour_quality(value, reference.length)
+            case "plan-tour":
+                return depot_tour_quality(value, reference.length)
+        raise ValueError(f"DeliveryProblems.score_step: no true quality for module '{module}'")
 
 
-#: How `anytime verify` checks each packaged schema: on the totals and lattice it is compiled
-#: for (`TIME_GRIDS`, `RESOLUTIONS`), the allocations whose clusterings the tour planners'
-#: profiles were measured on.
+def depot_tour_quality(tour: Any, reference: float) -> float:
+    """One depot's tour (a `modules.DepotTour`) scored by its share of the `reference`
+    delivery's length: the depot's optimal tour over this one, times the reference over the
+    clustering's optimal tours (at most 1; see `modules.DepotInputs`)."""
+    clustering: Clustering = tour.depot.clustering
+    optimal = [optimal_length(clustering.nodes(k)) for k in range(len(clustering.centres))]
+    length = float(tour.length)
+    share = reference / sum(optimal)
+    return 1.0 if length <= 0 else min(1.0, share * optimal[tour.depot.index] / length)
+
+
+#: How `anytime verify` checks each packaged schema, and `anytime profile --upstream` measures
+#: a module where it puts it: on the totals and lattice it is compiled for (`TIME_GRIDS`,
+#: `RESOLUTIONS`).
 PROGRAM_PROBLEMS = {
     schema: ProgramProblems.of(
         DeliveryProblems(), time_grid=TIME_GRIDS[schema], resolution=RESOLUTIONS[schema]
