@@ -423,3 +423,23 @@ def test_the_promise_is_read_at_each_problems_input_qualities() -> None:
     )
     assert ones.budgets[0].promised == pytest.approx(float(expected.mean()))
     assert 0.5 < ones.budgets[0].promised < float(refine.expected[-1, 2])
+
+
+class _RoundedAlike(lab.HiddenNumbers):
+    """Scores every result 0.7, as arithmetic on each problem's own numbers gives it: equal
+    but for the last bits."""
+
+    def score(self, instance: Any, value: Any) -> float:
+        x = float(instance.reference)
+        return (0.7 * x) / x
+
+
+def test_scores_alike_but_for_rounding_have_no_standard_error(
+    programs: dict[str, CompiledProgram],
+) -> None:
+    """Their standard deviation is rounding (about 1e-17): z divided by it was 1e16."""
+    (check,) = verify(programs["fair"], _RoundedAlike(), runs=20, budgets=[4]).budgets
+    assert np.ptp(check.qualities) > 0  # the scores do differ, in their last bits
+    assert (check.se, check.se_runs) == (0.0, 0.0)
+    assert check.realised == pytest.approx(0.7, abs=1e-12)
+    assert check.z == pytest.approx((check.realised - check.promised) * 20)
