@@ -96,10 +96,13 @@ def _exception_classes() -> list[type[BaseException]]:
 
 
 #: Exceptions that are signals, not errors: A* reaching its expansion limit (the anytime
-#: planner's deadline, caught where it is raised), and the KeyboardInterrupts of a user's stop
-#: (SIGTERM to the command; an interrupted run carrying its record to the caller).
+#: planner's deadline, caught where it is raised), the evaluator finding a DAG's joint outcomes
+#: too many to enumerate (caught in `Evaluator.evaluate`, which samples them instead), and the
+#: KeyboardInterrupts of a user's stop (SIGTERM to the command; an interrupted run carrying its
+#: record to the caller).
 SIGNALS = {
     "anytime_navigation.search.SearchLimit",
+    "anytime.compiler.evaluate._Sample",
     "anytime.launch.Terminated",
     "anytime.runtime.executor.RunInterrupted",
 }
