@@ -328,9 +328,32 @@ def is_deterministic(profile: ConditionalPerformanceProfile) -> bool:
     )
 
 
+def _least(q: np.ndarray[Any, Any]) -> np.ndarray[Any, Any]:
+    """The minimum along axis 0; 1 for no inputs (the modules' default combination)."""
+    return np.min(q, axis=0) if len(q) else np.ones(q.shape[1:])
+
+
+def _most(q: np.ndarray[Any, Any]) -> np.ndarray[Any, Any]:
+    most: np.ndarray[Any, Any] = np.max(q, axis=0)
+    return most
+
+
+@frozen
+class _Pointwise:
+    """Any other combination, applied to one combination of input qualities at a time (a
+    class, not a closure, so that a compiled program pickles with it)."""
+
+    combine: Callable[[Sequence[float]], float]
+
+    def __call__(self, q: np.ndarray[Any, Any]) -> np.ndarray[Any, Any]:
+        flat = q.reshape(len(q), -1)
+        out = np.array([self.combine(list(column)) for column in flat.T], dtype=np.float64)
+        return out.reshape(q.shape[1:])
+
+
 _COMBINATIONS: dict[Callable[..., Any], Callable[[np.ndarray[Any, Any]], np.ndarray[Any, Any]]] = {
-    builtins.min: lambda q: np.min(q, axis=0),
-    builtins.max: lambda q: np.max(q, axis=0),
+    builtins.min: _least,
+    builtins.max: _most,
 }
 
 
@@ -343,14 +366,8 @@ def _vector_combine(
     if combine in _COMBINATIONS:
         return _COMBINATIONS[combine], True
     if name == "_min_quality":  # the modules' default: min, with 1.0 for no inputs
-        return (lambda q: np.min(q, axis=0) if len(q) else np.ones(q.shape[1:])), True
-
-    def pointwise(q: np.ndarray[Any, Any]) -> np.ndarray[Any, Any]:
-        flat = q.reshape(len(q), -1)
-        out = np.array([combine(list(column)) for column in flat.T], dtype=np.float64)
-        return out.reshape(q.shape[1:])
-
-    return pointwise, False
+        return _least, True
+    return _Pointwise(combine), False
 
 
 def _call_mismatch(entry: LibraryEntry, n_args: int, keywords: Sequence[str]) -> str | None:
