@@ -125,6 +125,14 @@ def row_bytes(model: CompileModel) -> int:
     support sizes the evaluator's distributions reach (a deterministic module's is its inputs'
     product, a stochastic one's its bins, a support past `MAX_SUPPORT` is folded), times the
     rows the evaluator makes of each for the shared results' outcomes (see `Evaluator`)."""
+    kept, peak, factor, _ = _footprint(model)
+    return 8 * WORKSPACE * (kept + peak) * factor
+
+
+def _footprint(model: CompileModel) -> tuple[int, int, int, int]:
+    """(values kept, the largest node's working values, rows per evaluated row, the output's
+    support) of evaluating one allocation of `model`: a shared result is conditioned on, so
+    its readers see one of its values per row, and the rows multiply by its support."""
     support: dict[int, int] = {}
     shared = shared_nodes(model)
     kept, peak, factor = 0, 0, 1
@@ -136,17 +144,16 @@ def row_bytes(model: CompileModel) -> int:
         if isinstance(node, TestNode):
             out = 1
         elif isinstance(node, IfNode):
-            out = sum(
-                prod(sizes[a] for a in plan.axes) * (plan.compiled.profile.n_bins + 1)
-                for plan in node.branches
-            )
-            work = out * (len(sizes) + 6) + sum(
-                prod(sizes[a] for a in plan.axes) * row_bytes(plan.compiled.model) // 8
-                for plan in node.branches
-            )
+            nested = [
+                (prod(sizes[a] for a in p.axes), _footprint(p.compiled.model))
+                for p in node.branches
+            ]
+            out = sum(c * (f[3] + 1) for c, f in nested)
+            work = out * (len(sizes) + 6) + sum(c * f[2] * (f[0] + f[1]) for c, f in nested)
         elif isinstance(node, ModuleNode) and node.callee is not None:
-            out = combos * (node.profile.n_bins + 1)
-            work = combos * (len(sizes) + 6) + combos * row_bytes(node.callee.model) // 8
+            inner = _footprint(node.callee.model)
+            out = combos * (inner[3] + 1)
+            work = combos * (len(sizes) + 6) + combos * inner[2] * (inner[0] + inner[1])
         elif isinstance(node, ModuleNode | LoopNode):
             if not node.deterministic:
                 out = node.profile.n_bins
@@ -155,13 +162,16 @@ def row_bytes(model: CompileModel) -> int:
             out += _step(node) > 0 or node.profile.no_result_table is not None or out < combos
         if out > MAX_SUPPORT:
             out = len(FOLD_GRID) + 1
-        support[node.index] = out
-        if node.index in shared:
+        if node.index in shared:  # conditioned on: one value a row, the rows multiplied
             factor *= out
+            out = 1
+        support[node.index] = out
         kept += 2 * out
         peak = max(peak, work)
     factor = min(factor, max(ENUMERATION_LIMIT, SAMPLES))
-    return 8 * WORKSPACE * (kept + peak) * factor
+    output = support.get(model.output.index, 1) if model.output.kind == "node" else 1
+    output *= factor  # the replicas mixed back, compacted or folded
+    return kept, peak, factor, output if output <= MAX_SUPPORT else len(FOLD_GRID) + 1
 
 
 def chunk_rows(model: CompileModel, memory: int, per_row: int = 0) -> int:
