@@ -262,12 +262,16 @@ def _keep_unreached(
 class Round:
     """One round of the fixed point: the profile measured on the compiled program's inputs,
     how far the compiled expectations moved with it (the largest change over the table's
-    cells), and how many cells of the module's input grid the program reached."""
+    cells), how many cells of the module's input grid the program reached, and the
+    measurement's own noise: 3 times the largest standard error of the profile's expected
+    quality in a cell (a change well within it says more trials are needed, not more
+    rounds)."""
 
     profile: ConditionalPerformanceProfile
     change: float
     reached: int
     cells: int
+    noise: float = 0.0
 
 
 @frozen
@@ -285,6 +289,7 @@ class UpstreamMeasurement:
 
     @property
     def converged(self) -> bool:
+        """The last round moved the compiled expectations by at most the tolerance."""
         return self.rounds[-1].change <= self.tolerance
 
 
@@ -395,7 +400,9 @@ def measure_upstream(
         current = profile
         again = compiled_with(library)
         change = float(np.max(np.abs(again.expected - compiled.expected)))
-        done.append(Round(profile, change, len(reached), int(np.prod(profile.cell_shape[:-1]))))
+        noise = _noise(build.profile)
+        cells = int(np.prod(profile.cell_shape[:-1]))
+        done.append(Round(profile, change, len(reached), cells, noise))
         if on_round is not None:
             on_round(index + 1, done[-1])
         compiled = again
@@ -403,6 +410,14 @@ def measure_upstream(
         if change <= tolerance:
             break
     return UpstreamMeasurement(module.name, schema, tuple(done), tolerance)
+
+
+def _noise(profile: ConditionalPerformanceProfile) -> float:
+    """3 times the largest standard error of a measured profile's expected quality in a cell."""
+    if profile.std is None or profile.samples is None:
+        return 0.0
+    se = profile.std / np.sqrt(np.maximum(profile.samples, 1))
+    return 3 * float(np.max(se, initial=0.0))
 
 
 def _module(node: ModuleNode) -> AnytimeModule:

@@ -317,7 +317,8 @@ def _run_upstream(args: argparse.Namespace) -> int:
         if not (args.quiet or args.json):
             print(
                 f"round {index}: {done.reached} of {done.cells} input cells reached; the"
-                f" compiled expectations moved by up to {done.change:.4f}",
+                f" compiled expectations moved by up to {done.change:.4f} (the measurement's"
+                f" noise: {done.noise:.4f})",
                 flush=True,
             )
 
@@ -340,12 +341,24 @@ def _run_upstream(args: argparse.Namespace) -> int:
     _save(output, lambda path: save_profile(measured.profile, path))
     if args.json:
         rounds = [
-            {"change": r.change, "reached": r.reached, "cells": r.cells} for r in measured.rounds
+            {"change": r.change, "noise": r.noise, "reached": r.reached, "cells": r.cells}
+            for r in measured.rounds
         ]
         summary = {"module": module.name, "file": str(output), "schema": name}
         print(json_text(summary | {"rounds": rounds, "converged": measured.converged}))
     else:
-        verdict = "converged" if measured.converged else "not converged: give more --rounds"
+        last = measured.rounds[-1]
+        verdict = "converged"
+        if not measured.converged:
+            verdict = (
+                f"not converged: the last round moved the table by {last.change:.4f}, more"
+                f" than {UPSTREAM_TOLERANCE}"
+                + (
+                    ", within the measurement's noise: measure with more --trials"
+                    if last.change <= last.noise
+                    else ": give more --rounds"
+                )
+            )
         print(f"{module.name} on schema {name}: {len(measured.rounds)} rounds, {verdict}")
         print(f"wrote {output}")
     return EXIT_OK
