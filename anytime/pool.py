@@ -12,8 +12,7 @@ every worker something large, or something that does not pickle, once, and send 
 tasks (`anytime.verification` hands its workers the compiled program so). Tasks and results
 are pickled; on a Dask cluster the tasks must carry everything themselves.
 
-This is the profile builder's pool (`anytime.profiles.builder._run`), made generic so that
-other commands spread their work the same way.
+The profile builder spreads its chunks of trials with it, `anytime verify` its runs.
 """
 
 from __future__ import annotations

@@ -49,10 +49,9 @@ from __future__ import annotations
 import importlib
 import math
 import secrets
-import signal
 import time as _time
 from collections.abc import Iterator, Mapping, Sequence
-from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
+from concurrent.futures import Executor
 from contextlib import contextmanager
 from typing import Any, Literal
 
@@ -63,6 +62,7 @@ from numpy.typing import ArrayLike, NDArray
 from anytime.errors import AnytimeError, ProfileError
 from anytime.isolation import ISOLATIONS, WATCHDOG, Isolation
 from anytime.modules import AnytimeModule
+from anytime.pool import spread
 from anytime.profiles.dynamic import QualityTraces
 from anytime.profiles.profile import (
     Array,
@@ -575,41 +575,10 @@ def _tabulate(
     )
 
 
-def _ignore_interrupts() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # a forked worker must die of the parent's stop
-
-
 def _run(chunks: list[Chunk], executor: Executor | None, workers: int) -> Iterator[Done]:
-    """Finished chunks as they come back, in any order."""
+    """Finished chunks as they come back, in any order: here, all in one (isolated) process
+    of trials, or spread over local workers or an executor (`anytime.pool.spread`)."""
     if executor is None and workers == 1:
         yield from measure_chunks(chunks)
         return
-    # The workers ignore Ctrl-C (the terminal sends it to them too): the parent stops them.
-    own: ProcessPoolExecutor | None = None
-    pool: Executor
-    if executor is None:
-        pool = own = ProcessPoolExecutor(workers, initializer=_ignore_interrupts)
-    else:
-        pool = executor
-    futures: list[Future[Done]] = []
-    try:
-        futures = [pool.submit(measure_chunk, chunk) for chunk in chunks]
-        for future in as_completed(futures):
-            yield future.result()
-    except (KeyboardInterrupt, GeneratorExit):
-        if own is not None:  # stop the running chunks now rather than wait for them
-            processes = list((own._processes or {}).values())
-            own.shutdown(wait=False, cancel_futures=True)
-            for process in processes:
-                process.terminate()
-        raise
-    finally:
-        # After an error, drop what has not started. Our own pool cancels its queued chunks
-        # itself: a future cancelled from outside while the pool breaks (its workers ended
-        # above) makes the pool's manager thread fail (InvalidStateError, Python 3.11).
-        if own is not None:
-            own.shutdown(wait=True, cancel_futures=True)
-        else:
-            for future in futures:
-                future.cancel()
+    yield from spread(measure_chunk, chunks, executor=executor, workers=workers)
