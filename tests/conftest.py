@@ -1,5 +1,7 @@
-"""Shared fixtures: paths of the shipped files, and the command run in-process."""
+"""Shared fixtures: paths of the shipped files, the command run in-process, and the lab plugin
+of tests/verify_modules.py installed."""
 
+import importlib.metadata
 from collections.abc import Callable
 from pathlib import Path
 
@@ -7,6 +9,7 @@ import pytest
 from anytime_navigation.resources import data_file
 
 from anytime.cli import main
+from anytime.library import PLUGIN_GROUP
 
 #: Runs the `anytime` command in-process: (exit code, stdout, stderr).
 Cli = Callable[..., tuple[int, str, str]]
@@ -30,3 +33,17 @@ def cli(capsys: pytest.CaptureFixture[str]) -> Cli:
         return code, out, err
 
     return run
+
+
+@pytest.fixture
+def lab_plugin(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> Path:
+    """The lab of tests/verify_modules.py as if installed (its entry point found by
+    importlib.metadata, and no other plugin), in a fresh working directory (returned)."""
+    found = [importlib.metadata.EntryPoint("lab", "verify_modules:plugin", PLUGIN_GROUP)]
+    monkeypatch.setattr(
+        importlib.metadata,
+        "entry_points",
+        lambda **selection: found if selection.get("group") == PLUGIN_GROUP else [],
+    )
+    monkeypatch.chdir(tmp_path)
+    return tmp_path

@@ -5,8 +5,7 @@ polish cannot help: `anytime verify` fails the promise, and after `--upstream` i
 
 from __future__ import annotations
 
-import importlib.metadata
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -15,7 +14,7 @@ import pytest
 import verify_modules as lab
 
 from anytime.compiler import compile_file
-from anytime.library import PLUGIN_GROUP, AnytimeLibrary, LibraryError, Plugin, PluginSource
+from anytime.library import AnytimeLibrary, LibraryError, Plugin, PluginSource
 from anytime.problems import ProgramProblems
 from anytime.upstream import UpstreamError, measure_upstream
 from anytime.verification import verify
@@ -101,18 +100,10 @@ def test_an_inner_module_needs_its_results_scored() -> None:
 
 
 @pytest.fixture
-def lab_any(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> Iterator[str]:
+def lab_any(lab_plugin: Path) -> str:
     """The lab's schema file, with the lab plugin installed (and no other)."""
-    found = [importlib.metadata.EntryPoint("lab", "verify_modules:plugin", PLUGIN_GROUP)]
-    monkeypatch.setattr(
-        importlib.metadata,
-        "entry_points",
-        lambda **selection: found if selection.get("group") == PLUGIN_GROUP else [],
-    )
-    path = tmp_path / "lab.any"
-    path.write_text(lab.SCHEMAS)
-    monkeypatch.chdir(tmp_path)
-    yield "lab.any"
+    (lab_plugin / "lab.any").write_text(lab.SCHEMAS)
+    return "lab.any"
 
 
 def test_the_command_measures_round_by_round(cli: Cli, lab_any: str) -> None:

@@ -259,6 +259,23 @@ def library_options(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -
     )
 
 
+def worker_options(parser: argparse.ArgumentParser, what: str) -> None:
+    """--workers N or --scheduler ADDRESS (one of them); `what` the work, as "run the trials"."""
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument(
+        "--workers",
+        type=worker_count,
+        default=1,
+        metavar="N",
+        help=f"local processes (1; at most {MAX_WORKERS})",
+    )
+    where.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help=f"{what} on a Dask cluster (needs the 'dask' extra)",
+    )
+
+
 def open_library(args: argparse.Namespace) -> AnytimeLibrary:
     """The library the options describe; plugins that failed to load are warned about."""
     library = AnytimeLibrary.default(profile_dirs=args.profiles, plugins=not args.no_plugins)

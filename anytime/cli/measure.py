@@ -24,8 +24,9 @@ from anytime.cli.common import (
     refuse_overwriting_inputs,
     trial_count,
     worker_count,
+    worker_options,
 )
-from anytime.cli.schemas import check_schema_name
+from anytime.cli.schemas import one_schema
 from anytime.compiler.model import CompileError
 from anytime.dsl import load_schemas
 from anytime.files import format_size
@@ -75,19 +76,7 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
         metavar="N",
         help=f"instances per cell (100; at most {MAX_TRIALS})",
     )
-    where = profile.add_mutually_exclusive_group()
-    where.add_argument(
-        "--workers",
-        type=worker_count,
-        default=1,
-        metavar="N",
-        help=f"local processes (1; at most {MAX_WORKERS})",
-    )
-    where.add_argument(
-        "--scheduler",
-        metavar="ADDRESS",
-        help="run the trials on a Dask cluster (needs the 'dask' extra)",
-    )
+    worker_options(profile, "run the trials")
     profile.add_argument("--seed", type=random_seed, default=0, metavar="S", help="root seed (0)")
     profile.add_argument(
         "--clock",
@@ -305,13 +294,7 @@ def _run_upstream(args: argparse.Namespace) -> int:
     output = Path(args.output if args.output is not None else f"{module.name}.yaml")
     refuse_overwriting_inputs(output, args.upstream)
     schemas = load_schemas(args.upstream)
-    check_schema_name(schemas, args.schema)
-    if args.schema is None and len(schemas) != 1:
-        raise InputError(
-            f"{args.upstream} defines {len(schemas)} schemas: say which one feeds the module"
-            " with --schema NAME",
-        )
-    name = args.schema if args.schema is not None else schemas.names[0]
+    name = one_schema(schemas, args.schema, "feeds the module")
 
     def told(index: int, done: Round) -> None:
         if not (args.quiet or args.json):

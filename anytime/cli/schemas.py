@@ -298,6 +298,20 @@ def check_schema_name(schemas: SchemaFile, name: str | None) -> None:
         )
 
 
+def one_schema(schemas: SchemaFile, name: str | None, purpose: str) -> str:
+    """The schema a command works on: `name` (one the file defines), else the file's only
+    one; a file of several without a name is an input error saying `purpose` ("to verify")."""
+    check_schema_name(schemas, name)
+    if name is not None:
+        return name
+    if len(schemas) != 1:
+        raise InputError(
+            f"{schemas.filename} defines {len(schemas)} schemas: say which one {purpose} with"
+            " --schema NAME",
+        )
+    return schemas.names[0]
+
+
 def compile_schemas(
     schemas: SchemaFile,
     library: AnytimeLibrary,

@@ -11,20 +11,18 @@ from anytime.cli.common import (
     EXIT_INPUT,
     EXIT_OK,
     MAX_TRIALS,
-    MAX_WORKERS,
-    InputError,
     int_in_range,
     json_text,
     library_options,
     open_library,
     random_seed,
-    worker_count,
+    worker_options,
 )
 from anytime.cli.schemas import (
-    check_schema_name,
     check_time_unit,
     compile_options,
     compile_schemas,
+    one_schema,
     totals,
 )
 from anytime.dsl import load_schemas
@@ -70,19 +68,7 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
         metavar="T,T,...",
         help="only these totals of the compiled table (default: all of them)",
     )
-    where = parser.add_mutually_exclusive_group()
-    where.add_argument(
-        "--workers",
-        type=worker_count,
-        default=1,
-        metavar="N",
-        help=f"local processes (1; at most {MAX_WORKERS})",
-    )
-    where.add_argument(
-        "--scheduler",
-        metavar="ADDRESS",
-        help="run on a Dask cluster (needs the 'dask' extra)",
-    )
+    worker_options(parser, "run the program")
     parser.add_argument("--seed", type=random_seed, default=0, metavar="S", help="root seed (0)")
     parser.add_argument("--json", action="store_true", help="print the result as JSON")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -98,13 +84,7 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
 def run_verify(args: argparse.Namespace) -> int:
     library = open_library(args)
     schemas = load_schemas(args.file)
-    check_schema_name(schemas, args.schema)
-    if args.schema is None and len(schemas) != 1:
-        raise InputError(
-            f"{args.file} defines {len(schemas)} schemas: say which one to verify with"
-            " --schema NAME",
-        )
-    name = args.schema if args.schema is not None else schemas.names[0]
+    name = one_schema(schemas, args.schema, "to verify")
     problems = library.program_problems(name)  # before compiling: a LibraryError says why
     grid = args.time_grid if args.time_grid is not None else problems.time_grid
     resolution = args.resolution

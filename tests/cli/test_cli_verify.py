@@ -4,15 +4,12 @@ tests/verify_modules.py, as if installed (its entry point found by importlib.met
 
 from __future__ import annotations
 
-import importlib.metadata
 import json
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 import verify_modules as lab
-
-from anytime.library import PLUGIN_GROUP
 
 #: The `cli` fixture (tests/conftest.py): runs `anytime` in-process, (exit code, stdout, stderr).
 Cli = Callable[..., tuple[int, str, str]]
@@ -21,18 +18,10 @@ RULE = "(|realised - promised| <= max(0.01, 3 se), no run over its budget)"
 
 
 @pytest.fixture
-def lab_any(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> Iterator[str]:
+def lab_any(lab_plugin: Path) -> str:
     """The lab's schema file, with the lab plugin installed (and no other)."""
-    found = [importlib.metadata.EntryPoint("lab", "verify_modules:plugin", PLUGIN_GROUP)]
-    monkeypatch.setattr(
-        importlib.metadata,
-        "entry_points",
-        lambda **selection: found if selection.get("group") == PLUGIN_GROUP else [],
-    )
-    path = tmp_path / "lab.any"
-    path.write_text(lab.SCHEMAS + "(defschema plain (x) (guess x))\n")
-    monkeypatch.chdir(tmp_path)
-    yield "lab.any"
+    (lab_plugin / "lab.any").write_text(lab.SCHEMAS + "(defschema plain (x) (guess x))\n")
+    return "lab.any"
 
 
 def test_a_promise_that_holds(cli: Cli, lab_any: str) -> None:
