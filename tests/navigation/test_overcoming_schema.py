@@ -1,6 +1,7 @@
 """The schema of the situation "obstacle overcoming" (`schemas/obstacles.any`): it parses,
 compiles with the compiler's split and with Romanenko's proportional one (the compiled split
-never worse in expected quality), and decides a hand-built situation within T_d."""
+never worse in expected quality), decides a hand-built situation within T_d, and its
+alternatives are measured on the encounters its program problem set draws."""
 
 from __future__ import annotations
 
@@ -8,16 +9,26 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 from anytime_navigation.obstacles import MovingObstacle, Plan, Traffic
-from anytime_navigation.overcoming import ObstacleSituation, encounter_at, obstacle_arrival
+from anytime_navigation.overcoming import (
+    Candidate,
+    ObstacleSituation,
+    encounter_at,
+    obstacle_arrival,
+)
 from anytime_navigation.overcoming_modules import (
+    PROBLEM_SETS,
     SCHEMA_FILE,
+    Attempt,
+    all_applicable,
     can_wait,
     left_clear,
     overcoming_program,
     right_clear,
     schema_decider,
 )
+from anytime_navigation.program_problems import PROGRAM_PROBLEMS
 from anytime_navigation.world import World
 
 from anytime.clocks import WorkClock
@@ -73,3 +84,28 @@ def test_the_schema_decides_a_parked_obstacle_within_t_d() -> None:
     assert not decision.outcomes[2].applicable
     assert decision.plan is not None
     assert traffic.first_conflict(decision.plan, decision.plan.start, 1, 400) is None
+
+
+def test_the_alternatives_are_measured_on_the_program_problem_sets_encounters() -> None:
+    """Each alternative's problem set draws what the program problem set of
+    `overcome-obstacle` draws from the same seed (an encounter where every alternative
+    applies: the compiled best-of is promised for those), each a fresh encounter, and the
+    program problem set scores an alternative's result as the alternative's own does."""
+    program = PROGRAM_PROBLEMS["overcome-obstacle"].problems
+    assert set(PROBLEM_SETS) == {"detour-left", "detour-right", "wait"}
+    for seed in range(3):
+        (drawn,) = program.instance(np.random.default_rng(seed)).args
+        assert all_applicable(drawn)
+        for measurement in PROBLEM_SETS.values():
+            (own,) = measurement.problems.instance(np.random.default_rng(seed), ()).args
+            assert own is not drawn and (own.conflict, own.plan) == (drawn.conflict, drawn.plan)
+    instance = program.instance(np.random.default_rng(0))
+    plan = instance.args[0].plan
+    for name, measurement in PROBLEM_SETS.items():
+        for value in (Attempt(name, Candidate(plan, 0.7)), Attempt(name, None), None):
+            assert program.score_step(instance, name, value) == measurement.problems.score(
+                instance, value
+            )
+    assert program.score_step(instance, "wait", Attempt("wait", Candidate(plan, 0.7))) == 0.7
+    with pytest.raises(ValueError, match="no true quality for module 'left-clear\\?'"):
+        program.score_step(instance, "left-clear?", True)

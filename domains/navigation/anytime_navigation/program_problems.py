@@ -8,10 +8,10 @@ compiled schema on fresh ones and checks what it delivers against what it promis
   length over the length of the route the plan makes the robot walk on the true map
   (`sense-plan-act`'s result is that route already).
 - `overcome-obstacle` (`schemas/obstacles.any`, input `situation`): `EncounterProblems`,
-  encounters from navigation among moving obstacles as the alternatives' profiles meet them,
-  those where every alternative is applicable (the compiler splits the time for the best-of
-  assuming all applicable; `dsl.md`). Scored as the alternatives' profiles score one: the
-  quality of the chosen alternative's candidate.
+  encounters from navigation among moving obstacles where every alternative is applicable (the
+  compiler splits the time for the best-of assuming all applicable; `dsl.md`), the very ones
+  the alternatives' profiles are measured on (`OvercomingProblems`). Scored as the
+  alternatives' profiles score one: the quality of the chosen alternative's candidate.
 """
 
 from __future__ import annotations
@@ -25,15 +25,7 @@ from anytime.plugin import Instance, ProgramProblems
 
 from .execution import Execution, execute, optimal_length, plan_quality
 from .modules import PROFILE_SIZE
-from .overcoming import Encounter
-from .overcoming_modules import (
-    RESOLUTION,
-    Attempt,
-    OvercomingProblems,
-    can_wait,
-    left_clear,
-    right_clear,
-)
+from .overcoming_modules import RESOLUTION, Attempt, OvercomingProblems
 from .vision import Sensor
 from .world import random_world
 
@@ -71,28 +63,33 @@ class WorldProblems:
         return plan_quality(value.length, optimal)
 
 
-PRECONDITIONS = (left_clear, right_clear, can_wait)
+ALTERNATIVES = ("detour-left", "detour-right", "wait")
 
 
 @frozen
 class EncounterProblems:
     """An encounter where every alternative of `overcome-obstacle` applies, drawn as the
-    alternatives' profiles draw theirs (`OvercomingProblems`: a random 32 x 32 world, three
-    moving obstacles, the robot on its shortest route at one of the task's speeds)."""
+    alternatives' profiles draw theirs (`OvercomingProblems`, the same encounters: a random
+    32 x 32 world, three moving obstacles, the robot on its shortest route at one of the task's
+    speeds). Its `score_step` scores an alternative's result as `score` does the best-of's."""
 
-    draws: OvercomingProblems = OvercomingProblems("wait")
+    draws: OvercomingProblems = OvercomingProblems()
 
     def instance(self, rng: np.random.Generator) -> Instance:
-        while True:
-            (encounter,) = self.draws.instance(rng, ()).args
-            if all(applies(encounter) for applies in PRECONDITIONS):
-                fresh = Encounter(encounter.situation, encounter.conflict)  # records its runs
-                return Instance((fresh,))
+        (encounter,) = self.draws.instance(rng, ()).args  # a fresh one: it records its runs
+        return Instance((encounter,))
 
     def score(self, instance: Instance, value: Any) -> float:
         if not isinstance(value, Attempt) or value.candidate is None:
             return 0.0
         return float(value.candidate.quality)
+
+    def score_step(self, instance: Instance, module: str, value: Any) -> float:
+        """The true quality of `value`, the result of alternative `module`, as its own problem
+        set scores it: its candidate's quality, 0 without one."""
+        if module not in ALTERNATIVES:
+            raise ValueError(f"EncounterProblems.score_step: no true quality for module '{module}'")
+        return self.score(instance, value)
 
 
 #: How `anytime verify` checks each schema of the plugin.
