@@ -162,7 +162,10 @@ class UpstreamProblems:
                 break
             if self._cell(qualities) != cell:
                 continue
-            distance = max(abs(q - c) / w for q, c, w in zip(qualities, cell, widths, strict=True))
+            distance = max(
+                (abs(q - c) / w for q, c, w in zip(qualities, cell, widths, strict=True)),
+                default=0.0,  # a module without quality-carrying inputs: any call will do
+            )
             if distance <= 1:
                 return Instance(self._given(args, cell), _FromProgram(problem))
             if distance < nearest:

@@ -65,6 +65,20 @@ def test_verify_catches_the_wrong_promise_and_upstream_measuring_fixes_it(
     assert not np.array_equal(measured.profile.probability[-2], old.probability[-2])
 
 
+def test_a_module_without_quality_inputs_is_measured_on_the_programs_problems(
+    library: AnytimeLibrary,
+) -> None:
+    """`guess` takes no quality-carrying input: every call the program makes is a trial's
+    input (its grid has one cell, which the program reaches); it is the program's output. (It
+    failed: the distance to an empty cell was the max of nothing.)"""
+    schemas = lab.parse_schemas("(defschema plain (x) (guess x))", "p.any")
+    problems = ProgramProblems.of(lab.HiddenNumbers(), time_grid=TOTALS, resolution=1.0)
+    measured = measure_upstream("guess", schemas, "plain", library, trials=40, problems=problems)
+    assert [(r.reached, r.cells) for r in measured.rounds] == [(1, 1)] * len(measured.rounds)
+    # The program feeds it what its own problem set does: the table moves by noise only.
+    assert all(r.change <= r.noise for r in measured.rounds)
+
+
 def test_a_module_the_schema_does_not_call_once_is_refused(library: AnytimeLibrary) -> None:
     with pytest.raises(UpstreamError) as raised:
         measure_upstream("guess", lab.schemas(), "low", library, trials=2)
