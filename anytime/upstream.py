@@ -13,16 +13,16 @@ trial draws a problem from the schema's program-level problem set and one of the
 table's totals, runs the program up to the module's call (`anytime.runtime.run_until`, the
 compiled allocation for that problem and total) and keeps the input when the quality of each
 quality-carrying argument is within `TOLERANCE` of the way from the cell's to the next grid
-point, else draws again; after
-`MAX_DRAWS` draws it keeps the closest input drawn in the cell (a quality lands in the cell of
-its nearest grid point), so that a program whose inputs take a few qualities only still
-measures the cells around them. A cell the program does not reach (none of `PROBES` draws of
-its inputs, made first, lands in it) is measured on the module's own problem set, as before,
-where it declares one, else keeps its current profile's measurement (the program never asks
-for it). An argument's quality is its true quality
-where the problem set scores intermediate results (`score_step(instance, module, value)`),
-else the quality the result reports. The module's result is scored by the problem set: by
-`score` where the module's call is the program's output, else by `score_step`.
+point, else draws again. After `MAX_DRAWS` draws the trial is made by the module's own problem
+set where it declares one (an input of the cell's own quality), else it keeps the closest
+input drawn in the cell (a quality lands in the cell of its nearest grid point), so that a
+program whose inputs take a few qualities only still measures the cells around them. A cell
+the program does not reach (none of `PROBES` draws of its inputs, made first, lands in it) is
+measured on the module's own problem set, as before, where it declares one, else keeps its
+current profile's measurement (the program never asks for it). An argument's quality is its
+true quality where the problem set scores intermediate results (`score_step(instance, module,
+value)`), else the quality the result reports. The module's result is scored by the problem
+set: by `score` where the module's call is the program's output, else by `score_step`.
 
 The allocations depend on the profile and the profile on the allocations, so the measurement
 is iterated: compile, measure on the compiled program's inputs, compile again with the new
@@ -170,6 +170,9 @@ class UpstreamProblems:
                 return Instance(self._given(args, cell), _FromProgram(problem))
             if distance < nearest:
                 closest, nearest = (problem, args), distance
+        if self.fallback is not None:  # an input of the cell's own quality beats a far one
+            own = self.fallback.instance(rng, input_qualities)
+            return Instance(own.args, _Own(own.reference))
         if closest is not None:
             problem, args = closest
             return Instance(self._given(args, cell), _FromProgram(problem))
