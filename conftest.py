@@ -171,7 +171,7 @@ def parse_lisp(example: Example) -> str | None:
 
 def setup(namespace: dict[str, Any]) -> None:
     from anytime import REGISTRY
-    from anytime.profiles import builder
+    from anytime.measure import builder
     from anytime.runtime.deadline import EVENTS
 
     workdir = Path(tempfile.mkdtemp(prefix="anytime-docs-"))
@@ -190,7 +190,7 @@ def setup(namespace: dict[str, Any]) -> None:
 
 def teardown(namespace: dict[str, Any]) -> None:
     from anytime import REGISTRY
-    from anytime.profiles import builder
+    from anytime.measure import builder
     from anytime.runtime.deadline import EVENTS
 
     cwd, modules, events, measurements = namespace.pop(_SAVED)

@@ -44,6 +44,8 @@ if TYPE_CHECKING:
         RegistrySource,
         UnknownModuleError,
     )
+    from anytime.measure.problems import ProgramProblems
+    from anytime.measure.upstream import measure_upstream
     from anytime.modules import (
         REGISTRY,
         AnytimeModule,
@@ -56,7 +58,6 @@ if TYPE_CHECKING:
         elementary,
         interruptible,
     )
-    from anytime.problems import ProgramProblems
     from anytime.profiles import ConditionalPerformanceProfile, PerformanceProfile
     from anytime.profiles.io import load_profile, save_profile
     from anytime.runtime import (
@@ -73,7 +74,6 @@ if TYPE_CHECKING:
         run,
         run_program,
     )
-    from anytime.upstream import measure_upstream
     from anytime.verification import BudgetCheck, Verification, verify
 
 __version__ = "0.1.0"
@@ -202,11 +202,11 @@ _WHERE = {
     "run_program": "anytime.runtime",
     "load_profile": "anytime.profiles.io",
     "save_profile": "anytime.profiles.io",
-    "ProgramProblems": "anytime.problems",
+    "ProgramProblems": "anytime.measure.problems",
     "BudgetCheck": "anytime.verification",
     "Verification": "anytime.verification",
     "verify": "anytime.verification",
-    "measure_upstream": "anytime.upstream",
+    "measure_upstream": "anytime.measure.upstream",
 }
 
 

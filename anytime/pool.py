@@ -2,7 +2,7 @@
 
 `spread(function, tasks, ...)` gives `function(task)` for every task, in the order the tasks
 finish: in this process (one worker, no executor), on a pool of local processes, or on any
-`concurrent.futures.Executor` (a Dask cluster's: `anytime.profiles.builder.dask_executor`).
+`concurrent.futures.Executor` (a Dask cluster's: `anytime.measure.builder.dask_executor`).
 The workers ignore Ctrl-C (the terminal sends it to them too): the caller stops them, cancels
 what has not started and re-raises, so no worker outlives an interrupted command.
 

@@ -3,7 +3,7 @@
 A compiled program promises, for every total T of its table and every input quality, the
 expected quality of its result (`CompiledProgram.expected`). `verify` runs the program as the
 runtime runs it (`run_program`, fixed allocation, on the work clock) on fresh problems drawn by
-its program-level problem set (`anytime.problems.ProgramProblems`) at every total of the table,
+its program-level problem set (`anytime.measure.problems.ProgramProblems`) at every total of the table,
 the smallest included, and compares the realised mean quality with the promise at each
 problem's input qualities:
 
@@ -36,12 +36,12 @@ from anytime.clocks import WorkClock
 from anytime.compiler.compile import CompiledProgram
 from anytime.errors import AnytimeError
 from anytime.isolation import ISOLATIONS, WATCHDOG, Isolation
+from anytime.measure.problems import ProgramProblems, ProgramProblemSet
+from anytime.measure.progress import ProgressBar
+from anytime.measure.trials import Instance
 from anytime.modules import Result
 from anytime.pool import spread
-from anytime.problems import ProgramProblems, ProgramProblemSet
 from anytime.profiles.profile import Array
-from anytime.profiles.progress import ProgressBar
-from anytime.profiles.trials import Instance
 from anytime.runtime.executor import Status
 from anytime.runtime.program import ExecutionError, bind_inputs, run_program
 
@@ -328,7 +328,7 @@ def verify(
         workers: local worker processes (1: run here).
         seed: the root seed of the problems.
         executor: where to run them instead (any `concurrent.futures.Executor`, such as a Dask
-            cluster's, `anytime.profiles.builder.dask_executor`; left running): the program
+            cluster's, `anytime.measure.builder.dask_executor`; left running): the program
             and the problem set travel with every chunk of runs, so they must pickle.
         progress: draw a progress bar on standard error (None: only on a terminal).
         chunk_size: runs per task; it changes the overhead, never the result.

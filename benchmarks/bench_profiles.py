@@ -21,9 +21,9 @@ from typing import Any
 import numpy as np
 from tables import table  # benchmarks/tables.py: a script's own folder is on sys.path
 
+from anytime.measure.builder import Instance, build_profile
 from anytime.modules import Context, Registry, Result, interruptible
 from anytime.profiles import ConditionalPerformanceProfile, default_bins
-from anytime.profiles.builder import Instance, build_profile
 
 BENCH = Registry()
 WORK = 3_000  # loop iterations of real work per tick

@@ -36,7 +36,7 @@ from anytime_routing.program import (
 from tables import machine, table
 
 from anytime import AnytimeLibrary, Context, Result
-from anytime.profiles.builder import ProfileRequest, profile_module
+from anytime.measure.builder import ProfileRequest, profile_module
 
 DATA = Path(__file__).resolve().parent / "data" / "tsplib"
 #: (instance, optimal length): TSPLIB's published optima (data/tsplib/README.md).

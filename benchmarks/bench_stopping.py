@@ -39,8 +39,8 @@ from attrs import frozen
 from tables import machine, table
 
 from anytime.library import AnytimeLibrary
+from anytime.measure.builder import build_profile
 from anytime.profiles import DynamicProfile, QualityTraces, load_traces, save_traces
-from anytime.profiles.builder import build_profile
 from anytime.profiles.profile import Array
 from anytime.runtime.offline import clairvoyant, replay
 from anytime.runtime.policies import (

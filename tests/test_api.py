@@ -9,7 +9,7 @@ import anytime
 
 @pytest.mark.parametrize(
     "module",
-    ["anytime", "anytime.compiler", "anytime.dsl", "anytime.profiles", "anytime.profiles.builder"],
+    ["anytime", "anytime.compiler", "anytime.dsl", "anytime.profiles", "anytime.measure.builder"],
 )
 def test_every_name_in_all_resolves(module: str) -> None:
     mod = importlib.import_module(module)

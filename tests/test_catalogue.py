@@ -10,14 +10,6 @@ from typing import Any
 import attrs
 import numpy as np
 import pytest
-from conftest import Cli
-
-import anytime.library
-from anytime import AnytimeLibrary, RegistrySource
-from anytime.modules import AnytimeModule, Context, Registry, Result, contract, interruptible
-from anytime.profiles import tabulate
-from anytime.profiles.builder import Instance, build_profile, register_problems
-from anytime.profiles.io import save_profile
 from anytime.testing import (
     CHECKS,
     CatalogueError,
@@ -25,6 +17,14 @@ from anytime.testing import (
     catalogue_cases,
     check_module,
 )
+from conftest import Cli
+
+import anytime.library
+from anytime import AnytimeLibrary, RegistrySource
+from anytime.measure.builder import Instance, build_profile, register_problems
+from anytime.modules import AnytimeModule, Context, Registry, Result, contract, interruptible
+from anytime.profiles import tabulate
+from anytime.profiles.io import save_profile
 
 #: Instances count up to a limit drawn uniformly from these.
 LIMITS = np.arange(80, 121)
@@ -399,7 +399,7 @@ def test_check_json(cli: Cli) -> None:
 
 
 def test_check_a_module_without_a_problem_set(cli: Cli, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr("anytime.profiles.builder._MEASUREMENTS", {})
+    monkeypatch.setattr("anytime.measure.builder._MEASUREMENTS", {})
     code, out, err = cli("check", "catalogue-good", "--no-plugins")
     assert (code, out) == (1, "")
     assert err == (

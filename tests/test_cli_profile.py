@@ -9,9 +9,9 @@ import pytest
 from conftest import Cli
 
 import anytime.library
+from anytime.measure.builder import Instance, register_problems
 from anytime.modules import Context, Registry, Result, interruptible
 from anytime.profiles import Exponential, tabulate
-from anytime.profiles.builder import Instance, register_problems
 from anytime.profiles.io import load_profile, save_profile
 
 MODULES = Registry()

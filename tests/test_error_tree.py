@@ -118,7 +118,7 @@ def test_every_exception_class_is_in_the_tree() -> None:
 
 
 def test_errors_resemble_a_builtin_where_they_did_before_the_tree() -> None:
-    from anytime.runtime.calibrate import CalibrationError
+    from anytime.measure.calibrate import CalibrationError
     from anytime.runtime.deadline import DeadlineError, UnknownEventError
 
     for error, builtin in [

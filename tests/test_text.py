@@ -6,9 +6,9 @@ import pytest
 
 from anytime.dsl.normalize import suggest as dsl_suggest
 from anytime.errors import ProfileError
-from anytime.profiles.builder import Measurement, registered_problems
+from anytime.measure.builder import Measurement, registered_problems
+from anytime.measure.trials import BuildError
 from anytime.profiles.io import profile_from_dict
-from anytime.profiles.trials import BuildError
 from anytime.text import closest, did_you_mean, suggest
 
 

@@ -33,6 +33,7 @@ import attrs
 import numpy as np
 
 from anytime.library import AnytimeLibrary, LibraryEntry
+from anytime.measure.builder import build_profile
 from anytime.modules import AnytimeModule
 from anytime.plugin import (
     Context,
@@ -45,7 +46,6 @@ from anytime.plugin import (
     parse_schemas,
     tabulate,
 )
-from anytime.profiles.builder import build_profile
 
 SCHEMAS = """
 (defschema fair (x) (polish (guess x) x))

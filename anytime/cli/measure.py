@@ -32,18 +32,18 @@ from anytime.dsl import load_schemas
 from anytime.files import format_size
 from anytime.isolation import ISOLATIONS, WATCHDOG
 from anytime.library import AnytimeLibrary
-from anytime.modules import AnytimeModule
-from anytime.profiles.builder import (
+from anytime.measure.builder import (
     ProfileRequest,
     profile_module,
 )
+from anytime.measure.calibrate import calibrate, convert_profile
+from anytime.measure.catalogue import check_module
+from anytime.measure.progress import timed_progress
+from anytime.measure.upstream import Round, UpstreamError, measure_upstream
+from anytime.modules import AnytimeModule
 from anytime.profiles.dynamic import DEFAULT_STATES, DynamicProfile
 from anytime.profiles.dynamic_io import dynamic_profile_path, save_dynamic_profile, save_traces
 from anytime.profiles.io import load_profile, save_profile
-from anytime.profiles.progress import timed_progress
-from anytime.runtime.calibrate import calibrate, convert_profile
-from anytime.testing import check_module
-from anytime.upstream import Round, UpstreamError, measure_upstream
 
 #: The largest table of measured qualities `anytime profile` makes (trials x cells x times).
 MAX_TABLE_BYTES = 1 << 30

@@ -26,7 +26,7 @@ from anytime.cli.schemas import (
     totals,
 )
 from anytime.dsl import load_schemas
-from anytime.profiles.builder import dask_executor
+from anytime.measure.builder import dask_executor
 from anytime.verification import (
     SIGMAS,
     TOLERANCE,

@@ -18,8 +18,8 @@ import pytest
 
 import anytime.files
 import anytime.library
+from anytime.measure.builder import Instance, register_problems
 from anytime.modules import Context, Registry, Result, interruptible
-from anytime.profiles.builder import Instance, register_problems
 
 #: The `cli` fixture (tests/conftest.py): runs `anytime` in-process, (exit code, stdout, stderr).
 Cli = Callable[..., tuple[int, str, str]]

@@ -8,7 +8,7 @@ from collections.abc import Callable
 
 import pytest
 
-from anytime.profiles.progress import ProgressBar, timed_progress
+from anytime.measure.progress import ProgressBar, timed_progress
 
 #: The `cli` fixture (tests/conftest.py): runs `anytime` in-process, (exit code, stdout, stderr).
 Cli = Callable[..., tuple[int, str, str]]

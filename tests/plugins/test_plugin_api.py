@@ -58,7 +58,7 @@ def test_importing_the_navigation_plugin_registers_nothing() -> None:
         "import anytime_navigation.plugin\n"
         "from anytime import REGISTRY\n"
         "from anytime.runtime.deadline import EVENTS\n"
-        "from anytime.profiles.builder import registered_measurements\n"
+        "from anytime.measure.builder import registered_measurements\n"
         "print(len(REGISTRY), len(EVENTS), len(registered_measurements()))\n"
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

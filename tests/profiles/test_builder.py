@@ -10,9 +10,8 @@ import numpy as np
 import pytest
 from scipy.stats import norm
 
-from anytime.modules import Context, Registry, Result, contract, elementary, interruptible
-from anytime.profiles import builder
-from anytime.profiles.builder import (
+from anytime.measure import builder
+from anytime.measure.builder import (
     BuildError,
     Instance,
     MissingExtraError,
@@ -24,6 +23,7 @@ from anytime.profiles.builder import (
     register_problems,
     registered_problems,
 )
+from anytime.modules import Context, Registry, Result, contract, elementary, interruptible
 from anytime.profiles.io import save_profile
 
 # Toy modules live at the top level of this file: worker processes import them by reference.

@@ -24,8 +24,8 @@ import pytest
 from numpy.typing import NDArray
 
 from anytime.isolation import Child, Isolation, calls
+from anytime.measure.builder import Instance, ProfileBuild, build_profile
 from anytime.modules import AnytimeModule, Context, Registry, Result, contract, interruptible
-from anytime.profiles.builder import Instance, ProfileBuild, build_profile
 from anytime.runtime import RunRecord, Status, run
 
 MODULES = Registry()

@@ -14,14 +14,14 @@ from hypothesis import strategies as st
 
 from anytime.errors import ProfileError
 from anytime.library import AnytimeLibrary, LibraryEntry, ProfileDirectory
-from anytime.modules import Context, Registry, Result, contract, interruptible
-from anytime.profiles.builder import (
+from anytime.measure.builder import (
     Instance,
     Measurement,
     ProfileRequest,
     build_profile,
     profile_module,
 )
+from anytime.modules import Context, Registry, Result, contract, interruptible
 from anytime.profiles.dynamic import OBSERVED, DynamicProfile, QualityTraces
 from anytime.profiles.dynamic_io import (
     dynamic_profile_path,

@@ -19,9 +19,9 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from anytime.errors import ProfileError
+from anytime.measure.builder import Instance, build_profile
 from anytime.modules import Context, Registry, Result, contract, interruptible
 from anytime.profiles import ConditionalPerformanceProfile, new_profile, tabulate
-from anytime.profiles.builder import Instance, build_profile
 from anytime.profiles.io import load_profile, profile_from_dict, profile_to_dict, save_profile
 
 Profile = ConditionalPerformanceProfile

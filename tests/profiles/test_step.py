@@ -17,9 +17,9 @@ from hypothesis import strategies as st
 from toy_modules import TIME, toy_registry
 
 from anytime.errors import ProfileError
+from anytime.measure.builder import Instance, build_profile
 from anytime.modules import Context, Registry, Result, contract, interruptible
 from anytime.profiles import tabulate
-from anytime.profiles.builder import Instance, build_profile
 from anytime.profiles.io import load_profile, profile_from_dict, profile_to_dict, save_profile
 
 # Modules at the top level of this file: worker processes import them by reference.

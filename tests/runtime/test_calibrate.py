@@ -1,4 +1,4 @@
-"""Calibration (`anytime.runtime.calibrate`, `anytime calibrate`): a module's ticks per second,
+"""Calibration (`anytime.measure.calibrate`, `anytime calibrate`): a module's ticks per second,
 and profiles converted between ticks and seconds. No test asserts a timing."""
 
 import json
@@ -14,14 +14,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import anytime.library
-import anytime.profiles.builder
+import anytime.measure.builder
 from anytime.errors import ProfileError
+from anytime.measure.builder import Instance, Measurement
+from anytime.measure.calibrate import Calibration, CalibrationError, calibrate, convert_profile
+from anytime.measure.trials import Grid
 from anytime.modules import Context, Registry, Result, contract, interruptible
 from anytime.profiles import tabulate
-from anytime.profiles.builder import Instance, Measurement
 from anytime.profiles.io import load_profile, save_profile
-from anytime.profiles.trials import Grid
-from anytime.runtime.calibrate import Calibration, CalibrationError, calibrate, convert_profile
 
 MODULES = Registry()
 TIME = [0, 50, 100]
@@ -85,7 +85,7 @@ MEASUREMENTS = {
 @pytest.fixture(autouse=True)
 def only_these_modules(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(anytime.library, "REGISTRY", MODULES)
-    monkeypatch.setattr(anytime.profiles.builder, "_MEASUREMENTS", dict(MEASUREMENTS))
+    monkeypatch.setattr(anytime.measure.builder, "_MEASUREMENTS", dict(MEASUREMENTS))
 
 
 # --- convert_profile ---------------------------------------------------------------------------
@@ -218,7 +218,7 @@ def test_calibrate_converts_a_profile(cli: Cli, tmp_path: Path) -> None:
 
 
 def test_no_problem_set(cli: Cli, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(anytime.profiles.builder, "_MEASUREMENTS", {})
+    monkeypatch.setattr(anytime.measure.builder, "_MEASUREMENTS", {})
     code, out, err = cli("calibrate", "calibrate-sum", "--no-plugins")
     assert (code, out) == (1, "")
     assert err == (

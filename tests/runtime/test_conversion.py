@@ -21,6 +21,8 @@ from anytime.clocks import WallClock, WorkClock
 from anytime.compiler import CompiledProgram, compile_program
 from anytime.dsl import parse_schemas
 from anytime.library import AnytimeLibrary, RegistrySource
+from anytime.measure.builder import Measurement, ProfileRequest, profile_module
+from anytime.measure.trials import Instance
 from anytime.modules import (
     AnytimeModule,
     Context,
@@ -36,8 +38,6 @@ from anytime.profiles import (
     PerformanceProfile,
     tabulate,
 )
-from anytime.profiles.builder import Measurement, ProfileRequest, profile_module
-from anytime.profiles.trials import Instance
 from anytime.runtime.conversion import (
     ConversionError,
     interruptible_profile,

@@ -35,17 +35,17 @@ from typing import Any
 
 import numpy as np
 import pytest
+from anytime.testing import check_module, check_seed
 from conftest import Cli
 
 from anytime.clocks import WallClock, WorkClock
 from anytime.isolation import Limits, processes
+from anytime.measure.builder import build_profile, register_problems
+from anytime.measure.trials import Instance
 from anytime.modules import Context, Registry, Result, contract, interruptible
-from anytime.profiles.builder import build_profile, register_problems
 from anytime.profiles.io import load_profile
-from anytime.profiles.trials import Instance
 from anytime.runtime import Status, run
 from anytime.runtime.conversion import make_interruptible
-from anytime.testing import check_module, check_seed
 
 MODULES = Registry()
 COMMANDS = Registry()  # the modules of the command tests, put in the library's registry there
@@ -383,7 +383,7 @@ def faulty_count(monkeypatch: pytest.MonkeyPatch) -> Iterator[str]:
     (trial 37 of the profile builder's seed 0) that segfaults after its second result."""
     fresh = Registry()
     monkeypatch.setattr("anytime.library.REGISTRY", fresh)
-    monkeypatch.setattr("anytime.profiles.builder._MEASUREMENTS", {})
+    monkeypatch.setattr("anytime.measure.builder._MEASUREMENTS", {})
     for module in COMMANDS:
         fresh.add(module)
     register_problems("faulty-count", OneBadTrial("segfault", _draw(0, BAD_TRIAL)), time=[1, 2, 3])

@@ -11,8 +11,8 @@ from typing import Any
 import numpy as np
 
 from anytime import Context, Result, interruptible
+from anytime.measure.builder import Instance, register_problems
 from anytime.profiles import tabulate
-from anytime.profiles.builder import Instance, register_problems
 
 LIMITS = np.arange(50, 150)  # the problem set draws the count's limit uniformly from these
 

@@ -47,11 +47,11 @@ from anytime.dsl.graph import NodeRef
 from anytime.dsl.program import SchemaFile
 from anytime.errors import AnytimeError
 from anytime.library import AnytimeLibrary
+from anytime.measure.builder import build_profile
+from anytime.measure.problems import ProgramProblems
+from anytime.measure.trials import Instance, ProblemSet
 from anytime.modules import AnytimeModule, Result
-from anytime.problems import ProgramProblems
-from anytime.profiles.builder import build_profile
 from anytime.profiles.profile import Array, ConditionalPerformanceProfile
-from anytime.profiles.trials import Instance, ProblemSet
 from anytime.runtime.program import run_until
 
 __all__ = [

@@ -69,11 +69,11 @@ from anytime.clocks import Unit, WorkClock
 from anytime.errors import AnytimeError, ProfileError
 from anytime.isolation import WATCHDOG, Isolation, Lost, calls
 from anytime.library import AnytimeLibrary, LibraryEntry
+from anytime.measure.builder import BuildError, build_profile, registered_problems
+from anytime.measure.progress import ProgressBar
+from anytime.measure.trials import Grid, ProblemSet, Trial
 from anytime.modules import AnytimeModule, Context, Result
-from anytime.profiles.builder import BuildError, build_profile, registered_problems
 from anytime.profiles.profile import Array, ConditionalPerformanceProfile
-from anytime.profiles.progress import ProgressBar
-from anytime.profiles.trials import Grid, ProblemSet, Trial
 from anytime.runtime.executor import RunRecord, Status, run
 
 __all__ = [

@@ -33,10 +33,10 @@ from attrs import frozen
 
 from anytime.clocks import Unit, WorkClock
 from anytime.errors import AnytimeError, ProfileError
+from anytime.measure.builder import Measurement, registered_problems
+from anytime.measure.trials import Trial
 from anytime.modules import AnytimeModule
-from anytime.profiles.builder import Measurement, registered_problems
 from anytime.profiles.profile import ConditionalPerformanceProfile
-from anytime.profiles.trials import Trial
 from anytime.runtime.executor import Status, run
 
 __all__ = ["Calibration", "CalibrationError", "calibrate", "convert_profile"]

@@ -1,7 +1,7 @@
 """Program-level problem sets: how a plugin says, for one of its schemas, what problems the
 compiled program is promised for, so that `anytime verify` can check the promise.
 
-A module's problem set (`anytime.profiles.trials.ProblemSet`) makes a problem whose inputs have
+A module's problem set (`anytime.measure.trials.ProblemSet`) makes a problem whose inputs have
 the qualities it is asked for, because the profile builder measures a module at every point of
 a grid of input qualities. A program is run as a whole, on the problems it meets: its problem
 set draws them, inputs and their qualities together, and may say how to score its result.
@@ -30,7 +30,7 @@ from typing import Any, Protocol
 import numpy as np
 from attrs import field, frozen
 
-from anytime.profiles.trials import Instance
+from anytime.measure.trials import Instance
 
 __all__ = ["ProgramProblemSet", "ProgramProblems", "ScoredProgramProblemSet"]
 

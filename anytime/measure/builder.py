@@ -61,17 +61,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from anytime.errors import AnytimeError, ProfileError
 from anytime.isolation import ISOLATIONS, WATCHDOG, Isolation
-from anytime.modules import AnytimeModule
-from anytime.pool import spread
-from anytime.profiles.dynamic import QualityTraces
-from anytime.profiles.profile import (
-    Array,
-    ConditionalPerformanceProfile,
-    default_bins,
-    new_profile,
-)
-from anytime.profiles.progress import ProgressBar
-from anytime.profiles.trials import (
+from anytime.measure.progress import ProgressBar
+from anytime.measure.trials import (
     CLOCKS,
     BuildError,
     Chunk,
@@ -82,6 +73,15 @@ from anytime.profiles.trials import (
     ProblemSet,
     measure_chunk,
     measure_chunks,
+)
+from anytime.modules import AnytimeModule
+from anytime.pool import spread
+from anytime.profiles.dynamic import QualityTraces
+from anytime.profiles.profile import (
+    Array,
+    ConditionalPerformanceProfile,
+    default_bins,
+    new_profile,
 )
 from anytime.text import did_you_mean
 
