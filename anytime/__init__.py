@@ -44,7 +44,6 @@ if TYPE_CHECKING:
         RegistrySource,
         UnknownModuleError,
     )
-    from anytime.measure.problems import ProgramProblems
     from anytime.measure.upstream import measure_upstream
     from anytime.modules import (
         REGISTRY,
@@ -58,6 +57,7 @@ if TYPE_CHECKING:
         elementary,
         interruptible,
     )
+    from anytime.problems import ProgramProblems
     from anytime.profiles import ConditionalPerformanceProfile, PerformanceProfile
     from anytime.profiles.io import load_profile, save_profile
     from anytime.runtime import (
@@ -202,7 +202,7 @@ _WHERE = {
     "run_program": "anytime.runtime",
     "load_profile": "anytime.profiles.io",
     "save_profile": "anytime.profiles.io",
-    "ProgramProblems": "anytime.measure.problems",
+    "ProgramProblems": "anytime.problems",
     "BudgetCheck": "anytime.verification",
     "Verification": "anytime.verification",
     "verify": "anytime.verification",

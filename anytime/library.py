@@ -32,9 +32,13 @@ import attrs
 from attrs import field, frozen
 
 from anytime.errors import AnytimeError, ProfileError
-from anytime.measure.builder import Measurement, registered_measurements, registered_problems
-from anytime.measure.problems import ProgramProblems
 from anytime.modules import REGISTRY, AnytimeModule, Registry
+from anytime.problems import (
+    Measurement,
+    ProgramProblems,
+    registered_measurements,
+    registered_problems,
+)
 from anytime.profiles.dynamic import DynamicProfile
 from anytime.profiles.dynamic_io import (
     DYNAMIC_SUFFIX,
@@ -321,7 +325,7 @@ class Plugin:
         critical_events: its critical-event estimators (made with `critical_event`).
         add_commands: a function adding the plugin's subcommands to a `CommandGroup`.
         program_problems: schema name -> the problems `anytime verify` runs the compiled
-            schema on (`ProgramProblems.of(problems)`, see `anytime.measure.problems`).
+            schema on (`ProgramProblems.of(problems)`, see `anytime.problems`).
     """
 
     name: str

@@ -42,16 +42,14 @@ from anytime.errors import AnytimeError, ProfileError
 from anytime.files import InputFileError, atomic_path, read_input, write_atomic
 from anytime.isolation import Limits
 from anytime.library import AnytimeLibrary, CommandGroup, LibraryEntry, Plugin
-from anytime.measure.builder import Measurement
-from anytime.measure.problems import ProgramProblems
 from anytime.measure.progress import ProgressBar
-from anytime.measure.trials import Instance, ProblemSet
 from anytime.modules import MISSING, AnytimeModule, Context, ProfileSource, QualityReport, Result
 from anytime.modules import contract as _contract
 from anytime.modules import elementary as _elementary
 from anytime.modules import interruptible as _interruptible
 from anytime.outdir import owned_directory
 from anytime.plot import new_figure, require_matplotlib, save_figure
+from anytime.problems import Instance, Measurement, ProblemSet, ProgramProblems
 from anytime.profiles import ConditionalPerformanceProfile, VisionHyperbola, tabulate
 from anytime.profiles.profile import Array
 from anytime.runtime.deadline import (

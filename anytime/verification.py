@@ -3,7 +3,7 @@
 A compiled program promises, for every total T of its table and every input quality, the
 expected quality of its result (`CompiledProgram.expected`). `verify` runs the program as the
 runtime runs it (`run_program`, fixed allocation, on the work clock) on fresh problems drawn by
-its program-level problem set (`anytime.measure.problems.ProgramProblems`) at every total of the table,
+its program-level problem set (`anytime.problems.ProgramProblems`) at every total of the table,
 the smallest included, and compares the realised mean quality with the promise at each
 problem's input qualities:
 
@@ -36,11 +36,10 @@ from anytime.clocks import WorkClock
 from anytime.compiler.compile import CompiledProgram
 from anytime.errors import AnytimeError
 from anytime.isolation import ISOLATIONS, WATCHDOG, Isolation
-from anytime.measure.problems import ProgramProblems, ProgramProblemSet
 from anytime.measure.progress import ProgressBar
-from anytime.measure.trials import Instance
 from anytime.modules import Result
 from anytime.pool import spread
+from anytime.problems import Instance, ProgramProblems, ProgramProblemSet
 from anytime.profiles.profile import Array
 from anytime.runtime.executor import Status
 from anytime.runtime.program import ExecutionError, bind_inputs, run_program

@@ -10,13 +10,6 @@ from typing import Any
 import attrs
 import numpy as np
 import pytest
-from anytime.testing import (
-    CHECKS,
-    CatalogueError,
-    assert_module_passes,
-    catalogue_cases,
-    check_module,
-)
 from conftest import Cli
 
 import anytime.library
@@ -25,6 +18,13 @@ from anytime.measure.builder import Instance, build_profile, register_problems
 from anytime.modules import AnytimeModule, Context, Registry, Result, contract, interruptible
 from anytime.profiles import tabulate
 from anytime.profiles.io import save_profile
+from anytime.testing import (
+    CHECKS,
+    CatalogueError,
+    assert_module_passes,
+    catalogue_cases,
+    check_module,
+)
 
 #: Instances count up to a limit drawn uniformly from these.
 LIMITS = np.arange(80, 121)

@@ -6,8 +6,7 @@ import pytest
 
 from anytime.dsl.normalize import suggest as dsl_suggest
 from anytime.errors import ProfileError
-from anytime.measure.builder import Measurement, registered_problems
-from anytime.measure.trials import BuildError
+from anytime.problems import BuildError, Measurement, registered_problems
 from anytime.profiles.io import profile_from_dict
 from anytime.text import closest, did_you_mean, suggest
 

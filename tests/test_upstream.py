@@ -15,8 +15,8 @@ import verify_modules as lab
 
 from anytime.compiler import compile_file
 from anytime.library import AnytimeLibrary, LibraryError, Plugin, PluginSource
-from anytime.measure.problems import ProgramProblems
 from anytime.measure.upstream import UpstreamError, measure_upstream
+from anytime.problems import ProgramProblems
 from anytime.verification import verify
 
 Cli = Callable[..., tuple[int, str, str]]

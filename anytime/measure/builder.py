@@ -62,20 +62,19 @@ from numpy.typing import ArrayLike, NDArray
 from anytime.errors import AnytimeError, ProfileError
 from anytime.isolation import ISOLATIONS, WATCHDOG, Isolation
 from anytime.measure.progress import ProgressBar
-from anytime.measure.trials import (
-    CLOCKS,
-    BuildError,
-    Chunk,
-    ClockName,
-    Done,
-    Grid,
-    Instance,
-    ProblemSet,
-    measure_chunk,
-    measure_chunks,
-)
+from anytime.measure.trials import CLOCKS, Chunk, ClockName, Done, measure_chunk, measure_chunks
 from anytime.modules import AnytimeModule
 from anytime.pool import spread
+from anytime.problems import (
+    BuildError,
+    Grid,
+    Instance,
+    Measurement,
+    ProblemSet,
+    register_problems,
+    registered_measurements,
+    registered_problems,
+)
 from anytime.profiles.dynamic import QualityTraces
 from anytime.profiles.profile import (
     Array,
@@ -83,7 +82,6 @@ from anytime.profiles.profile import (
     default_bins,
     new_profile,
 )
-from anytime.text import did_you_mean
 
 __all__ = [
     "BuildError",
@@ -105,69 +103,6 @@ __all__ = [
 
 class MissingExtraError(AnytimeError, ImportError):
     """An optional dependency is needed and not installed; the message names the extra."""
-
-
-@frozen
-class Measurement:
-    """How `anytime profile` measures one module: its problem set and grid."""
-
-    problems: ProblemSet
-    grid: Grid
-
-    @classmethod
-    def of(
-        cls,
-        problems: ProblemSet,
-        *,
-        time: ArrayLike,
-        input_grids: Sequence[ArrayLike] = (),
-        bins: ArrayLike | None = None,
-    ) -> Measurement:
-        """Measure on `problems` at run times `time`, input qualities `input_grids` (one grid
-        per input), into quality `bins` (default: ten equal bins)."""
-        return cls(problems, Grid(time, input_grids, default_bins() if bins is None else bins))
-
-
-_MEASUREMENTS: dict[str, Measurement] = {}
-
-
-def register_problems(
-    module: str | AnytimeModule,
-    problems: ProblemSet,
-    *,
-    time: ArrayLike,
-    input_grids: Sequence[ArrayLike] = (),
-    bins: ArrayLike | None = None,
-) -> Measurement:
-    """Declare, for interactive use, how `anytime profile MODULE` measures `module` (a plugin
-    gives a `Measurement.of(...)` per module in its `Plugin.problem_sets` instead). Registering
-    a name again replaces the earlier declaration."""
-    name = (module.name if isinstance(module, AnytimeModule) else module).lower()
-    measurement = Measurement.of(problems, time=time, input_grids=input_grids, bins=bins)
-    _MEASUREMENTS[name] = measurement
-    return measurement
-
-
-def registered_measurements() -> dict[str, Measurement]:
-    """Module name -> the measurement declared with `register_problems` (a copy)."""
-    return dict(_MEASUREMENTS)
-
-
-def registered_problems(
-    name: str, measurements: Mapping[str, Measurement] | None = None
-) -> Measurement:
-    """The measurement of module `name` in `measurements` (default: those registered with
-    `register_problems`); an error lists the known ones."""
-    source = _MEASUREMENTS if measurements is None else measurements
-    found = source.get(name.lower())
-    if found is not None:
-        return found
-    known = sorted(source)
-    hint = did_you_mean(name.lower(), known)
-    listed = ", ".join(known) if known else "none"
-    raise BuildError(
-        f"no problem set is registered for module '{name}' (registered: {listed}){hint}"
-    )
 
 
 @frozen

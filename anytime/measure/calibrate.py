@@ -33,9 +33,9 @@ from attrs import frozen
 
 from anytime.clocks import Unit, WorkClock
 from anytime.errors import AnytimeError, ProfileError
-from anytime.measure.builder import Measurement, registered_problems
 from anytime.measure.trials import Trial
 from anytime.modules import AnytimeModule
+from anytime.problems import Measurement, registered_problems
 from anytime.profiles.profile import ConditionalPerformanceProfile
 from anytime.runtime.executor import Status, run
 

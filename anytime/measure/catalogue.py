@@ -69,10 +69,11 @@ from anytime.clocks import Unit, WorkClock
 from anytime.errors import AnytimeError, ProfileError
 from anytime.isolation import WATCHDOG, Isolation, Lost, calls
 from anytime.library import AnytimeLibrary, LibraryEntry
-from anytime.measure.builder import BuildError, build_profile, registered_problems
+from anytime.measure.builder import build_profile
 from anytime.measure.progress import ProgressBar
-from anytime.measure.trials import Grid, ProblemSet, Trial
+from anytime.measure.trials import Trial
 from anytime.modules import AnytimeModule, Context, Result
+from anytime.problems import BuildError, Grid, ProblemSet, registered_problems
 from anytime.profiles.profile import Array, ConditionalPerformanceProfile
 from anytime.runtime.executor import RunRecord, Status, run
 

@@ -81,10 +81,6 @@ class ProgressBar:
         self._done += n
         self._bar.update(n)
 
-    def set_label(self, label: str) -> None:
-        """Say what is being done now."""
-        self._bar.set_description_str(label)
-
     def close(self) -> None:
         """Draw the final state and end the line (once)."""
         self._bar.close()

@@ -16,17 +16,17 @@ import traceback
 from collections.abc import Callable, Iterator, Sequence
 from functools import partial
 from itertools import islice
-from typing import Any, Literal, Protocol
+from typing import Any, Literal
 
 import numpy as np
-from attrs import cmp_using, field, frozen
-from numpy.typing import ArrayLike, NDArray
+from attrs import field, frozen
+from numpy.typing import NDArray
 
 from anytime.clocks import Clock, WallClock, WorkClock
-from anytime.errors import AnytimeError
 from anytime.isolation import WATCHDOG, Channel, Child, Isolation, Lost, calls, died
 from anytime.modules import AnytimeModule, Context, Result
-from anytime.profiles.profile import Array, default_bins
+from anytime.problems import BuildError, Grid, Instance, ProblemSet
+from anytime.profiles.profile import Array
 
 ClockName = Literal["work", "wall"]
 
@@ -34,81 +34,6 @@ CLOCKS: dict[str, tuple[Callable[[], Clock], Literal["ticks", "seconds"]]] = {
     "work": (WorkClock, "ticks"),
     "wall": (WallClock, "seconds"),
 }
-
-
-class BuildError(AnytimeError, ValueError):
-    """A profile cannot be built as asked: bad grids, a problem set that breaks its contract."""
-
-
-def _as_tuple(values: Sequence[Any]) -> tuple[Any, ...]:
-    return tuple(values)
-
-
-@frozen
-class Instance:
-    """One problem: the module's arguments after the context, and what the scorer needs.
-
-    A quality-carrying argument may be a `Result` (whose quality must be the one asked for) or a
-    plain value, which the builder wraps as `Result(value, asked quality)`.
-
-    Attributes:
-        args: the positional arguments after `ctx`, in the module's parameter order.
-        reference: anything `ProblemSet.score` compares an output against (an optimal answer).
-    """
-
-    args: tuple[Any, ...] = field(converter=_as_tuple)
-    reference: Any = None
-
-
-class ProblemSet(Protocol):
-    """What a domain supplies to measure a module. It must pickle (a top-level class instance)
-    to reach worker processes, and should be small: instances are made on the workers."""
-
-    def instance(self, rng: np.random.Generator, input_qualities: tuple[float, ...]) -> Instance:
-        """A random problem whose quality-carrying inputs have `input_qualities` (axis order)."""
-        ...
-
-    def score(self, instance: Instance, value: Any) -> float:
-        """The true quality in [0, 1] of the output `value` on `instance`."""
-        ...
-
-
-def _array(value: ArrayLike) -> Array:
-    array = np.array(value, dtype=np.float64)
-    array.setflags(write=False)
-    return array
-
-
-def _arrays(value: Sequence[ArrayLike]) -> tuple[Array, ...]:
-    return tuple(_array(grid) for grid in value)
-
-
-def _grids_equal(a: tuple[Array, ...], b: tuple[Array, ...]) -> bool:
-    return len(a) == len(b) and all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
-
-
-@frozen
-class Grid:
-    """The grids a profile is measured on.
-
-    Attributes:
-        time: increasing time allocations (ticks for the work clock, seconds for the wall clock).
-        input_grids: one increasing grid of qualities per quality-carrying input.
-        bins: K+1 edges of the quality histogram (default: 10 equal bins).
-    """
-
-    time: Array = field(converter=_array, eq=cmp_using(eq=np.array_equal), hash=False)
-    input_grids: tuple[Array, ...] = field(
-        default=(), converter=_arrays, eq=cmp_using(eq=_grids_equal), hash=False
-    )
-    bins: Array = field(
-        factory=default_bins, converter=_array, eq=cmp_using(eq=np.array_equal), hash=False
-    )
-
-    @property
-    def cell_shape(self) -> tuple[int, ...]:
-        """The input-quality cells (no time axis)."""
-        return tuple(len(grid) for grid in self.input_grids)
 
 
 @frozen(eq=False)

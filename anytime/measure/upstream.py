@@ -48,9 +48,8 @@ from anytime.dsl.program import SchemaFile
 from anytime.errors import AnytimeError
 from anytime.library import AnytimeLibrary
 from anytime.measure.builder import build_profile
-from anytime.measure.problems import ProgramProblems
-from anytime.measure.trials import Instance, ProblemSet
 from anytime.modules import AnytimeModule, Result
+from anytime.problems import Instance, ProblemSet, ProgramProblems
 from anytime.profiles.profile import Array, ConditionalPerformanceProfile
 from anytime.runtime.program import run_until
 

@@ -17,8 +17,8 @@ from anytime.compiler import CompileError, compile_program
 from anytime.dsl import parse_schemas
 from anytime.library import AnytimeLibrary, LibraryEntry
 from anytime.measure.builder import build_profile
-from anytime.measure.trials import Instance
 from anytime.modules import AnytimeModule, Context, Registry, Result, interruptible
+from anytime.problems import Instance
 from anytime.runtime import run_program
 
 MODULES = Registry()

@@ -18,8 +18,8 @@ import anytime.measure.builder
 from anytime.errors import ProfileError
 from anytime.measure.builder import Instance, Measurement
 from anytime.measure.calibrate import Calibration, CalibrationError, calibrate, convert_profile
-from anytime.measure.trials import Grid
 from anytime.modules import Context, Registry, Result, contract, interruptible
+from anytime.problems import Grid
 from anytime.profiles import tabulate
 from anytime.profiles.io import load_profile, save_profile
 

@@ -22,7 +22,6 @@ from anytime.compiler import CompiledProgram, compile_program
 from anytime.dsl import parse_schemas
 from anytime.library import AnytimeLibrary, RegistrySource
 from anytime.measure.builder import Measurement, ProfileRequest, profile_module
-from anytime.measure.trials import Instance
 from anytime.modules import (
     AnytimeModule,
     Context,
@@ -32,6 +31,7 @@ from anytime.modules import (
     contract,
     interruptible,
 )
+from anytime.problems import Instance
 from anytime.profiles import (
     ConditionalPerformanceProfile,
     Exponential,

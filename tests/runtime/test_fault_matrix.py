@@ -35,17 +35,17 @@ from typing import Any
 
 import numpy as np
 import pytest
-from anytime.testing import check_module, check_seed
 from conftest import Cli
 
 from anytime.clocks import WallClock, WorkClock
 from anytime.isolation import Limits, processes
 from anytime.measure.builder import build_profile, register_problems
-from anytime.measure.trials import Instance
 from anytime.modules import Context, Registry, Result, contract, interruptible
+from anytime.problems import Instance
 from anytime.profiles.io import load_profile
 from anytime.runtime import Status, run
 from anytime.runtime.conversion import make_interruptible
+from anytime.testing import check_module, check_seed
 
 MODULES = Registry()
 COMMANDS = Registry()  # the modules of the command tests, put in the library's registry there

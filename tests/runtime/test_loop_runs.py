@@ -21,8 +21,8 @@ from anytime.compiler.model import LoopNode
 from anytime.dsl import parse_schemas
 from anytime.library import AnytimeLibrary, LibraryEntry
 from anytime.measure.builder import build_profile
-from anytime.measure.trials import Instance
 from anytime.modules import Context, Registry, Result, interruptible
+from anytime.problems import Instance
 from anytime.runtime import ExecutionError, Status, run_program
 
 LOOPS = """
