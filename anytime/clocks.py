@@ -9,9 +9,11 @@ from __future__ import annotations
 
 import threading
 import time
-from typing import Literal, Protocol
+from typing import Protocol
 
-Unit = Literal["ticks", "seconds"]
+from anytime.vocabulary import Unit
+
+__all__ = ["Clock", "Unit", "WallClock", "WorkClock"]
 
 
 class Clock(Protocol):
