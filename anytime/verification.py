@@ -42,6 +42,7 @@ from anytime.pool import spread
 from anytime.problems import Instance, ProgramProblems, ProgramProblemSet
 from anytime.profiles.profile import Array
 from anytime.runtime.executor import Status
+from anytime.runtime.modes import Budget, Isolated, Soft
 from anytime.runtime.program import ExecutionError, bind_inputs, run_program
 
 __all__ = [
@@ -247,10 +248,8 @@ def _run_one(job: _Job, flat: int) -> _Ran:
         record = run_program(
             compiled,
             instance.args,
-            total,
-            clock=WorkClock(),
-            isolation=job.isolation,
-            watchdog=job.watchdog,
+            Budget(total, clock=WorkClock()),
+            mode=Isolated(watchdog=job.watchdog) if job.isolation == "process" else Soft(),
         )
     except ExecutionError as exc:
         raise VerifyError(f"schema '{compiled.name}' cannot run ({where}): {exc}") from exc

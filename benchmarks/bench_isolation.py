@@ -48,7 +48,7 @@ from tables import machine, table  # benchmarks/tables.py: a script's own folder
 from anytime.clocks import Clock, WallClock, WorkClock
 from anytime.isolation import Channel, Child, processes
 from anytime.modules import AnytimeModule, Context, Registry, Result, interruptible
-from anytime.runtime import RunRecord, run
+from anytime.runtime import Budget, Hard, Isolated, RunRecord, Soft, run
 
 BENCH = Registry()
 MODES = ("soft", "hard", "process")
@@ -111,8 +111,13 @@ def call(
     allocation: float = float("inf"),
 ) -> RunRecord:
     if mode == "process":
-        return run(module, args, allocation=allocation, clock=clock, isolation="process")
-    return run(module, args, allocation=allocation, clock=clock, hard=mode == "hard")
+        return run(module, args, budget=Budget(allocation, clock=clock), mode=Isolated())
+    return run(
+        module,
+        args,
+        budget=Budget(allocation, clock=clock),
+        mode=Hard() if mode == "hard" else Soft(),
+    )
 
 
 def percentiles(values: list[float]) -> tuple[float, float, float]:

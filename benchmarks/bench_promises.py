@@ -38,7 +38,7 @@ from tables import machine, table
 
 from anytime import AnytimeLibrary, CompiledProgram, LibraryEntry, WorkClock, compile_file
 from anytime import load_schemas as load_schema_path
-from anytime.runtime import run_program
+from anytime.runtime import Budget, run_program
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "docs" / "example-plugin"))  # the example plugin, as it ships
@@ -48,6 +48,7 @@ sys.path.insert(0, str(ROOT / "tests" / "plugins" / "estimation_plugin"))  # the
 import anytime_estimation as estimation  # noqa: E402
 from anytime_survey import PLUGIN as SURVEY  # noqa: E402
 from anytime_survey import Plot, quality  # noqa: E402
+
 
 SIZE = 128
 SEED_BASE = 10_000  # worlds apart from the profile builder's (which draws from SeedSequence)
@@ -62,7 +63,9 @@ def navigate_trial(
 ) -> tuple[float, float, bool]:
     world = random_world(SIZE, seed=SEED_BASE + 1000 * j + i, movement=4)
     sensor = Sensor(world.blocked, seed=SEED_BASE + 1000 * j + i, movement=4)
-    record = run_program(compiled, [world.start, world.goal, sensor], total, clock=WorkClock())
+    record = run_program(
+        compiled, [world.start, world.goal, sensor], Budget(total, clock=WorkClock())
+    )
     if record.result is None or record.result.value is None:
         return 0.0, record.time_used, True
     executed = execute(record.result.value, world.blocked, movement=4)
@@ -76,7 +79,7 @@ def survey_trial(
     rng = np.random.default_rng(SEED_BASE + 1000 * j + i)
     area = float(rng.uniform(10, 1000))
     plot = Plot(area, seed=SEED_BASE + 1000 * j + i)
-    record = run_program(compiled, [plot], total, clock=WorkClock())
+    record = run_program(compiled, [plot], Budget(total, clock=WorkClock()))
     value = record.result.value if record.result is not None else None
     return quality(value, math.sqrt(area)), record.time_used, value is None
 
@@ -102,7 +105,7 @@ def estimation_trial(
     else:
         tanks = [tank(labelled=compiled.name == "labelled-tank-side")]
         truth = tanks[0].volume ** (1 / 3)
-    record = run_program(compiled, tanks, total, clock=WorkClock())
+    record = run_program(compiled, tanks, Budget(total, clock=WorkClock()))
     value = record.result.value if record.result is not None else None
     return estimation.quality(value, truth), record.time_used, value is None
 

@@ -34,7 +34,7 @@ from tables import machine, table  # benchmarks/tables.py: a script's own folder
 
 from anytime.clocks import Clock, WallClock, WorkClock
 from anytime.modules import AnytimeModule, Context, Registry, Result, interruptible
-from anytime.runtime import Status, run
+from anytime.runtime import Budget, Hard, Soft, Status, run
 
 BENCH = Registry()
 
@@ -92,7 +92,9 @@ def overshoot(
 ) -> tuple[float, Status, Result | None]:
     """Wall time from calling `run` to its answer, minus the allocation (seconds)."""
     start = time.perf_counter()
-    record = run(module, args, allocation=allocation, clock=WallClock(), hard=hard)
+    record = run(
+        module, args, budget=Budget(allocation, clock=WallClock()), mode=Hard() if hard else Soft()
+    )
     return time.perf_counter() - start - allocation, record.status, record.result
 
 
@@ -197,7 +199,7 @@ def bare(module: AnytimeModule, clock: Clock, n: int, work: int) -> Result | Non
 
 
 def through_run(module: AnytimeModule, clock: Clock, n: int, work: int) -> Result | None:
-    return run(module, (n, work), clock=clock).result
+    return run(module, (n, work), budget=Budget(clock=clock)).result
 
 
 def bench_overhead(n: int, repeats: int) -> str:

@@ -38,6 +38,7 @@ from anytime.modules import AnytimeModule
 from anytime.problems import Measurement, registered_problems
 from anytime.profiles.profile import ConditionalPerformanceProfile
 from anytime.runtime.executor import Status, run
+from anytime.runtime.modes import Budget
 
 __all__ = ["Calibration", "CalibrationError", "calibrate", "convert_profile"]
 
@@ -188,7 +189,7 @@ def calibrate(
         stop = threading.Event()
         clock = _MeteredClock(stop, deadline)
         started = _time.perf_counter()
-        record = run(module, args, allocation=allocation, clock=clock, stop=stop)
+        record = run(module, args, budget=Budget(allocation, clock=clock, stop=stop))
         took = _time.perf_counter() - started
         runs += 1
         if record.status is Status.FAILED:

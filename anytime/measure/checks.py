@@ -25,6 +25,7 @@ from anytime.modules import AnytimeModule, Context, Result
 from anytime.problems import Grid, ProblemSet
 from anytime.profiles.profile import Array, ConditionalPerformanceProfile
 from anytime.runtime.executor import RunRecord, Status, run
+from anytime.runtime.modes import Budget
 
 __all__ = [
     "Check",
@@ -209,7 +210,7 @@ class Session:
         stop = threading.Event()
         clock = _ProbeClock(allocation, stop, stop_at)
         recorded = _recorded(self.module, log, snapshots=stop_at < math.inf)
-        record = run(recorded, args, allocation=allocation, clock=clock, stop=stop)
+        record = run(recorded, args, budget=Budget(allocation, clock=clock, stop=stop))
         return _Run(record, tuple(log), where, allocation, clock.largest, clock.negative)
 
     def deadline_runs(self) -> list[_Run]:

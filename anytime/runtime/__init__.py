@@ -13,6 +13,7 @@ from anytime.runtime.deadline import (
     proportional_split,
 )
 from anytime.runtime.executor import RunInterrupted, RunRecord, Status, run
+from anytime.runtime.modes import Budget, Hard, Isolated, RunMode, Soft
 from anytime.runtime.monitor import (
     Adjustment,
     ContractDecision,
@@ -24,6 +25,7 @@ from anytime.runtime.monitor import (
     MonitorEvent,
     ValueModel,
 )
+from anytime.runtime.observe import Observer
 from anytime.runtime.offline import Evaluation, Replay, clairvoyant, evaluate, replay
 from anytime.runtime.policies import (
     Decision,
@@ -32,6 +34,7 @@ from anytime.runtime.policies import (
     OptimalStopping,
     PolicyError,
     ProjectedStopping,
+    Stopping,
     StoppingModel,
     StoppingPlan,
     StoppingPolicy,
@@ -40,6 +43,13 @@ from anytime.runtime.policies import (
 from anytime.runtime.program import ExecutionError, ProgramRecord, program_module, run_program
 
 __all__ = [
+    "Observer",
+    "Stopping",
+    "Soft",
+    "RunMode",
+    "Isolated",
+    "Hard",
+    "Budget",
     "Adjustment",
     "ContractDecision",
     "CostBoundError",

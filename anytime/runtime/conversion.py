@@ -32,6 +32,7 @@ from anytime.profiles.profile import (
     new_profile,
     point_mass,
 )
+from anytime.runtime.modes import Budget
 from anytime.runtime.program import program_module, run_program
 from anytime.runtime.schedules import (
     Schedule,
@@ -333,7 +334,7 @@ def _run_contract(
     if time.monotonic() + length > deadline:
         return None
     if isinstance(target, CompiledProgram):
-        return run_program(target, args, length, clock=WallClock()).result
+        return run_program(target, args, Budget(length, clock=WallClock())).result
     result: Result = target(Context(allocation=length, clock=WallClock()), *args, **kwargs)
     return result
 

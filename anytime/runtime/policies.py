@@ -40,56 +40,18 @@ import numpy as np
 from attrs import field, frozen
 from numpy.typing import ArrayLike
 
-from anytime.errors import AnytimeError
+from anytime.modules import AnytimeModule, Result
 from anytime.profiles.dynamic import DynamicProfile, Observed
 from anytime.profiles.profile import Array
-from anytime.runtime.monitor import TIE_TOLERANCE, CostModel, ValueModel, model_answer
-
-
-class PolicyError(AnytimeError, ValueError):
-    """A stopping policy was given something out of range; the message says what."""
-
+from anytime.runtime.driving import describe
+from anytime.runtime.monitor import TIE_TOLERANCE, CostModel, EventLog, ValueModel, model_answer
+from anytime.runtime.observe import Decision, Observer, PolicyError
 
 # --- decisions and the protocol -------------------------------------------------------------
 
 
-def _time(name: str) -> Any:
-    """An attrs validator: a time >= 0 (infinite: never)."""
-
-    def check(instance: object, attribute: object, value: float) -> None:
-        if not value >= 0:  # NaN too
-            raise PolicyError(f"decision: {name} must be a time >= 0, got {value!r}")
-
-    return check
-
-
-@frozen
-class Decision:
-    """What a policy says at a look.
-
-    Attributes:
-        stop: stop the run now.
-        look_at: when not stopping, the time of the next look (infinite: never look again).
-        stop_at: when not stopping, the time to stop at without looking (at the latest).
-        reason: a short why, for the event log.
-    """
-
-    stop: bool
-    look_at: float = field(default=math.inf, converter=float, validator=_time("look_at"))
-    stop_at: float = field(default=math.inf, converter=float, validator=_time("stop_at"))
-    reason: str = ""
-
-    @classmethod
-    def now(cls, reason: str) -> Decision:
-        return cls(True, reason=reason)
-
-    @classmethod
-    def later(cls, look_at: float, stop_at: float, reason: str) -> Decision:
-        return cls(False, float(look_at), float(stop_at), reason)
-
-
 class StoppingPolicy(Protocol):
-    """A stopping policy, consulted by `run(..., policy=...)` (and by `replay`).
+    """A stopping policy, consulted by `run(..., observer=Stopping(policy))` (and by `replay`).
 
     Attributes:
         name: how the event log names it.
@@ -108,6 +70,71 @@ class StoppingPolicy(Protocol):
         """At a look: the time since the start and the quality of the run's answer (None: no
         answer yet)."""
         ...
+
+
+class Stopping(Observer):
+    """A stopping policy as the observer of one run (`run(..., observer=Stopping(policy, log))`):
+    asked before the run and at each look it schedules, with the quality of the run's answer
+    then; its decisions are recorded in `log` (kind "stopping")."""
+
+    label = "stopping policy"
+
+    def __init__(self, policy: StoppingPolicy, log: EventLog | None = None) -> None:
+        self.policy, self.log = policy, log
+        self.allocation = math.inf
+
+    def started(self, module: AnytimeModule, allocation: float) -> Decision | None:
+        if module.kind != "interruptible":
+            raise PolicyError(
+                f"run: a stopping policy needs an interruptible module; '{module.name}' is a"
+                f" {module.kind} module (make_interruptible turns a contract into one)"
+            )
+        observed = self.policy.observed
+        if observed is not None and observed != module.reports:
+            raise PolicyError(
+                f"run: policy '{self.policy.name}' reads {_REPORTS[observed]}, but module"
+                f" '{module.name}' reports {_REPORTS[module.reports]}"
+            )
+        self.allocation = float(allocation)
+        return self._follow(0.0, None, self.policy.start(self.allocation))
+
+    def look(self, elapsed: float, best: Result | None) -> Decision | None:
+        quality = None if best is None else best.quality
+        return self._follow(elapsed, quality, self.policy.observe(elapsed, quality))
+
+    def _follow(self, time: float, quality: float | None, decision: Decision) -> Decision:
+        if not isinstance(decision, Decision):
+            raise PolicyError(
+                f"policy '{self.policy.name}' answered with {describe(decision)}, not a Decision"
+            )
+        if self.log is not None:
+            self.log.record(
+                time,
+                "stopping",
+                {
+                    "policy": self.policy.name,
+                    "quality": quality,
+                    "decision": "stop" if decision.stop else "continue",
+                    "look_at": None if decision.stop else _never(decision.look_at),
+                    "stop_at": None
+                    if decision.stop
+                    else _never(min(decision.stop_at, self.allocation)),
+                    "reason": decision.reason,
+                },
+            )
+        return decision
+
+
+_REPORTS = {
+    "true": "the true quality",
+    "estimate": "an estimate of the quality",
+    "none": "nothing of the quality",
+}
+
+
+def _never(time: float) -> float | None:
+    """A time for the log: None for never (JSON has no infinity)."""
+    return None if time == math.inf else time
 
 
 # --- utility and the Markov model -----------------------------------------------------------

@@ -30,7 +30,6 @@ it used (`decision_quality`): a self-estimate is not what the compiler measured.
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -55,10 +54,10 @@ from anytime.compiler.model import (
 from anytime.dsl.graph import InputRef, NodeRef, Source
 from anytime.dsl.program import Literal
 from anytime.errors import AnytimeError
-from anytime.isolation import WATCHDOG, Isolation, Limits
 from anytime.modules import MISSING, AnytimeModule, Context, Result
 from anytime.profiles.profile import Array
 from anytime.runtime.executor import RunRecord, Status, run
+from anytime.runtime.modes import SOFT, Budget, RunMode, budget_of
 
 
 class ExecutionError(AnytimeError, RuntimeError):
@@ -93,29 +92,25 @@ class ProgramRecord:
 def run_program(
     compiled: CompiledProgram,
     inputs: Sequence[Any] | Mapping[str, Any],
-    total: float,
+    budget: Budget | float,
     *,
-    clock: Clock | None = None,
     adaptive: bool = False,
-    hard: bool = False,
-    stop: threading.Event | None = None,
-    isolation: Isolation = "none",
-    watchdog: float = WATCHDOG,
-    limits: Limits | None = None,
+    mode: RunMode = SOFT,
 ) -> ProgramRecord:
-    """Run `compiled` with `total` time (inputs positional or by name; `Result`s carry their
-    quality, plain values have quality 1). Setting `stop` interrupts every module.
+    """Run `compiled` within `budget` (its total time on its clock, a fresh work clock by
+    default; its stop event, when set, interrupts every module), inputs positional or by name
+    (`Result`s carry their quality, plain values have quality 1).
 
-    `hard`, `isolation`, `watchdog` and `limits` are how each anytime module's call is run
-    (see `anytime.runtime.run`): with `isolation="process"` a module that crashes or hangs
-    loses its own result only (status `crashed` or `failed` in its record), and the program
-    goes on without it, as it does after any failed call.
+    `mode` is how each anytime module's call is run (see `anytime.runtime.run`): under
+    `Isolated()` a module that crashes or hangs loses its own result only (status `crashed` or
+    `failed` in its record), and the program goes on without it, as it does after any failed
+    call.
 
     Raises:
         ExecutionError: the inputs do not match the program's, or a module has no code.
     """
-    how = _How(hard, isolation, watchdog, limits)
-    execution = _Execution(compiled, inputs, total, clock or WorkClock(), adaptive, how, stop)
+    given = budget_of(budget)
+    execution = _Execution(compiled, inputs, given, adaptive, mode)
     return execution.run()
 
 
@@ -141,7 +136,7 @@ def run_until(
     `node` (a module's call, not made), and return what that call is given; None when it would
     not be made (an input without a result, an alternative found inapplicable). This is how a
     module is measured on the inputs its program feeds it (`anytime profile --upstream`)."""
-    execution = _Execution(compiled, inputs, total, clock or WorkClock(), False, _How(), None)
+    execution = _Execution(compiled, inputs, Budget(total, clock or WorkClock()), False, SOFT)
     target = compiled.model.node(node)
     if not isinstance(target, ModuleNode) or target.callee is not None:
         raise ExecutionError(f"node {node} of schema '{compiled.name}' is not a module's call")
@@ -175,40 +170,8 @@ class _CompiledContract:
         self.__name__ = self.__qualname__ = compiled.name.replace("-", "_")
 
     def __call__(self, ctx: Context, *args: Any) -> Result | None:
-        record = run_program(self.compiled, args, ctx.allocation, clock=ctx.clock, stop=ctx.stop)
+        record = run_program(self.compiled, args, Budget(ctx.allocation, ctx.clock, ctx.stop))
         return record.result
-
-
-@frozen
-class _How:
-    """How a program's module calls are run (the options of `run` they share)."""
-
-    hard: bool = False
-    isolation: Isolation = "none"
-    watchdog: float = WATCHDOG
-    limits: Limits | None = None
-
-    def run(
-        self,
-        module: AnytimeModule,
-        args: Sequence[Any],
-        kwargs: Mapping[str, Any],
-        allocation: float,
-        clock: Clock,
-        stop: threading.Event | None,
-    ) -> RunRecord:
-        return run(
-            module,
-            args,
-            kwargs,
-            allocation=allocation,
-            clock=clock,
-            stop=stop,
-            hard=self.hard,
-            isolation=self.isolation,
-            watchdog=self.watchdog,
-            limits=self.limits,
-        )
 
 
 class _Execution:
@@ -218,30 +181,30 @@ class _Execution:
         self,
         compiled: CompiledProgram,
         inputs: Sequence[Any] | Mapping[str, Any],
-        total: float,
-        clock: Clock,
+        budget: Budget,
         adaptive: bool,
-        how: _How,
-        stop: threading.Event | None,
+        mode: RunMode,
     ) -> None:
         self.compiled, self.model = compiled, compiled.model
-        self.total, self.clock, self.adaptive, self.how, self.stop = (
-            total,
-            clock,
-            adaptive,
-            how,
-            stop,
-        )
+        self.adaptive, self.mode = adaptive, mode
+        self.total, self.clock, self.stop = budget.allocation, budget.clock, budget.stop
         program = self.model.program
         self.values = bind_inputs(program.name, program.inputs, inputs)
         self.qualities = [_quality(self.values[name]) for name in self.model.quality_inputs]
-        self.start = clock.now()
-        self.allocation = np.array(compiled.allocation_at(self.qualities, total), dtype=float)
+        self.start = self.clock.now()
+        self.allocation = np.array(compiled.allocation_at(self.qualities, self.total), dtype=float)
         self.results: dict[int, Result] = {}
         self.records: dict[int, RunRecord] = {}
         self.inner: list[RunRecord] = []  # the calls of called schemas and of ifs' branches
         self.judged: dict[int, float] = {}  # the qualities decisions go by
         self.applicable: dict[int, list[bool]] = {}  # each best-of's, once decided
+
+    def call(
+        self, module: AnytimeModule, args: Sequence[Any], kwargs: Mapping[str, Any], share: float
+    ) -> RunRecord:
+        """A module's call with `share` of the time, in the program's mode."""
+        budget = Budget(share, self.clock, self.stop)
+        return run(module, args, kwargs, budget=budget, mode=self.mode)
 
     def run(self, until: int | None = None) -> ProgramRecord:
         """Run the program's calls in order (up to, not including, node `until` when given)."""
@@ -298,7 +261,7 @@ class _Execution:
         match node:
             case ElementaryNode() | TestNode():
                 module, args, kwargs = self.arguments(node)
-                return run(module, args, kwargs, clock=self.clock)
+                return run(module, args, kwargs, budget=Budget(clock=self.clock))
             case ModuleNode(callee=None):
                 module, args, kwargs = self.arguments(node)
                 share = self.budget(node)
@@ -315,7 +278,7 @@ class _Execution:
                         f"not run: with {allocation:g} of its share of {share:g} (its step "
                         f"{node.step:g} kept back) its profile gives it no result",
                     )
-                return self.how.run(module, args, kwargs, allocation, self.clock, self.stop)
+                return self.call(module, args, kwargs, allocation)
             case ModuleNode(callee=callee):
                 _, args, _ = self.arguments(node, callee.model.program.inputs)
                 return self.subprogram(callee, args, self.budget(node), node.name)
@@ -407,7 +370,7 @@ class _Execution:
                     )
                 )
                 continue
-            records.append(self.how.run(module, args, {}, allocation, self.clock, self.stop))
+            records.append(self.call(module, args, {}, allocation))
         self.inner.extend(records)
         quality = float(np.mean([r.quality for r in records])) if records else 1.0
         value = [r.result.value if r.result is not None else MISSING for r in records]
@@ -477,7 +440,7 @@ class _Execution:
         """A called schema or an if's branch, run on this run's clock: one record for the
         call, its own calls' records kept after it."""
         sub = _Execution(
-            compiled, inputs, given, self.clock, self.adaptive, self.how, self.stop
+            compiled, inputs, Budget(given, self.clock, self.stop), self.adaptive, self.mode
         ).run()
         self.inner.extend(sub.records)
         return RunRecord(

@@ -43,7 +43,7 @@ from anytime.library import AnytimeLibrary, LibraryEntry, RegistrySource
 from anytime.modules import Context, Registry, Result, contract, elementary, interruptible
 from anytime.profiles import ConditionalPerformanceProfile, tabulate
 from anytime.profiles.io import load_profile
-from anytime.runtime import ExecutionError, program_module, run_program
+from anytime.runtime import Budget, ExecutionError, program_module, run_program
 
 
 def _one(ctx: Context, a: Any) -> Iterator[Result]:
@@ -236,7 +236,7 @@ def test_a_compiled_program_runs_to_its_expected_quality(toy: CompiledProgram) -
     for i, q in enumerate(QUALITY):
         for j, total in enumerate(TIME):
             clock = WorkClock()
-            result = run_program(toy, {"x": Result("map", q)}, total, clock=clock).result
+            result = run_program(toy, {"x": Result("map", q)}, Budget(total, clock=clock)).result
             assert result.quality == pytest.approx(toy.expected[i, j], abs=1e-12), (q, total)
             assert result.value[0] == "plan"
             assert clock.now() == total  # the modules spent exactly the contract's time
@@ -292,7 +292,7 @@ def test_allocation_at_keeps_a_smaller_totals_split() -> None:
     for total in (20.0, 30.0, 40.0, 50.0, 60.0, 90.0):
         np.testing.assert_array_equal(program.allocation_at([], total), [20.0])
     clock = WorkClock()
-    assert run_program(program, {"x": "data"}, 60.0, clock=clock).result.quality == 1.0
+    assert run_program(program, {"x": "data"}, Budget(60.0, clock=clock)).result.quality == 1.0
     assert clock.now() == 20.0
 
 
@@ -307,7 +307,7 @@ def test_a_hierarchical_program_runs_to_its_expected_quality() -> None:
     for i, q in enumerate(QUALITY):
         for j, total in enumerate(TIME):
             clock = WorkClock()
-            result = run_program(top, {"x": Result("map", q)}, total, clock=clock).result
+            result = run_program(top, {"x": Result("map", q)}, Budget(total, clock=clock)).result
             assert result.quality == pytest.approx(top.expected[i, j], abs=1e-12), (q, total)
             assert clock.now() == total
 

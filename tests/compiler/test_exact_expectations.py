@@ -19,7 +19,7 @@ from anytime.library import AnytimeLibrary, LibraryEntry
 from anytime.measure.builder import build_profile
 from anytime.modules import AnytimeModule, Context, Registry, Result, interruptible
 from anytime.problems import Instance
-from anytime.runtime import run_program
+from anytime.runtime import Budget, run_program
 
 MODULES = Registry()
 TIME = [0.0, 5.0, 10.0, 20.0]
@@ -75,7 +75,7 @@ def test_a_measured_module_that_always_reaches_one_compiles_to_exactly_one(
     np.testing.assert_array_equal(compiled.expected, [0.0, 0.0, 0.0, 1.0])
     for total, expected in zip(TIME, compiled.expected, strict=True):
         for delay in (5, 10):
-            record = run_program(compiled, {"delay": delay}, total, clock=WorkClock())
+            record = run_program(compiled, {"delay": delay}, Budget(total, clock=WorkClock()))
             assert (record.quality, record.time_used <= total) == (expected, True)
 
 
@@ -89,7 +89,7 @@ def test_a_chain_fed_no_result_or_a_perfect_result_expects_exactly_what_runs_giv
     # `exact` keeps back its step of 10 ticks: with 15 it runs 5, enough for the delay of 5.
     np.testing.assert_array_equal(compiled.expected, [0.0, 0.0, 0.5, 1.0])
     for total, delay, quality in [(10.0, 5, 0.0), (15.0, 5, 1.0), (15.0, 10, 0.0), (20.0, 10, 1.0)]:
-        record = run_program(compiled, {"delay": delay}, total, clock=WorkClock())
+        record = run_program(compiled, {"delay": delay}, Budget(total, clock=WorkClock()))
         assert (record.quality, record.time_used <= total) == (quality, True), (total, delay)
 
 

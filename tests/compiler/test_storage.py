@@ -22,7 +22,7 @@ from anytime.compiler import (
 from anytime.dsl import parse_schemas
 from anytime.library import AnytimeLibrary, LibraryEntry
 from anytime.profiles.io import load_profile
-from anytime.runtime import run_program
+from anytime.runtime import Budget, run_program
 
 FILE = """(defschema pick (w)
   (best-of (when (left-clear? w) (steady)) (when (right-clear? w) (gamble))))
@@ -63,8 +63,8 @@ def test_a_saved_program_loads_back_with_its_tables_and_runs_the_same(
         np.testing.assert_array_equal(loaded.baselines[key], table)
     for inputs in (["left right sun"], ["left"], ["right"], ["rain"]):
         for total in (0.0, 3.0, 10.0):
-            again = run_program(loaded, inputs, total, clock=WorkClock())
-            first = run_program(original, inputs, total, clock=WorkClock())
+            again = run_program(loaded, inputs, Budget(total, clock=WorkClock()))
+            first = run_program(original, inputs, Budget(total, clock=WorkClock()))
             assert (again.result, again.status, again.allocations) == (
                 first.result,
                 first.status,

@@ -25,7 +25,7 @@ import pytest
 
 from anytime import AnytimeLibrary, CompiledProgram, Context, WorkClock, compile_file, load_schemas
 from anytime.library import PluginSource
-from anytime.runtime import ProgramRecord, Status, run_program
+from anytime.runtime import Budget, ProgramRecord, Status, run_program
 
 SOURCE = Path(__file__).resolve().parent / "estimation_plugin"
 SCHEMAS = ("tank-side", "two-tank-side", "labelled-tank-side")
@@ -248,7 +248,9 @@ def _runs(installed: Installed, schema: str, j: int, adaptive: bool = False) -> 
         for i in range(RUNS):
             rng = np.random.default_rng([SEED, SCHEMAS.index(schema), j, i])
             inputs, truth = _instance(est, schema, rng)
-            record = run_program(compiled, inputs, total, clock=WorkClock(), adaptive=adaptive)
+            record = run_program(
+                compiled, inputs, Budget(total, clock=WorkClock()), adaptive=adaptive
+            )
             value = record.result.value if record.result is not None else None
             qualities.append(est.quality(value, truth))
             records.append(record)
@@ -369,7 +371,10 @@ def test_a_module_whose_input_has_no_result_is_not_called(
     est = installed.package
     broken = est.Tank(100.0, 1, has_sensor=False)  # the estimator has nothing to read
     record = run_program(
-        installed.programs["tank-side"], [broken], 40.0, clock=WorkClock(), adaptive=adaptive
+        installed.programs["tank-side"],
+        [broken],
+        Budget(40.0, clock=WorkClock()),
+        adaptive=adaptive,
     )
     assert record.result is None and record.status == Status.NO_RESULT
     assert _statuses(record) == [
@@ -383,7 +388,9 @@ def test_a_module_whose_input_has_no_result_is_not_called(
 def test_a_two_input_module_with_one_input_missing_is_not_called(installed: Installed) -> None:
     est = installed.package
     tanks = [est.Tank(100.0, 1), est.Tank(50.0, 2, has_sensor=False)]
-    record = run_program(installed.programs["two-tank-side"], tanks, 40.0, clock=WorkClock())
+    record = run_program(
+        installed.programs["two-tank-side"], tanks, Budget(40.0, clock=WorkClock())
+    )
     assert record.result is None and record.status == Status.NO_RESULT
     assert _statuses(record)[1:] == [
         ("estimate-volume", "no-result", None),
@@ -399,7 +406,10 @@ def test_a_best_of_whose_preconditions_are_all_false_is_a_no_result(
     est = installed.package
     bare = est.Tank(100.0, 1, has_sensor=False)  # no sensor and no label
     record = run_program(
-        installed.programs["labelled-tank-side"], [bare], 40.0, clock=WorkClock(), adaptive=adaptive
+        installed.programs["labelled-tank-side"],
+        [bare],
+        Budget(40.0, clock=WorkClock()),
+        adaptive=adaptive,
     )
     assert record.result is None and record.status == Status.NO_RESULT
     assert _statuses(record) == [
@@ -427,7 +437,7 @@ def test_a_best_of_runs_the_applicable_alternative_with_all_its_time(
     installed: Installed, tank: Callable[[ModuleType], Any], source: str
 ) -> None:
     compiled = installed.programs["labelled-tank-side"]
-    record = run_program(compiled, [tank(installed.package)], 40.0, clock=WorkClock())
+    record = run_program(compiled, [tank(installed.package)], Budget(40.0, clock=WorkClock()))
     assert record.result is not None and record.status in (
         Status.COMPLETED,
         Status.CONTRACT_EXPIRED,

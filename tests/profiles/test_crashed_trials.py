@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 from anytime.isolation import Child, Isolation, calls
 from anytime.measure.builder import Instance, ProfileBuild, build_profile
 from anytime.modules import AnytimeModule, Context, Registry, Result, contract, interruptible
-from anytime.runtime import RunRecord, Status, run
+from anytime.runtime import Isolated, RunRecord, Soft, Status, run
 
 MODULES = Registry()
 TICKS = 12  # the flaky climb registers a better result at each of its ticks, up to this many
@@ -116,7 +116,12 @@ def _runs(
     for i, instance in enumerate(instances):
         row = []
         for j, t in enumerate(TIME):
-            record = run(module, instance.args, allocation=t, isolation=isolation)
+            record = run(
+                module,
+                instance.args,
+                budget=t,
+                mode=Isolated() if isolation == "process" else Soft(),
+            )
             if record.result is not None:
                 quality[i, j] = problems.score(instance, record.result.value)
                 had[i, j] = True
@@ -350,7 +355,7 @@ def test_an_isolated_run_keeps_everything_its_process_sent_before_it_went(
     # `run` once took the child for crashed after the first read (registered 1, "exited with
     # code 0"), as the exact comparisons above found a few times in a thousand runs.
     _reads_one_at_a_time_once_gone(monkeypatch)
-    record = run(_module("three-then"), (how,), allocation=10, isolation="process")
+    record = run(_module("three-then"), (how,), budget=10, mode=Isolated())
     assert (record.status, record.quality, record.registered) == (status, 0.3, 3)
 
 

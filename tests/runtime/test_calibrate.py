@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import anytime.library
-import anytime.measure.builder
+import anytime.problems
 from anytime.errors import ProfileError
 from anytime.measure.builder import Instance, Measurement
 from anytime.measure.calibrate import Calibration, CalibrationError, calibrate, convert_profile
@@ -85,7 +85,7 @@ MEASUREMENTS = {
 @pytest.fixture(autouse=True)
 def only_these_modules(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(anytime.library, "REGISTRY", MODULES)
-    monkeypatch.setattr(anytime.measure.builder, "_MEASUREMENTS", dict(MEASUREMENTS))
+    monkeypatch.setattr(anytime.problems, "_MEASUREMENTS", dict(MEASUREMENTS))
 
 
 # --- convert_profile ---------------------------------------------------------------------------
@@ -218,7 +218,7 @@ def test_calibrate_converts_a_profile(cli: Cli, tmp_path: Path) -> None:
 
 
 def test_no_problem_set(cli: Cli, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(anytime.measure.builder, "_MEASUREMENTS", {})
+    monkeypatch.setattr(anytime.problems, "_MEASUREMENTS", {})
     code, out, err = cli("calibrate", "calibrate-sum", "--no-plugins")
     assert (code, out) == (1, "")
     assert err == (

@@ -18,7 +18,7 @@ from anytime.dsl import parse_schemas
 from anytime.library import AnytimeLibrary
 from anytime.modules import Context, Registry, Result, interruptible
 from anytime.profiles import tabulate
-from anytime.runtime import Status, run_program
+from anytime.runtime import Budget, Status, run_program
 
 MODULES = Registry()
 TIME = np.arange(0.0, 61.0, 10.0)
@@ -77,7 +77,7 @@ def test_an_overshoot_is_taken_from_the_calls_after_it(program: object, total: f
         assert record.time_used <= total
         assert record.status == Status.COMPLETED
         clock = WorkClock()
-        run_program(program, {"x": "data"}, total, clock=clock)
+        run_program(program, {"x": "data"}, Budget(total, clock=clock))
         assert clock.now() <= total
 
 

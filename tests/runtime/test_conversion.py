@@ -38,6 +38,7 @@ from anytime.profiles import (
     PerformanceProfile,
     tabulate,
 )
+from anytime.runtime import Budget
 from anytime.runtime.conversion import (
     ConversionError,
     interruptible_profile,
@@ -454,7 +455,7 @@ def test_the_made_profile_steps_exactly_where_contracts_finish() -> None:
     np.testing.assert_allclose(before[1:], at[:-1], atol=1e-12)
     assert before[0] == 0.0
     for t in (5.0, 10.0, 29.0, 30.0, 69.5, 149.0, 151.0, 629.0, 700.0, 1000.0):
-        record = run(module, ("problem",), allocation=t)
+        record = run(module, ("problem",), budget=t)
         assert record.quality == pytest.approx(float(profile.expected_at(t)), abs=1e-9), t
 
 
@@ -514,7 +515,7 @@ def test_a_hanging_contract_on_workers_leaves_no_process_behind() -> None:
     interpreter waiting at exit for as long as the contract hung)."""
     module = make_interruptible(hangs, t0=0.02, workers=2)
     before = set(multiprocessing.active_children())
-    record = run(module, ("problem",), allocation=0.3, clock=WallClock())
+    record = run(module, ("problem",), budget=Budget(0.3, clock=WallClock()))
     assert record.result is None
     deadline = time.monotonic() + 10.0  # processes take a moment to be reaped, not a timing test
     while set(multiprocessing.active_children()) - before and time.monotonic() < deadline:

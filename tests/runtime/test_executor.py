@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 
 from anytime.clocks import WallClock, WorkClock
 from anytime.modules import Context, Registry, Result, contract, elementary, interruptible
-from anytime.runtime import RunRecord, Status, run
+from anytime.runtime import Budget, Hard, RunRecord, Soft, Status, run
 
 TOYS = Registry()
 SETTINGS = settings(max_examples=80, deadline=None)
@@ -240,7 +240,7 @@ def test_interrupting_at_any_tick_keeps_the_last_result_yielded_in_time(
 ) -> None:
     clock = WorkClock()
     clock.advance(already)  # the run's time counts from its start, not from the clock's zero
-    record = run(script, (steps,), allocation=allocation, clock=clock)
+    record = run(script, (steps,), budget=Budget(allocation, clock=clock))
     status, index, used, count = expected_run(steps, allocation)
     assert record.status == status
     if index is None:
@@ -264,8 +264,8 @@ def test_hard_interruption_on_the_work_clock_answers_like_soft_interruption(
     """On the tick lattice too (a result yielded exactly at the deadline): the work clock moves
     only when the module ticks, so the caller awaits it until it ticks past its allocation, and
     hard and soft interruption give the same record."""
-    hard = run(script, (steps,), allocation=allocation, hard=True, poll=0.0005)
-    soft = run(script, (steps,), allocation=allocation)
+    hard = run(script, (steps,), budget=allocation, mode=Hard(poll=0.0005))
+    soft = run(script, (steps,), budget=allocation)
     assert hard == soft
 
 
@@ -286,14 +286,14 @@ def test_the_best_result_is_the_highest_quality_one_and_the_later_on_ties(
 def test_a_module_that_finishes_after_its_allocation_did_not_complete() -> None:
     """Its last result came in time, but the module went on working past the deadline before it
     ended: "completed" means it finished on its own within its time."""
-    record = run(script, ([(1.0, 0.5), (1.0, 0.6)],), {"tail": 10.0}, allocation=5)
+    record = run(script, ([(1.0, 0.5), (1.0, 0.6)],), {"tail": 10.0}, budget=5)
     assert record.result == Result(1, 0.6)
     assert record.time_used == 12
     assert record.status == Status.INTERRUPTED
 
 
 def test_a_module_that_finishes_within_its_allocation_completed() -> None:
-    record = run(script, ([(1.0, 0.5), (1.0, 0.6)],), {"tail": 3.0}, allocation=5)
+    record = run(script, ([(1.0, 0.5), (1.0, 0.6)],), {"tail": 3.0}, budget=5)
     assert (record.status, record.result, record.time_used) == (
         Status.COMPLETED,
         Result(1, 0.6),
@@ -318,7 +318,9 @@ def test_a_stop_set_by_another_thread_interrupts_the_run(k: int, hard: bool) -> 
 
     other = threading.Thread(target=interrupter)
     other.start()
-    record = run(busy, (k, reached, resume, False), stop=stop, hard=hard)
+    record = run(
+        busy, (k, reached, resume, False), budget=Budget(stop=stop), mode=Hard() if hard else Soft()
+    )
     other.join()
     if k == 0:
         assert (record.status, record.result) == (Status.NO_RESULT, None)
@@ -341,7 +343,7 @@ def test_a_cooperative_module_stopped_from_outside_was_interrupted() -> None:
 
     other = threading.Thread(target=interrupter)
     other.start()
-    record = run(busy, (3, reached, resume, True), stop=stop)
+    record = run(busy, (3, reached, resume, True), budget=Budget(stop=stop))
     other.join()
     assert record.result == Result(2, 0.75)
     assert record.status == Status.INTERRUPTED
@@ -350,7 +352,7 @@ def test_a_cooperative_module_stopped_from_outside_was_interrupted() -> None:
 def test_a_run_whose_stop_is_already_set_registers_nothing() -> None:
     stop = threading.Event()
     stop.set()
-    record = run(script, ([(0.0, 0.5)],), stop=stop)
+    record = run(script, ([(0.0, 0.5)],), budget=Budget(stop=stop))
     assert (record.status, record.result, record.registered) == (Status.NO_RESULT, None, 0)
 
 
@@ -372,7 +374,7 @@ def test_a_module_that_raises_after_k_yields_keeps_result_k(
     k: int, error: tuple[Callable[[], BaseException], str], hard: bool
 ) -> None:
     make, headline = error
-    record = run(explode, (k, make), hard=hard)
+    record = run(explode, (k, make), mode=Hard() if hard else Soft())
     assert record.status == Status.FAILED
     assert record.result == (Result(k - 1, k / (k + 1)) if k else None)
     assert record.registered == k
@@ -419,7 +421,7 @@ def test_the_error_line_names_the_exception(make: Callable[[], BaseException]) -
 
 @pytest.mark.parametrize("hard", [False, True], ids=["soft", "hard"])
 def test_a_module_that_cannot_be_called_fails_without_a_result(hard: bool) -> None:
-    record = run(script, (), hard=hard)
+    record = run(script, (), mode=Hard() if hard else Soft())
     assert (record.status, record.result, record.registered) == (Status.FAILED, None, 0)
     assert record.error == "TypeError: script() missing 1 required positional argument: 'steps'"
     assert record.traceback is not None and record.traceback.startswith("Traceback")
@@ -444,7 +446,7 @@ def test_yielding_something_else_than_a_result_fails_and_keeps_the_best(
     bad: Callable[[], Any], message: str, hard: bool
 ) -> None:
     items = [good(0, 0.4), good(1, 0.6), bad, good(3, 0.9)]
-    record = run(emit, (items,), hard=hard)
+    record = run(emit, (items,), mode=Hard() if hard else Soft())
     assert record.status == Status.FAILED
     assert record.error == message
     assert record.traceback is None
@@ -469,7 +471,7 @@ def test_a_result_of_quality_outside_the_unit_interval_fails_and_keeps_the_best(
 
 @pytest.mark.parametrize("work", [0.0, 4.0], ids=["at once", "after working"])
 def test_a_module_that_registers_nothing_has_no_result(work: float) -> None:
-    record = run(nothing, (work,), allocation=10)
+    record = run(nothing, (work,), budget=10)
     assert record == RunRecord(
         module="nothing",
         status=Status.NO_RESULT,
@@ -482,7 +484,7 @@ def test_a_module_that_registers_nothing_has_no_result(work: float) -> None:
 
 @pytest.mark.parametrize("how", ["raise", "ignore"])
 def test_a_module_that_misbehaves_when_closed_changes_nothing(how: str) -> None:
-    record = run(stubborn, (how,), allocation=3)
+    record = run(stubborn, (how,), budget=3)
     assert record.status == Status.INTERRUPTED
     assert record.result == Result(3, 0.75)
     assert (record.registered, record.time_used, record.error) == (3, 3.0, None)
@@ -497,7 +499,7 @@ def test_a_module_that_misbehaves_when_closed_changes_nothing(how: str) -> None:
     ids=["idle", "within", "exactly", "idle-hard", "within-hard", "exactly-hard"],
 )
 def test_a_contract_within_its_allocation_completes(work: float, hard: bool) -> None:
-    record = run(estimate, (work, 0.8), allocation=10, hard=hard)
+    record = run(estimate, (work, 0.8), budget=10, mode=Hard() if hard else Soft())
     assert record.status == Status.COMPLETED
     assert record.result == Result(("estimate", 10.0), 0.8)
     assert (record.time_used, record.registered) == (work, 1)
@@ -507,15 +509,13 @@ def test_a_contract_within_its_allocation_completes(work: float, hard: bool) -> 
 def test_hard_mode_awaits_a_contract_on_the_work_clock_every_time(allocation: float) -> None:
     """A contract that spends exactly its allocation (0 included) answers in every run: the
     caller does not race the module's start (it answered 1 run in 100 at 0 ticks)."""
-    records = [
-        run(estimate, (allocation, 0.8), allocation=allocation, hard=True) for _ in range(200)
-    ]
+    records = [run(estimate, (allocation, 0.8), budget=allocation, mode=Hard()) for _ in range(200)]
     assert {r.status for r in records} == {Status.COMPLETED}
     assert {r.result for r in records} == {Result(("estimate", allocation), 0.8)}
 
 
 def test_a_contract_that_overruns_expires_and_keeps_its_result() -> None:
-    record = run(estimate, (15.0, 0.8), allocation=10)
+    record = run(estimate, (15.0, 0.8), budget=10)
     assert record.status == Status.CONTRACT_EXPIRED
     assert str(record.status) == "contract-expired"
     assert record.result == Result(("estimate", 10.0), 0.8)
@@ -531,7 +531,7 @@ def test_a_contract_that_spends_exactly_its_allocation_completes(
     and the clock's sum then rounds)."""
     clock = WorkClock()
     clock.advance(already)
-    record = run(exact, allocation=allocation, clock=clock)
+    record = run(exact, budget=Budget(allocation, clock=clock))
     assert record.result == Result(("exact", allocation), 1.0)
     assert record.status == Status.COMPLETED
 
@@ -554,7 +554,7 @@ def test_a_contract_that_raises_fails_without_a_result(
             raise made
         return made
 
-    record = run(misfit, (raising,), allocation=10, hard=hard)
+    record = run(misfit, (raising,), budget=10, mode=Hard() if hard else Soft())
     assert (record.status, record.result, record.registered) == (Status.FAILED, None, 0)
     assert record.error == error
     assert record.traceback is not None and ", in misfit" in record.traceback
@@ -566,7 +566,7 @@ def test_a_contract_that_raises_fails_without_a_result(
     ids=["int", "dict"],
 )
 def test_a_contract_that_returns_something_else_fails(value: Any, message: str) -> None:
-    record = run(misfit, (lambda: value,), allocation=10)
+    record = run(misfit, (lambda: value,), budget=10)
     assert (record.status, record.result, record.error, record.traceback) == (
         Status.FAILED,
         None,
@@ -641,7 +641,7 @@ def test_hard_interruption_cuts_off_a_stuck_module_at_the_wall_clock_deadline(
     in a row, with the first result."""
     for _ in range(5):
         began = time.perf_counter()
-        record = run(hang, (release,), allocation=0.1, clock=WallClock(), hard=True)
+        record = run(hang, (release,), budget=Budget(0.1, clock=WallClock()), mode=Hard())
         waited = time.perf_counter() - began
         assert record.status == Status.INTERRUPTED
         assert record.result == Result("first", 0.3)
@@ -654,7 +654,7 @@ def test_a_stuck_module_is_asked_to_stop_and_ends_at_its_next_yield(
     release: threading.Event,
 ) -> None:
     before = set(threading.enumerate())
-    record = run(hang, (release,), allocation=0.05, clock=WallClock(), hard=True)
+    record = run(hang, (release,), budget=Budget(0.05, clock=WallClock()), mode=Hard())
     workers = [t for t in threading.enumerate() if t not in before and t.name == "anytime:hang"]
     assert len(workers) == 1
     assert workers[0].is_alive()  # still stuck: the caller did not wait for it
@@ -669,7 +669,7 @@ def test_hard_interruption_cuts_off_a_stuck_contract_at_the_wall_clock_deadline(
 ) -> None:
     for _ in range(5):
         began = time.perf_counter()
-        record = run(stuck, (release,), allocation=0.1, clock=WallClock(), hard=True)
+        record = run(stuck, (release,), budget=Budget(0.1, clock=WallClock()), mode=Hard())
         waited = time.perf_counter() - began
         assert (record.status, record.result, record.registered) == (
             Status.CONTRACT_EXPIRED,
@@ -683,12 +683,12 @@ def test_hard_interruption_cuts_off_a_stuck_contract_at_the_wall_clock_deadline(
 def test_hard_interruption_on_the_work_clock_polls_the_clock(release: threading.Event) -> None:
     """The module reports work past its allocation and is then stuck: the caller, polling the
     work clock, answers while the module is still stuck."""
-    record = run(hang, (release, 10.0), allocation=5, hard=True)
+    record = run(hang, (release, 10.0), budget=5, mode=Hard())
     assert not release.is_set()
     assert record.status == Status.INTERRUPTED
     assert record.result == Result("first", 0.3)
     assert (record.time_used, record.registered) == (10.0, 1)
-    contract_record = run(stuck, (release, 12.0), allocation=5, hard=True)
+    contract_record = run(stuck, (release, 12.0), budget=5, mode=Hard())
     assert not release.is_set()
     assert (contract_record.status, contract_record.result, contract_record.time_used) == (
         Status.CONTRACT_EXPIRED,
@@ -705,7 +705,7 @@ def test_hard_interruption_on_the_work_clock_by_a_stop_from_outside(
     stop = threading.Event()
     timer = threading.Timer(0.05, stop.set)
     timer.start()
-    record = run(hang, (release,), allocation=100, stop=stop, hard=True)
+    record = run(hang, (release,), budget=Budget(100, stop=stop), mode=Hard())
     timer.join()
     assert not release.is_set()
     assert (record.status, record.result, record.time_used) == (

@@ -43,7 +43,7 @@ from anytime.measure.builder import build_profile, register_problems
 from anytime.modules import Context, Registry, Result, contract, interruptible
 from anytime.problems import Instance
 from anytime.profiles.io import load_profile
-from anytime.runtime import Status, run
+from anytime.runtime import Budget, Hard, Isolated, Soft, Status, run
 from anytime.runtime.conversion import make_interruptible
 from anytime.testing import check_module, check_seed
 
@@ -181,11 +181,8 @@ def _isolated(how: str, clock: type, kind: str = "interruptible") -> tuple[Any, 
     record = run(
         module,
         (how, args),
-        allocation=allocation,
-        clock=clock(),
-        isolation="process",
-        watchdog=WATCHDOG if how in HANGING else SLACK,
-        limits=limits,
+        budget=Budget(allocation, clock=clock()),
+        mode=Isolated(watchdog=WATCHDOG if how in HANGING else SLACK, limits=limits),
     )
     return record, args
 
@@ -250,12 +247,12 @@ def test_on_the_work_clock_an_isolated_run_ends_as_a_hard_run_does() -> None:
     assert module is not None
     for allocation, used in ((7.0, 7.0), (7.5, 8.0)):  # at its allocation, or the tick past it
         clock = WorkClock()
-        record = run(module, allocation=allocation, clock=clock, isolation="process")
+        record = run(module, budget=Budget(allocation, clock=clock), mode=Isolated())
         assert (record.status, record.result, record.time_used) == (
             Status.INTERRUPTED, Result(7, 0.07), used,
         )  # fmt: skip
         assert clock.now() == used  # the caller's clock moved as if the module had run here
-        hard = run(module, allocation=allocation, clock=WorkClock(), hard=True)
+        hard = run(module, budget=Budget(allocation, clock=WorkClock()), mode=Hard())
         assert (hard.status, hard.result, hard.time_used) == (
             Status.INTERRUPTED,
             Result(7, 0.07),
@@ -285,7 +282,9 @@ def test_in_process_runs_survive_what_does_not_end_the_interpreter(
     module = MODULES.get("misbehaving")
     assert module is not None
     args: list[Any] = ["original"]
-    record = run(module, (how, args), allocation=10.0, clock=clock(), hard=hard)
+    record = run(
+        module, (how, args), budget=Budget(10.0, clock=clock()), mode=Hard() if hard else Soft()
+    )
     assert (record.status, record.quality) == IN_PROCESS[how]
     assert args == (["original", "changed"] if how == "mutate" else ["original"])
 
@@ -294,7 +293,7 @@ def test_in_process_hard_mode_on_the_wall_clock_answers_at_the_deadline_of_a_loo
     module = MODULES.get("misbehaving")
     assert module is not None
     for how in ("loop", "sleep"):
-        record = run(module, (how, []), allocation=0.2, clock=WallClock(), hard=True)
+        record = run(module, (how, []), budget=Budget(0.2, clock=WallClock()), mode=Hard())
         assert (record.status, record.quality) == (Status.INTERRUPTED, 0.2)
 
 
@@ -383,7 +382,7 @@ def faulty_count(monkeypatch: pytest.MonkeyPatch) -> Iterator[str]:
     (trial 37 of the profile builder's seed 0) that segfaults after its second result."""
     fresh = Registry()
     monkeypatch.setattr("anytime.library.REGISTRY", fresh)
-    monkeypatch.setattr("anytime.measure.builder._MEASUREMENTS", {})
+    monkeypatch.setattr("anytime.problems._MEASUREMENTS", {})
     for module in COMMANDS:
         fresh.add(module)
     register_problems("faulty-count", OneBadTrial("segfault", _draw(0, BAD_TRIAL)), time=[1, 2, 3])
@@ -438,7 +437,7 @@ def test_a_contract_made_interruptible_and_isolated_keeps_the_contracts_before_a
     assert module is not None
     made = make_interruptible(module, t0=1, r=2)  # contracts of 1, 2, then 4 ticks
     before = _session_processes()
-    record = run(made, allocation=20, isolation="process")
+    record = run(made, budget=20, mode=Isolated())
     assert (record.status, record.result, record.registered, record.exit_code) == (
         Status.CRASHED, Result(2.0, 0.2), 2, 3,
     )  # fmt: skip

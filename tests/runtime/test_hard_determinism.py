@@ -19,7 +19,7 @@ from anytime.dsl import parse_schemas
 from anytime.library import AnytimeLibrary
 from anytime.modules import Context, Registry, Result, contract, elementary, interruptible
 from anytime.profiles import tabulate
-from anytime.runtime import ProgramRecord, Status, run, run_program
+from anytime.runtime import Budget, Hard, ProgramRecord, Status, run, run_program
 
 TIME = np.arange(0, 21, 5, dtype=np.float64)
 LINEAR = [[0.0, 1.0]]
@@ -75,7 +75,7 @@ def test_the_tick_past_the_allocation_ends_a_hard_run_there() -> None:
     assert module is not None
     for _ in range(20):
         start = clock.now()
-        record = run(module, [Result("map", 1.0)], allocation=4, clock=clock, hard=True)
+        record = run(module, [Result("map", 1.0)], budget=Budget(4, clock=clock), mode=Hard())
         assert (record.status, record.result, record.time_used, record.registered) == (
             Status.CONTRACT_EXPIRED, None, 5.0, 0,
         )  # fmt: skip
@@ -94,11 +94,11 @@ def test_a_hard_run_that_overruns_gets_the_same_record_every_time(
     module = MODULES.get("overruns")
     assert module is not None
     records = {
-        run(module, [Result("map", quality)], {"by": by}, allocation=allocation, hard=True)
+        run(module, [Result("map", quality)], {"by": by}, budget=allocation, mode=Hard())
         for _ in range(3)
     }
     assert records == {
-        run(module, [Result("map", quality)], {"by": by}, allocation=allocation, hard=True)
+        run(module, [Result("map", quality)], {"by": by}, budget=allocation, mode=Hard())
     }
     (record,) = records
     assert (record.status, record.result, record.time_used) == (
@@ -110,7 +110,7 @@ def test_an_interruptible_hard_run_ends_at_the_half_tick_past_its_allocation() -
     module = MODULES.get("ticks-then-yields")
     assert module is not None
     for _ in range(20):
-        record = run(module, [Result("map", 1.0)], allocation=2.2, hard=True)
+        record = run(module, [Result("map", 1.0)], budget=2.2, mode=Hard())
         assert (record.status, record.result, record.time_used, record.registered) == (
             Status.INTERRUPTED, Result(("first", 2), float(curve(2, 1.0))), 2.5, 2,
         )  # fmt: skip
@@ -134,7 +134,7 @@ def test_hard_programs_on_several_threads_answer_as_each_alone() -> None:
 
     def once(case: tuple[float, float]) -> tuple[Any, ...]:
         quality, total = case
-        return _key(run_program(compiled, {"x": Result("map", quality)}, total, hard=True))
+        return _key(run_program(compiled, {"x": Result("map", quality)}, total, mode=Hard()))
 
     alone = {case: once(case) for case in cases}
     soft = {

@@ -23,7 +23,7 @@ from anytime.library import AnytimeLibrary, LibraryEntry
 from anytime.measure.builder import build_profile
 from anytime.modules import Context, Registry, Result, interruptible
 from anytime.problems import Instance
-from anytime.runtime import ExecutionError, Status, run_program
+from anytime.runtime import Budget, ExecutionError, Status, run_program
 
 LOOPS = """
 (defschema tours (depots) (map tour depots))
@@ -165,7 +165,7 @@ def test_a_call_its_profile_gives_no_result_is_not_started() -> None:
     library.add(LibraryEntry.of_module(attrs.evolve(late, profile_source=profile)))
     schemas = parse_schemas("(defschema lates (depots) (map late depots :max 2))")
     lates = compile_file(schemas, library, [0, 12], schema="lates", resolution=1.0)[-1]
-    run = run_program(lates, [["a", "b"]], 12, clock=WorkClock())
+    run = run_program(lates, [["a", "b"]], Budget(12, clock=WorkClock()))
     ran, skipped = sorted(run.records[1:], key=lambda r: r.status == Status.NO_RESULT)
     assert (ran.result is not None, ran.allocation) == (True, 10.0)
     assert (skipped.status, skipped.time_used) == (Status.NO_RESULT, 0.0)

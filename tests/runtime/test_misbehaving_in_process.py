@@ -13,7 +13,7 @@ import pytest
 
 from anytime.clocks import WallClock, WorkClock
 from anytime.modules import Context, Registry, Result, contract, interruptible
-from anytime.runtime import RunInterrupted, Status, run
+from anytime.runtime import Budget, Hard, RunInterrupted, Soft, Status, run
 
 MODULES = Registry()
 
@@ -65,7 +65,9 @@ def _run(name: str, hard: bool, clock: type, *args: Any) -> Any:
     allocation = 10.0 if clock is WorkClock else 5.0
     module = MODULES.get(name)
     assert module is not None
-    return run(module, args, allocation=allocation, clock=clock(), hard=hard)
+    return run(
+        module, args, budget=Budget(allocation, clock=clock()), mode=Hard() if hard else Soft()
+    )
 
 
 @pytest.mark.parametrize(("hard", "clock"), MODES)

@@ -88,7 +88,7 @@ def forget_calls() -> Iterator[None]:
 
 
 def test_a_contract_that_returns_none_has_no_result() -> None:
-    record = run(source, ("nothing",), allocation=10)
+    record = run(source, ("nothing",), budget=10)
     assert (record.status, record.result, record.time_used) == (Status.NO_RESULT, None, 10.0)
 
 

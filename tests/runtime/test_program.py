@@ -28,7 +28,15 @@ from anytime.library import AnytimeLibrary
 from anytime.modules import Context, Registry, Result, contract, elementary, interruptible
 from anytime.profiles import ConditionalPerformanceProfile, default_bins, new_profile, tabulate
 from anytime.profiles.profile import Kind
-from anytime.runtime import ExecutionError, ProgramRecord, Status, run_program
+from anytime.runtime import (
+    Budget,
+    ExecutionError,
+    Hard,
+    Isolated,
+    ProgramRecord,
+    Status,
+    run_program,
+)
 
 #: Totals 0..40 on a lattice of 5 ticks, and the program input-quality grid.
 TIME = np.arange(0, 41, 5, dtype=np.float64)
@@ -89,7 +97,7 @@ def test_a_program_answers_like_the_compiled_program(toy: CompiledProgram) -> No
     for i, q in enumerate(QUALITY):
         for j, total in enumerate(TIME):
             clock = WorkClock()
-            record = run_program(toy, {"x": Result("map", q)}, total, clock=clock)
+            record = run_program(toy, {"x": Result("map", q)}, Budget(total, clock=clock))
             expected = run_program(toy, {"x": Result("map", q)}, total).result
             assert record.result == expected, (q, total)
             assert record.quality == pytest.approx(toy.expected[i, j], abs=1e-12)
@@ -227,7 +235,7 @@ def test_isolated_a_crashing_module_loses_its_own_result_only_and_the_program_go
         compiled("(defschema p (x k) (last (middle (first x) k)))", CHAIN), inputs, 30.0
     )
     program = compiled("(defschema p (x k) (last (crasher (first x) k)))", CHAIN)
-    record = run_program(program, inputs, 30.0, isolation="process")
+    record = run_program(program, inputs, 30.0, mode=Isolated())
     assert [r.status for r in record.records] == [
         Status.INTERRUPTED, Status.CRASHED, Status.INTERRUPTED,
     ]  # fmt: skip
@@ -339,7 +347,7 @@ def test_a_stuck_module_cut_off_by_hard_interruption_does_not_stop_the_rest(
     program = compiled("(defschema p (x release) (after (wedge x release)))", STUCK)
     stop = threading.Event() if own_stop else None
     record = run_program(
-        program, {"x": Result("map", 1.0), "release": release}, 20, hard=True, stop=stop
+        program, {"x": Result("map", 1.0), "release": release}, Budget(20, stop=stop), mode=Hard()
     )
     wedge_record, after_record = record.records
     assert (wedge_record.status, wedge_record.result) == (

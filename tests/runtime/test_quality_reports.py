@@ -17,7 +17,7 @@ from anytime.dsl import parse_schemas
 from anytime.library import AnytimeLibrary
 from anytime.modules import Context, ModuleError, Registry, Result, interruptible
 from anytime.profiles import tabulate
-from anytime.runtime import run, run_program
+from anytime.runtime import Budget, run, run_program
 
 TIME = np.arange(0.0, 41.0, 10.0)
 
@@ -59,7 +59,7 @@ def test_an_interruptible_that_does_not_report_its_true_quality_keeps_its_latest
     reports: str, kept: int
 ) -> None:
     module = boaster(reports, Registry())
-    record = run(module, ("x",), allocation=20)
+    record = run(module, ("x",), budget=20)
     assert record.result is not None and record.result.value == ("boaster", kept)
 
 
@@ -77,7 +77,7 @@ def test_a_best_of_chooses_by_the_profile_where_self_reports_are_estimates(
     program = compile_program(schema, library, TIME)
     record = run_program(program, {"x": "data"}, 20)
     assert record.result is not None and record.result.value[0] == winner
-    result = run_program(program, {"x": "data"}, 20, clock=WorkClock()).result
+    result = run_program(program, {"x": "data"}, Budget(20, clock=WorkClock())).result
     assert result is not None and result.value[0] == winner
 
 

@@ -25,11 +25,14 @@ from anytime.runtime import (
     Decision,
     EventLog,
     FixedStopping,
+    Hard,
     MyopicStopping,
     OptimalStopping,
     PolicyError,
     ProjectedStopping,
+    Soft,
     Status,
+    Stopping,
     replay,
     run,
 )
@@ -109,7 +112,9 @@ HARD = pytest.mark.parametrize("hard", [False, True], ids=["soft", "hard"])
 def test_the_policy_is_consulted_at_its_looks_and_stops_the_run(hard: bool) -> None:
     policy = Script(later(2.5), later(4), Decision.now("enough"))
     log = EventLog()
-    record = run(climb, [0.5], allocation=10, policy=policy, log=log, hard=hard)
+    record = run(
+        climb, [0.5], budget=10, mode=Hard() if hard else Soft(), observer=Stopping(policy, log)
+    )
     assert (record.status, record.time_used, record.looks) == (Status.STOPPED, 4.0, 2)
     assert record.result == Result(4, 1 - math.exp(-2.0))
     assert [t for t, _ in policy.shown] == [3.0, 4.0]  # the first results at or after 2.5 and 4
@@ -132,32 +137,44 @@ def test_the_policy_is_consulted_at_its_looks_and_stops_the_run(hard: bool) -> N
 
 @HARD
 def test_the_run_stops_at_the_policys_stop_time_without_looking(hard: bool) -> None:
-    record = run(climb, [0.5], allocation=10, policy=Script(later(math.inf, 6)), hard=hard)
+    record = run(
+        climb,
+        [0.5],
+        budget=10,
+        mode=Hard() if hard else Soft(),
+        observer=Stopping(Script(later(math.inf, 6))),
+    )
     assert (record.status, record.time_used, record.looks) == (Status.STOPPED, 6.0, 0)
     assert record.result is not None and record.result.value == 6
 
 
 @HARD
 def test_a_result_after_the_stop_time_does_not_count(hard: bool) -> None:
-    record = run(climb, [0.5, 4.0], allocation=20, policy=Script(later(math.inf, 6)), hard=hard)
+    record = run(
+        climb,
+        [0.5, 4.0],
+        budget=20,
+        mode=Hard() if hard else Soft(),
+        observer=Stopping(Script(later(math.inf, 6))),
+    )
     assert (record.status, record.result) == (Status.STOPPED, Result(1, 1 - math.exp(-2.0)))
 
 
 @HARD
 def test_the_allocation_still_ends_a_run_the_policy_lets_go_on(hard: bool) -> None:
     policy = Script(later(0), *[later(t + 1) for t in range(1, 20)])
-    record = run(climb, [0.5], allocation=5, policy=policy, hard=hard)
+    record = run(climb, [0.5], budget=5, mode=Hard() if hard else Soft(), observer=Stopping(policy))
     assert (record.status, record.time_used, record.looks) == (Status.INTERRUPTED, 5.0, 5)
 
 
 def test_a_module_that_finishes_first_completes() -> None:
-    record = run(short, [], allocation=10, policy=Script(later(0), later(5)))
+    record = run(short, [], budget=10, observer=Stopping(Script(later(0), later(5))))
     assert (record.status, record.looks, record.quality) == (Status.COMPLETED, 1, 0.75)
 
 
 def test_a_policy_that_stops_before_the_start_runs_nothing() -> None:
     log = EventLog()
-    record = run(climb, [0.5], allocation=10, policy=Script(Decision.now("no time")), log=log)
+    record = run(climb, [0.5], budget=10, observer=Stopping(Script(Decision.now("no time")), log))
     assert (record.status, record.result, record.time_used, record.looks) == (
         Status.STOPPED,
         None,
@@ -172,13 +189,13 @@ def test_a_policy_that_fails_fails_the_run_with_its_message() -> None:
         def observe(self, time: float, quality: float | None) -> Decision:
             raise ValueError("no idea")
 
-    record = run(climb, [0.5], allocation=10, policy=Broken(later(0)))
+    record = run(climb, [0.5], budget=10, observer=Stopping(Broken(later(0))))
     assert (record.status, record.error) == (Status.FAILED, "stopping policy: ValueError: no idea")
     assert record.result == Result(1, 1 - math.exp(-0.5))
-    wrong = run(climb, [0.5], allocation=10, policy=Script(later(0), "stop"))  # type: ignore[arg-type]
+    wrong = run(climb, [0.5], budget=10, observer=Stopping(Script(later(0), "stop")))  # type: ignore[arg-type]
     assert (wrong.status, wrong.error) == (
         Status.FAILED,
-        "stopping policy: anytime.runtime.policies.PolicyError: policy 'script' answered with"
+        "stopping policy: anytime.runtime.observe.PolicyError: policy 'script' answered with"
         " str 'stop', not a Decision",
     )
 
@@ -188,7 +205,9 @@ def test_the_optimal_policy_runs_a_module_and_logs_why(hard: bool) -> None:
     model = Linear(10, 0.4)
     policy = OptimalStopping(climb_profile(), model, model)
     log = EventLog()
-    record = run(climb, [0.8], allocation=10, policy=policy, log=log, hard=hard)
+    record = run(
+        climb, [0.8], budget=10, mode=Hard() if hard else Soft(), observer=Stopping(policy, log)
+    )
     assert record.status == Status.STOPPED
     assert record.looks == len(log) - 1 and record.time_used <= 10
     assert {e.data["policy"] for e in log} == {"optimal"}
@@ -199,7 +218,7 @@ def test_a_module_sees_the_policys_stop_time_as_its_allocation() -> None:
     """A contract made interruptible starts no contract that cannot end by the stop time: it
     ends by itself (completed) instead of running one whose result would not count."""
     anytime_solve = make_interruptible(solve)  # contracts of 2, 4, 8, ...: results at 2, 6, 14
-    record = run(anytime_solve, [], allocation=40, policy=Script(later(math.inf, 20)))
+    record = run(anytime_solve, [], budget=40, observer=Stopping(Script(later(math.inf, 20))))
     assert (record.status, record.time_used, record.allocation) == (Status.COMPLETED, 14.0, 40)
     assert record.quality == pytest.approx(float(Exponential(0.2)(8)))
 
@@ -211,7 +230,9 @@ def test_a_policy_run_never_passes_its_allocation(
 ) -> None:
     model = Linear(10, cost)
     kind = FixedStopping if fixed else OptimalStopping
-    record = run(climb, [rate], allocation=allocation, policy=kind(climb_profile(), model, model))
+    record = run(
+        climb, [rate], budget=allocation, observer=Stopping(kind(climb_profile(), model, model))
+    )
     assert record.time_used <= allocation + 1  # within its step, as any run
     assert record.status in (Status.STOPPED, Status.INTERRUPTED, Status.NO_RESULT)
 
@@ -221,7 +242,7 @@ def test_a_policy_run_never_passes_its_allocation(
 
 def test_a_policy_needs_an_interruptible_module() -> None:
     with pytest.raises(PolicyError) as error:
-        run(solve, [], allocation=10, policy=Script(later(0)))
+        run(solve, [], budget=10, observer=Stopping(Script(later(0))))
     assert str(error.value) == (
         "run: a stopping policy needs an interruptible module; 'solve' is a contract module"
         " (make_interruptible turns a contract into one)"
@@ -231,7 +252,7 @@ def test_a_policy_needs_an_interruptible_module() -> None:
 def test_a_policy_must_read_what_the_module_reports() -> None:
     model = Linear(1, 0)
     with pytest.raises(PolicyError) as error:
-        run(guess, [], allocation=10, policy=OptimalStopping(climb_profile(), model, model))
+        run(guess, [], budget=10, observer=Stopping(OptimalStopping(climb_profile(), model, model)))
     assert str(error.value) == (
         "run: policy 'optimal' reads the true quality, but module 'guess' reports an estimate"
         " of the quality"
@@ -254,7 +275,9 @@ def test_a_module_that_reports_an_estimate_is_watched_through_the_observation_mo
     model = Linear(10, 0.05)
     policy = OptimalStopping(profile, model, model)
     log = EventLog()
-    record = run(noisy, [0.2], allocation=40, policy=policy, log=log, hard=hard)
+    record = run(
+        noisy, [0.2], budget=40, mode=Hard() if hard else Soft(), observer=Stopping(policy, log)
+    )
     assert record.status in (Status.STOPPED, Status.INTERRUPTED)
     assert record.looks == len(log) - 1 >= 1
     assert [e.data["quality"] for e in log[1:]] == [0.2 * (k + 1) for k in range(record.looks)]
@@ -272,7 +295,7 @@ def grind(ctx: Context) -> Iterator[Result]:
 
 
 def test_hard_interruption_cuts_a_stuck_module_at_the_policys_stop_time() -> None:
-    record = run(grind, [], allocation=100, policy=Script(later(math.inf, 5)), hard=True)
+    record = run(grind, [], budget=100, mode=Hard(), observer=Stopping(Script(later(math.inf, 5))))
     assert (record.status, record.result, record.allocation) == (
         Status.STOPPED,
         Result("first", 0.3),
@@ -283,7 +306,7 @@ def test_hard_interruption_cuts_a_stuck_module_at_the_policys_stop_time() -> Non
 
 def test_the_log_of_an_unbounded_run_is_plain_json() -> None:
     log = EventLog()
-    run(climb, [0.5], policy=Script(later(3), Decision.now("done")), log=log)
+    run(climb, [0.5], observer=Stopping(Script(later(3), Decision.now("done")), log))
     assert EventLog.from_jsonl(log.to_jsonl()) == log
     assert [(e.data["look_at"], e.data["stop_at"]) for e in log] == [(3.0, None), (None, None)]
 
@@ -295,7 +318,9 @@ def test_a_compiled_program_made_interruptible_runs_under_a_policy() -> None:
         time_grid=range(0, 41, 2),
     )
     anytime_program = make_interruptible(program)
-    record = run(anytime_program, [], allocation=40, policy=Script(later(5), Decision.now("ok")))
+    record = run(
+        anytime_program, [], budget=40, observer=Stopping(Script(later(5), Decision.now("ok")))
+    )
     assert (record.status, record.looks) == (Status.STOPPED, 1)
     assert record.result is not None and record.result.value == "solved"
 
@@ -325,6 +350,6 @@ def test_replay_stops_a_trace_where_a_run_of_it_stops(
         ProjectedStopping(profile, model, model),
     ):
         offline = replay(policy, profile.time, trace, allocation, scored=[0, 1, 1, 1, 1])
-        record = run(playback, [trace], allocation=allocation, policy=policy)
+        record = run(playback, [trace], budget=allocation, observer=Stopping(policy))
         kept = 0 if record.result is None else record.result.value  # the grid index of its answer
         assert (kept, record.looks) == (offline.stop_index, offline.looks), policy.name

@@ -12,22 +12,18 @@ import attrs
 import numpy as np
 from attrs import field, frozen
 
-from anytime import StoppingPolicy
-from anytime.plugin import (
+from anytime import (
     AnytimeLibrary,
-    AnytimeModule,
     CompiledProgram,
-    Context,
-    EventLog,
     LibraryEntry,
-    Result,
     Status,
-    VisionHyperbola,
+    StoppingPolicy,
     compile_file,
-    default_time_grid,
     run,
-    tabulate,
 )
+from anytime.plugin import AnytimeModule, Context, Result, tabulate
+from anytime.plugin.compose import EventLog, VisionHyperbola, default_time_grid
+from anytime.runtime import Budget, Stopping
 
 from .resources import data_file, load_schema_file
 from .vision import Q_A, T_A, T_B
@@ -166,11 +162,8 @@ def _traced(module: AnytimeModule, trace: PlanTrace) -> Callable[..., Any]:
         record = run(
             watched,
             (start, goal, domain),
-            allocation=ctx.remaining,
-            clock=ctx.clock,
-            stop=ctx.stop,
-            policy=policy,
-            log=log,
+            budget=Budget(ctx.remaining, clock=ctx.clock, stop=ctx.stop),
+            observer=Stopping(policy, log),
         )
         for event in log:  # at program times, as the trace's qualities
             trace.decisions.record(began + event.time, event.kind, event.data)

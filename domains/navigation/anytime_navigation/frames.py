@@ -15,17 +15,10 @@ import numpy as np
 from attrs import define, frozen
 from attrs import evolve as replace
 
-from anytime import OptimalStopping, StoppingPolicy
-from anytime.plugin import (
-    Adjustment,
-    Clock,
-    CompiledProgram,
-    EventLog,
-    Monitor,
-    Unit,
-    WorkClock,
-    run_program,
-)
+from anytime import CompiledProgram, OptimalStopping, StoppingPolicy, run_program
+from anytime.plugin import Clock, Unit, WorkClock
+from anytime.plugin.compose import Adjustment, EventLog, Monitor
+from anytime.runtime import Budget
 
 from .execution import execute, optimal_length, route_length
 from .frame_program import PlanTrace
@@ -334,7 +327,9 @@ class _TaskRun:
             self.trace.stop_with(lambda quality, began: self.stopper(state, quality, began))
         inputs = [position, world.goal, sensor]
         try:
-            result = run_program(self.compiled, inputs, contract, clock=self.run_clock).result
+            result = run_program(
+                self.compiled, inputs, Budget(contract, clock=self.run_clock)
+            ).result
         finally:
             self.trace.stop_with(None)
         spent = self.run_clock.now() - started
@@ -672,6 +667,6 @@ def _make_clock(kind: str, compiled: CompiledProgram, task: NavigationTask) -> C
     work = WorkClock()
     started = _time.perf_counter()
     total = float(compiled.profile.time[-1])
-    run_program(compiled, [task.world.start, task.world.goal, sensor], total, clock=work)
+    run_program(compiled, [task.world.start, task.world.goal, sensor], Budget(total, clock=work))
     seconds = max(_time.perf_counter() - started, 1e-6)
     return WallTicks(work.now() / seconds)

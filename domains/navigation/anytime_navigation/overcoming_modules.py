@@ -52,23 +52,19 @@ from typing import Any
 import numpy as np
 from attrs import frozen
 
+from anytime import AnytimeLibrary, CompiledProgram, LibraryEntry, compile_program, run_program
 from anytime.plugin import (
-    AnytimeLibrary,
     Clock,
-    CompiledProgram,
     Context,
-    Deadline,
     Instance,
-    LibraryEntry,
     Measurement,
     Result,
     WorkClock,
-    compile_program,
     contract,
-    deadline_from,
     elementary,
-    run_program,
 )
+from anytime.plugin.compose import Deadline, deadline_from
+from anytime.runtime import Budget
 
 from .obstacles import Plan, Traffic, random_obstacles
 from .overcoming import (
@@ -338,7 +334,7 @@ def schema_decider(compiled: CompiledProgram | None = None) -> Decide:
         if left < 1:  # no time to deliberate: no decision (the robot keeps its plan)
             return Decision(deadline.computed_at, deadline.t_d, taken, None)
         applicable = [left_clear(encounter), right_clear(encounter), can_wait(encounter)]
-        result = run_program(program, [encounter], float(left), clock=clock).result
+        result = run_program(program, [encounter], Budget(float(left), clock=clock)).result
         ran = {o.name: o for o in encounter.outcomes}
         outcomes = tuple(
             ran.get(a.name, Outcome(a.name, ok))

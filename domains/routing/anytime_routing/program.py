@@ -10,16 +10,9 @@ from typing import Any
 import numpy as np
 from attrs import frozen
 
-from anytime.plugin import (
-    AnytimeLibrary,
-    CompiledProgram,
-    Instance,
-    ProgramProblems,
-    ProgramRecord,
-    WorkClock,
-    compile_file,
-    run_program,
-)
+from anytime import AnytimeLibrary, CompiledProgram, ProgramRecord, compile_file, run_program
+from anytime.plugin import Instance, ProgramProblems, WorkClock
+from anytime.runtime import Budget
 
 from .domain import (
     Clustering,
@@ -128,7 +121,7 @@ def deliver(
     """Run `program` on `world` with `budget` ticks on the work clock and score it against
     `reference` (default: `reference_for(world)`)."""
     record = run_program(
-        program, [world.orders, world.sites], budget, clock=WorkClock(), adaptive=adaptive
+        program, [world.orders, world.sites], Budget(budget, clock=WorkClock()), adaptive=adaptive
     )
     tours = record.result.value if record.result is not None else None
     clustering, length = reference if reference is not None else reference_for(world)
