@@ -170,8 +170,7 @@ def parse_lisp(example: Example) -> str | None:
 
 
 def setup(namespace: dict[str, Any]) -> None:
-    from anytime import REGISTRY
-    from anytime.measure import builder
+    from anytime import REGISTRY, problems
     from anytime.runtime.deadline import EVENTS
 
     workdir = Path(tempfile.mkdtemp(prefix="anytime-docs-"))
@@ -183,14 +182,13 @@ def setup(namespace: dict[str, Any]) -> None:
         os.getcwd(),
         dict(REGISTRY._modules),
         dict(EVENTS._modules),
-        dict(builder._MEASUREMENTS),
+        dict(problems._MEASUREMENTS),
     )
     os.chdir(workdir)
 
 
 def teardown(namespace: dict[str, Any]) -> None:
-    from anytime import REGISTRY
-    from anytime.measure import builder
+    from anytime import REGISTRY, problems
     from anytime.runtime.deadline import EVENTS
 
     cwd, modules, events, measurements = namespace.pop(_SAVED)
@@ -198,8 +196,8 @@ def teardown(namespace: dict[str, Any]) -> None:
     for registry, saved in ((REGISTRY._modules, modules), (EVENTS._modules, events)):
         registry.clear()
         registry.update(saved)
-    builder._MEASUREMENTS.clear()
-    builder._MEASUREMENTS.update(measurements)
+    problems._MEASUREMENTS.clear()
+    problems._MEASUREMENTS.update(measurements)
     shutil.rmtree(namespace.pop(_DOCDIR), ignore_errors=True)
 
 

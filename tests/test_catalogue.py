@@ -399,7 +399,7 @@ def test_check_json(cli: Cli) -> None:
 
 
 def test_check_a_module_without_a_problem_set(cli: Cli, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr("anytime.measure.builder._MEASUREMENTS", {})
+    monkeypatch.setattr("anytime.problems._MEASUREMENTS", {})
     code, out, err = cli("check", "catalogue-good", "--no-plugins")
     assert (code, out) == (1, "")
     assert err == (

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from scipy.stats import norm
 
+import anytime.problems
 from anytime.measure import builder
 from anytime.measure.builder import (
     BuildError,
@@ -402,7 +403,7 @@ def test_a_problem_set_that_breaks_its_contract_stops_the_build(
 
 
 def test_registered_problems_are_found_by_module_name(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(builder, "_MEASUREMENTS", {})
+    monkeypatch.setattr(anytime.problems, "_MEASUREMENTS", {})
     register_problems(approach, NoisyProblems(), time=[0, 50], input_grids=[[1.0]])
     assert registered_problems("APPROACH").grid.time.tolist() == [0, 50]
     build = profile_module(approach, ProfileRequest(trials=4, quiet=True))
