@@ -9,6 +9,7 @@ plugin, which docs/plugins.md tells readers to copy.
 from __future__ import annotations
 
 import ast
+from itertools import pairwise
 from pathlib import Path
 
 import pytest
@@ -50,22 +51,72 @@ def offenders(files: list[Path], root: Path, forbidden: tuple[str, ...]) -> list
 
 
 def sources(package: str) -> list[Path]:
-    return sorted((FRAMEWORK.parent / package.replace(".", "/")).rglob("*.py"))
+    """The files of `package`, a package (its whole tree) or a module (one file)."""
+    path = FRAMEWORK.parent / package.replace(".", "/")
+    module = path.with_suffix(".py")
+    return [module] if module.is_file() else sorted(path.rglob("*.py"))
+
+
+def parts() -> list[str]:
+    """The framework's top-level parts: its subpackages and its modules (`cli`, `library`...),
+    not the package's own `__init__`."""
+    return sorted(
+        path.stem if path.is_file() else path.name
+        for path in FRAMEWORK.iterdir()
+        if (path.suffix == ".py" and path.stem != "__init__")
+        or (path.is_dir() and (path / "__init__.py").is_file())
+    )
+
+
+def above(*allowed: str) -> tuple[str, ...]:
+    """Every top-level part of the framework but the lowest modules and `allowed`: what a
+    layer that may import only those must not import."""
+    below = {*LOWEST_PARTS, *allowed}
+    return tuple(f"anytime.{part}" for part in parts() if part not in below)
+
+
+#: What every layer may import (`LOWEST` below, and `files`, which imports only `errors`).
+LOWEST_PARTS = ("errors", "text", "vocabulary", "clocks", "files")
+
+#: What sits above the measuring layer: nothing below it imports these.
+TOP = ("anytime.cli", "anytime.launch", "anytime.plugin", "anytime.testing")
 
 
 RULES = [
     ("the framework never imports a domain", "anytime", DOMAINS),
-    ("the compiler never imports the runtime", "anytime.compiler", ("anytime.runtime",)),
+    ("the DSL imports nothing above it", "anytime.dsl", above("dsl")),
+    ("profiles import nothing above them", "anytime.profiles", above("profiles")),
     (
-        "profiles import neither the compiler nor the library",
-        "anytime.profiles",
-        ("anytime.compiler", "anytime.library"),
+        "the module protocol imports nothing above profiles",
+        "anytime.modules",
+        above("modules", "profiles"),
     ),
     (
-        "the DSL imports neither profiles nor the library",
-        "anytime.dsl",
-        ("anytime.profiles", "anytime.library"),
+        "the problem declarations import nothing above the module protocol",
+        "anytime.problems",
+        above("problems", "modules", "profiles"),
     ),
+    (
+        "the library imports neither the compiler, the runtime, measure nor the CLI",
+        "anytime.library",
+        ("anytime.compiler", "anytime.runtime", "anytime.measure", "anytime.verification", *TOP),
+    ),
+    (
+        "the compiler imports neither the runtime, measure nor the CLI",
+        "anytime.compiler",
+        ("anytime.runtime", "anytime.measure", "anytime.verification", *TOP),
+    ),
+    (
+        "the runtime imports neither measure, the library nor the CLI",
+        "anytime.runtime",
+        ("anytime.measure", "anytime.library", "anytime.verification", *TOP),
+    ),
+    (
+        "measure imports neither verification nor the CLI",
+        "anytime.measure",
+        ("anytime.verification", *TOP),
+    ),
+    ("verification does not import the CLI", "anytime.verification", TOP),
 ]
 
 
@@ -74,6 +125,89 @@ def test_layering_rule(rule: str, package: str, forbidden: tuple[str, ...]) -> N
     files = sources(package)
     assert files, f"no source files for {package}"
     assert offenders(files, FRAMEWORK, forbidden) == []
+
+
+def test_only_the_command_line_its_entry_point_and_the_plugin_api_import_the_cli() -> None:
+    users = ("anytime/cli/", "anytime/plugin/", "anytime/plugin.py", "anytime/launch.py")
+    files = [
+        path for path in sources("anytime") if not str(path.relative_to(ROOT)).startswith(users)
+    ]
+    assert offenders(files, FRAMEWORK, ("anytime.cli",)) == []
+
+
+#: The entry points, which import the command line on purpose (lazily, inside `main`) and are
+#: the top of the graph, not a layer; the package's `__init__` (its lazy public names) is not a
+#: part either.
+ENTRY_POINTS = ("__main__", "launch")
+
+
+def part_graph(root: Path) -> dict[str, dict[str, str]]:
+    """part -> part it imports -> where (the first `file:line`), for the top-level parts of
+    the package at `root` (its subpackages and modules), from every import of every file."""
+    package = root.name
+    names = {p.stem if p.is_file() else p.name for p in root.iterdir()}
+    graph: dict[str, dict[str, str]] = {}
+    for path in sorted(root.rglob("*.py")):
+        source = path.relative_to(root).with_suffix("").parts[0]
+        if source in ("__init__", *ENTRY_POINTS):
+            continue
+        edges = graph.setdefault(source, {})
+        for line, module in imports(path, root):
+            head, _, rest = module.partition(".")
+            target = rest.split(".")[0]
+            if head == package and target in names and target not in (source, *ENTRY_POINTS):
+                edges.setdefault(target, f"{path.relative_to(root.parent)}:{line}")
+    return graph
+
+
+def find_cycle(graph: dict[str, dict[str, str]]) -> list[str]:
+    """One cycle of `graph` as `a -> b (where)` edges, or [] when it is acyclic."""
+    state: dict[str, str] = {}  # "open" while on the path, "done" after
+    path: list[str] = []
+
+    def visit(node: str) -> list[str]:
+        state[node] = "open"
+        path.append(node)
+        for target in sorted(graph.get(node, {})):
+            if state.get(target) == "open":
+                cycle = [*path[path.index(target) :], target]
+                return [f"{a} -> {b} ({graph[a][b]})" for a, b in pairwise(cycle)]
+            if target not in state and (found := visit(target)):
+                return found
+        path.pop()
+        state[node] = "done"
+        return []
+
+    for node in sorted(graph):
+        if node not in state and (found := visit(node)):
+            return found
+    return []
+
+
+def test_no_cycle_among_the_frameworks_parts() -> None:
+    graph = part_graph(FRAMEWORK)
+    assert {"dsl", "profiles", "compiler", "runtime", "measure", "library", "cli"} <= set(graph)
+    cycle = find_cycle(graph)
+    assert cycle == [], "a cycle among anytime's parts:\n  " + "\n  ".join(cycle)
+
+
+def test_the_cycle_finder_finds_a_cycle(tmp_path: Path) -> None:
+    root = tmp_path / "pkg"
+    (root / "low").mkdir(parents=True)
+    (root / "__init__.py").write_text("")
+    (root / "low" / "__init__.py").write_text("")
+    (root / "low" / "data.py").write_text("def f():\n    from pkg.high import g\n")
+    (root / "high.py").write_text("from pkg.low.data import f\nimport os\n")
+    (root / "other.py").write_text("from pkg import high\n")
+    graph = part_graph(root)
+    assert graph == {
+        "high": {"low": "pkg/high.py:1"},
+        "low": {"high": "pkg/low/data.py:2"},
+        "other": {"high": "pkg/other.py:1"},
+    }
+    assert find_cycle(graph) == ["high -> low (pkg/high.py:1)", "low -> high (pkg/low/data.py:2)"]
+    del graph["low"]
+    assert find_cycle(graph) == []
 
 
 #: The lowest modules, which every layer imports: they import nothing of the framework but
