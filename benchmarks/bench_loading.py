@@ -31,6 +31,7 @@ from tables import machine, table  # benchmarks/tables.py: a script's own folder
 
 from anytime.profiles import ConditionalPerformanceProfile, point_mass
 from anytime.profiles import io as profile_io
+from anytime.profiles.io import document, profile_file
 
 SIZES = (10_000, 100_000, 1_000_000)
 KINDS = ("expected", "probability")
@@ -73,7 +74,7 @@ def rss_kib() -> int:
 
 def use_loader(loader: str) -> None:
     if loader == "pure":
-        profile_io.FAST_LOADER = yaml.SafeLoader
+        document.FAST_LOADER = yaml.SafeLoader  # where the loader is read
 
 
 def child_load(path: str, loader: str) -> dict[str, float]:
@@ -96,7 +97,7 @@ def child_navigation(loader: str) -> dict[str, float]:
 
     use_loader(loader)
     reading = [0.0]
-    read_file = profile_io.read_profile_file
+    read_file = profile_file.read_profile_file
 
     def timed(path: Any) -> Any:
         start = time.perf_counter()
@@ -105,7 +106,7 @@ def child_navigation(loader: str) -> dict[str, float]:
         finally:
             reading[0] += time.perf_counter() - start
 
-    profile_io.read_profile_file = timed  # what load_profile calls
+    profile_file.read_profile_file = timed  # what load_profile calls
     start = time.perf_counter()
     library = AnytimeLibrary.default()
     schemas = load_schemas(str(data_file("schemas", "navigation.any")))

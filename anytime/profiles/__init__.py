@@ -1,5 +1,5 @@
-"""Performance profiles: the data model, analytic families, file format and profile builder;
-dynamic profiles and the quality traces they are derived from."""
+"""Performance profiles: the data model, analytic families and file formats; dynamic profiles
+and the quality traces they are derived from."""
 
 from anytime.profiles.dynamic import DynamicProfile, QualityTraces, quantile_bins
 from anytime.profiles.dynamic_io import (

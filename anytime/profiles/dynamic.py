@@ -44,22 +44,17 @@ from collections.abc import Callable, Sequence
 from typing import Literal, NoReturn
 
 import numpy as np
-from attrs import cmp_using, field, frozen
+from attrs import field, frozen
 from numpy.typing import ArrayLike, NDArray
 
 from anytime.errors import ProfileError
-from anytime.profiles.profile import (
-    SUM_TOLERANCE,
-    Array,
-    TimeUnit,
-    _array_field,
-    _check_grid,
-    _frozen_array,
-    _frozen_grids,
-    _grids_eq,
-    _names,
-    _optional_array,
-    _optional_eq,
+from anytime.profiles.profile import SUM_TOLERANCE, Array, axis_names, check_grid
+from anytime.vocabulary import (
+    UNITS,
+    Unit,
+    array_field,
+    arrays_field,
+    optional_array_field,
 )
 
 Observed = Literal["true", "estimate", "none"]
@@ -67,10 +62,6 @@ OBSERVED: tuple[Observed, ...] = ("true", "estimate", "none")
 
 #: Default number of states of a dynamic profile.
 DEFAULT_STATES = 20
-
-
-def _bool_array(value: ArrayLike) -> NDArray[np.bool_]:
-    return _frozen_array(value, dtype=np.bool_)
 
 
 @frozen
@@ -96,23 +87,15 @@ class QualityTraces:
     """
 
     module: str
-    scored: NDArray[np.bool_] = field(
-        converter=_bool_array, eq=cmp_using(eq=np.array_equal), hash=False
-    )
-    time: Array = _array_field()
-    quality: Array = _array_field()
-    estimate: Array | None = field(
-        default=None, converter=_optional_array, eq=cmp_using(eq=_optional_eq), hash=False
-    )
+    scored: NDArray[np.bool_] = array_field(dtype=np.bool_)
+    time: Array = array_field()
+    quality: Array = array_field()
+    estimate: Array | None = optional_array_field()
     reports: Observed = "true"
-    input_grids: tuple[Array, ...] = field(
-        default=(), converter=_frozen_grids, eq=cmp_using(eq=_grids_eq), hash=False
-    )
-    inputs: tuple[str, ...] = field(default=(), converter=_names)
-    time_unit: TimeUnit = "ticks"
-    finished: Array | None = field(
-        default=None, converter=_optional_array, eq=cmp_using(eq=_optional_eq), hash=False
-    )
+    input_grids: tuple[Array, ...] = arrays_field(default=())
+    inputs: tuple[str, ...] = field(default=(), converter=axis_names)
+    time_unit: Unit = "ticks"
+    finished: Array | None = optional_array_field()
 
     def __attrs_post_init__(self) -> None:
         _validate_traces(self)
@@ -180,12 +163,12 @@ def _check_axes(
 ) -> None:
     """What traces and dynamic profiles share: the time grid, the input grids and their names,
     the time unit."""
-    _check_grid(time, "time", fail, unit_interval=False)
+    check_grid(time, "time", fail, unit_interval=False)
     for i, grid in enumerate(input_grids):
-        _check_grid(grid, f"input_quality[{i}]", fail, unit_interval=True)
+        check_grid(grid, f"input_quality[{i}]", fail, unit_interval=True)
     if len(inputs) not in (0, len(input_grids)):
         fail("inputs", f"expected one name per input grid ({len(input_grids)}), got {len(inputs)}")
-    if time_unit not in ("ticks", "seconds"):
+    if time_unit not in UNITS:
         fail("time_unit", f"expected 'ticks' or 'seconds', got {time_unit!r}")
 
 
@@ -293,21 +276,17 @@ class DynamicProfile:
     """
 
     module: str
-    time: Array = _array_field()
-    bins: Array = _array_field()
-    occupancy: Array = _array_field()
-    transition: Array = _array_field()
-    quality_mean: Array = _array_field()
-    observation: Array | None = field(
-        default=None, converter=_optional_array, eq=cmp_using(eq=_optional_eq), hash=False
-    )
+    time: Array = array_field()
+    bins: Array = array_field()
+    occupancy: Array = array_field()
+    transition: Array = array_field()
+    quality_mean: Array = array_field()
+    observation: Array | None = optional_array_field()
     observed: Observed = "true"
     samples: int = 0
-    input_grids: tuple[Array, ...] = field(
-        default=(), converter=_frozen_grids, eq=cmp_using(eq=_grids_eq), hash=False
-    )
-    inputs: tuple[str, ...] = field(default=(), converter=_names)
-    time_unit: TimeUnit = "ticks"
+    input_grids: tuple[Array, ...] = arrays_field(default=())
+    inputs: tuple[str, ...] = field(default=(), converter=axis_names)
+    time_unit: Unit = "ticks"
 
     def __attrs_post_init__(self) -> None:
         _validate_dynamic(self)
@@ -447,7 +426,7 @@ def _validate_dynamic(p: DynamicProfile) -> None:
         raise ProfileError(f"{name}: {field_name}: {problem}")
 
     _check_axes(p.time, p.input_grids, p.inputs, p.time_unit, fail)
-    _check_grid(p.bins, "quality_bins", fail, unit_interval=True, minimum=2)
+    check_grid(p.bins, "quality_bins", fail, unit_interval=True, minimum=2)
     if p.bins[0] != 0 or p.bins[-1] != 1:
         fail("quality_bins", f"expected edges from 0 to 1, got {p.bins[0]:g} to {p.bins[-1]:g}")
     if p.observed not in OBSERVED:

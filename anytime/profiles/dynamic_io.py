@@ -62,16 +62,16 @@ from anytime.errors import ProfileError
 from anytime.profiles.dynamic import OBSERVED, DynamicProfile, Observed, QualityTraces
 from anytime.profiles.io import (
     MAX_CELLS,
-    TIME_UNITS,
-    _describe,
-    _Reader,
+    Reader,
+    describe,
     is_large,
     place_tables,
     plain,
     read_document,
     write_document,
 )
-from anytime.profiles.profile import Array, TimeUnit
+from anytime.profiles.profile import Array
+from anytime.vocabulary import UNITS, Unit
 
 __all__ = [
     "DYNAMIC_FORMAT",
@@ -232,7 +232,7 @@ class _Axes:
     def __init__(
         self,
         module: str,
-        time_unit: TimeUnit,
+        time_unit: Unit,
         grids: list[Array],
         inputs: tuple[str, ...],
         time: Array,
@@ -244,15 +244,15 @@ class _Axes:
         self.names = tuple(f"one per {name} quality" for name in labels)
 
     @classmethod
-    def read(cls, reader: _Reader, data: Mapping[Any, Any], suffix: str) -> _Axes:
+    def read(cls, reader: Reader, data: Mapping[Any, Any], suffix: str) -> _Axes:
         name = Path(reader.filename).name
         default = name.removesuffix(suffix) if name.endswith(suffix) else Path(name).stem
         module = reader.name("module", data.get("module", default))
-        time_unit = reader.choice("time_unit", data.get("time_unit", "ticks"), TIME_UNITS)
+        time_unit = reader.choice("time_unit", data.get("time_unit", "ticks"), UNITS)
         grids = reader.input_grids(data.get("input_quality", []))
         inputs = reader.inputs(data["inputs"], len(grids)) if "inputs" in data else ()
         time = reader.grid("time", data["time"], minimum=1, quality=False)
-        return cls(module, cast(TimeUnit, time_unit), grids, inputs, time)
+        return cls(module, cast(Unit, time_unit), grids, inputs, time)
 
 
 def _word(data: Mapping[Any, Any], field: str) -> object:
@@ -262,13 +262,13 @@ def _word(data: Mapping[Any, Any], field: str) -> object:
     return "true" if value is True else value
 
 
-def _whole(reader: _Reader, field: str, value: object, least: int) -> int:
+def _whole(reader: Reader, field: str, value: object, least: int) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < least:
-        reader.fail(field, f"expected an integer >= {least}, got {_describe(value)}")
+        reader.fail(field, f"expected an integer >= {least}, got {describe(value)}")
     return value
 
 
-def _check_size(reader: _Reader, field: str, shape: tuple[int, ...]) -> None:
+def _check_size(reader: Reader, field: str, shape: tuple[int, ...]) -> None:
     """Refuse a file describing a table larger than `MAX_CELLS` before reading its tables."""
     if np.prod(shape, dtype=np.float64) > MAX_CELLS:
         reader.fail(field, f"expected at most {MAX_CELLS} cells, got shape {list(shape)}")

@@ -18,12 +18,11 @@ from anytime.errors import ProfileError
 from anytime.profiles.profile import (
     Array,
     ConditionalPerformanceProfile,
-    Kind,
-    TimeUnit,
     default_bins,
     new_profile,
     point_mass,
 )
+from anytime.vocabulary import ProfileKind, Unit
 
 
 def _check(condition: bool, message: str) -> None:
@@ -123,8 +122,8 @@ class DiscreteVariants:
         horizon: float,
         *,
         module: str = "",
-        kind: Kind = "contract",
-        time_unit: TimeUnit = "ticks",
+        kind: ProfileKind = "contract",
+        time_unit: Unit = "ticks",
     ) -> ConditionalPerformanceProfile:
         """The deterministic profile on the lattice 0, dt, ..., >= horizon (snapped variants)."""
         steps = int(np.ceil(horizon / dt - 1e-9))
@@ -171,8 +170,8 @@ def tabulate(
     input_grids: Sequence[ArrayLike] = (),
     inputs: Sequence[str] = (),
     module: str = "",
-    kind: Kind = "interruptible",
-    time_unit: TimeUnit = "ticks",
+    kind: ProfileKind = "interruptible",
+    time_unit: Unit = "ticks",
 ) -> ConditionalPerformanceProfile:
     """A deterministic profile of `curve` on a grid (a `PerformanceProfile` without inputs).
 

@@ -25,39 +25,33 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from typing import Any, Literal, NoReturn
+from typing import Any, NoReturn
 
 import numpy as np
-from attrs import cmp_using, field, frozen
+from attrs import field, frozen
 from numpy.typing import ArrayLike, NDArray
 
 from anytime.errors import ProfileError
+from anytime.vocabulary import (
+    PROFILE_KINDS,
+    UNITS,
+    ProfileKind,
+    Unit,
+    array_field,
+    arrays_field,
+    optional_array_field,
+)
 
 Array = NDArray[np.float64]
-Kind = Literal["interruptible", "contract"]
-TimeUnit = Literal["ticks", "seconds"]
 
 #: Rows of a distribution may miss 1 by this much (the file format's tolerance); so may the
 #: other sums a profile keeps consistent (the bin means' mean, no result within the first bin).
 SUM_TOLERANCE = 1e-6
 
 
-def _frozen_array(value: ArrayLike, dtype: type = np.float64) -> NDArray[Any]:
-    array: NDArray[Any] = np.array(value, dtype=dtype)
-    array.setflags(write=False)
-    return array
-
-
-def _frozen_grids(value: Sequence[ArrayLike]) -> tuple[Array, ...]:
-    return tuple(_frozen_array(grid) for grid in value)
-
-
-def _names(names: Sequence[str]) -> tuple[str, ...]:
+def axis_names(names: Sequence[str]) -> tuple[str, ...]:
+    """The names of a profile's input axes, as strings (a converter)."""
     return tuple(str(name) for name in names)
-
-
-def _optional_array(value: ArrayLike | None) -> Array | None:
-    return None if value is None else _frozen_array(value)
 
 
 def _optional_number(value: Any) -> Any:
@@ -67,18 +61,6 @@ def _optional_number(value: Any) -> Any:
     ):
         return float(value)
     return value
-
-
-def _array_field(**kwargs: Any) -> Any:
-    return field(converter=_frozen_array, eq=cmp_using(eq=np.array_equal), hash=False, **kwargs)
-
-
-def _grids_eq(a: tuple[Array, ...], b: tuple[Array, ...]) -> bool:
-    return len(a) == len(b) and all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
-
-
-def _optional_eq(a: Array | None, b: Array | None) -> bool:
-    return (a is None and b is None) or (a is not None and b is not None and np.array_equal(a, b))
 
 
 def default_bins(k: int = 10) -> Array:
@@ -116,32 +98,20 @@ class ConditionalPerformanceProfile:
             `representatives` stands each bin for it.
     """
 
-    input_grids: tuple[Array, ...] = field(
-        converter=_frozen_grids, eq=cmp_using(eq=_grids_eq), hash=False
-    )
-    time: Array = _array_field()
-    bins: Array = _array_field()
-    probability: Array = _array_field()
-    inputs: tuple[str, ...] = field(default=(), converter=_names)
-    mean: Array | None = field(
-        default=None, converter=_optional_array, eq=cmp_using(eq=_optional_eq), hash=False
-    )
-    samples: Array | None = field(
-        default=None, converter=_optional_array, eq=cmp_using(eq=_optional_eq), hash=False
-    )
-    std: Array | None = field(
-        default=None, converter=_optional_array, eq=cmp_using(eq=_optional_eq), hash=False
-    )
+    input_grids: tuple[Array, ...] = arrays_field()
+    time: Array = array_field()
+    bins: Array = array_field()
+    probability: Array = array_field()
+    inputs: tuple[str, ...] = field(default=(), converter=axis_names)
+    mean: Array | None = optional_array_field()
+    samples: Array | None = optional_array_field()
+    std: Array | None = optional_array_field()
     module: str = ""
-    kind: Kind = "interruptible"
-    time_unit: TimeUnit = "ticks"
+    kind: ProfileKind = "interruptible"
+    time_unit: Unit = "ticks"
     step: float | None = field(default=None, converter=_optional_number)
-    no_result_table: Array | None = field(
-        default=None, converter=_optional_array, eq=cmp_using(eq=_optional_eq), hash=False
-    )
-    bin_mean: Array | None = field(
-        default=None, converter=_optional_array, eq=cmp_using(eq=_optional_eq), hash=False
-    )
+    no_result_table: Array | None = optional_array_field()
+    bin_mean: Array | None = optional_array_field()
 
     def __attrs_post_init__(self) -> None:
         _validate(self)
@@ -364,9 +334,7 @@ class ConditionalPerformanceProfile:
 class PerformanceProfile(ConditionalPerformanceProfile):
     """A profile with no quality-carrying input: time -> distribution of output quality."""
 
-    input_grids: tuple[Array, ...] = field(
-        default=(), converter=_frozen_grids, eq=cmp_using(eq=_grids_eq), hash=False
-    )
+    input_grids: tuple[Array, ...] = arrays_field(default=())
 
     def at(self, t: ArrayLike) -> Array:
         """Output distribution at time(s) t."""
@@ -400,9 +368,9 @@ def _validate(p: ConditionalPerformanceProfile) -> None:
         raise ProfileError(f"{name}: {field_name}: {problem}")
 
     for i, grid in enumerate(p.input_grids):
-        _check_grid(grid, f"input_quality[{i}]", fail, unit_interval=True)
-    _check_grid(p.time, "time", fail, unit_interval=False)
-    _check_grid(p.bins, "quality_bins", fail, unit_interval=True, minimum=2)
+        check_grid(grid, f"input_quality[{i}]", fail, unit_interval=True)
+    check_grid(p.time, "time", fail, unit_interval=False)
+    check_grid(p.bins, "quality_bins", fail, unit_interval=True, minimum=2)
     if len(p.inputs) not in (0, p.n_inputs):
         fail("inputs", f"expected one name per input grid ({p.n_inputs}), got {len(p.inputs)}")
     expected = (*(len(g) for g in p.input_grids), len(p.time), p.n_bins)
@@ -428,9 +396,9 @@ def _validate(p: ConditionalPerformanceProfile) -> None:
         _check_no_result(p.no_result_table, p.probability, fail)
     if p.bin_mean is not None:
         _check_bin_mean(p.bin_mean, p.probability, p.bins, p.mean, fail)
-    if p.kind not in ("interruptible", "contract"):
+    if p.kind not in PROFILE_KINDS:
         fail("kind", f"expected 'interruptible' or 'contract', got {p.kind!r}")
-    if p.time_unit not in ("ticks", "seconds"):
+    if p.time_unit not in UNITS:
         fail("time_unit", f"expected 'ticks' or 'seconds', got {p.time_unit!r}")
     step = p.step
     if step is not None and not (isinstance(step, float) and math.isfinite(step) and step >= 0):
@@ -438,7 +406,7 @@ def _validate(p: ConditionalPerformanceProfile) -> None:
         fail("step", f"expected a finite number >= 0 (or None: unknown), got {got}")
 
 
-def _check_grid(
+def check_grid(
     grid: Array,
     name: str,
     fail: Callable[[str, str], NoReturn],

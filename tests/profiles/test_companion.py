@@ -26,6 +26,9 @@ from anytime.profiles.io import (
     read_profile_file,
     save_profile,
 )
+from anytime.profiles.io import companion as companion_module
+from anytime.profiles.io import document as document_module
+from anytime.profiles.io.reader import Reader, plain_table
 
 
 def _stochastic(n_times: int = 6, seed: int = 3) -> ConditionalPerformanceProfile:
@@ -98,7 +101,7 @@ def test_writers_add_the_companion_only_above_the_threshold(tmp_path: Path) -> N
 def test_a_compiled_program_with_a_companion_loads_back(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(profile_io, "COMPANION_THRESHOLD", 0)
+    monkeypatch.setattr(companion_module, "COMPANION_THRESHOLD", 0)
     schemas = parse_schemas("(defschema chain (x) (refine (sense x)))", "chain.any")
     library = AnytimeLibrary([RegistrySource(toy_registry())])
     (original,) = compile_file(schemas, library, [0, 10, 20, 40])
@@ -280,7 +283,7 @@ numbers = st.one_of(
 @given(st.lists(st.lists(numbers, min_size=0, max_size=4), min_size=1, max_size=4))
 def test_the_fast_loader_reads_what_the_pure_loader_reads(rows: list[list[object]]) -> None:
     text = yaml.safe_dump({"table": rows, "step": rows[0][0] if rows[0] else 1})
-    assert _same(yaml.load(text, Loader=profile_io.FAST_LOADER), yaml.safe_load(text))
+    assert _same(yaml.load(text, Loader=document_module.FAST_LOADER), yaml.safe_load(text))
 
 
 def _same(a: object, b: object) -> bool:
@@ -299,8 +302,8 @@ def test_the_fast_table_path_accepts_exactly_what_the_walk_accepts(
     rows: list[list[object]],
 ) -> None:
     shape = (len(rows), 3)
-    fast = profile_io._plain_table(rows, shape)
-    reader = profile_io._Reader("p.yaml")
+    fast = plain_table(rows, shape)
+    reader = Reader("p.yaml")
     try:
         walked = reader.table("samples", rows, shape, ["one per a", "one per b"])
     except ProfileError:
@@ -328,7 +331,7 @@ def test_messages_and_positions_are_the_pure_loaders(
     path.write_text(text, encoding="utf-8")
     with pytest.raises(ProfileError) as fast:
         load_profile(path)
-    monkeypatch.setattr(profile_io, "FAST_LOADER", yaml.SafeLoader)
+    monkeypatch.setattr(document_module, "FAST_LOADER", yaml.SafeLoader)
     with pytest.raises(ProfileError) as pure:
         load_profile(path)
     assert str(fast.value) == str(pure.value)
@@ -346,6 +349,6 @@ def test_a_profile_with_a_companion_cannot_be_named_npz(tmp_path: Path) -> None:
 
 def test_the_fast_loader_is_libyamls_where_pyyaml_has_it() -> None:
     if yaml.__with_libyaml__:
-        assert profile_io.FAST_LOADER is yaml.CSafeLoader
+        assert document_module.FAST_LOADER is yaml.CSafeLoader
     else:
-        assert profile_io.FAST_LOADER is yaml.SafeLoader
+        assert document_module.FAST_LOADER is yaml.SafeLoader

@@ -27,7 +27,6 @@ from anytime.dsl import parse_schemas
 from anytime.library import AnytimeLibrary
 from anytime.modules import Context, Registry, Result, contract, elementary, interruptible
 from anytime.profiles import ConditionalPerformanceProfile, default_bins, new_profile, tabulate
-from anytime.profiles.profile import Kind
 from anytime.runtime import (
     Budget,
     ExecutionError,
@@ -37,6 +36,7 @@ from anytime.runtime import (
     Status,
     run_program,
 )
+from anytime.vocabulary import ProfileKind as Kind
 
 #: Totals 0..40 on a lattice of 5 ticks, and the program input-quality grid.
 TIME = np.arange(0, 41, 5, dtype=np.float64)
