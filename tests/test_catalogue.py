@@ -176,6 +176,23 @@ def greedy(ctx: Context, x: float) -> Result:
     return Result((x / 2, work / 20), work / 20)
 
 
+@interruptible("catalogue-numpy", inputs=["data"], profile=COUNTING, registry=GOOD)
+def numpy_counts(ctx: Context, data: Result, limit: int) -> Iterator[Result]:
+    """Counts like `good`, its answers numpy scalars (which need not pickle to the same bytes
+    after a process round trip: the value is compared by its own equality)."""
+    for done in range(1, limit + 1):
+        ctx.tick()
+        yield Result(np.int64(done), data.quality * done / limit)
+
+
+@contract("catalogue-halve-or-none", inputs=[], profile=HALVING, registry=GOOD)
+def halve_or_none(ctx: Context, x: float) -> Result | None:
+    """Like `halve`, but with less than 10 ticks it says it has no result (None)."""
+    if ctx.allocation < 10:
+        return None
+    return halve.function(ctx, x)  # type: ignore[no-any-return]
+
+
 for _module in [*GOOD, *BROKEN]:
     register_problems(
         _module,
@@ -269,6 +286,14 @@ def test_a_declared_profile_that_disagrees_with_the_behaviour() -> None:
         " qualities [1.0], time 50: measured 0.540 (n=10, se 0.021), declared 0.955, allowed"
         " 0.121"
     )
+
+
+@pytest.mark.parametrize("isolation", ["process", "none"])
+def test_numpy_scalar_values_and_contracts_without_a_result_pass(isolation: str) -> None:
+    for module in (numpy_counts, halve_or_none):
+        problems = Counting() if module.kind == "interruptible" else Halving()
+        report = check_module(module, problems, trials=5, isolation=isolation)  # type: ignore[arg-type]
+        assert report.passed, report.format()
 
 
 def test_a_module_that_changes_a_registered_value() -> None:

@@ -6,6 +6,7 @@ turns those runs into a `Check`.
 
 from __future__ import annotations
 
+import copy
 import math
 import pickle
 import threading
@@ -13,7 +14,6 @@ import traceback
 from collections.abc import Callable, Iterator
 from typing import Any
 
-import attrs
 import numpy as np
 from attrs import frozen
 
@@ -21,11 +21,12 @@ from anytime.clocks import Unit, WorkClock
 from anytime.isolation import WATCHDOG, Isolation, Lost, calls
 from anytime.measure.builder import build_profile
 from anytime.measure.trials import Trial
-from anytime.modules import AnytimeModule, Context, Result
+from anytime.modules import AnytimeModule, Result
 from anytime.problems import Grid, ProblemSet
 from anytime.profiles.profile import Array, ConditionalPerformanceProfile
 from anytime.runtime.executor import RunRecord, Status, run
 from anytime.runtime.modes import Budget
+from anytime.runtime.observe import Observer
 
 __all__ = [
     "Check",
@@ -62,13 +63,63 @@ class Check:
 
 @frozen
 class _Yield:
-    """One answer the module gave: when, what, whether the executor could register it, and
-    the pickled value at that moment (None when it does not pickle)."""
+    """A result the run kept: when it was registered, and whether its value was changed after
+    (None: the value could not be copied or compared, so it was not checked)."""
 
     at: float
-    item: Any
-    eligible: bool
-    snapshot: bytes | None
+    item: Result
+    changed: bool | None = None
+
+
+class _Answers(Observer):
+    """The catalogue's view of one run: every result the run keeps, in order, and, with
+    `copies`, a copy of each value as it was registered, compared with the value the run
+    answers with at its end (by the value's own equality, numpy arrays element by element)."""
+
+    def __init__(self, copies: bool) -> None:
+        self.copies = copies
+        self.kept: list[tuple[float, Result, Any]] = []
+
+    def registered(self, elapsed: float, result: Result) -> None:
+        self.kept.append((elapsed, result, _copy(result.value) if self.copies else _UNCOPIED))
+        return None
+
+    def log(self, record: RunRecord) -> tuple[_Yield, ...]:
+        return tuple(
+            _Yield(at, item, None if copy is _UNCOPIED else not _equal(copy, item.value))
+            if item is record.result
+            else _Yield(at, item)
+            for at, item, copy in self.kept
+        )
+
+
+_UNCOPIED = object()
+
+
+def _copy(value: Any) -> Any:
+    try:
+        return copy.deepcopy(value)
+    except Exception:  # a value that cannot be copied is not checked
+        return _UNCOPIED
+
+
+def _equal(a: Any, b: Any) -> bool | None:
+    """Whether `a` and `b` are equal by their own equality, arrays (in lists, tuples and
+    dicts too) element by element."""
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return bool(np.array_equal(a, b, equal_nan=_floating(a) and _floating(b)))
+    if isinstance(a, list | tuple) and isinstance(b, list | tuple):
+        return type(a) is type(b) and len(a) == len(b) and all(map(_equal, a, b))
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
+    try:
+        return bool(a == b)
+    except Exception:  # an equality that cannot answer: not checked
+        return True
+
+
+def _floating(value: Any) -> bool:
+    return np.asarray(value).dtype.kind in "fc"
 
 
 @frozen(eq=False)
@@ -107,47 +158,6 @@ class _ProbeClock:
             self.ticks += n
             if self.ticks >= self._stop_at:
                 self._stop.set()
-
-
-def _snapshot(value: Any) -> bytes | None:
-    try:
-        return pickle.dumps(value)
-    except Exception:
-        return None
-
-
-def _recorded(module: AnytimeModule, log: list[_Yield], snapshots: bool) -> AnytimeModule:
-    """`module` with every answer it gives logged, as the executor will see it (with a pickled
-    copy of each registered value if `snapshots`)."""
-    inner = module.function
-    contract = module.kind == "contract"
-
-    def entry(ctx: Context, item: Any) -> _Yield:
-        if contract:  # registered unless it was stopped before its allocation ran out
-            eligible = not (ctx.stop.is_set() and ctx.elapsed < ctx.allocation)
-        else:
-            eligible = not ctx.stop.is_set() and ctx.elapsed <= ctx.allocation
-        eligible &= isinstance(item, Result)
-        value = item.value if isinstance(item, Result) else None
-        snapshot = _snapshot(value) if eligible and snapshots else None
-        return _Yield(ctx.elapsed, item, eligible, snapshot)
-
-    def generator(ctx: Context, *args: Any, **kwargs: Any) -> Iterator[Any]:
-        items = inner(ctx, *args, **kwargs)
-        try:
-            for item in items:
-                log.append(entry(ctx, item))
-                yield item
-        finally:
-            items.close()
-
-    def call(ctx: Context, *args: Any, **kwargs: Any) -> Any:
-        item = inner(ctx, *args, **kwargs)
-        log.append(entry(ctx, item))
-        return item
-
-    function: Callable[..., Any] = call if contract else generator
-    return attrs.evolve(module, function=function)
 
 
 def check_seed(seed: int) -> int:
@@ -206,12 +216,12 @@ class Session:
             where,
         )
         _, args = trial.problem()  # made afresh for every run: a module may change its arguments
-        log: list[_Yield] = []
         stop = threading.Event()
         clock = _ProbeClock(allocation, stop, stop_at)
-        recorded = _recorded(self.module, log, snapshots=stop_at < math.inf)
-        record = run(recorded, args, budget=Budget(allocation, clock=clock, stop=stop))
-        return _Run(record, tuple(log), where, allocation, clock.largest, clock.negative)
+        answers = _Answers(copies=stop_at < math.inf)
+        budget = Budget(allocation, clock=clock, stop=stop)
+        record = run(self.module, args, budget=budget, observer=answers)
+        return _Run(record, answers.log(record), where, allocation, clock.largest, clock.negative)
 
     def deadline_runs(self) -> list[_Run]:
         """Every instance at every allocation of the grid."""
@@ -306,6 +316,12 @@ def check_pickle(module: AnytimeModule, problems: ProblemSet) -> Check:
     return Check("pickle", True, f"pickles {how}; its problem set pickles")
 
 
+def _not_a_result(error: str) -> bool:
+    """Whether a run failed because the module gave something that is not a `Result` (the
+    executor's words for it)."""
+    return error.startswith(("yielded ", "returned ")) and error.endswith(", not a Result")
+
+
 def _first(bad: list[tuple[_Run, str]], total: int, what: str) -> str:
     run_, problem = bad[0]
     return f"{problem} ({run_.where}); {len(bad)} of {total} runs {what}"
@@ -314,10 +330,9 @@ def _first(bad: list[tuple[_Run, str]], total: int, what: str) -> str:
 def check_quality(runs: list[_Run]) -> Check:
     bad: list[tuple[_Run, str]] = []
     for r in runs:
-        strange = [y.item for y in r.log if not isinstance(y.item, Result)]
         error = r.record.error or ""
-        if strange:
-            bad.append((r, error or f"gave {type(strange[0]).__name__}, not a Result"))
+        if _not_a_result(error):
+            bad.append((r, error))
         elif error.startswith(_QUALITY_REFUSED):
             bad.append((r, f"tried to build a Result of quality outside [0, 1]: {error}"))
         elif r.record.result is not None and not (
@@ -339,7 +354,7 @@ def check_errors(runs: list[_Run]) -> Check:
         (r, r.record.error or "failed")
         for r in runs
         if r.record.status in (Status.FAILED, Status.CRASHED)
-        and all(isinstance(y.item, Result) for y in r.log)
+        and not _not_a_result(r.record.error or "")
         and not (r.record.error or "").startswith(_QUALITY_REFUSED)
     ]
     if bad:
@@ -376,10 +391,6 @@ def check_deadline(module: AnytimeModule, runs: list[_Run]) -> Check:
                     f" step before the deadline was {r.largest_step:g}",
                 )
             )
-        else:
-            late = [y for y in r.log if y.item is record.result and y.at > r.allocation]
-            if record.result is not None and late:
-                bad.append((r, f"registered a result at tick {late[0].at:g}"))
     if bad:
         return Check("deadline", False, _first(bad, len(runs), "missed the deadline"))
     allowed = "within one step of" if module.kind == "interruptible" else "within"
@@ -406,7 +417,7 @@ def check_interruption(module: AnytimeModule, runs: list[_Run]) -> Check:
     bad: list[tuple[_Run, str]] = []
     for r in runs:
         result = r.record.result
-        registered = [y for y in r.log if y.eligible]
+        registered = list(r.log)
         if result is None:
             if registered:
                 bad.append((r, f"answered with no result after registering {len(registered)}"))
@@ -419,7 +430,7 @@ def check_interruption(module: AnytimeModule, runs: list[_Run]) -> Check:
             bad.append((r, "answered with an earlier result than the latest it registered"))
         elif not latest and result.quality < (best := max(y.item.quality for y in registered)):
             bad.append((r, f"answered with quality {result.quality:g}, having registered {best:g}"))
-        elif mine[-1].snapshot is not None and _snapshot(result.value) != mine[-1].snapshot:
+        elif mine[-1].changed:
             bad.append((r, "changed the value of a result after registering it"))
     if bad:
         which = "latest" if latest else "best"
