@@ -1,21 +1,26 @@
 """The compiler: optimal time allocation among a program's anytime modules."""
 
 from anytime.compiler.allocators import (
+    ALLOCATORS,
     DynamicProgramming,
     Exhaustive,
     HillClimbing,
+    MultiStart,
     Proportional,
     dp_obstacle,
 )
-from anytime.compiler.compile import ALLOCATORS, CompiledProgram, compile_file, compile_program
+from anytime.compiler.compile import CompiledProgram, compile_file, compile_program
 from anytime.compiler.evaluate import Dist, Evaluator
-from anytime.compiler.model import CompileError, CompileModel, build_model
-from anytime.compiler.multistart import MultiStart
+from anytime.compiler.model import CompileError, CompileModel
+from anytime.compiler.outcomes import MESSAGES, Code, Note
 from anytime.compiler.report import compiled_to_dict, format_report
+from anytime.compiler.resolve import build_model
 from anytime.compiler.storage import load_compiled, save_compiled
 
 __all__ = [
     "ALLOCATORS",
+    "MESSAGES",
+    "Code",
     "CompileError",
     "CompileModel",
     "CompiledProgram",
@@ -25,6 +30,7 @@ __all__ = [
     "Exhaustive",
     "HillClimbing",
     "MultiStart",
+    "Note",
     "Proportional",
     "build_model",
     "compile_file",

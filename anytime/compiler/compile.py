@@ -14,38 +14,35 @@ in chunks, and a table whose search cannot fit is refused before it starts.
 
 from __future__ import annotations
 
-import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 
 import numpy as np
-from attrs import frozen
 from numpy.typing import ArrayLike
 
-from anytime.compiler import evaluate
-from anytime.compiler.allocators import (
-    DEFAULT_MEMORY,
-    DynamicProgramming,
-    Exhaustive,
-    HillClimbing,
-    Proportional,
+from anytime.compiler.allocators import ALLOCATORS, DEFAULT_MEMORY, Exhaustive, dp_obstacle
+from anytime.compiler.allocators.lattice import equal_split
+from anytime.compiler.allocators.memory import (
     check_memory,
     chunk_rows,
-    dp_obstacle,
-    equal_split,
     expected_in_chunks,
     row_bytes,
 )
 from anytime.compiler.evaluate import Dist, Evaluator, binned_profile
-from anytime.compiler.loops import loop_profiles
-from anytime.compiler.model import (
-    CompileError,
-    CompileModel,
-    ModuleNode,
-    Timed,
-    build_model,
+from anytime.compiler.grids import (
+    DEFAULT_INPUT_QUALITY,
+    callee_grid,
+    check_quality_grid,
+    check_resolution,
+    check_time_grid,
+    default_time_grid,
+    memory_bytes,
 )
-from anytime.compiler.multistart import MultiStart
-from anytime.dsl.program import Call, Program, SchemaCall, SchemaFile
+from anytime.compiler.loops import loop_profiles
+from anytime.compiler.model import CompileError, CompileModel, ModuleNode, Timed
+from anytime.compiler.outcomes import Code, Note
+from anytime.compiler.resolve import build_model
+from anytime.compiler.result import CompiledProgram
+from anytime.dsl.program import Program, SchemaFile
 from anytime.dsl.source import Source
 from anytime.library import AnytimeLibrary
 from anytime.profiles.profile import (
@@ -54,24 +51,20 @@ from anytime.profiles.profile import (
     default_bins,
 )
 
-#: The default grid of program input qualities: 0, 0.1, ..., 1.
-DEFAULT_INPUT_QUALITY = tuple(float(q) for q in np.round(np.linspace(0, 1, 11), 12))
-
-#: Allocators by name.
-ALLOCATORS: dict[
-    str,
-    type[HillClimbing]
-    | type[Exhaustive]
-    | type[DynamicProgramming]
-    | type[Proportional]
-    | type[MultiStart],
-] = {
-    "hill-climbing": HillClimbing,
-    "exhaustive": Exhaustive,
-    "dp": DynamicProgramming,
-    "proportional": Proportional,
-    "multi-start": MultiStart,
-}
+__all__ = [
+    "ALLOCATORS",
+    "ALLOCATOR_NAMES",
+    "AUTO_EXHAUSTIVE_PER_CELL",
+    "DEFAULT_INPUT_QUALITY",
+    "REFERENCE_WORK",
+    "CompiledProgram",
+    "callee_grid",
+    "compile_file",
+    "compile_program",
+    "default_time_grid",
+    "evaluate_in_chunks",
+    "memory_bytes",
+]
 
 #: The names an allocator may be asked for by: "auto" chooses (see `_choose`).
 ALLOCATOR_NAMES = ("auto", *ALLOCATORS)
@@ -82,148 +75,6 @@ AUTO_EXHAUSTIVE_PER_CELL = 1_000
 #: The exhaustive reference behind `exhaustive_gap` is run where its allocations times the
 #: bytes of evaluating one (`row_bytes`, a measure of the work) stay below this: a few seconds.
 REFERENCE_WORK = 2 * 10**9
-
-_UNITS = {"b": 1, "kb": 10**3, "mb": 10**6, "gb": 10**9, "tb": 10**12}
-_UNITS |= {"kib": 2**10, "mib": 2**20, "gib": 2**30, "tib": 2**40}
-
-
-def memory_bytes(memory: int | str) -> int:
-    """A memory cap in bytes: a number of bytes, or a size such as "512MB", "1.5GB", "2GiB"
-    (kB, MB, GB, TB: powers of 1000; KiB, MiB, GiB, TiB: of 1024)."""
-    if isinstance(memory, str):
-        match = re.fullmatch(r"\s*([0-9]*\.?[0-9]+)\s*([a-zA-Z]*)\s*", memory)
-        unit = match.group(2).lower() if match else ""
-        if match is None or (unit and unit not in _UNITS):
-            raise CompileError(
-                f"memory: expected a size such as 512MB, 1GB or 2GiB, got '{memory}'"
-            )
-        size = float(match.group(1)) * _UNITS[unit or "b"]
-    else:
-        size = memory
-    if not size >= 1:
-        raise CompileError(f"memory: expected at least one byte, got {memory!r}")
-    return int(size)
-
-
-@frozen(eq=False)
-class CompiledProgram:
-    """A compiled schema: a contract algorithm and its profile.
-
-    Attributes:
-        name: the schema's name.
-        model: the program resolved against the library.
-        profile: the compiled conditional performance profile (kind contract): one input axis
-            per quality-carrying program input, on `input_quality`, and the time grid.
-        allocation: time per anytime module, shape (*input grids, time, n), in the time unit.
-        allocator: the allocator that filled the table.
-        requested: the allocator asked for ("auto" by default).
-        dp_obstacle: why dp would not be exact for this program (None when it is).
-        baselines: expected quality of the equal, MIN and MAX allocations, each shaped like
-            `profile.mean`.
-        exhaustive_gap: the largest amount by which the exhaustive optimum beats the table
-            (None when the exhaustive search was not computable).
-        standard_error: the standard error of each cell's expected quality, shaped like
-            `profile.mean`: 0 where it is exact under the profiles' model (every cell, unless
-            the joint outcomes of a DAG's shared results were too many to enumerate and were
-            sampled there; see `anytime.compiler.evaluate`). None: every cell exact.
-        kept_smaller: the totals of the time grid at which a smaller total's allocation does
-            better and is kept, the rest of the time left unused (for some input quality).
-        warnings: what the table cannot vouch for, one sentence each: a module fed input
-            qualities outside the grid its profile was measured on (its profile is clamped
-            there, and the allocator may exploit it).
-
-    `exact` and `note` are rendered from these fields.
-    """
-
-    name: str
-    model: CompileModel
-    profile: ConditionalPerformanceProfile
-    allocation: Array
-    allocator: str
-    baselines: dict[str, Array]
-    exhaustive_gap: float | None
-    resolution: float
-    requested: str = "auto"
-    dp_obstacle: str | None = None
-    standard_error: Array | None = None
-    kept_smaller: tuple[float, ...] = ()
-    warnings: tuple[str, ...] = ()
-
-    @property
-    def exact(self) -> bool:
-        """Whether the table is the optimum of the program on its time lattice: found by an
-        exact search (dp where dp is exact, or exhaustive) and evaluated without
-        approximation."""
-        optimal = self.allocator == "exhaustive" or (
-            self.allocator == "dp" and self.dp_obstacle is None
-        )
-        return optimal and not self.approximations
-
-    @property
-    def exact_cells(self) -> np.ndarray:
-        """Per cell of the table, whether its expected quality is exact (not sampled)."""
-        if self.standard_error is None:
-            return np.ones(self.expected.shape, dtype=bool)
-        return np.asarray(self.standard_error == 0)
-
-    @property
-    def approximations(self) -> tuple[str, ...]:
-        """What the table's expectations approximate, one sentence each, from the fields."""
-        sampled = ~self.exact_cells
-        if not sampled.any():
-            return ()
-        assert self.standard_error is not None
-        return (
-            f"the shared results' joint outcomes were sampled ({evaluate.SAMPLES} draws) at"
-            f" {int(sampled.sum())} of {sampled.size} cells of the table: their expected"
-            f" quality has a standard error of up to {float(self.standard_error.max()):.2g}",
-        )
-
-    @property
-    def note(self) -> str:
-        """How the allocator was chosen and what is approximate, as every report says it."""
-        return "; ".join([_allocator_note(self), *self.approximations, *self._kept_note()])
-
-    def _kept_note(self) -> list[str]:
-        if not self.kept_smaller:
-            return []
-        return [
-            f"at {len(self.kept_smaller)} of the table's totals a smaller total does better:"
-            " there the program uses that allocation and leaves the rest of the time unused,"
-            " so its quality never falls as the total grows"
-        ]
-
-    @property
-    def modules(self) -> tuple[str, ...]:
-        return self.model.module_names
-
-    @property
-    def expected(self) -> Array:
-        assert self.profile.mean is not None
-        return self.profile.mean
-
-    def allocation_at(self, quality: Sequence[float], total: float) -> Array:
-        """The allocation for program input qualities `quality` and total time `total`: the
-        table interpolated like the profile, exactly the table's split at grid totals.
-
-        It is never rescaled: where the compiler kept a smaller total's split (more time would
-        not have helped), spending the rest would run the split it rejected. Between grid
-        totals the split is the interpolation of its neighbours', which spends no more than
-        `total` (each neighbour spends no more than its own); beyond the grid, the largest
-        total's split."""
-        q = np.asarray(quality, dtype=np.float64)
-        return self.profile.interpolate(self.allocation, q, np.float64(total))
-
-
-def callee_grid(input_quality: ArrayLike) -> Array:
-    """The input-quality grid a called schema or an if's branch is compiled on: the program's
-    grid and the default one together, so that every quality a result computed in the program
-    can reach it with, 0 to 1, lies within the grid (the callee runs the allocation its table
-    gives at the quality that reaches it, never a clamped one)."""
-    merged = np.union1d(np.asarray(input_quality, dtype=np.float64), DEFAULT_INPUT_QUALITY)
-    keep = np.concatenate([[True], np.diff(merged) > 1e-9])
-    grid: Array = merged[keep]
-    return grid
 
 
 def compile_program(
@@ -258,10 +109,10 @@ def compile_program(
     """
     filename = source.filename if source is not None else "<schema>"
     cap = memory_bytes(memory)
-    time = _check_time_grid(time_grid, filename)
-    dt = _resolution(time, resolution, filename)
+    time = check_time_grid(time_grid, filename)
+    dt = check_resolution(time, resolution, filename)
     units = np.rint(time / dt).astype(np.int64)
-    q_grid = _check_quality_grid(input_quality, filename)
+    q_grid = check_quality_grid(input_quality, filename)
     lattice = np.arange(int(units.max()) + 1) * dt
 
     def compile_branch(branch: Program) -> CompiledProgram:
@@ -310,11 +161,10 @@ def compile_program(
     allocation, _ = search.allocate(evaluator, q_rows, u_rows, dt)
     seen: dict[int, list[Dist]] = {}
     output = evaluate_in_chunks(evaluator, q_rows, allocation * dt, cap, seen)
-    warnings = _outside_input_grids(model, seen)
+    warnings = outside_input_grids(model, seen)
     if strict and warnings:
-        raise CompileError(
-            f"schema '{program.name}' (--strict): " + "; ".join(warnings), where=filename
-        )
+        said = "; ".join(warning.message for warning in warnings)
+        raise CompileError(f"schema '{program.name}' (--strict): {said}", where=filename)
     allocation, output, kept = _never_worse_with_more_time(allocation, output, len(time))
     baselines = {
         name: expected_in_chunks(evaluator, q_rows, split * dt, cap).reshape(cell_shape)
@@ -374,10 +224,11 @@ def evaluate_in_chunks(
     return Dist.concatenate(parts)
 
 
-def _outside_input_grids(model: CompileModel, seen: Mapping[int, list[Dist]]) -> tuple[str, ...]:
-    """A warning for every module input that the compiled allocations feed qualities outside
-    the input grid its profile was measured on (where the profile is only clamped)."""
-    warnings = []
+def outside_input_grids(model: CompileModel, seen: Mapping[int, list[Dist]]) -> tuple[Note, ...]:
+    """A warning (`OUTSIDE_INPUT_GRID`) for every module input that the compiled allocations
+    feed qualities outside the input grid its profile was measured on (where the profile is
+    only clamped)."""
+    warnings: list[Note] = []
     for node in model.anytime_nodes:
         profile = node.profile
         if node.index not in seen:
@@ -395,20 +246,18 @@ def _outside_input_grids(model: CompileModel, seen: Mapping[int, list[Dist]]) ->
             # The worst cell: how often an input falls outside, given its share of the time.
             share = float(np.where(outside, dist.probs, 0.0).sum(axis=1).max())
             warnings.append(
-                f"module '{node.name}': input '{name}' receives qualities {low:.3g} to"
-                f" {high:.3g}, but its profile was measured on {grid[0]:g} to {grid[-1]:g};"
-                f" outside that range (up to {_percent(share)} of its inputs at some total)"
-                " the profile is clamped to its nearest end, and the table may count on it:"
-                f" measure '{node.name}' on input qualities that cover {low:.3g} to"
-                f" {high:.3g} (its Measurement's input_grids), or compile with --strict to"
-                " refuse such a table"
+                Note.of(
+                    Code.OUTSIDE_INPUT_GRID,
+                    module=node.name,
+                    input=name,
+                    low=low,
+                    high=high,
+                    measured_low=float(grid[0]),
+                    measured_high=float(grid[-1]),
+                    share=share,
+                )
             )
     return tuple(warnings)
-
-
-def _percent(p: float) -> str:
-    """A probability as a percentage with two significant digits (at least 0.01%)."""
-    return f"{max(p, 1e-4) * 100:.2g}%" if p < 0.995 else "100%"
 
 
 def compile_file(
@@ -443,8 +292,8 @@ def compile_file(
             called.add(name)
             stack.extend(schemas[name].callees())
     top = {p.name for p in wanted}
-    time = _check_time_grid(time_grid, schemas.filename)
-    dt = _resolution(time, resolution, schemas.filename)
+    time = check_time_grid(time_grid, schemas.filename)
+    dt = check_resolution(time, resolution, schemas.filename)
     lattice = np.arange(int(np.rint(time[-1] / dt)) + 1) * dt
     grids = {
         "top": (time, np.asarray(input_quality, dtype=np.float64)),
@@ -496,29 +345,6 @@ def _choose(model: CompileModel, allocator: str, cheap: bool = False) -> str:
     if allocator == "dp" and obstacle is not None:
         return "hill-climbing"
     return allocator
-
-
-def _allocator_note(compiled: CompiledProgram) -> str:
-    """Which allocator filled the table and why, from the compile result's fields."""
-    obstacle, chosen = compiled.dp_obstacle, compiled.allocator
-    if compiled.requested == "auto" and obstacle is not None:
-        return f"{chosen}, because dp would not be exact: {obstacle}"
-    if compiled.requested == "dp" and obstacle is not None:
-        return f"dp was asked for but {obstacle}: fell back to hill-climbing"
-    return {
-        "dp": "dp: local compilation, exact for this tree of monotone modules",
-        "hill-climbing": "hill-climbing as in the papers (may stop at a local maximum)",
-        "multi-start": (
-            "multi-start: hill-climbing from the papers' start, the proportional split, the"
-            " best points of a coarse lattice and the neighbouring totals' allocations (no"
-            " worse than hill-climbing; may miss the optimum)"
-        ),
-        "exhaustive": "exhaustive: every allocation on the time lattice",
-        "proportional": (
-            "proportional: Romanenko's rule, T_i = T * T_i* / sum T_j*, with T_i* the least "
-            "time at which module i's expected quality rises (a baseline, not optimal)"
-        ),
-    }[chosen]
 
 
 def _baselines(model: CompileModel, units: np.ndarray, dt: float) -> dict[str, np.ndarray]:
@@ -591,89 +417,3 @@ def _compiled_profile(
         module=model.program.name,
         time_unit=model.time_unit,
     )
-
-
-def _check_time_grid(grid: ArrayLike, filename: str) -> Array:
-    time = np.asarray(grid, dtype=np.float64)
-    if time.ndim != 1 or len(time) == 0:
-        raise CompileError(
-            "time grid: expected at least one total time, got none",
-            where=filename,
-        )
-    if not np.all(np.isfinite(time)) or np.any(time < 0):
-        raise CompileError(
-            f"time grid: expected times >= 0, got {time[~(time >= 0)][0]:g}",
-            where=filename,
-        )
-    if np.any(np.diff(time) <= 0):
-        raise CompileError("time grid: expected increasing times", where=filename)
-    return time
-
-
-def _resolution(time: Array, resolution: float | None, filename: str) -> float:
-    if resolution is None:
-        steps = np.diff(time)
-        resolution = float(steps.min()) if len(steps) else float(time[0]) or 1.0
-    if not resolution > 0:
-        raise CompileError(
-            f"time resolution: expected a number > 0, got {resolution:g}",
-            where=filename,
-        )
-    off = np.abs(time / resolution - np.rint(time / resolution)) > 1e-9
-    if np.any(off):
-        raise CompileError(
-            f"time grid: every total must be a multiple of the resolution "
-            f"{resolution:g} "
-            f"(allocations are whole multiples of it), got {time[off][0]:g}",
-            where=filename,
-        )
-    return float(resolution)
-
-
-def _check_quality_grid(grid: ArrayLike, filename: str) -> Array:
-    q = np.asarray(grid, dtype=np.float64)
-    if q.ndim != 1 or len(q) == 0:
-        raise CompileError(
-            "input quality: expected at least one quality, got none",
-            where=filename,
-        )
-    if not np.all((q >= 0) & (q <= 1)):
-        bad = q[~((q >= 0) & (q <= 1))][0]
-        raise CompileError(
-            f"input quality: expected qualities in [0, 1], got {bad:g}",
-            where=filename,
-        )
-    if np.any(np.diff(q) <= 0):
-        raise CompileError("input quality: expected increasing qualities", where=filename)
-    return q
-
-
-def default_time_grid(
-    schemas: SchemaFile, library: AnytimeLibrary, schema: str | None = None
-) -> list[float]:
-    """0 to the sum of the longest profiled times of the modules the schemas call (beyond it no
-    module has anything more to give), in about 20 round steps."""
-    programs = [schemas[schema]] if schema is not None else list(schemas.programs)
-    seen: set[str] = set()
-    total = 0.0
-    while programs:
-        program = programs.pop()
-        for call in program.walk():
-            if isinstance(call, SchemaCall):
-                if call.schema not in seen:
-                    seen.add(call.schema)
-                    programs.append(schemas[call.schema])
-                continue
-            if not isinstance(call, Call):
-                continue
-            entry = library.get(call.function)
-            profile = entry.profile if entry is not None and entry.kind != "elementary" else None
-            if profile is not None:
-                total += float(profile.time[-1])
-    if total <= 0:
-        return [0.0]
-    raw = total / 20
-    magnitude = 10 ** np.floor(np.log10(raw))
-    step = float(min(m * magnitude for m in (1, 2, 5, 10) if m * magnitude >= raw))
-    count = int(np.ceil(total / step - 1e-9))
-    return [i * step for i in range(count + 1)]

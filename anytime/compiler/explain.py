@@ -23,7 +23,7 @@ import numpy as np
 from attrs import frozen
 from numpy.typing import ArrayLike
 
-from anytime.compiler.compile import CompiledProgram
+from anytime.compiler.result import CompiledProgram
 from anytime.compiler.evaluate import Evaluator
 from anytime.compiler.model import CompileError, ModuleNode
 

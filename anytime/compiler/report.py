@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from anytime.compiler.compile import CompiledProgram
+from anytime.compiler.result import CompiledProgram
 
 MAX_ROWS = 12  # rows of the human table; the time grid is thinned to fit
 
@@ -28,14 +28,14 @@ def compiled_to_dict(compiled: CompiledProgram) -> dict[str, Any]:
         "baselines": {name: value.tolist() for name, value in compiled.baselines.items()},
         "exhaustive_gap": compiled.exhaustive_gap,
         "exact": compiled.exact,
-        "dp_obstacle": compiled.dp_obstacle,
-        "approximations": list(compiled.approximations),
+        "dp_obstacle": None if compiled.dp_obstacle is None else compiled.dp_obstacle.message,
+        "approximations": [note.message for note in compiled.approximations],
         "standard_error": (
             None if compiled.standard_error is None else compiled.standard_error.tolist()
         ),
         "kept_smaller": list(compiled.kept_smaller),
         "method_note": compiled.note,
-        "warnings": list(compiled.warnings),
+        "warnings": [warning.message for warning in compiled.warnings],
     }
 
 
@@ -79,5 +79,5 @@ def format_report(compiled: CompiledProgram) -> str:
         + ("not computed (too many modules or allocations)" if gap is None else f"{gap:.2e}")
     )
     lines.append(f"  note: {compiled.note}")
-    lines.extend(f"  warning: {warning}" for warning in compiled.warnings)
+    lines.extend(f"  warning: {warning.message}" for warning in compiled.warnings)
     return "\n".join(lines) + "\n"

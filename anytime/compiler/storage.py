@@ -3,13 +3,16 @@
 The file is a profile file (`anytime-profile/1`): the compiled profile, with `modules` and
 `allocation` (its time-allocation table), so that anything that reads profiles reads it. It
 adds one mapping, `compiled`, that a reader of profiles skips: the program's schema text (and
-that of every schema it calls), the fields of the compile result, a fingerprint of each
+that of every schema it calls), the fields of the compile result (its notes both as the
+sentences people read and, under `codes`, as codes with their fields), a fingerprint of each
 module's profile it was compiled against, and, nested the same way, the compiled schemas it
 calls and the compiled branches of its ifs.
 
 Loading resolves the program against the library again (the modules' code comes from there)
 and takes every table from the file; a module whose profile has changed since is an error,
-since the table was optimal for the old one.
+since the table was optimal for the old one. A file saved before the codes has only the
+sentences: its obstacle to dp is the one found again (where it reads the same), and any other
+sentence is kept as it was written (`Code.TEXT`).
 """
 
 from __future__ import annotations
@@ -22,9 +25,12 @@ from typing import Any
 import numpy as np
 import yaml
 
-from anytime.compiler.compile import CompiledProgram
+from anytime.compiler.allocators import dp_obstacle
 from anytime.compiler.loops import loop_profiles
-from anytime.compiler.model import CompileError, IfNode, LoopNode, ModuleNode, build_model
+from anytime.compiler.model import CompileError, CompileModel, IfNode, LoopNode, ModuleNode
+from anytime.compiler.outcomes import Note, text
+from anytime.compiler.resolve import build_model
+from anytime.compiler.result import CompiledProgram
 from anytime.dsl import format_program, parse_schemas
 from anytime.dsl.program import Program, SchemaFile
 from anytime.errors import AnytimeError
@@ -100,7 +106,16 @@ def _document(compiled: CompiledProgram) -> dict[str, Any]:
     document: dict[str, Any] = {"name": compiled.name}
     for field in _FIELDS:
         value = getattr(compiled, field)
-        document[field] = list(value) if isinstance(value, tuple) else value
+        if isinstance(value, Note):
+            value = value.message
+        elif isinstance(value, tuple):
+            value = [v.message if isinstance(v, Note) else v for v in value]
+        document[field] = value
+    obstacle = compiled.dp_obstacle
+    document["codes"] = {
+        "dp_obstacle": None if obstacle is None else obstacle.to_dict(),
+        "warnings": [warning.to_dict() for warning in compiled.warnings],
+    }
     document["baselines"] = {k: _plain(v) for k, v in compiled.baselines.items()}
     if compiled.standard_error is not None:
         document["standard_error"] = _plain(compiled.standard_error)
@@ -221,6 +236,7 @@ class _Loader:
             for k, v in _mapping(document.get("baselines", {})).items()
         }
         values = {name: document.get(name) for name in _FIELDS}
+        obstacle, warnings = self.notes(document, field, model)
         return CompiledProgram(
             name=program.name,
             model=model,
@@ -231,11 +247,35 @@ class _Loader:
             exhaustive_gap=_optional(values["exhaustive_gap"], float),
             resolution=float(values["resolution"] or 1.0),
             requested=str(values["requested"] or "auto"),
-            dp_obstacle=_optional(values["dp_obstacle"], str),
+            dp_obstacle=obstacle,
             standard_error=self.standard_error(document, field, profile),
             kept_smaller=tuple(float(t) for t in values["kept_smaller"] or ()),
-            warnings=tuple(str(w) for w in values["warnings"] or ()),
+            warnings=warnings,
         )
+
+    def notes(
+        self, document: Mapping[str, Any], field: str, model: CompileModel
+    ) -> tuple[Note | None, tuple[Note, ...]]:
+        """The obstacle to dp and the warnings, from their codes, or from the sentences of a
+        file saved before the codes."""
+        codes = document.get("codes")
+        if isinstance(codes, Mapping):
+            try:
+                obstacle = codes.get("dp_obstacle")
+                return (
+                    None if obstacle is None else Note.from_dict(obstacle),
+                    tuple(Note.from_dict(w) for w in codes.get("warnings") or ()),
+                )
+            except (KeyError, ValueError, TypeError, AttributeError) as error:
+                problem = f"not a compile result's codes ({error})"
+                raise self.fail(f"{field}.codes", problem) from None
+        sentence = document.get("dp_obstacle")
+        found = dp_obstacle(model)
+        if sentence is None or (found is not None and found.message == sentence):
+            obstacle = None if sentence is None else found
+        else:
+            obstacle = text(str(sentence))
+        return obstacle, tuple(text(str(w)) for w in document.get("warnings") or ())
 
     def standard_error(
         self, document: Mapping[str, Any], field: str, profile: ConditionalPerformanceProfile

@@ -25,7 +25,7 @@ from hypothesis import strategies as st
 from scipy.optimize import minimize_scalar
 from toy_modules import toy_registry
 
-import anytime.compiler.allocators as allocators
+import anytime.compiler.allocators.exhaustive as exhaustive_search
 from anytime.clocks import WorkClock
 from anytime.compiler import (
     CompiledProgram,
@@ -585,7 +585,7 @@ def test_profiles_in_different_time_units() -> None:
 
 
 def test_exhaustive_beyond_its_limit(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(allocators, "EXHAUSTIVE_LIMIT", 20)
+    monkeypatch.setattr(exhaustive_search, "EXHAUSTIVE_LIMIT", 20)
     # Two modules, no quality input: T/dt + 1 allocations for each total 0, 5, ..., 40.
     assert compile_error(CHAIN, exponential_chain(0.1, 0.1), allocator="exhaustive") == (
         "exhaustive search would evaluate 45 allocations (more than 20); use dp or "
@@ -598,7 +598,7 @@ def test_exhaustive_beyond_its_limit_leaves_the_gap_uncomputed(
 ) -> None:
     """The limit the exhaustive allocator enforces is the one the gap computation respects:
     dp still compiles, and reports the gap as unknown."""
-    monkeypatch.setattr(allocators, "EXHAUSTIVE_LIMIT", 20)
+    monkeypatch.setattr(exhaustive_search, "EXHAUSTIVE_LIMIT", 20)
     compiled = compile_program(program(CHAIN), exponential_chain(0.1, 0.1), TIME, allocator="dp")
     assert compiled.exhaustive_gap is None
 

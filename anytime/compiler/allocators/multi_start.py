@@ -34,24 +34,26 @@ from math import comb
 
 import numpy as np
 
-from anytime.compiler.allocators import (
-    DEFAULT_MEMORY,
-    IMPROVEMENT,
+from anytime.compiler.allocators.dynamic_programming import (
     DynamicProgramming,
-    Evaluates,
-    HillClimbing,
-    Proportional,
-    chunk_rows,
-    climb,
-    compositions,
     dp_obstacle,
-    equal_split,
-    expected_in_chunks,
-    least_climbing_memory,
-    proportional_split,
     relaxable,
+)
+from anytime.compiler.allocators.hill_climbing import (
+    IMPROVEMENT,
+    HillClimbing,
+    climb,
+    least_climbing_memory,
+)
+from anytime.compiler.allocators.lattice import compositions, equal_split, proportional_split
+from anytime.compiler.allocators.memory import (
+    DEFAULT_MEMORY,
+    chunk_rows,
+    expected_in_chunks,
     row_bytes,
 )
+from anytime.compiler.allocators.proportional import Proportional
+from anytime.compiler.allocators.protocol import Evaluates
 from anytime.compiler.evaluate import Evaluator
 from anytime.profiles.profile import Array
 

@@ -1,0 +1,154 @@
+"""A compile result: `CompiledProgram`, a contract algorithm and its profile, with what the
+compilation found as fields, and its notes as codes (`anytime.compiler.outcomes`)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from attrs import frozen
+
+from anytime.compiler import evaluate
+from anytime.compiler.model import CompileModel
+from anytime.compiler.outcomes import Code, Note
+from anytime.profiles.profile import Array, ConditionalPerformanceProfile
+
+
+@frozen(eq=False)
+class CompiledProgram:
+    """A compiled schema: a contract algorithm and its profile.
+
+    Attributes:
+        name: the schema's name.
+        model: the program resolved against the library.
+        profile: the compiled conditional performance profile (kind contract): one input axis
+            per quality-carrying program input, on `input_quality`, and the time grid.
+        allocation: time per anytime module, shape (*input grids, time, n), in the time unit.
+        allocator: the allocator that filled the table.
+        requested: the allocator asked for ("auto" by default).
+        dp_obstacle: why dp would not be exact for this program (None when it is), a `Note`
+            (its code one of `DAG`, `IF_MIXTURE`, `UNKNOWN_MONOTONICITY`,
+            `CALLEE_READS_RESULT`, `STOCHASTIC`, `NOT_INPUT_MONOTONE`).
+        baselines: expected quality of the equal, MIN and MAX allocations, each shaped like
+            `profile.mean`.
+        exhaustive_gap: the largest amount by which the exhaustive optimum beats the table
+            (None when the exhaustive search was not computable).
+        standard_error: the standard error of each cell's expected quality, shaped like
+            `profile.mean`: 0 where it is exact under the profiles' model (every cell, unless
+            the joint outcomes of a DAG's shared results were too many to enumerate and were
+            sampled there; see `anytime.compiler.evaluate`). None: every cell exact.
+        kept_smaller: the totals of the time grid at which a smaller total's allocation does
+            better and is kept, the rest of the time left unused (for some input quality).
+        warnings: what the table cannot vouch for, one `Note` each: a module fed input
+            qualities outside the grid its profile was measured on (`OUTSIDE_INPUT_GRID`: its
+            profile is clamped there, and the allocator may exploit it).
+
+    `exact`, `notes` and `note` are made from these fields.
+    """
+
+    name: str
+    model: CompileModel
+    profile: ConditionalPerformanceProfile
+    allocation: Array
+    allocator: str
+    baselines: dict[str, Array]
+    exhaustive_gap: float | None
+    resolution: float
+    requested: str = "auto"
+    dp_obstacle: Note | None = None
+    standard_error: Array | None = None
+    kept_smaller: tuple[float, ...] = ()
+    warnings: tuple[Note, ...] = ()
+
+    @property
+    def exact(self) -> bool:
+        """Whether the table is the optimum of the program on its time lattice: found by an
+        exact search (dp where dp is exact, or exhaustive) and evaluated without
+        approximation."""
+        optimal = self.allocator == "exhaustive" or (
+            self.allocator == "dp" and self.dp_obstacle is None
+        )
+        return optimal and not self.approximations
+
+    @property
+    def exact_cells(self) -> np.ndarray:
+        """Per cell of the table, whether its expected quality is exact (not sampled)."""
+        if self.standard_error is None:
+            return np.ones(self.expected.shape, dtype=bool)
+        return np.asarray(self.standard_error == 0)
+
+    @property
+    def approximations(self) -> tuple[Note, ...]:
+        """What the table's expectations approximate (`SAMPLED`), from the fields."""
+        sampled = ~self.exact_cells
+        if not sampled.any():
+            return ()
+        assert self.standard_error is not None
+        return (
+            Note.of(
+                Code.SAMPLED,
+                draws=evaluate.SAMPLES,
+                sampled=int(sampled.sum()),
+                cells=int(sampled.size),
+                error=float(self.standard_error.max()),
+            ),
+        )
+
+    @property
+    def allocator_note(self) -> Note:
+        """Which allocator filled the table and why, from the fields."""
+        obstacle, chosen = self.dp_obstacle, self.allocator
+        if self.requested == "auto" and obstacle is not None:
+            return Note.of(Code.AUTO_FALLBACK, allocator=chosen, obstacle=obstacle)
+        if self.requested == "dp" and obstacle is not None:
+            return Note.of(Code.DP_FALLBACK, obstacle=obstacle)
+        return Note.of(ALLOCATOR_CODES[chosen])
+
+    @property
+    def notes(self) -> tuple[Note, ...]:
+        """How the allocator was chosen, what is approximate and where time is left unused."""
+        kept: tuple[Note, ...] = ()
+        if self.kept_smaller:
+            kept = (Note.of(Code.KEPT_SMALLER, totals=len(self.kept_smaller)),)
+        return (self.allocator_note, *self.approximations, *kept)
+
+    @property
+    def codes(self) -> tuple[Code, ...]:
+        """The codes of the notes and of the warnings, in that order."""
+        return tuple(note.code for note in (*self.notes, *self.warnings))
+
+    @property
+    def note(self) -> str:
+        """The notes as every report says them, one sentence each."""
+        return "; ".join(note.message for note in self.notes)
+
+    @property
+    def modules(self) -> tuple[str, ...]:
+        return self.model.module_names
+
+    @property
+    def expected(self) -> Array:
+        assert self.profile.mean is not None
+        return self.profile.mean
+
+    def allocation_at(self, quality: Sequence[float], total: float) -> Array:
+        """The allocation for program input qualities `quality` and total time `total`: the
+        table interpolated like the profile, exactly the table's split at grid totals.
+
+        It is never rescaled: where the compiler kept a smaller total's split (more time would
+        not have helped), spending the rest would run the split it rejected. Between grid
+        totals the split is the interpolation of its neighbours', which spends no more than
+        `total` (each neighbour spends no more than its own); beyond the grid, the largest
+        total's split."""
+        q = np.asarray(quality, dtype=np.float64)
+        return self.profile.interpolate(self.allocation, q, np.float64(total))
+
+
+#: The note of each allocator where it was asked for (or chosen by "auto" where dp is exact).
+ALLOCATOR_CODES = {
+    "dp": Code.DP_EXACT,
+    "hill-climbing": Code.HILL_CLIMBING,
+    "multi-start": Code.MULTI_START,
+    "exhaustive": Code.EXHAUSTIVE,
+    "proportional": Code.PROPORTIONAL,
+}
