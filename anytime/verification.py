@@ -44,6 +44,7 @@ from anytime.profiles.profile import Array
 from anytime.runtime.executor import Status
 from anytime.runtime.modes import Budget, Isolated, Soft
 from anytime.runtime.program import ExecutionError, bind_inputs, run_program
+from anytime.vocabulary import read_only
 
 __all__ = [
     "SIGMAS",
@@ -70,12 +71,6 @@ _SLACK = 1e-9
 class VerifyError(AnytimeError, ValueError):
     """A verification cannot run as asked: bad options, or a problem set that breaks its
     contract (the message names it and the run)."""
-
-
-def _array(value: Any) -> Array:
-    array = np.array(value, dtype=np.float64)
-    array.setflags(write=False)
-    return array
 
 
 @frozen
@@ -115,8 +110,8 @@ class BudgetCheck:
     no_result: int
     failed: int
     passed: bool
-    qualities: Array = field(converter=_array, eq=cmp_using(eq=np.array_equal), repr=False)
-    time_used: Array = field(converter=_array, eq=cmp_using(eq=np.array_equal), repr=False)
+    qualities: Array = field(converter=read_only, eq=cmp_using(eq=np.array_equal), repr=False)
+    time_used: Array = field(converter=read_only, eq=cmp_using(eq=np.array_equal), repr=False)
 
 
 @frozen

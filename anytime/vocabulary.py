@@ -30,7 +30,7 @@ MODULE_KINDS: tuple[ModuleKind, ...] = ("interruptible", "contract", "elementary
 # --- read-only arrays ------------------------------------------------------------------------
 
 
-def read_only(value: ArrayLike, dtype: DTypeLike = np.float64) -> NDArray[Any]:
+def read_only(value: ArrayLike, dtype: DTypeLike | None = np.float64) -> NDArray[Any]:
     """`value` as a new array that cannot be written (`dtype=None`: numpy's own choice)."""
     array: NDArray[Any] = np.array(value, dtype=dtype)
     array.setflags(write=False)
@@ -53,7 +53,7 @@ def _equal_tuples(a: tuple[NDArray[Any], ...], b: tuple[NDArray[Any], ...]) -> b
     return len(a) == len(b) and all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
 
 
-def array_field(*, dtype: DTypeLike = np.float64, **kwargs: Any) -> Any:
+def array_field(*, dtype: DTypeLike | None = np.float64, **kwargs: Any) -> Any:
     """An attrs field holding a read-only array (a copy of what it is given, of `dtype`),
     compared by value and left out of the hash."""
 
@@ -66,9 +66,7 @@ def array_field(*, dtype: DTypeLike = np.float64, **kwargs: Any) -> Any:
 def optional_array_field(**kwargs: Any) -> Any:
     """`array_field` of floats that may be None (its default)."""
     kwargs.setdefault("default", None)
-    return field(
-        converter=read_only_or_none, eq=cmp_using(eq=_equal_or_none), hash=False, **kwargs
-    )
+    return field(converter=read_only_or_none, eq=cmp_using(eq=_equal_or_none), hash=False, **kwargs)
 
 
 def arrays_field(**kwargs: Any) -> Any:

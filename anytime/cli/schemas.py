@@ -45,6 +45,7 @@ from anytime.compiler.explain import (
 )
 from anytime.dsl import SchemaFile, format_programs, graph_to_dot, load_schemas, program_to_json
 from anytime.library import AnytimeLibrary
+from anytime.vocabulary import UNITS
 
 
 def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -138,7 +139,7 @@ def compile_options(
     )
     parser.add_argument(
         "--time-unit",
-        choices=["ticks", "seconds"],
+        choices=UNITS,
         help="the unit the time grid is in; it must be the profiles' unit",
     )
     parser.add_argument(

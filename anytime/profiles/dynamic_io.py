@@ -238,7 +238,7 @@ class _Axes:
         time: Array,
     ) -> None:
         self.module, self.time_unit, self.time = module, time_unit, time
-        self.grids, self.inputs = grids, inputs
+        self.grids, self.inputs = tuple(grids), inputs
         self.cells = tuple(len(grid) for grid in grids)
         labels = inputs or tuple(f"input_quality[{i}]" for i in range(len(grids)))
         self.names = tuple(f"one per {name} quality" for name in labels)

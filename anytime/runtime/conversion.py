@@ -41,6 +41,7 @@ from anytime.runtime.schedules import (
     randomised,
     round_robin,
 )
+from anytime.vocabulary import first_useful_time
 
 ScheduleName = Literal["geometric", "round-robin", "randomised"]
 SCHEDULES: tuple[ScheduleName, ...] = ("geometric", "round-robin", "randomised")
@@ -391,17 +392,16 @@ def _plan(
 
 
 def _first_useful(profile: ConditionalPerformanceProfile | None) -> float | None:
-    """The first grid time at which the contract's expected quality, with perfect inputs, is
-    above 0 (a shorter contract gives nothing); the last grid time if it never is."""
+    """The first time above 0 of the contract's grid at which its expected quality, with
+    perfect inputs, is above 0 (a shorter contract gives nothing); the last if it never is
+    (`first_useful_time`). Time 0 is left out: a schedule's first contract has a length."""
     if profile is None:
         return None
-    best = np.ones((len(profile.time), profile.n_inputs))
-    curve = profile.expected(best, profile.time)
-    useful = profile.time[(curve > 0) & (profile.time > 0)]
-    if len(useful):
-        return float(useful[0])
-    positive = profile.time[profile.time > 0]
-    return float(positive[-1]) if len(positive) else None
+    positive = profile.time > 0
+    if not np.any(positive):
+        return None
+    curve = profile.expected(np.ones((len(profile.time), profile.n_inputs)), profile.time)
+    return first_useful_time(profile.time[positive], curve[positive])
 
 
 def _signature(module: AnytimeModule) -> inspect.Signature:

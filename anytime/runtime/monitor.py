@@ -59,6 +59,7 @@ from numpy.typing import ArrayLike
 
 from anytime.errors import AnytimeError
 from anytime.profiles.profile import Array, ConditionalPerformanceProfile
+from anytime.vocabulary import array_field, read_only
 
 #: Two utilities this close (relative to the best) are a tie, won by the smaller contract time.
 TIE_TOLERANCE = 1e-12
@@ -236,16 +237,6 @@ class EventLog:
 # --- decisions ----------------------------------------------------------------------------------
 
 
-def _read_only(value: ArrayLike) -> Array:
-    array: Array = np.array(value, dtype=np.float64)
-    array.setflags(write=False)
-    return array
-
-
-def _array_field() -> Any:
-    return field(converter=_read_only, eq=cmp_using(eq=np.array_equal), hash=False)
-
-
 @frozen
 class ContractDecision:
     """The inter-frame decision: the chosen contract time and what it is expected to bring.
@@ -263,11 +254,11 @@ class ContractDecision:
     expected_value: float
     expected_cost: float
     expected_utility: float
-    grid: Array = _array_field()
-    quality_curve: Array = _array_field()
-    value_curve: Array = _array_field()
-    cost_curve: Array = _array_field()
-    utility_curve: Array = _array_field()
+    grid: Array = array_field()
+    quality_curve: Array = array_field()
+    value_curve: Array = array_field()
+    cost_curve: Array = array_field()
+    utility_curve: Array = array_field()
 
 
 class Adjustment(StrEnum):
@@ -287,7 +278,7 @@ def _pace(actual: float, expected: float, tolerance: float) -> str:
 
 
 def _grid(value: ArrayLike) -> Array:
-    grid = _read_only(value)
+    grid = read_only(value)
     if grid.ndim != 1 or grid.size == 0:
         raise MonitorError(
             f"monitor: grid must be a non-empty list of times, got shape {list(grid.shape)}"

@@ -27,24 +27,18 @@ bound, so ratios are taken over t >= the first length.
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
-from attrs import cmp_using, field, frozen
+from attrs import field, frozen
 from numpy.typing import ArrayLike, NDArray
 
 from anytime.errors import AnytimeError
 from anytime.profiles.profile import Array
+from anytime.vocabulary import array_field
 
 
 class ScheduleError(AnytimeError, ValueError):
     """A schedule's parameters are out of range; the message says which and what was given."""
-
-
-def _read_only(value: NDArray[Any]) -> NDArray[Any]:
-    value = np.array(value)
-    value.setflags(write=False)
-    return value
 
 
 def _check_unit(instance: Schedule, attribute: object, value: float) -> None:
@@ -149,11 +143,9 @@ class Contracts:
         worker: which worker runs each, shape (K,).
     """
 
-    length: Array = field(converter=_read_only, eq=cmp_using(eq=np.array_equal), hash=False)
-    finish: Array = field(converter=_read_only, eq=cmp_using(eq=np.array_equal), hash=False)
-    worker: NDArray[np.intp] = field(
-        converter=_read_only, eq=cmp_using(eq=np.array_equal), hash=False
-    )
+    length: Array = array_field(dtype=None)
+    finish: Array = array_field(dtype=None)
+    worker: NDArray[np.intp] = array_field(dtype=None)
 
     @property
     def start(self) -> Array:
