@@ -1,5 +1,6 @@
-"""The framework's shared words, one home each: time units, profile and module kinds, the
-read-only array field of its frozen classes, and the rule for a profile's first useful time.
+"""The framework's shared words, one home each: time units, profile and module kinds, quality
+reports, the read-only array field of its frozen classes, and the rule for a profile's first
+useful time.
 
 Like `errors` and `text`, this module imports nothing of the framework: every layer may use it.
 """
@@ -26,6 +27,11 @@ PROFILE_KINDS: tuple[ProfileKind, ...] = ("interruptible", "contract")
 #: What a module is: a profile's two kinds, or an elementary function (no profile, no time).
 ModuleKind = Literal["interruptible", "contract", "elementary"]
 MODULE_KINDS: tuple[ModuleKind, ...] = ("interruptible", "contract", "elementary")
+
+#: What a module's `Result.quality` is (and so what a dynamic profile's state is): its true
+#: quality, its own estimate, or nothing.
+QualityReport = Literal["true", "estimate", "none"]
+QUALITY_REPORTS: tuple[QualityReport, ...] = ("true", "estimate", "none")
 
 # --- read-only arrays ------------------------------------------------------------------------
 

@@ -41,7 +41,7 @@ states that tell runs apart.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import Literal, NoReturn
+from typing import NoReturn
 
 import numpy as np
 from attrs import field, frozen
@@ -50,15 +50,18 @@ from numpy.typing import ArrayLike, NDArray
 from anytime.errors import ProfileError
 from anytime.profiles.profile import SUM_TOLERANCE, Array, axis_names, check_grid
 from anytime.vocabulary import (
+    QUALITY_REPORTS,
     UNITS,
+    QualityReport,
     Unit,
     array_field,
     arrays_field,
     optional_array_field,
 )
 
-Observed = Literal["true", "estimate", "none"]
-OBSERVED: tuple[Observed, ...] = ("true", "estimate", "none")
+#: What a dynamic profile's state is, and what traces' reports are: a module's quality report.
+Observed = QualityReport
+OBSERVED = QUALITY_REPORTS
 
 #: Default number of states of a dynamic profile.
 DEFAULT_STATES = 20

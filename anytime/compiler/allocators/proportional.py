@@ -15,16 +15,15 @@ from anytime.compiler.allocators.memory import DEFAULT_MEMORY, expected_in_chunk
 from anytime.compiler.allocators.protocol import Evaluates, nothing_to_allocate
 from anytime.compiler.model import reserved_step
 from anytime.profiles.profile import Array, ConditionalPerformanceProfile
+from anytime.vocabulary import first_useful_time
 
 
 def least_useful_time(profile: ConditionalPerformanceProfile) -> float:
     """Romanenko's `T*`: the first time on the profile's grid at which, with perfect inputs, its
     expected quality rises above what it gives with no time (its first variant; for a profile
     that never improves, its first time)."""
-    best_input = np.ones((len(profile.time), profile.n_inputs))
-    curve = profile.expected(best_input, profile.time)
-    better = curve > curve[0] + 1e-12
-    return float(profile.time[np.argmax(better)] if np.any(better) else profile.time[0])
+    curve = profile.expected(np.ones((len(profile.time), profile.n_inputs)), profile.time)
+    return first_useful_time(profile.time, curve, over_start=True)
 
 
 class Proportional:
