@@ -28,7 +28,7 @@ import threading
 from collections.abc import Callable, Iterator, Sequence
 from importlib import resources
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import attrs
 import numpy as np
@@ -37,12 +37,8 @@ from attrs import field, frozen
 from anytime.clocks import Clock, WorkClock
 from anytime.errors import AnytimeError
 from anytime.profiles.profile import ConditionalPerformanceProfile
+from anytime.vocabulary import QUALITY_REPORTS, ModuleKind, QualityReport
 
-ModuleKind = Literal["interruptible", "contract", "elementary"]
-#: What a module's `Result.quality` is: its true quality (as its problem set scores it), its own
-#: estimate of it (not calibrated), or nothing to go by.
-QualityReport = Literal["true", "estimate", "none"]
-QUALITY_REPORTS: tuple[QualityReport, ...] = ("true", "estimate", "none")
 ProfileSource = ConditionalPerformanceProfile | str | os.PathLike[str] | None
 
 

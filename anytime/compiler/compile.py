@@ -50,6 +50,7 @@ from anytime.profiles.profile import (
     ConditionalPerformanceProfile,
     default_bins,
 )
+from anytime.vocabulary import first_useful_time
 
 __all__ = [
     "ALLOCATORS",
@@ -360,7 +361,7 @@ def _baselines(model: CompileModel, units: np.ndarray, dt: float) -> dict[str, n
     assert profile is not None
     best_input = np.ones((len(profile.time), profile.n_inputs))
     curve = profile.expected(best_input, profile.time)
-    useful_min = profile.time[np.argmax(curve > 0)] if np.any(curve > 0) else profile.time[-1]
+    useful_min = first_useful_time(profile.time, curve)
     useful_max = profile.time[np.argmax(curve >= curve.max() - 1e-12)]
     if isinstance(nodes[0], ModuleNode):  # its share holds its step too
         useful_min, useful_max = useful_min + nodes[0].step, useful_max + nodes[0].step
