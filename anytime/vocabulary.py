@@ -29,7 +29,8 @@ ModuleKind = Literal["interruptible", "contract", "elementary"]
 MODULE_KINDS: tuple[ModuleKind, ...] = ("interruptible", "contract", "elementary")
 
 #: What a module's `Result.quality` is (and so what a dynamic profile's state is): its true
-#: quality, its own estimate, or nothing.
+#: quality (as its problem set scores it), its own estimate of it (not calibrated), or nothing
+#: to go by.
 QualityReport = Literal["true", "estimate", "none"]
 QUALITY_REPORTS: tuple[QualityReport, ...] = ("true", "estimate", "none")
 
