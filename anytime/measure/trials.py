@@ -24,9 +24,12 @@ from numpy.typing import NDArray
 
 from anytime.clocks import Clock, WallClock, WorkClock
 from anytime.isolation import WATCHDOG, Channel, Child, Isolation, Lost, calls, died
-from anytime.modules import AnytimeModule, Context, Result
+from anytime.modules import AnytimeModule, Result
 from anytime.problems import BuildError, Grid, Instance, ProblemSet
 from anytime.profiles.profile import Array
+from anytime.runtime.executor import Status, run
+from anytime.runtime.modes import Budget
+from anytime.runtime.observe import Decision, Observer
 
 ClockName = Literal["work", "wall"]
 
@@ -235,10 +238,6 @@ def _headline(exc: BaseException) -> str:
     return "".join(traceback.format_exception_only(exc)).strip().splitlines()[-1]
 
 
-def _failure(exc: BaseException) -> tuple[str, str]:
-    return _headline(exc), "".join(traceback.format_exception(exc))
-
-
 def _arguments(
     module: AnytimeModule, problems: ProblemSet, instance: Instance, qualities: tuple[float, ...]
 ) -> tuple[Any, ...]:
@@ -282,82 +281,84 @@ def _interruptible(
 ) -> tuple[Failures, int, float]:
     """One run up to the last grid time; `out` records at each `time[j]` the score of the
     answer there and the quality the module reported of it, where there is one (before its
-    first result the run has none). A run that fails (raises, `SystemExit` included, as
-    `anytime.runtime.run` counts it) keeps the last result it registered before. With a
-    `limit`, the run ends once it has registered that many results (a replay, see
-    `_Progress.lost`).
+    first result the run has none). The run is `anytime.runtime.run`'s, watched by a
+    `_Trace`; a run that fails keeps the last result it registered before. With a `limit`, the
+    run ends once it has registered that many results (a replay, see `_Progress.lost`).
 
     Also returns the run's step: the largest gap between the moments it gave control back (its
-    start, every yield, the end of the run), so the gap to a yield past the last grid time (the
-    one that ends the run) counts, and so does the time from its last yield to its return or
-    failure. Except for a run that ends by itself right after the report of work that spent its
-    allocation (its last `ctx.tick` began before the allocation and ended at or past it): such
-    a module watches its time between reports of work, and would have stopped after any of
-    them at an earlier deadline, so its stretch after its last yield counts as the longest
-    interval between its reports of work there, not as one gap. The clean-up after the run is
-    closed counts as part of its last stretch.
+    start, every result, the end of the run), so the gap to a result past the last grid time
+    (the one that ends the run) counts, and so does the time from its last result to its
+    return or failure. Except for a run that ends by itself right after the report of work that
+    spent its allocation (its last `ctx.tick` began before the allocation and ended at or past
+    it): such a module watches its time between reports of work, and would have stopped after
+    any of them at an earlier deadline, so its stretch after its last result counts as the
+    longest interval between its reports of work there, not as one gap. The clean-up after the
+    run is closed counts as part of its last stretch.
     """
     if sender is not None:
         sender.run_begins()
     instance, args = trial.problem()
     allocation = float(time[-1])
     clock = _Watch(trial.clock(), None if sender is None else sender.memory)
-    ctx = Context(allocation=allocation, clock=clock)
-    if sender is not None:
-        sender.started(ctx.start)
-    answers: list[tuple[int, Result]] = []  # (first grid index it answers for, the result)
-    registered = 0
+    trace = _Trace(time, clock, sender, limit)
+    # The last grid time is the trace's stop time, not the run's allocation, so that a module
+    # that returns by itself after it (having watched its time) is told apart from a run ended
+    # at a result past it (status stopped).
+    record = run(trial.module, args, budget=Budget(clock=clock), observer=trace)
     failed: Failures = []
-    last = step = 0.0  # the last moment it gave control back, and the largest gap so far
-    cut = False  # the run was ended here, at a yield past the last grid time
-    generator = trial.module(ctx, *args)
-    try:
-        while True:
-            try:
-                item = next(generator)
-            except StopIteration:
-                break
-            except (Exception, SystemExit) as exc:  # the module failed: its last result stands
-                failed.append(_failure(exc))
-                break
-            at = ctx.elapsed
-            step, last = max(step, at - last), at
-            clock.mark()
-            if at > time[-1]:
-                cut = True
-                break
-            if not isinstance(item, Result):
-                failed.append((f"yielded a {type(item).__name__}, not a Result", ""))
-                break
-            first = int(np.searchsorted(time, at, side="left"))  # the grid times >= at
-            if answers and answers[-1][0] == first:
-                answers[-1] = (first, item)  # superseded before the next grid time
-            else:
-                answers.append((first, item))
-            registered += 1
-            if sender is not None:  # for the caller, should the process die
-                sender.registered(registered, at, step)
-            if registered == limit:
-                break
-    finally:
-        try:
-            generator.close()
-        except (Exception, SystemExit) as exc:
-            failed.append(_failure(exc))
-        end = ctx.elapsed
-        if not cut and end < allocation:  # it returned (or failed) by itself, before the end
-            out.finished[0] = end
-        stretch = end - last
-        if not cut and clock.spent_by_last_report(ctx.start + allocation):
-            stretch = max(clock.longest, clock.now() - clock.previous)
-        step = max(step, stretch)
+    if record.status in (Status.FAILED, Status.CRASHED):
+        failed.append((record.error or "failed", record.traceback or ""))
+    end = record.time_used
+    cut = record.status is Status.STOPPED  # at (or after) the last grid time, or the limit
+    if not cut and end < allocation:  # it returned (or failed) by itself, before the end
+        out.finished[0] = end
+    stretch = end - trace.last
+    if not cut and clock.spent_by_last_report(trace.start + allocation):
+        stretch = max(clock.longest, clock.now() - clock.previous)
+    step = max(trace.step, stretch)
     # Scored after the run, so that the scorer's time is never charged to the module. No answer
     # at all (the first came after the last grid time, as a slow wall clock can make it) leaves
     # the row at quality 0, without a result.
+    answers = trace.answers
     ends = [first for first, _ in answers[1:]] + [len(time)] if answers else []
-    for (first, result), end in zip(answers, ends, strict=True):
-        out.record(slice(first, end), trial.score(instance, result.value), result.quality)
+    for (first, result), end_index in zip(answers, ends, strict=True):
+        out.record(slice(first, end_index), trial.score(instance, result.value), result.quality)
     return failed, 0, step
+
+
+class _Trace(Observer):
+    """An interruptible trial's view of its run: the results it registered, each with the first
+    grid time it answers for (a result superseded before the next grid time is dropped), and
+    the largest gap between them so far."""
+
+    def __init__(
+        self, time: Array, clock: _Watch, sender: _Sender | None, limit: int | None
+    ) -> None:
+        self.time, self.clock, self.sender, self.limit = time, clock, sender, limit
+        self.answers: list[tuple[int, Result]] = []  # (first grid index it answers for, result)
+        self.registered_count = 0
+        self.start = self.last = self.step = 0.0  # the start; the last result, the largest gap
+
+    def started(self, module: AnytimeModule, allocation: float) -> Decision:
+        self.start = self.clock.now()
+        if self.sender is not None:
+            self.sender.started(self.start)
+        return Decision(False, stop_at=float(self.time[-1]))
+
+    def registered(self, elapsed: float, result: Result) -> Decision | None:
+        self.step, self.last = max(self.step, elapsed - self.last), elapsed
+        self.clock.mark()
+        first = int(np.searchsorted(self.time, elapsed, side="left"))  # the grid times >= it
+        if self.answers and self.answers[-1][0] == first:
+            self.answers[-1] = (first, result)  # superseded before the next grid time
+        else:
+            self.answers.append((first, result))
+        self.registered_count += 1
+        if self.sender is not None:  # for the caller, should the process die
+            self.sender.registered(self.registered_count, elapsed, self.step)
+        if self.registered_count == self.limit:
+            return Decision.now("the replay has registered what the lost run had")
+        return None
 
 
 class _Watch:
@@ -421,27 +422,23 @@ def _contract(
 def _contract_run(
     trial: Trial, j: int, allocation: float, out: Row, sender: _Sender | None
 ) -> tuple[Failures, int, float]:
-    """The run at grid index `j`: its failures, whether it overran (0 or 1), and how much it
-    used past its allocation (negative when it used less)."""
+    """The run at grid index `j` (`anytime.runtime.run`'s): its failures, whether it overran
+    (0 or 1), and how much it used past its allocation (negative when it used less)."""
     if sender is not None:
         sender.run_begins()
     instance, args = trial.problem()  # made afresh: a module may change its arguments
     clock = trial.clock()
-    ctx = Context(allocation=allocation, clock=clock if sender is None else sender.noting(clock))
     if sender is not None:
-        sender.started(ctx.start)
-    try:
-        result = trial.module(ctx, *args)
-    except (Exception, SystemExit) as exc:
-        return [_failure(exc)], 0, float(ctx.elapsed - allocation)
-    used = ctx.elapsed
-    past = float(used - allocation)
-    if result is None:  # no result: the row keeps quality 0, unscored
-        return [], int(used > allocation), past  # a plain int (a numpy bool would be int64)
-    if not isinstance(result, Result):
-        return [(f"returned a {type(result).__name__}, not a Result", "")], 0, past
-    out.record(j, trial.score(instance, result.value), result.quality)
-    return [], int(used > allocation), past
+        clock = sender.noting(clock)
+        sender.started(clock.now())
+    record = run(trial.module, args, budget=Budget(allocation, clock=clock))
+    past = float(record.time_used - allocation)
+    overran = int(record.status is Status.CONTRACT_EXPIRED)
+    if record.status in (Status.FAILED, Status.CRASHED):
+        return [(record.error or "failed", record.traceback or "")], 0, past
+    if record.result is not None:  # None: the row keeps quality 0, unscored
+        out.record(j, trial.score(instance, record.result.value), record.result.quality)
+    return [], overran, past
 
 
 # Isolated trials. The trials of a sequential build (or of a worker's chunk) run in turn in a

@@ -198,7 +198,7 @@ class Modes:
     ("mode", "mean", "failures", "overruns", "first"),
     [
         ("raise", 0.0, 6, 0, "ValueError: no answer (trial 0 at input qualities [])"),
-        ("garbage", 0.0, 6, 0, "returned a float, not a Result (trial 0 at input qualities [])"),
+        ("garbage", 0.0, 6, 0, "returned float 0.5, not a Result (trial 0 at input qualities [])"),
         ("overrun", 1.0, 0, 4, None),  # allocation 0 cannot be overrun
     ],
     ids=["raises", "returns-garbage", "overruns"],
@@ -225,7 +225,9 @@ def test_a_yield_that_is_not_a_result_fails_the_run_and_keeps_the_last_result() 
     build = build_profile(mumbler, Modes(""), time=[5, 10], trials=3, seed=0)
     assert build.failures == 3
     assert build.profile.mean is not None and build.profile.mean.tolist() == [0.5, 0.5]
-    assert build.first_failure == "yielded a str, not a Result (trial 0 at input qualities [])"
+    assert build.first_failure == (
+        "yielded str 'not a result', not a Result (trial 0 at input qualities [])"
+    )
 
 
 def profiles_equal(a: ProfileBuild, b: ProfileBuild) -> bool:
