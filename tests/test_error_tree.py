@@ -104,7 +104,7 @@ SIGNALS = {
     "anytime_navigation.search.SearchLimit",
     "anytime.compiler.evaluate._Sample",
     "anytime.launch.Terminated",
-    "anytime.runtime.executor.RunInterrupted",
+    "anytime.runtime.records.RunInterrupted",
 }
 
 
