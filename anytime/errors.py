@@ -91,3 +91,14 @@ class SchemaSyntaxError(SchemaError, SyntaxError):
 
 class ProfileError(AnytimeError, ValueError):
     """A performance profile (in memory or in a file) is malformed; the message names the field."""
+
+
+class InputError(AnytimeError):
+    """Bad input found by a command (or a plugin) itself. The message says what is wrong, without
+    a prefix: the command line adds one (`anytime.cli.describe`), naming the file when `where`
+    is given."""
+
+
+class UsageError(InputError):
+    """Options that do not go together, found after parsing (argparse cannot check them):
+    exit status 2, and the prefix names the command, like argparse's own usage errors."""

@@ -3,7 +3,7 @@
 A library is fed by *sources*, each a small object with a `name` (for messages) and a `load()`
 giving `LibraryEntry`s and any problems found:
 
-- `RegistrySource`: modules registered in-process by the decorators of `anytime.modules`;
+- `RegistrySource`: modules registered in-process (`registry=` of a decorator, or `Registry.add`);
 - `ProfileDirectory`: a directory of profile files (`*.yaml`), each a profile-only entry named by
   its `module` field (a module described by its profile alone: enough to compile a schema);
 - `PluginSource`: installed plugins, found through the entry-point group `anytime.plugins`,
@@ -375,7 +375,8 @@ class Source(Protocol):
 
 
 class RegistrySource:
-    """Modules registered in-process by decorator (by default the process-wide `REGISTRY`)."""
+    """Modules registered in-process (by default in the process-wide `REGISTRY`: a decorator
+    given `registry=REGISTRY`, or `REGISTRY.add`)."""
 
     generic = True
 

@@ -1,4 +1,4 @@
-"""The module protocol: how an anytime module is written and registered.
+"""The module protocol: how an anytime module is written and declared.
 
 Every value that flows between modules is a `Result(value, quality)`. A module receives a
 `Context` as its first argument and reports its work with `ctx.tick(n)`:
@@ -10,10 +10,12 @@ Every value that flows between modules is a `Result(value, quality)`. A module r
 - an **elementary** function takes no context and no time; its output quality is a declared
   combination of its inputs' qualities (by default the minimum).
 
-The decorators check the function against what they declare and register it in a `Registry`
-(by default the process-wide `REGISTRY`, one of the anytime library's sources, for interactive
-use). With `register=False` (what `anytime.plugin`'s decorators pass) they only declare the
-module: a plugin lists its modules in its `Plugin` object, and importing it registers nothing.
+The decorators (one family: `anytime.interruptible` and `anytime.plugin.interruptible` are the
+same function) check the function against what they declare and return the declared
+`AnytimeModule`; they register it nowhere unless given a `registry`. A plugin lists its modules
+in its `Plugin` object, so importing it changes nothing in the process; at the prompt,
+`registry=REGISTRY` adds a module to the process's own registry, which
+`AnytimeLibrary.default()` reads.
 """
 
 from __future__ import annotations
@@ -274,7 +276,8 @@ class Registry:
         return len(self._modules)
 
 
-#: The process-wide registry the decorators fill unless given another.
+#: The process's own registry, one of the sources of `AnytimeLibrary.default()`: the decorators
+#: add a module to it when given `registry=REGISTRY` (never by default).
 REGISTRY = Registry()
 
 
@@ -291,7 +294,6 @@ def _declare(
     profile: ProfileSource,
     combine: Callable[[Sequence[float]], float] = _min_quality,
     registry: Registry | None,
-    register: bool = True,
     probability: float | None = None,
     accepts_missing: bool = False,
     reports: QualityReport = "true",
@@ -342,9 +344,7 @@ def _declare(
         reports=reports,
         step=step,
     )
-    if not register:
-        return module
-    return (registry if registry is not None else REGISTRY).add(module)
+    return module if registry is None else registry.add(module)
 
 
 def _beside(function: Callable[..., Any], path: Path) -> Path:
@@ -366,29 +366,27 @@ def interruptible(
     *,
     inputs: Sequence[str] | None = None,
     profile: ProfileSource = None,
-    registry: Registry | None = None,
-    register: bool = True,
     accepts_missing: bool = False,
     reports: QualityReport = "true",
     step: float | None = None,
+    registry: Registry | None = None,
 ) -> Callable[[Callable[..., Iterator[Result]]], AnytimeModule]:
-    """Register a generator `f(ctx, *args)` that yields successively better `Result`s.
+    """Declare a generator `f(ctx, *args)` that yields successively better `Result`s.
 
     Args:
         name: the name schemas call it by (default: the function's, with '-' for '_').
         inputs: the quality-carrying parameters, in profile-axis order (default: all).
-        profile: its conditional performance profile, or the path of its profile file
-            (relative to the defining file).
-        registry: where to register it (default: the process-wide `REGISTRY`).
-        register: False to declare the module without registering it anywhere (a plugin's
-            modules are registered by its `Plugin` object).
+        profile: its conditional performance profile, or the path of its profile file (a
+            relative path is a file of the defining module's package, else beside its file).
         accepts_missing: call it even when an input has no result, with `MISSING` for it
             (default: it is not called, and has no result either).
         reports: what its `Result.quality` is: "true" (default), "estimate" or "none" (see
             `AnytimeModule`).
         step: the largest gap between its successive results (from its start to the first,
             from the last to its return), in its profile's time unit, if known (see
-            `AnytimeModule`; the profile builder measures it otherwise).
+            `AnytimeModule`; `anytime profile` measures it otherwise).
+        registry: a `Registry` to add it to as well (default: none; a plugin lists its modules
+            in its `Plugin` instead).
     """
 
     def decorate(function: Callable[..., Iterator[Result]]) -> AnytimeModule:
@@ -399,7 +397,6 @@ def interruptible(
             inputs=inputs,
             profile=profile,
             registry=registry,
-            register=register,
             accepts_missing=accepts_missing,
             reports=reports,
             step=step,
@@ -413,13 +410,12 @@ def contract(
     *,
     inputs: Sequence[str] | None = None,
     profile: ProfileSource = None,
-    registry: Registry | None = None,
-    register: bool = True,
     accepts_missing: bool = False,
     reports: QualityReport = "true",
     step: float | None = None,
+    registry: Registry | None = None,
 ) -> Callable[[Callable[..., Result | None]], AnytimeModule]:
-    """Register a function `f(ctx, *args) -> Result` that uses `ctx.allocation` up front (it
+    """Declare a function `f(ctx, *args) -> Result` that reads `ctx.allocation` up front (it
     returns None when it has no result).
 
     Arguments as for `interruptible`, except `step`: the most it may use past its allocation.
@@ -433,7 +429,6 @@ def contract(
             inputs=inputs,
             profile=profile,
             registry=registry,
-            register=register,
             accepts_missing=accepts_missing,
             reports=reports,
             step=step,
@@ -446,17 +441,17 @@ def elementary(
     name: str | None = None,
     *,
     inputs: Sequence[str] | None = None,
-    combine: Callable[[Sequence[float]], float] = _min_quality,
-    registry: Registry | None = None,
+    combine: Callable[[Sequence[float]], float] | None = None,
     probability: float | None = None,
-    register: bool = True,
     accepts_missing: bool = False,
+    registry: Registry | None = None,
 ) -> Callable[[Callable[..., Any]], AnytimeModule]:
-    """Register a plain function `f(*args)` that takes no time and no context.
+    """Declare a plain function `f(*args)` that takes no time and no context.
 
     Quality-carrying inputs arrive as `Result`s, as they do for anytime modules. It returns a
     plain value, whose quality is `combine` of its inputs' qualities (default: the minimum).
     `probability`, for a test used as the condition of an `if`, is the chance it is true.
+    `registry` as for `interruptible`.
     """
     if probability is not None and not 0 <= probability <= 1:
         raise ModuleError(f"elementary '{name}': probability must be in [0, 1], got {probability}")
@@ -468,9 +463,8 @@ def elementary(
             kind="elementary",
             inputs=inputs,
             profile=None,
-            combine=combine,
+            combine=_min_quality if combine is None else combine,
             registry=registry,
-            register=register,
             probability=probability,
             accepts_missing=accepts_missing,
         )

@@ -1,14 +1,15 @@
 """The layering rules of docs/architecture.md, checked on the source: every import statement
 (at the top of a file or inside a function, absolute or relative) is read with `ast`.
 
-The rule that a plugin imports only `anytime` and `anytime.plugin` is checked for the bundled
-navigation plugin in tests/plugins/test_plugin_api.py; here it is checked for the docs' example
-plugin, which docs/plugins.md tells readers to copy.
+The rule that a plugin imports only `anytime` and `anytime.plugin` (with its opt-in submodules)
+is checked for the bundled plugins in tests/plugins/test_plugin_api.py; here it is checked for
+the docs' example plugin, which docs/plugins.md tells readers to copy.
 """
 
 from __future__ import annotations
 
 import ast
+import importlib
 from itertools import pairwise
 from pathlib import Path
 
@@ -16,6 +17,9 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 FRAMEWORK = ROOT / "anytime"
+
+#: The opt-in submodules of the plugin API, public as `anytime.plugin` is.
+PLUGIN_SUBMODULES = ("anytime.plugin.cli", "anytime.plugin.figures", "anytime.plugin.compose")
 
 #: Top-level packages that are domains (plugins), never imported by the framework.
 DOMAINS = ("anytime_navigation", "anytime_survey", "domains")
@@ -227,13 +231,15 @@ def test_the_example_plugin_imports_only_the_public_api() -> None:
     root = ROOT / "docs" / "example-plugin" / "anytime_survey"
     files = sorted(root.rglob("*.py"))
     assert files
+    public = ("anytime", "anytime.plugin", *PLUGIN_SUBMODULES)
+    exported = {f"{m}.{n}" for m in public for n in importlib.import_module(m).__all__}
     framework = [
         f"{path.name}:{line}: {module}"
         for path in files
         for line, module in imports(path, root)
         if module.split(".")[0] == "anytime"
-        and module not in ("anytime", "anytime.plugin")
-        and not module.startswith("anytime.plugin.")  # `from anytime.plugin import Result`
+        and module not in public
+        and module not in exported  # `from anytime.plugin import Result`
     ]
     assert framework == []
 

@@ -470,8 +470,8 @@ def test_a_plugin_module_owns_what_its_import_registered(
     package.mkdir()
     (package / "__init__.py").write_text("from nested_plugin import planners  # noqa: F401\n")
     (package / "planners.py").write_text(
-        "from anytime import Result, interruptible\n\n"
-        "@interruptible('nested-plan', inputs=[])\n"
+        "from anytime import REGISTRY, Result, interruptible\n\n"
+        "@interruptible('nested-plan', inputs=[], registry=REGISTRY)\n"
         "def plan(ctx, goal):\n"
         "    yield Result(goal, 1.0)\n"
     )

@@ -247,25 +247,51 @@ def test_a_bad_step_is_refused_naming_the_module_and_the_field(step: object, sho
     assert len(registry) == 0
 
 
-def test_the_plugin_decorators_declare_a_step_without_registering() -> None:
+def test_one_decorator_family_for_users_and_plugins() -> None:
+    import anytime
+    import anytime.plugin
+    from anytime.runtime import deadline
+
+    for name in ("interruptible", "contract", "elementary"):
+        assert getattr(anytime, name) is getattr(anytime.plugin, name) is globals()[name]
+    assert anytime.plugin.critical_event is deadline.critical_event
+
+
+def test_a_decorator_declares_and_registers_nowhere_unless_given_a_registry() -> None:
     from anytime import REGISTRY
-    from anytime.plugin import contract as plugin_contract
-    from anytime.plugin import interruptible as plugin_interruptible
+    from anytime.runtime.deadline import EVENTS, CriticalEvent, critical_event
 
-    before = len(REGISTRY)
+    modules, events = len(REGISTRY), len(EVENTS)
 
-    @plugin_interruptible("plugin-stepped", step=3)
+    @interruptible("declared-stepped", step=3)
     def gen(ctx: Context) -> Iterator[Result]:
         yield Result(1, 1)
 
-    @plugin_contract("plugin-late", step=0)
+    @contract("declared-late", step=0)
     def late(ctx: Context) -> Result:
         return Result(1, 1)
 
-    assert (gen.step, late.step) == (3.0, 0.0)
-    assert len(REGISTRY) == before and "plugin-stepped" not in REGISTRY
-    with pytest.raises(ModuleError, match=r"^module 'plugin-bad' .*: step: expected a finite"):
-        plugin_interruptible("plugin-bad", step=-3)(gen.function)
+    @elementary("declared-pair")
+    def pair(a: object, b: object) -> tuple[object, object]:
+        return a, b
+
+    @critical_event("declared-event", cost_bound=1)
+    def event(ctx: Context, situation: object) -> float | None:
+        return None
+
+    assert (gen.step, late.step, pair.kind, event.cost_bound) == (3.0, 0.0, "elementary", 1.0)
+    assert isinstance(event, CriticalEvent)
+    assert (len(REGISTRY), len(EVENTS)) == (modules, events)
+    assert "declared-stepped" not in REGISTRY and "declared-event" not in EVENTS
+    with pytest.raises(ModuleError, match=r"^module 'declared-bad' .*: step: expected a finite"):
+        interruptible("declared-bad", step=-3)(gen.function)
+    # Given a registry, it is added there, and only there.
+    mine = Registry()
+    again = contract("declared-late", step=0, registry=mine)(late.function)
+    assert mine.get("declared-late") is again and "declared-late" not in REGISTRY
+    events_of_mine = Registry()
+    found = critical_event("declared-event", cost_bound=1, registry=events_of_mine)(event.function)
+    assert events_of_mine.get("declared-event") is found and "declared-event" not in EVENTS
 
 
 def _first(ctx: Context) -> Result:

@@ -32,6 +32,7 @@ from typing import Any
 import attrs
 import numpy as np
 
+from anytime import parse_schemas
 from anytime.library import AnytimeLibrary, LibraryEntry
 from anytime.measure.builder import build_profile
 from anytime.modules import AnytimeModule
@@ -43,7 +44,6 @@ from anytime.plugin import (
     Result,
     contract,
     interruptible,
-    parse_schemas,
     tabulate,
 )
 

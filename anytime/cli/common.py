@@ -12,21 +12,12 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from anytime.errors import AnytimeError
+from anytime.errors import InputError as InputError  # defined with the other errors: re-exported
+from anytime.errors import UsageError as UsageError
 from anytime.launch import EXIT_INTERRUPTED as EXIT_INTERRUPTED  # re-exported
 from anytime.library import AnytimeLibrary
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE = 0, 1, 2
-
-
-class InputError(AnytimeError):
-    """Bad input found by the command itself. The message says what is wrong, without a
-    prefix: `main` adds one (`describe`), naming the file when `where` is given."""
-
-
-class UsageError(InputError):
-    """Options that do not go together, found after parsing (argparse cannot check them):
-    exit status 2, and the prefix names the command, like argparse's own usage errors."""
 
 
 def positive_int(text: str) -> int:

@@ -3,7 +3,7 @@ actions planning", steps 1 and 3).
 
 A *critical event* is something undesirable that will happen unless the system acts first (a
 moving obstacle reaching the robot's route). Each is estimated by a cheap function of the
-current situation, registered like a module with `@critical_event(name, cost_bound=...)`:
+current situation, declared like a module with `@critical_event(name, cost_bound=...)`:
 
     @critical_event("obstacle-arrival", cost_bound=4)
     def obstacle_arrival(ctx, situation):
@@ -105,26 +105,25 @@ def critical_event(
     *,
     cost_bound: float,
     registry: Registry | None = None,
-    register: bool = True,
 ) -> Callable[[Callable[..., float | None]], CriticalEvent]:
-    """Register `f(ctx, situation)` returning the time until its event, or None (no event).
+    """Declare `f(ctx, situation)` returning the time until its event, or None (no event).
 
     Args:
         name: the event's name (default: the function's, with '-' for '_').
         cost_bound: an upper bound on its own cost, in the clock's unit (ticks).
-        registry: where to register it (default: `EVENTS`).
-        register: False to declare it without registering it (a plugin lists its events in
-            its `Plugin` object; `deadline_from` takes the event objects themselves).
+        registry: a `Registry` to add it to as well, such as `EVENTS` (default: none, as for
+            the module decorators: a plugin lists its events in its `Plugin` object, and
+            `deadline_from` takes the event objects themselves).
     """
     bound = _cost_bound(cost_bound)
 
     def decorate(function: Callable[..., float | None]) -> CriticalEvent:
         # `contract` checks the signature (a context first) and names the offender.
-        module = contract(name, inputs=[], register=False)(cast(Any, function))
+        module = contract(name, inputs=[])(cast(Any, function))
         event = CriticalEvent(**attrs.asdict(module, recurse=False), cost_bound=bound)
-        if not register:
+        if registry is None:
             return event
-        added = (registry if registry is not None else EVENTS).add(event)
+        added = registry.add(event)
         assert isinstance(added, CriticalEvent)
         return added
 

@@ -135,7 +135,7 @@ def test_out_holds_exactly_one_runs_output(cli: Cli, tmp_path: Path) -> None:
 def test_out_being_written_by_another_run_is_refused_before_the_run(
     cli: Cli, tmp_path: Path
 ) -> None:
-    from anytime.plugin import owned_directory
+    from anytime.plugin.cli import owned_directory
 
     out = tmp_path / "o"
     with owned_directory(out, ("frame-*.png",)):

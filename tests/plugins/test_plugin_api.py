@@ -1,9 +1,11 @@
-"""The bundled plugins are written as a third party would write them: they import the framework
-only through its public plugin API, and importing one registers nothing."""
+"""The plugin API is narrow and cheap to import, and the bundled plugins are written as a third
+party would write them: they import the framework only through `anytime` and `anytime.plugin`
+(with its opt-in submodules), and importing one registers nothing."""
 
 from __future__ import annotations
 
 import ast
+import importlib
 import subprocess
 import sys
 from pathlib import Path
@@ -16,7 +18,9 @@ import anytime.plugin
 from anytime import AnytimeLibrary
 from anytime.library import Plugin, PluginSource
 
-PUBLIC = {"anytime", "anytime.plugin"}
+#: The opt-in submodules of `anytime.plugin`.
+SUBMODULES = ("anytime.plugin.cli", "anytime.plugin.figures", "anytime.plugin.compose")
+PUBLIC = {"anytime", "anytime.plugin", *SUBMODULES}
 PLUGINS = {
     "navigation": Path(anytime_navigation.__file__).parent,
     "routing": Path(anytime_routing.__file__).parent,
@@ -48,9 +52,59 @@ def test_a_bundled_plugin_imports_only_the_public_api(name: str) -> None:
     assert offenders == []
 
 
-def test_the_plugin_api_exports_what_it_lists() -> None:
-    missing = [n for n in anytime.plugin.__all__ if not hasattr(anytime.plugin, n)]
+@pytest.mark.parametrize("module", ["anytime.plugin", *SUBMODULES])
+def test_the_plugin_api_exports_what_it_lists(module: str) -> None:
+    api = importlib.import_module(module)
+    missing = [n for n in api.__all__ if not hasattr(api, n)]
     assert missing == []
+    assert len(set(api.__all__)) == len(api.__all__)
+
+
+def test_the_plugin_api_is_narrow() -> None:
+    """What a plugin declares with, no more; each name has one home (`InputError` is also
+    where a command's other helpers are)."""
+    assert len(anytime.plugin.__all__) <= 30
+    assert {
+        "interruptible",
+        "contract",
+        "elementary",
+        "critical_event",
+        "Result",
+        "Context",
+        "Instance",
+        "ProblemSet",
+        "Plugin",
+        "CriticalEvent",
+        "InputError",
+    } <= set(anytime.plugin.__all__)
+    homes: dict[str, list[str]] = {}
+    for module in ["anytime.plugin", *SUBMODULES]:
+        for name in importlib.import_module(module).__all__:
+            homes.setdefault(name, []).append(module)
+    assert {n: m for n, m in homes.items() if len(m) > 1} == {
+        "InputError": ["anytime.plugin", "anytime.plugin.cli"]
+    }
+
+
+def test_importing_the_plugin_api_loads_no_command_line_and_no_figures() -> None:
+    """`import anytime.plugin` (in a fresh process) imports no `anytime.cli` module, none of its
+    opt-in submodules, not the runtime (the critical events are imported on first use), and
+    neither matplotlib nor scipy.optimize."""
+    code = (
+        "import sys\n"
+        "import anytime.plugin\n"
+        "print(len(anytime.plugin.__all__))\n"
+        "heavy = ('anytime.cli', 'anytime.plugin.', 'anytime.runtime',"
+        " 'matplotlib', 'scipy.optimize')\n"
+        "print(' '.join(sorted(m for m in sys.modules if m.startswith(heavy))))\n"
+        "from anytime.plugin import CriticalEvent, critical_event\n"
+        "print(critical_event.__module__, CriticalEvent.__module__)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    count, loaded, lazy = done.stdout.splitlines()
+    assert int(count) <= 30
+    assert loaded == ""
+    assert lazy == "anytime.runtime.deadline anytime.runtime.deadline"
 
 
 def test_importing_the_navigation_plugin_registers_nothing() -> None:

@@ -9,23 +9,17 @@ from typing import Any
 
 import numpy as np
 
+from anytime import AnytimeLibrary, compile_file, load_schemas, run_program
 from anytime.plugin import (
-    EXIT_OK,
-    AnytimeLibrary,
-    CommandGroup,
     Context,
     Instance,
     Measurement,
     Plugin,
     ProgramProblems,
     Result,
-    compile_file,
     interruptible,
-    load_schemas,
-    positive_float,
-    positive_int,
-    run_program,
 )
+from anytime.plugin.cli import EXIT_OK, CommandGroup, positive_float, positive_int
 
 NOISE = 0.2  # a reading's standard deviation, relative to the true area
 

@@ -11,7 +11,8 @@ from collections.abc import Sequence
 import numpy as np
 from attrs import frozen
 
-from anytime.plugin import Clock, WorkClock, deadline_from
+from anytime.plugin import Clock, WorkClock
+from anytime.plugin.compose import deadline_from
 
 from .obstacles import EPS, LOOKAHEAD, SAFETY_RADIUS, MovingObstacle, Plan, Traffic
 from .overcoming import (

@@ -21,7 +21,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from anytime.plugin import Result, new_figure, save_figure
+from anytime.plugin import Result
+from anytime.plugin.figures import new_figure, save_figure
 
 from .abstraction import cell_bounds
 from .execution import execute, optimal_length, plan_quality

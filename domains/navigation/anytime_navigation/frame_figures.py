@@ -73,7 +73,8 @@ def write_frames(
     from matplotlib.patches import Rectangle
     from PIL import Image
 
-    from anytime.plugin import atomic_path, new_figure, save_figure
+    from anytime.plugin.cli import atomic_path
+    from anytime.plugin.figures import new_figure, save_figure
 
     from .figures import draw_plan
 

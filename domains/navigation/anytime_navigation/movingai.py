@@ -21,7 +21,8 @@ import numpy as np
 from attrs import frozen
 from numpy.typing import NDArray
 
-from anytime.plugin import AnytimeError, read_input
+from anytime.plugin import AnytimeError
+from anytime.plugin.cli import read_input
 
 from .world import BoolGrid, Position
 

@@ -43,7 +43,8 @@ import numpy as np
 from attrs import field, frozen
 from numpy.typing import NDArray
 
-from anytime.plugin import Clock, Context, Deadline, critical_event, proportional_split
+from anytime.plugin import Clock, Context, critical_event
+from anytime.plugin.compose import Deadline, proportional_split
 
 from .obstacles import EPS, LOOKAHEAD, PAIRS_PER_TICK, SAFETY_RADIUS, Plan, Traffic
 from .search import SearchLimit, find_path_to_box

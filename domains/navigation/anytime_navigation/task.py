@@ -62,7 +62,8 @@ from typing import Any, Protocol
 import numpy as np
 from attrs import Factory, field, frozen
 
-from anytime.plugin import Array, ConditionalPerformanceProfile, DeadlineValue, EventLog
+from anytime.plugin import ConditionalPerformanceProfile
+from anytime.plugin.compose import Array, DeadlineValue, EventLog
 
 from .obstacles import MovingObstacle
 from .world import BoolGrid, Position, World

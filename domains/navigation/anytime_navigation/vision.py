@@ -32,7 +32,8 @@ import numpy as np
 from attrs import field, frozen
 from numpy.typing import NDArray
 
-from anytime.plugin import Context, Result, VisionHyperbola
+from anytime.plugin import Context, Result
+from anytime.plugin.compose import VisionHyperbola
 from anytime_navigation.world import BoolGrid, World
 
 FloatGrid = NDArray[np.float64]

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from anytime.plugin import (
+from anytime.plugin.cli import (
     EXIT_OK,
     CommandGroup,
     InputError,
@@ -16,8 +16,8 @@ from anytime.plugin import (
     json_text,
     owned_directory,
     random_seed,
-    require_matplotlib,
 )
+from anytime.plugin.figures import require_matplotlib
 
 from .domain import CUSTOMERS, DEPOTS, EXACT_NODES
 from .program import (

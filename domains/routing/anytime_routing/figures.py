@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from anytime.plugin import CompiledProgram, new_figure, save_figure
+from anytime import CompiledProgram
+from anytime.plugin.figures import new_figure, save_figure
 
 from .domain import World
 from .program import Delivery, deliver, reference_for

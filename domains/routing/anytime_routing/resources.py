@@ -6,7 +6,7 @@ from __future__ import annotations
 from importlib.resources import files
 from importlib.resources.abc import Traversable
 
-from anytime.plugin import SchemaFile, parse_schemas
+from anytime import SchemaFile, parse_schemas
 
 __all__ = ["SCHEMA_FILE", "data_file", "load_schema_file"]
 

@@ -4,7 +4,7 @@ frame-by-frame task under the monitor."""
 
 from __future__ import annotations
 
-from anytime.plugin import CommandGroup
+from anytime.plugin.cli import CommandGroup
 
 from . import navigate, plan
 

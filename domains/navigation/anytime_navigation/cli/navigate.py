@@ -10,10 +10,9 @@ from pathlib import Path
 
 import numpy as np
 
-from anytime.plugin import (
+from anytime.plugin.cli import (
     EXIT_OK,
     CommandGroup,
-    DeadlineValue,
     InputError,
     ProgressBar,
     UsageError,
@@ -22,9 +21,10 @@ from anytime.plugin import (
     owned_directory,
     positive_float,
     random_seed,
-    require_matplotlib,
     write_atomic,
 )
+from anytime.plugin.compose import DeadlineValue
+from anytime.plugin.figures import require_matplotlib
 
 from ..frame_program import navigation_program
 from ..frames import NO_DYNAMIC_PROFILE, run_task

@@ -18,10 +18,10 @@ from typing import Any
 
 from attrs import frozen
 
-from anytime.plugin import (
+from anytime.plugin import Context
+from anytime.plugin.cli import (
     EXIT_OK,
     CommandGroup,
-    Context,
     InputError,
     ProgressBar,
     format_table,

@@ -1,7 +1,8 @@
 """A toy anytime plugin: one interruptible module with an analytic profile.
 
-Importing it registers `toy-count` in the process-wide registry, as any module defined with the
-decorators does; the library attributes it to the plugin whose entry point names this package.
+Written the old way: importing it registers `toy-count` in the process-wide registry
+(`registry=REGISTRY`); the library attributes it to the plugin whose entry point names this
+package.
 It also registers the module's problem set, so that `anytime profile toy-count` can measure it.
 """
 
@@ -10,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from anytime import Context, Result, interruptible
+from anytime import REGISTRY, Context, Result, interruptible
 from anytime.measure.builder import Instance, register_problems
 from anytime.profiles import tabulate
 
@@ -33,7 +34,7 @@ PROFILE = tabulate(
 )
 
 
-@interruptible("toy-count", inputs=["data"], profile=PROFILE)
+@interruptible("toy-count", inputs=["data"], profile=PROFILE, registry=REGISTRY)
 def toy_count(ctx: Context, data: Result, limit: int) -> Iterator[Result]:
     """Count up to `limit`, one tick a step; the quality is the fraction counted, scaled by the
     quality of the data it counts on."""
