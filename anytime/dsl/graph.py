@@ -17,24 +17,40 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Iterator
 from typing import Literal as Choice
+from typing import Protocol
 
 import attrs
 from attrs import field, frozen
 
-from anytime.dsl.program import (
+from anytime.dsl.steps import (
     Arg,
     BestOf,
     Call,
     If,
     Literal,
     Map,
-    Program,
     Repeat,
     SchemaCall,
     Step,
     Var,
     variables,
 )
+
+
+class StraightLine(Protocol):
+    """What a graph is made from: a program (`anytime.dsl.program.Program`, which imports this
+    module for its `graph`)."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def inputs(self) -> tuple[str, ...]: ...
+
+    @property
+    def output(self) -> str: ...
+
+    def walk(self) -> Iterator[Step]: ...
 
 
 @frozen
@@ -101,7 +117,7 @@ class DataflowGraph:
     name: str = field(default="", eq=False)
 
     @classmethod
-    def from_program(cls, program: Program) -> DataflowGraph:
+    def from_program(cls, program: StraightLine) -> DataflowGraph:
         producer = {step.target: step for step in program.walk()}
         index: dict[str, int] = {}
         # Iterative post-order depth-first search: a long chain must not hit the recursion limit.

@@ -48,7 +48,7 @@ class Call:
 
 
 @frozen
-class _Form:
+class FormBase:
     """A special form: its arguments as a call's, its reserved word's place as `function_span`.
     Each form is a class of its own, so that passes dispatch on its type."""
 
@@ -59,31 +59,51 @@ class _Form:
 
 
 @frozen
-class BestOfForm(_Form):
+class BestOfForm(FormBase):
     """`(best-of ALTERNATIVE...)`, each alternative `(when PRECONDITION EXPR)` or an EXPR."""
 
 
 @frozen
-class WhenForm(_Form):
+class WhenForm(FormBase):
     """`(when PRECONDITION EXPR)`: an alternative of a best-of (allowed only there)."""
 
 
 @frozen
-class IfForm(_Form):
+class IfForm(FormBase):
     """`(if CONDITION THEN ELSE [:p P])`."""
 
 
 @frozen
-class MapForm(_Form):
+class MapForm(FormBase):
     """`(map FUNCTION ITEMS ARG... [:max K])`: FUNCTION applied to each item of ITEMS."""
 
 
 @frozen
-class RepeatForm(_Form):
+class RepeatForm(FormBase):
     """`(repeat N (FUNCTION ARG...))`: the call made N times."""
 
 
 SpecialForm = BestOfForm | WhenForm | IfForm | MapForm | RepeatForm
+
+#: The special forms' reserved words (each form has its own grammar rule and syntax node).
+SPECIAL_FORMS = ("best-of", "if", "when", "map", "repeat")
+
+
+def form_word(form: SpecialForm) -> str:
+    """The reserved word a special form is written with."""
+    match form:
+        case BestOfForm():
+            return "best-of"
+        case IfForm():
+            return "if"
+        case WhenForm():
+            return "when"
+        case MapForm():
+            return "map"
+        case RepeatForm():
+            return "repeat"
+
+
 Expr = Symbol | Number | String | Call | BestOfForm | WhenForm | IfForm | MapForm | RepeatForm
 
 
@@ -101,7 +121,7 @@ Form = Setf | Expr
 def expr_span(expr: Form) -> Span:
     """Where a form is named in errors: a call's or a special form's function word, else the
     whole form."""
-    return expr.function_span if isinstance(expr, Call | _Form) else expr.span
+    return expr.function_span if isinstance(expr, Call | FormBase) else expr.span
 
 
 @frozen

@@ -28,6 +28,7 @@ from anytime.dsl.nodes import (
     BestOfForm,
     Call,
     Expr,
+    FormBase,
     IfForm,
     KeywordArg,
     MapForm,
@@ -39,13 +40,12 @@ from anytime.dsl.nodes import (
     String,
     Symbol,
     WhenForm,
-    _Form,
     expr_span,
 )
 from anytime.dsl.source import Source, Span
 from anytime.errors import Diagnostic, SchemaSyntaxError
 
-FormT = TypeVar("FormT", bound=_Form)  # the special forms' base class
+FormT = TypeVar("FormT", bound=FormBase)  # the special forms' base class
 
 #: Deeper nesting than this is refused with a clear error (real schemas nest a few levels).
 MAX_NESTING = 100
