@@ -14,16 +14,17 @@ from attrs import field, frozen
 
 from anytime import (
     AnytimeLibrary,
+    Budget,
     CompiledProgram,
     LibraryEntry,
     Status,
+    Stopping,
     StoppingPolicy,
     compile_file,
     run,
 )
 from anytime.plugin import AnytimeModule, Context, Result, tabulate
 from anytime.plugin.compose import EventLog, VisionHyperbola, default_time_grid
-from anytime.runtime import Budget, Stopping
 
 from .resources import data_file, load_schema_file
 from .vision import Q_A, T_A, T_B

@@ -15,10 +15,9 @@ import numpy as np
 from attrs import define, frozen
 from attrs import evolve as replace
 
-from anytime import CompiledProgram, OptimalStopping, StoppingPolicy, run_program
+from anytime import Budget, CompiledProgram, OptimalStopping, StoppingPolicy, run_program
 from anytime.plugin import Clock, Unit, WorkClock
 from anytime.plugin.compose import Adjustment, EventLog, Monitor
-from anytime.runtime import Budget
 
 from .execution import execute, optimal_length, route_length
 from .frame_program import PlanTrace

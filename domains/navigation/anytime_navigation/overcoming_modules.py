@@ -52,7 +52,14 @@ from typing import Any
 import numpy as np
 from attrs import frozen
 
-from anytime import AnytimeLibrary, CompiledProgram, LibraryEntry, compile_program, run_program
+from anytime import (
+    AnytimeLibrary,
+    Budget,
+    CompiledProgram,
+    LibraryEntry,
+    compile_program,
+    run_program,
+)
 from anytime.plugin import (
     Clock,
     Context,
@@ -64,7 +71,6 @@ from anytime.plugin import (
     elementary,
 )
 from anytime.plugin.compose import Deadline, deadline_from
-from anytime.runtime import Budget
 
 from .obstacles import Plan, Traffic, random_obstacles
 from .overcoming import (

@@ -10,9 +10,15 @@ from typing import Any
 import numpy as np
 from attrs import frozen
 
-from anytime import AnytimeLibrary, CompiledProgram, ProgramRecord, compile_file, run_program
+from anytime import (
+    AnytimeLibrary,
+    Budget,
+    CompiledProgram,
+    ProgramRecord,
+    compile_file,
+    run_program,
+)
 from anytime.plugin import Instance, ProgramProblems, WorkClock
-from anytime.runtime import Budget
 
 from .domain import (
     Clustering,
