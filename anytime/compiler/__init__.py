@@ -10,7 +10,8 @@ from anytime.compiler.allocators import (
     dp_obstacle,
 )
 from anytime.compiler.compile import CompiledProgram, compile_file, compile_program
-from anytime.compiler.evaluate import Dist, Evaluator
+from anytime.compiler.dist import Dist
+from anytime.compiler.evaluate import Evaluator
 from anytime.compiler.model import CompileError, CompileModel
 from anytime.compiler.outcomes import MESSAGES, Code, Note
 from anytime.compiler.report import compiled_to_dict, format_report

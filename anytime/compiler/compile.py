@@ -27,7 +27,8 @@ from anytime.compiler.allocators.memory import (
     expected_in_chunks,
     row_bytes,
 )
-from anytime.compiler.evaluate import Dist, Evaluator, binned_profile
+from anytime.compiler.dist import Dist, binned_profile
+from anytime.compiler.evaluate import Evaluator
 from anytime.compiler.grids import (
     DEFAULT_INPUT_QUALITY,
     callee_grid,

@@ -23,9 +23,10 @@ import numpy as np
 from attrs import frozen
 from numpy.typing import ArrayLike
 
-from anytime.compiler.result import CompiledProgram
 from anytime.compiler.evaluate import Evaluator
 from anytime.compiler.model import CompileError, ModuleNode
+from anytime.compiler.outcomes import Code, Note
+from anytime.compiler.result import CompiledProgram
 
 #: A marginal change smaller than this is zero (the evaluator's rounding).
 TOLERANCE = 1e-9
@@ -53,15 +54,21 @@ class ModuleMargin:
     at_ceiling: bool
 
     @property
-    def note(self) -> str:
-        """What a reader should know of this module's margin, or ''."""
+    def code(self) -> Code | None:
+        """What a reader should know of this module's margin (`AT_CEILING`, `ZERO_MARGINAL`,
+        `MORE_TIME_LOWERS`), or None."""
         if self.at_ceiling:
-            return "at its profile's ceiling: more time gains nothing"
+            return Code.AT_CEILING
         if abs(self.gain) <= TOLERANCE:
-            return "zero marginal: one more unit gains nothing"
+            return Code.ZERO_MARGINAL
         if self.gain < 0:
-            return "more time lowers the expected quality"
-        return ""
+            return Code.MORE_TIME_LOWERS
+        return None
+
+    @property
+    def note(self) -> str:
+        """The code's sentence, or ''."""
+        return "" if self.code is None else Note.of(self.code).message
 
 
 @frozen

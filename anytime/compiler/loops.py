@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from anytime.compiler.evaluate import MAX_SUPPORT, Dist, binned_profile, fold
+from anytime.compiler.dist import MAX_SUPPORT, Dist, binned_profile, fold
 from anytime.compiler.model import ModuleNode
 from anytime.profiles.profile import Array, ConditionalPerformanceProfile
 

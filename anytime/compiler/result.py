@@ -114,8 +114,8 @@ class CompiledProgram:
 
     @property
     def codes(self) -> tuple[Code, ...]:
-        """The codes of the notes and of the warnings, in that order."""
-        return tuple(note.code for note in (*self.notes, *self.warnings))
+        """The codes of the notes (what `note` says; the warnings have their own)."""
+        return tuple(note.code for note in self.notes)
 
     @property
     def note(self) -> str:

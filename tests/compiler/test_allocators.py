@@ -5,7 +5,6 @@ saying why, on stochastic profiles and DAGs. Also the lattice helpers `compositi
 
 from __future__ import annotations
 
-import re
 from collections.abc import Iterator
 from math import comb
 from typing import Any
@@ -23,7 +22,7 @@ from compiler_strategies import (
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from anytime.compiler import CompiledProgram, compile_program, dp_obstacle
+from anytime.compiler import Code, CompiledProgram, Note, compile_program, dp_obstacle
 from anytime.compiler.allocators import Exhaustive, compositions, equal_split
 from anytime.compiler.compile import AUTO_EXHAUSTIVE_PER_CELL
 from anytime.dsl import parse_schemas
@@ -33,18 +32,7 @@ from anytime.profiles import tabulate
 
 SETTINGS = settings(max_examples=40, deadline=None)
 
-STOCHASTIC_REASON = (
-    "module '{}' has a stochastic profile; local compilation is exact only when every "
-    "module's quality is a function of its input qualities and time"
-)
-DAG_REASON = (
-    "the program is a DAG (a result is used twice), and local compilation is exact only for "
-    "chains and trees"
-)
-DAG_NOTE = (
-    "the program is a DAG: a shared result makes later inputs correlated, and evaluation "
-    "treats them as independent (exact for trees, approximate here)"
-)
+DAG_REASON = Note.of(Code.DAG)
 
 
 def auto_fallback(compiled: CompiledProgram) -> str:
@@ -87,12 +75,16 @@ def check_table(compiled: CompiledProgram, program: RandomProgram) -> None:
     assert (np.diff(compiled.expected, axis=-1) >= -1e-12).all()
 
 
-#: The sentence a compile note ends with when some totals keep a smaller total's split.
-IDLE_NOTE = re.compile(r"; at \d+ of the table's totals a smaller total does better: .*$")
+def without_idle(compiled: CompiledProgram) -> tuple[Note, ...]:
+    """The notes, less the one saying that some totals keep a smaller total's split."""
+    return tuple(note for note in compiled.notes if note.code != Code.KEPT_SMALLER)
 
 
-def without_idle(note: str) -> str:
-    return IDLE_NOTE.sub("", note)
+def fallback(compiled: CompiledProgram, obstacle: Note) -> tuple[Note, ...]:
+    """The notes of a compilation where dp would not be exact: why, and what ran instead."""
+    if compiled.requested == "dp":
+        return (Note.of(Code.DP_FALLBACK, obstacle=obstacle),)
+    return (Note.of(Code.AUTO_FALLBACK, allocator=compiled.allocator, obstacle=obstacle),)
 
 
 # --- (a) deterministic monotone profiles: dp is exact ---------------------------------------
@@ -125,7 +117,7 @@ def test_dp_equals_exhaustive_and_hill_climbing_never_beats_it(program: RandomPr
 def test_auto_uses_dp_on_deterministic_monotone_trees(program: RandomProgram) -> None:
     compiled = compile_with(program, "auto")
     assert compiled.allocator == "dp"
-    assert compiled.note == "dp: local compilation, exact for this tree of monotone modules"
+    assert compiled.codes == (Code.DP_EXACT,)
     assert dp_obstacle(compiled.model) is None
 
 
@@ -169,7 +161,7 @@ def test_dp_matches_exhaustive_when_quality_drops_after_a_peak() -> None:
     np.testing.assert_allclose(exhaustive.allocation[-1, -1, :, 0], [0, 5, 10, 15, 20] + [20] * 4)
     np.testing.assert_allclose(dp.expected, exhaustive.expected, rtol=0, atol=1e-9)
     np.testing.assert_array_equal(dp.allocation.sum(axis=-1), exhaustive.allocation.sum(axis=-1))
-    assert without_idle(exhaustive.note) != exhaustive.note  # the note says so
+    assert Code.KEPT_SMALLER in exhaustive.codes  # the notes say so
 
 
 # --- (e) the compiled profile is at least every baseline ------------------------------------
@@ -199,18 +191,18 @@ def test_stochastic_profiles_fall_back_to_exhaustive_or_hill_climbing(
     """Auto picks the exact search when it is cheap, else multi-start; dp asked for falls back
     to hill-climbing; both say why."""
     first = next(s.name for s in program.modules if s.stochastic)
-    reason = STOCHASTIC_REASON.format(first)
+    reason = Note.of(Code.STOCHASTIC, module=first)
     library = program.library()
     auto = compile_with(program, "auto", library)
     if auto.allocator == "exhaustive":
-        assert auto.note == f"exhaustive, because dp would not be exact: {reason}"
+        assert auto.notes == fallback(auto, reason)
         assert auto.exhaustive_gap == 0.0
     else:
         assert auto.allocator == "multi-start"
-        assert without_idle(auto.note) == f"multi-start, because dp would not be exact: {reason}"
+        assert without_idle(auto) == fallback(auto, reason)
     asked = compile_with(program, "dp", library)
     assert asked.allocator == "hill-climbing"
-    assert without_idle(asked.note) == f"dp was asked for but {reason}: fell back to hill-climbing"
+    assert without_idle(asked) == fallback(asked, reason)
     exhaustive = compile_with(program, "exhaustive", library)
     assert (asked.expected <= exhaustive.expected + 1e-12).all()
     for compiled in (auto, exhaustive):
@@ -227,23 +219,16 @@ def test_stochastic_profiles_fall_back_to_exhaustive_or_hill_climbing(
 @given(dag_programs())
 def test_dags_fall_back_and_say_evaluation_is_approximate(program: RandomProgram) -> None:
     library = program.library()
-    # Point masses stay point masses, so with deterministic modules a DAG is evaluated exactly.
-    stochastic = any(module.stochastic for module in program.modules)
-    tail = f"; {DAG_NOTE}" if stochastic else ""
+    # Point masses stay point masses, so with deterministic modules a DAG is evaluated exactly:
+    # no note says the table is approximate.
     auto = compile_with(program, "auto", library)
     assert auto.allocator == auto_fallback(auto)
-    assert without_idle(auto.note) == (
-        f"{auto.allocator}, because dp would not be exact: {DAG_REASON}{tail}"
-    )
+    assert without_idle(auto) == fallback(auto, DAG_REASON)
     asked = compile_with(program, "dp", library)
     assert asked.allocator == "hill-climbing"
-    assert without_idle(asked.note) == (
-        f"dp was asked for but {DAG_REASON}: fell back to hill-climbing{tail}"
-    )
+    assert without_idle(asked) == fallback(asked, DAG_REASON)
     exhaustive = compile_with(program, "exhaustive", library)
-    assert (
-        without_idle(exhaustive.note) == f"exhaustive: every allocation on the time lattice{tail}"
-    )
+    assert without_idle(exhaustive) == (Note.of(Code.EXHAUSTIVE),)
     for compiled in (auto, exhaustive):
         check_table(compiled, program)
     assert (auto.expected <= exhaustive.expected + 1e-12).all()
@@ -270,10 +255,7 @@ def test_an_elementary_function_of_unknown_monotonicity_keeps_dp_away() -> None:
     schemas = parse_schemas("(defschema p (x) (m2 (prod (m1 x) (m1 x))))", "prod.any")
     compiled = compile_program(schemas["p"], library_of((), extra), TIME, QUALITY, allocator="auto")
     assert compiled.allocator == auto_fallback(compiled)
-    assert compiled.note == (
-        f"{compiled.allocator}, because dp would not be exact: the quality combination of "
-        "'prod' is not known to be monotone (only min and max are)"
-    )
+    assert compiled.notes == fallback(compiled, Note.of(Code.UNKNOWN_MONOTONICITY, function="prod"))
     exhaustive = compile_program(
         schemas["p"], library_of((), extra), TIME, QUALITY, allocator="exhaustive"
     )
@@ -296,14 +278,12 @@ def test_a_module_that_is_not_input_monotone_keeps_dp_away() -> None:
         interruptible("m2", inputs=["a"], profile=peaked, registry=registry)(first)
 
     schemas = parse_schemas("(defschema p (x) (m2 (m1 x)))", "peak.any")
-    reason = (
-        "module 'm2' is not input-monotone: a better quality of input 1 lowers its output somewhere"
-    )
+    reason = Note.of(Code.NOT_INPUT_MONOTONE, module="m2", input=1)
     auto = compile_program(schemas["p"], library_of((), extra), TIME, QUALITY)
     assert auto.allocator == auto_fallback(auto)
-    assert without_idle(auto.note) == f"{auto.allocator}, because dp would not be exact: {reason}"
+    assert without_idle(auto) == fallback(auto, reason)
     asked = compile_program(schemas["p"], library_of((), extra), TIME, QUALITY, allocator="dp")
-    assert without_idle(asked.note) == f"dp was asked for but {reason}: fell back to hill-climbing"
+    assert without_idle(asked) == fallback(asked, reason)
     exhaustive = compile_program(
         schemas["p"], library_of((), extra), TIME, QUALITY, allocator="exhaustive"
     )

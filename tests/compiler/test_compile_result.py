@@ -11,7 +11,7 @@ import pytest
 from toy_modules import toy_registry
 
 from anytime import AnytimeLibrary, compile_file, load_schemas
-from anytime.compiler import compile_program
+from anytime.compiler import MESSAGES, Code, Note, compile_program
 from anytime.dsl import parse_schemas
 from anytime.library import RegistrySource
 
@@ -28,7 +28,7 @@ def test_dp_on_a_chain_of_monotone_modules_is_exact() -> None:
     compiled = toy("auto")
     assert (compiled.allocator, compiled.requested, compiled.dp_obstacle) == ("dp", "auto", None)
     assert (compiled.exact, compiled.approximations, compiled.kept_smaller) == (True, (), ())
-    assert compiled.note == "dp: local compilation, exact for this tree of monotone modules"
+    assert compiled.codes == (Code.DP_EXACT,)
 
 
 @pytest.mark.parametrize(("allocator", "exact"), [("hill-climbing", False), ("exhaustive", True)])
@@ -42,13 +42,12 @@ def test_the_shipped_navigate_schema_says_why_and_where_as_fields(navigation_any
     library = AnytimeLibrary.default()
     (navigate,) = compile_file(schemas, library, range(0, 1001, 250), schema="navigate")
     assert navigate.allocator == "exhaustive" and navigate.exact
-    assert navigate.dp_obstacle is not None
-    assert navigate.dp_obstacle.startswith("module 'get-domain-description' has a stochastic")
+    assert navigate.dp_obstacle == Note.of(Code.STOCHASTIC, module="get-domain-description")
     # The planner alone on the prior map does better with 250 ticks than with 500, but at 500
     # sensing first does better still: no total keeps a smaller one's allocation.
     assert navigate.kept_smaller == ()
-    assert navigate.note.startswith(
-        f"exhaustive, because dp would not be exact: {navigate.dp_obstacle}"
+    assert navigate.notes == (
+        Note.of(Code.AUTO_FALLBACK, allocator="exhaustive", obstacle=navigate.dp_obstacle),
     )
     compiled = compile_file(schemas, library, range(0, 1001, 250), schema="navigate-two-planners")
     two = compiled[-1]
@@ -71,3 +70,52 @@ def test_the_navigation_demo_table_starts_at_zero_and_is_what_runs_are_given(
     assert navigate.expected[0] == 0.0
     for j, total in enumerate(navigate.profile.time):
         np.testing.assert_array_equal(navigate.allocation_at([], total), navigate.allocation[j])
+
+
+def test_the_message_table_renders_the_notes_as_the_reports_always_said_them() -> None:
+    """The codes are what programs and tests compare; people read `MESSAGES`, whose sentences
+    are those `anytime compile` printed before the codes (the docs' outputs show them)."""
+    assert set(MESSAGES) == set(Code)
+    stochastic = Note.of(Code.STOCHASTIC, module="measure")
+    assert Note.of(Code.AUTO_FALLBACK, allocator="exhaustive", obstacle=stochastic).message == (
+        "exhaustive, because dp would not be exact: module 'measure' has a stochastic profile;"
+        " local compilation is exact only when every module's quality is a function of its"
+        " input qualities and time"
+    )
+    assert Note.of(Code.DP_FALLBACK, obstacle=Note.of(Code.DAG)).message == (
+        "dp was asked for but the program is a DAG (a result is used twice), and local"
+        " compilation is exact only for chains and trees: fell back to hill-climbing"
+    )
+    assert Note.of(Code.DP_EXACT).message == (
+        "dp: local compilation, exact for this tree of monotone modules"
+    )
+    assert Note.of(Code.NOT_INPUT_MONOTONE, module="m2", input=1).message == (
+        "module 'm2' is not input-monotone: a better quality of input 1 lowers its output somewhere"
+    )
+    sampled = Note.of(Code.SAMPLED, draws=512, sampled=3, cells=9, error=0.01234)
+    assert sampled.message == (
+        "the shared results' joint outcomes were sampled (512 draws) at 3 of 9 cells of the"
+        " table: their expected quality has a standard error of up to 0.012"
+    )
+    outside = Note.of(
+        Code.OUTSIDE_INPUT_GRID,
+        module="refine",
+        input="x",
+        low=0.0,
+        high=1.0,
+        measured_low=0.5,
+        measured_high=1.0,
+        share=0.25,
+    )
+    assert outside.message == (
+        "module 'refine': input 'x' receives qualities 0 to 1, but its profile was measured on"
+        " 0.5 to 1; outside that range (up to 25% of its inputs at some total) the profile is"
+        " clamped to its nearest end, and the table may count on it: measure 'refine' on input"
+        " qualities that cover 0 to 1 (its Measurement's input_grids), or compile with --strict"
+        " to refuse such a table"
+    )
+    assert Note.of(Code.KEPT_SMALLER, totals=2).message.startswith(
+        "at 2 of the table's totals a smaller total does better: there the program uses"
+    )
+    assert Note.from_dict(outside.to_dict()) == outside
+    assert str(stochastic) == f"{stochastic}" == stochastic.message

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from anytime.clocks import WorkClock
-from anytime.compiler import CompileError, compile_program
+from anytime.compiler import Code, CompileError, compile_program
 from anytime.dsl import parse_schemas
 from anytime.library import AnytimeLibrary, LibraryEntry
 from anytime.measure.builder import build_profile
@@ -106,16 +106,19 @@ def test_qualities_outside_a_profiles_input_grid_are_a_warning() -> None:
     # The program's input carries any quality of the default grid, 0 to 1.
     program = parse_schemas("(defschema p (x) (refine x))", "p.any")["p"]
     compiled = compile_program(program, library, TIME)
-    assert compiled.warnings == (
-        "module 'refine': input 'x' receives qualities 0 to 1, but its profile was measured on"
-        " 0.5 to 1; outside that range (up to 100% of its inputs at some total) the profile is"
-        " clamped to its nearest end, and the table may count on it: measure 'refine' on input"
-        " qualities that cover 0 to 1 (its Measurement's input_grids), or compile with --strict"
-        " to refuse such a table",
+    (warning,) = compiled.warnings
+    assert warning.code == Code.OUTSIDE_INPUT_GRID
+    assert (warning["module"], warning["input"], warning["low"], warning["high"]) == (
+        "refine",
+        "x",
+        0.0,
+        1.0,
     )
+    assert (warning["measured_low"], warning["measured_high"]) == (0.5, 1.0)
+    assert warning["share"] == pytest.approx(1.0)
     with pytest.raises(CompileError) as refused:
         compile_program(program, library, TIME, strict=True)
-    assert str(refused.value) == f"schema 'p' (--strict): {compiled.warnings[0]}"
+    assert str(refused.value) == f"schema 'p' (--strict): {warning.message}"
     within = compile_program(program, _library(), TIME)
     assert within.warnings == ()
     # What has no result upstream is no quality: `refine` is not called on it, so a chain

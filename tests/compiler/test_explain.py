@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import anytime
-from anytime.compiler import CompiledProgram, CompileError, compile_program
+from anytime.compiler import Code, CompiledProgram, CompileError, compile_program
 from anytime.compiler.explain import explanation_to_dict
 from anytime.dsl import parse_schemas
 from anytime.library import AnytimeLibrary, RegistrySource
@@ -91,16 +91,16 @@ def test_a_module_without_time_has_no_loss_and_at_its_ceiling_says_so() -> None:
     assert [m.share for m in everything.modules] == [60, 40]  # both past their profiles' 40
     assert [m.at_ceiling for m in everything.modules] == [True, True]
     assert [m.gain for m in everything.modules] == [0, 0]
-    assert everything.modules[0].note == "at its profile's ceiling: more time gains nothing"
+    assert everything.modules[0].code == Code.AT_CEILING
 
 
 def test_notes_for_zero_and_negative_margins() -> None:
     margin = anytime.ModuleMargin("m", share=5, gain=0.0, loss=0.1, at_ceiling=False)
-    assert margin.note == "zero marginal: one more unit gains nothing"
+    assert margin.code == Code.ZERO_MARGINAL
     falling = anytime.ModuleMargin("m", share=5, gain=-0.01, loss=0.1, at_ceiling=False)
-    assert falling.note == "more time lowers the expected quality"
+    assert falling.code == Code.MORE_TIME_LOWERS
     rising = anytime.ModuleMargin("m", share=5, gain=0.01, loss=0.1, at_ceiling=False)
-    assert rising.note == ""
+    assert (rising.code, rising.note) == (None, "")
 
 
 @settings(max_examples=20, deadline=None)
@@ -184,7 +184,7 @@ def test_a_kept_smaller_split_leaves_time_unused_and_says_so() -> None:
     (explanation,) = anytime.explain(compiled, [30])
     assert explanation.unused == 10
     (margin,) = explanation.modules
-    assert (margin.share, margin.note) == (20, "more time lowers the expected quality")
+    assert (margin.share, margin.code) == (20, Code.MORE_TIME_LOWERS)
     assert margin.gain == pytest.approx(-5 / 40, abs=1e-12)
     text = anytime.compiler.explain.format_explanations(compiled, [explanation])
     assert (

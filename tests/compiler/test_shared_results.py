@@ -33,7 +33,14 @@ from hypothesis import strategies as st
 from program_sampler import simulate
 
 import anytime.compiler.evaluate as evaluate
-from anytime.compiler import compile_file, compile_program, load_compiled, save_compiled
+from anytime.compiler import (
+    Code,
+    Note,
+    compile_file,
+    compile_program,
+    load_compiled,
+    save_compiled,
+)
 from anytime.dsl import parse_schemas
 from anytime.library import AnytimeLibrary, RegistrySource
 from anytime.modules import Context, Registry, Result, elementary, interruptible
@@ -276,8 +283,7 @@ def test_dp_does_not_claim_a_callee_on_an_internal_result_is_exact() -> None:
     (defschema call (x) (setf m (plan2 x)) (sub m))
     """
     compiled = compile_file(parse_schemas(text), _library(False), TOTALS, [1.0], schema="call")[-1]
-    assert compiled.dp_obstacle is not None
-    assert compiled.dp_obstacle.startswith("the called schema 'sub' reads a result computed")
+    assert compiled.dp_obstacle == Note.of(Code.CALLEE_READS_RESULT, schema="sub")
     assert compiled.allocator == "exhaustive"
 
 
@@ -299,9 +305,13 @@ def test_too_many_joint_outcomes_are_sampled_with_a_standard_error(
     sensing = compiled.allocation[:, 0] > 0  # where the map is uncertain
     assert np.all(error[sensing] > 0) and np.all(error[~sensing] == 0)
     assert compiled.approximations == (
-        f"the shared results' joint outcomes were sampled (512 draws) at {int((error > 0).sum())}"
-        f" of 9 cells of the table: their expected quality has a standard error of up to"
-        f" {error.max():.2g}",
+        Note.of(
+            Code.SAMPLED,
+            draws=512,
+            sampled=int((error > 0).sum()),
+            cells=9,
+            error=float(error.max()),
+        ),
     )
     path = tmp_path / "sampled.yaml"
     save_compiled(compiled, path)

@@ -13,6 +13,7 @@ from choice_modules import TIME, gamble, library
 
 from anytime.clocks import WorkClock
 from anytime.compiler import (
+    Code,
     CompiledProgram,
     CompileError,
     compile_file,
@@ -52,12 +53,13 @@ def test_a_saved_program_loads_back_with_its_tables_and_runs_the_same(
     assert load_profile(path) == original.profile  # still a profile file
     np.testing.assert_array_equal(loaded.allocation, original.allocation)
     np.testing.assert_array_equal(loaded.expected, original.expected)
-    assert (loaded.allocator, loaded.exact, loaded.note, loaded.warnings) == (
+    assert (loaded.allocator, loaded.exact, loaded.dp_obstacle, loaded.warnings) == (
         original.allocator,
         original.exact,
-        original.note,
+        original.dp_obstacle,
         original.warnings,
     )
+    assert (loaded.notes, loaded.note) == (original.notes, original.note)
     assert loaded.modules == original.modules
     for key, table in original.baselines.items():
         np.testing.assert_array_equal(loaded.baselines[key], table)
@@ -103,3 +105,28 @@ def test_a_plain_profile_is_not_a_compiled_program(tmp_path: Path) -> None:
         "compiled: missing (a profile, not a compiled program: expected a file written by "
         "`anytime compile -o` or save_compiled)"
     )
+
+
+def test_a_file_saved_before_the_codes_loads_with_its_sentences(tmp_path: Path) -> None:
+    """A file without `codes` (saved before them) has its notes as sentences only: its
+    obstacle to dp is found again where it reads the same, any other sentence is kept."""
+    lib = library()
+    original = compiled("pick", lib)
+    assert original.dp_obstacle is not None
+    path = tmp_path / "pick.yaml"
+    save_compiled(original, path)
+    data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    assert data["compiled"]["dp_obstacle"] == original.dp_obstacle.message
+    del data["compiled"]["codes"]
+    data["compiled"]["warnings"] = ["a sentence of an older compiler"]
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    loaded = load_compiled(path, lib)
+    assert (loaded.dp_obstacle, loaded.note) == (original.dp_obstacle, original.note)
+    assert [(w.code, w.message) for w in loaded.warnings] == [
+        (Code.TEXT, "a sentence of an older compiler")
+    ]
+    data["compiled"]["dp_obstacle"] = "an obstacle worded otherwise"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    obstacle = load_compiled(path, lib).dp_obstacle
+    assert obstacle is not None
+    assert (obstacle.code, obstacle.message) == (Code.TEXT, "an obstacle worded otherwise")

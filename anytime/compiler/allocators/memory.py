@@ -12,13 +12,8 @@ from math import prod
 import numpy as np
 
 from anytime.compiler.allocators.protocol import Evaluates
-from anytime.compiler.evaluate import (
-    ENUMERATION_LIMIT,
-    FOLD_GRID,
-    MAX_SUPPORT,
-    SAMPLES,
-    shared_nodes,
-)
+from anytime.compiler.dist import FOLD_GRID, MAX_SUPPORT
+from anytime.compiler.evaluate import ENUMERATION_LIMIT, SAMPLES, shared_nodes
 from anytime.compiler.model import (
     CompileError,
     CompileModel,
