@@ -25,8 +25,12 @@ lint: $(INSTALLED)
 typecheck: $(INSTALLED)
 	$(BIN)/mypy
 
+# In parallel, one worker per core (pytest-xdist), each test file on one worker (--dist
+# loadfile: a docs page's blocks share their names; module fixtures are built once). To debug
+# serially, run `$(BIN)/pytest` itself (or `make pytest PYTEST_WORKERS=0`).
+PYTEST_WORKERS ?= auto
 pytest: $(INSTALLED)
-	$(BIN)/pytest
+	$(BIN)/pytest -n $(PYTEST_WORKERS) --dist loadfile
 
 # The install a user gets: both wheels built, installed into a fresh environment outside the
 # repository and run from another directory (CI runs it after `make test`).
