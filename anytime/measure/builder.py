@@ -61,8 +61,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from anytime.errors import AnytimeError, ProfileError
 from anytime.isolation import ISOLATIONS, WATCHDOG, Isolation
+from anytime.measure.chunks import measure_chunk, measure_chunks
 from anytime.measure.progress import ProgressBar
-from anytime.measure.trials import CLOCKS, Chunk, ClockName, Done, measure_chunk, measure_chunks
+from anytime.measure.trials import CLOCKS, Chunk, ClockName, Done
 from anytime.modules import AnytimeModule
 from anytime.pool import spread
 from anytime.problems import (

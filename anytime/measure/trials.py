@@ -9,27 +9,26 @@ from __future__ import annotations
 import inspect
 import math
 import mmap
-import pickle
 import struct
-import time as _time
 import traceback
-from collections.abc import Callable, Iterator, Sequence
-from functools import partial
-from itertools import islice
-from typing import Any, Literal
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from attrs import field, frozen
 from numpy.typing import NDArray
 
 from anytime.clocks import Clock, WallClock, WorkClock
-from anytime.isolation import WATCHDOG, Channel, Child, Isolation, Lost, calls, died
+from anytime.isolation import WATCHDOG, Isolation
 from anytime.modules import AnytimeModule, Result
 from anytime.problems import BuildError, Grid, Instance, ProblemSet
 from anytime.profiles.profile import Array
 from anytime.runtime.executor import Status, run
 from anytime.runtime.modes import Budget
 from anytime.runtime.observe import Decision, Observer
+
+if TYPE_CHECKING:
+    from anytime.measure.isolated_trials import Sender
 
 ClockName = Literal["work", "wall"]
 
@@ -52,7 +51,7 @@ class Chunk:
     start: int
     stop: int
     isolation: Isolation = "process"  # each trial's run in a child process (see `measure_chunk`)
-    watchdog: float = WATCHDOG  # wall seconds an isolated run may take (see `_isolated`)
+    watchdog: float = WATCHDOG  # wall seconds an isolated run may take (see `isolated_outcomes`)
 
 
 @frozen(eq=False)
@@ -62,7 +61,9 @@ class Done:
     failures: int
     overruns: int
     first_failure: tuple[int, str] | None  # (flat trial index, description)
-    step: float = 0.0  # the largest step of the chunk's runs (see `_interruptible`, `_contract`)
+    step: float = (
+        0.0  # the largest step of the chunk's runs (see `run_interruptible`, `run_contract`)
+    )
     # (stop - start, len(time)): whether the run had a result at each grid time (None: always)
     scored: NDArray[np.bool_] | None = None
     # (stop - start, len(time)): the quality the module reported of its result at each grid time
@@ -73,59 +74,6 @@ class Done:
     finished: Array | None = None
     # why runs failed: each reason (an error's first line, or how a process died) and how often
     reasons: dict[str, int] = field(factory=dict)
-
-
-def measure_chunk(chunk: Chunk) -> Done:
-    """Run one chunk of trials. Isolated (the default), they run in turn in a child process
-    (see `_isolated`): a trial whose process dies, or that takes longer than the watchdog, is a
-    failed trial that keeps what its run had registered before, as `anytime.runtime.run` keeps
-    it, and the next trials go on in a new process."""
-    return next(measure_chunks([chunk]))
-
-
-def measure_chunks(chunks: Sequence[Chunk]) -> Iterator[Done]:
-    """`measure_chunk` of each of `chunks` (of one build) in turn; isolated, one process runs
-    them all (a process per chunk would cost a fork each)."""
-    if not chunks:
-        return
-    first = chunks[0]
-    flats = [flat for chunk in chunks for flat in range(chunk.start, chunk.stop)]
-    outcomes: Iterator[Measured]
-    if first.isolation == "process":
-        outcomes = _isolated(first, flats)
-    else:
-        outcomes = (_measured(first, flat) for flat in flats)
-    for chunk in chunks:
-        yield _done(chunk, islice(outcomes, chunk.stop - chunk.start))
-
-
-def _done(chunk: Chunk, outcomes: Iterator[Measured]) -> Done:
-    """The chunk's measurements from its trials' outcomes (in trial order)."""
-    grid = chunk.grid
-    quality = np.zeros((chunk.stop - chunk.start, len(grid.time)))
-    scored = np.zeros(quality.shape, dtype=np.bool_)  # no result until one is scored
-    reported = np.zeros(quality.shape)
-    finished = np.full(len(quality), float(grid.time[-1]))
-    failures = overruns = 0
-    step = 0.0
-    first: tuple[int, str] | None = None
-    reasons: dict[str, int] = {}
-    flats = range(chunk.start, chunk.stop)
-    for row, (flat, outcome) in enumerate(zip(flats, outcomes, strict=True)):
-        quality[row], scored[row], reported[row] = outcome.row
-        finished[row] = outcome.finished
-        failed = outcome.failed
-        overruns += outcome.overruns
-        step = max(step, outcome.step)
-        failures += len(failed)
-        for headline, _ in failed:
-            reasons[headline] = reasons.get(headline, 0) + 1
-        if failed and first is None:
-            headline, details = failed[0]
-            first = (flat, f"{headline} ({_trial(chunk, flat).where})\n{details}".rstrip())
-    return Done(
-        chunk.start, quality, failures, overruns, first, step, scored, reported, finished, reasons
-    )
 
 
 @frozen(eq=False)
@@ -140,7 +88,7 @@ class Measured:
     step: float
 
 
-def _trial(chunk: Chunk, flat: int) -> Trial:
+def trial_of(chunk: Chunk, flat: int) -> Trial:
     """Trial `flat` (`cell * trials + instance`) of the chunk's build."""
     grid = chunk.grid
     cell, instance = divmod(flat, chunk.trials)
@@ -156,22 +104,22 @@ def _trial(chunk: Chunk, flat: int) -> Trial:
     )
 
 
-def _measured(chunk: Chunk, flat: int, sender: _Sender | None = None, begin: int = 0) -> Measured:
+def measured(chunk: Chunk, flat: int, sender: Sender | None = None, begin: int = 0) -> Measured:
     """Run trial `flat` of the chunk (a contract module's from grid index `begin` on: the
     rows before it stay without a result). Isolated, `sender` keeps the caller informed of
-    what the run has done, should its process die (see `_Sender`)."""
+    what the run has done, should its process die (see `Sender`)."""
     times = chunk.grid.time
-    out = _empty_row(times)
-    trial = _trial(chunk, flat)
+    out = empty_row(times)
+    trial = trial_of(chunk, flat)
     if chunk.module.kind == "interruptible":
-        failed, overran, longest = _interruptible(trial, times, out, sender)
+        failed, overran, longest = run_interruptible(trial, times, out, sender)
     else:
-        failed, overran, longest = _contract(trial, times, out, sender, begin)
+        failed, overran, longest = run_contract(trial, times, out, sender, begin)
     row = (out.quality, out.scored, out.reported)
     return Measured(row, float(out.finished[0]), failed, overran, longest)
 
 
-def _empty_row(times: Array) -> Row:
+def empty_row(times: Array) -> Row:
     n = len(times)
     return Row(np.zeros(n), np.zeros(n, dtype=np.bool_), np.zeros(n), np.full(1, float(times[-1])))
 
@@ -272,11 +220,11 @@ def _arguments(
 Failures = list[tuple[str, str]]  # (headline, traceback) of each failed run
 
 
-def _interruptible(
+def run_interruptible(
     trial: Trial,
     time: Array,
     out: Row,
-    sender: _Sender | None = None,
+    sender: Sender | None = None,
     limit: int | None = None,
 ) -> tuple[Failures, int, float]:
     """One run up to the last grid time; `out` records at each `time[j]` the score of the
@@ -332,7 +280,7 @@ class _Trace(Observer):
     the largest gap between them so far."""
 
     def __init__(
-        self, time: Array, clock: _Watch, sender: _Sender | None, limit: int | None
+        self, time: Array, clock: _Watch, sender: Sender | None, limit: int | None
     ) -> None:
         self.time, self.clock, self.sender, self.limit = time, clock, sender, limit
         self.answers: list[tuple[int, Result]] = []  # (first grid index it answers for, result)
@@ -364,7 +312,7 @@ class _Trace(Observer):
 class _Watch:
     """A clock that notes, since its last `mark()`, the longest interval between the module's
     reports of work (from the mark to the first, between them), and when the last one began.
-    With `memory` (an isolated trial, see `_Sender`), it writes its time there at each."""
+    With `memory` (an isolated trial, see `Sender`), it writes its time there at each."""
 
     def __init__(self, clock: Clock, memory: mmap.mmap | None = None) -> None:
         self.clock = clock
@@ -385,7 +333,7 @@ class _Watch:
         self.began, self.previous = began, now
         self.reports += 1
         if self.memory is not None:
-            _NOW.pack_into(self.memory, 8, now)
+            NOW.pack_into(self.memory, 8, now)
 
     def mark(self) -> None:
         self.longest, self.previous, self.reports = 0.0, self.clock.now(), 0
@@ -396,8 +344,8 @@ class _Watch:
         return self.reports > 0 and self.began < deadline - slack <= self.previous
 
 
-def _contract(
-    trial: Trial, time: Array, out: Row, sender: _Sender | None = None, begin: int = 0
+def run_contract(
+    trial: Trial, time: Array, out: Row, sender: Sender | None = None, begin: int = 0
 ) -> tuple[Failures, int, float]:
     """One run per grid time (from index `begin` on) on the same instance, with that time as
     its allocation; `out` records at `time[j]` the score of its result and the quality it
@@ -420,7 +368,7 @@ def _contract(
 
 
 def _contract_run(
-    trial: Trial, j: int, allocation: float, out: Row, sender: _Sender | None
+    trial: Trial, j: int, allocation: float, out: Row, sender: Sender | None
 ) -> tuple[Failures, int, float]:
     """The run at grid index `j` (`anytime.runtime.run`'s): its failures, whether it overran
     (0 or 1), and how much it used past its allocation (negative when it used less)."""
@@ -441,228 +389,7 @@ def _contract_run(
     return [], overran, past
 
 
-# Isolated trials. The trials of a sequential build (or of a worker's chunk) run in turn in a
-# child process (`anytime.isolation.Child`). A trial whose process dies, or that the watchdog
-# ends, keeps what `anytime.runtime.run` keeps of such a run:
-# - An interruptible trial, the last result it registered up to each grid time (after its
-#   death, the last one before it). `run` has each result sent to it as it comes, which costs
-#   pickling every result (find-path's are 3 MB each: sending them doubled the time of its
-#   isolated build), so the child here notes, in memory the fork shares, only how many results
-#   the run has registered, when the last came, its largest gap so far and its clock's time.
-#   After a death, the trial runs again in a fresh child, on the same instance from the same
-#   seed, and stops right after that many results: it registers the same results (on the work
-#   clock a run is determined by its instance), and is scored there as any trial is.
-# - A contract trial, the runs it finished (each sent to the caller, scored: a few numbers);
-#   the lost run has no result, and the trial goes on at its next grid time in a new process,
-#   as separate runs of `run` would.
-
 # In the shared memory: the run's start, its clock's latest time (at each report of work), and
 # of what it registered: how many results, when the last came, its largest gap so far.
-_NOTE = struct.Struct("5d")
-_NOW = struct.Struct("d")
-
-
-class _Noting:
-    """A clock that writes its time, at every report of work, to memory the caller can read."""
-
-    def __init__(self, clock: Clock, memory: mmap.mmap) -> None:
-        self.clock, self.memory = clock, memory
-        self.unit = clock.unit
-
-    def now(self) -> float:
-        return self.clock.now()
-
-    def advance(self, n: float) -> None:
-        clock = self.clock
-        clock.advance(n)
-        _NOW.pack_into(self.memory, 8, clock.now())
-
-
-class _Sender:
-    """The child's side of an isolated trial (see above)."""
-
-    def __init__(self, channel: Channel, memory: mmap.mmap) -> None:
-        self.channel, self.memory = channel, memory
-
-    def noting(self, clock: Clock) -> Clock:
-        return _Noting(clock, self.memory)
-
-    def run_begins(self) -> None:
-        """A run begins: nothing yet (a process that dies now has used no time)."""
-        _NOTE.pack_into(self.memory, 0, 0.0, 0.0, 0.0, 0.0, 0.0)
-
-    def started(self, start: float) -> None:
-        struct.pack_into("dd", self.memory, 0, start, start)
-
-    def registered(self, count: int, at: float, step: float) -> None:
-        """An interruptible run has registered `count` results, the last at `at`, with
-        `step` the largest gap between its yields so far."""
-        struct.pack_into("3d", self.memory, 16, count, at, step)
-
-    def ran(self, j: int, out: Row, failed: Failures, overran: int, past: float) -> None:
-        """The contract run at grid index `j` ended as `out[j]` says."""
-        row = (float(out.quality[j]), bool(out.scored[j]), float(out.reported[j]))
-        self.channel.send(("ran", j, row, failed, overran, past))
-
-
-def _measuring(
-    chunk: Chunk, flats: Sequence[int], position: int, begin: int, memory: mmap.mmap, out: Channel
-) -> None:
-    """The child: trials `flats[position:]` in turn, the first from grid index `begin` on."""
-    sender = _Sender(out, memory)
-    for index in range(position, len(flats)):
-        sender.run_begins()  # nothing of the trial before is its
-        try:
-            value = _measured(chunk, flats[index], sender, begin if index == position else 0)
-        except BaseException as exc:  # a problem set that breaks its contract, and the like
-            out.send(("raised", _portable(exc)))
-            return
-        out.send(("value", value))
-
-
-def _portable(exc: BaseException) -> BaseException:
-    """`exc` if it pickles, else a RuntimeError carrying its traceback's text."""
-    try:
-        pickle.loads(pickle.dumps(exc))
-    except Exception:
-        text = "".join(traceback.format_exception(exc)).rstrip()
-        return RuntimeError(f"in an isolated process:\n{text}")
-    return exc
-
-
-def _isolated(chunk: Chunk, flats: Sequence[int]) -> Iterator[Measured]:
-    """The outcomes of trials `flats` of the chunk's build, in order, run in child processes:
-    one makes them in turn, and a new one goes on after a trial whose process dies or that
-    takes longer than the watchdog (an interruptible trial, or each run of a contract trial).
-    An error the trial raises in the caller's code (the problem set) is raised here."""
-    if not flats:
-        return
-    memory = mmap.mmap(-1, _NOTE.size)  # anonymous and shared with the forks
-    watchdog = chunk.watchdog
-    position = 0
-    progress = _Progress(chunk, flats[0])
-    while True:
-        target = partial(_measuring, chunk, flats, position, progress.begin, memory)
-        process = Child(target)
-        lost = ""
-        try:
-            since = _time.monotonic()
-            while not lost:
-                gone = process.gone  # then whatever it sent before it went is read below
-                messages = process.receive(
-                    min(0.05, max(0.0, since + watchdog - _time.monotonic()))
-                )
-                for kind, *data in messages:
-                    if kind == "raised":
-                        raise data[0]
-                    if kind == "value":
-                        yield progress.measured(data[0])
-                        position += 1
-                        if position == len(flats):
-                            return
-                        progress = _Progress(chunk, flats[position])
-                        since = _time.monotonic()
-                    elif kind == "ran":
-                        progress.ran(*data)
-                        since = _time.monotonic()  # each contract run has its watchdog
-                if messages:
-                    continue
-                if gone:
-                    lost = died(process.exit_code)
-                elif _time.monotonic() - since >= watchdog:
-                    lost = f"watchdog: no answer after {watchdog:g} s of wall time"
-        finally:
-            process.end()
-        done = progress.lost(lost, _NOTE.unpack_from(memory, 0))
-        if done is not None:
-            yield done
-            position += 1
-            if position == len(flats):
-                return
-            progress = _Progress(chunk, flats[position])
-
-
-class _Progress:
-    """What the caller has of the isolated trial under way (see `_isolated`)."""
-
-    def __init__(self, chunk: Chunk, flat: int) -> None:
-        self.chunk, self.flat = chunk, flat
-        self.time = chunk.grid.time
-        # A contract trial: the grid index it goes on from (after a lost run), its row, and
-        # each finished (or lost) run's failures, overrun and step.
-        self.begin = 0
-        self.row = _empty_row(self.time)
-        self.runs: dict[int, tuple[Failures, int, float]] = {}
-
-    def ran(
-        self, j: int, row: tuple[float, bool, float], failed: Failures, overran: int, past: float
-    ) -> None:
-        quality, scored, reported = row
-        if scored:
-            self.row.record(j, quality, reported)
-        self.runs[j] = (failed, overran, past)
-
-    def measured(self, value: Measured) -> Measured:
-        """The trial's outcome, from what the last process measured (`value`: a contract
-        trial's runs from `begin` on) and the runs before."""
-        if self.begin == 0:
-            return value
-        b = self.begin
-        row = self.row  # the runs before `begin`, and from it on the last process's
-        row.quality[b:], row.scored[b:], row.reported[b:] = (part[b:] for part in value.row)
-        before = [self.runs[j] for j in range(b)]
-        return Measured(
-            (row.quality, row.scored, row.reported),
-            value.finished,
-            [f for run_failed, _, _ in before for f in run_failed] + value.failed,
-            sum(overran for _, overran, _ in before) + value.overruns,
-            max([value.step, *(past for _, _, past in before)]),
-        )
-
-    def lost(self, reason: str, note: tuple[float, ...]) -> Measured | None:
-        """The trial's process died, or the watchdog ended it, with `note` in the shared
-        memory (see `_NOTE`): its outcome, or None for a contract trial that goes on at its
-        next grid time."""
-        failed = [(reason, "")]
-        start, now, count, last, step = note
-        elapsed = now - start  # as far as its clock's reports of work say
-        if self.chunk.module.kind != "interruptible":
-            j = max(self.runs, default=-1) + 1  # the run under way (they come in order)
-            if j < len(self.time):  # (else it went after its last run: none is lost)
-                self.runs[j] = (failed, 0, elapsed - float(self.time[j]))
-                j += 1
-            self.begin = j
-            if self.begin < len(self.time):
-                return None
-            runs = [self.runs[i] for i in range(len(self.time))]
-            return Measured(
-                (self.row.quality, self.row.scored, self.row.reported),
-                float(self.time[-1]),
-                [f for run_failed, _, _ in runs for f in run_failed],
-                sum(overran for _, overran, _ in runs),
-                max([0.0, *(past for _, _, past in runs)]),
-            )
-        end = max(elapsed, last)
-        allocation = float(self.time[-1])
-        finished = end if end < allocation else allocation
-        return Measured(self._replayed(int(count)), finished, failed, 0, max(step, end - last))
-
-    def _replayed(self, count: int) -> tuple[Array, NDArray[np.bool_], Array]:
-        """The row of an interruptible trial whose process died after registering `count`
-        results: the trial run again in a child of its own up to its `count`-th result, and
-        scored there (no result at any time if it registered none, or if the replay dies too,
-        as a run whose crash does not come from its instance may)."""
-        if count > 0:
-            replay = partial(_replay, self.chunk, self.flat)
-            [value] = list(calls(replay, [count], watchdog=self.chunk.watchdog))
-            if not isinstance(value, Lost):
-                return value  # type: ignore[no-any-return]
-        out = _empty_row(self.time)
-        return out.quality, out.scored, out.reported
-
-
-def _replay(chunk: Chunk, flat: int, count: int) -> tuple[Array, NDArray[np.bool_], Array]:
-    """(In a child process.) Trial `flat` run up to its `count`-th result: its row."""
-    out = _empty_row(chunk.grid.time)
-    _interruptible(_trial(chunk, flat), chunk.grid.time, out, limit=count)
-    return out.quality, out.scored, out.reported
+NOTE = struct.Struct("5d")
+NOW = struct.Struct("d")

@@ -87,14 +87,15 @@ class Drawn:
 
 def reference_step(work: Sequence[float], tail: float, allocation: float) -> float:
     """The step of one run of `gaps` as the builder defines it, computed independently: the
-    gaps between the moments it gives control back, up to the first yield past the allocation
-    (which ends the run), else to its return. (Its stretch after its last result is one tick,
+    gaps between the moments it gives control back, up to the first yield at or past the
+    allocation (which ends the run, as `run` ends a run at a result registered at its
+    allocation), else to its return. (Its stretch after its last result is one tick,
     so a return right after the tick that spent its time counts that tick: the same gap.)"""
     clock, moments = 0.0, [0.0]
     for amount in work:
         clock += amount
         moments.append(clock)
-        if clock > allocation:
+        if clock >= allocation:
             return float(max(np.diff(moments)))
     return float(max([*np.diff(moments), tail]))
 
