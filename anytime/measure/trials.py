@@ -11,7 +11,7 @@ import math
 import mmap
 import struct
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
@@ -287,7 +287,7 @@ class _Trace(Observer):
         self.registered_count = 0
         self.start = self.last = self.step = 0.0  # the start; the last result, the largest gap
 
-    def started(self, module: AnytimeModule, allocation: float) -> Decision:
+    def started(self, module: AnytimeModule, args: Sequence[Any], allocation: float) -> Decision:
         self.start = self.clock.now()
         if self.sender is not None:
             self.sender.started(self.start)

@@ -90,7 +90,9 @@ class Watcher:
     that watches its time (or a contract made interruptible, which starts no contract that
     cannot end in time) ends there by itself."""
 
-    def __init__(self, observer: Observer, module: AnytimeModule, allocation: float) -> None:
+    def __init__(
+        self, observer: Observer, module: AnytimeModule, args: Sequence[Any], allocation: float
+    ) -> None:
         self.observer, self.allocation = observer, allocation
         self.ctx: Context | None = None
         self.best: Result | None = None  # the run's answer so far, kept by the driver
@@ -99,7 +101,7 @@ class Watcher:
         self.look_at = self.stop_at = math.inf
         self.error: BaseException | None = None
         self.pending: float | None = None  # a look came due at this time, at a report of work
-        self.follow(observer.started(module, allocation))
+        self.follow(observer.started(module, args, allocation))
 
     def watch(self, ctx: Context) -> None:
         self.ctx = ctx

@@ -66,7 +66,7 @@ def run(
     caller_stop = given.stop if given.stop is not None else threading.Event()
     watcher = None
     if observer is not None:
-        watcher = Watcher(observer, module, allocation)
+        watcher = Watcher(observer, module, args, allocation)
     try:
         record = _run(module, args, kwargs or {}, allocation, clock, caller_stop, mode, watcher)
     except RunInterrupted as exc:

@@ -19,6 +19,7 @@ process's copy of the observer; `ended` runs in the caller with the record.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 from attrs import field, frozen
@@ -80,9 +81,12 @@ class Observer:
 
     label = "observer"
 
-    def started(self, module: AnytimeModule, allocation: float) -> Decision | None:
-        """Before the module starts, given the run's allocation. An exception raised here
-        reaches the caller of `run` (the observer cannot watch this module)."""
+    def started(
+        self, module: AnytimeModule, args: Sequence[Any], allocation: float
+    ) -> Decision | None:
+        """Before the module starts, with the arguments it is given and the run's allocation.
+        An exception raised here reaches the caller of `run` (the observer cannot watch this
+        module)."""
         return None
 
     def registered(self, elapsed: float, result: Result) -> Decision | None:

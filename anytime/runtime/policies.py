@@ -83,7 +83,9 @@ class Stopping(Observer):
         self.policy, self.log = policy, log
         self.allocation = math.inf
 
-    def started(self, module: AnytimeModule, allocation: float) -> Decision | None:
+    def started(
+        self, module: AnytimeModule, args: Sequence[Any], allocation: float
+    ) -> Decision | None:
         if module.kind != "interruptible":
             raise PolicyError(
                 f"run: a stopping policy needs an interruptible module; '{module.name}' is a"

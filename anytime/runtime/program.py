@@ -58,6 +58,7 @@ from anytime.modules import MISSING, AnytimeModule, Context, Result
 from anytime.profiles.profile import Array
 from anytime.runtime.executor import RunRecord, Status, run
 from anytime.runtime.modes import SOFT, Budget, RunMode, budget_of
+from anytime.runtime.observe import Observer
 
 
 class ExecutionError(AnytimeError, RuntimeError):
@@ -96,6 +97,7 @@ def run_program(
     *,
     adaptive: bool = False,
     mode: RunMode = SOFT,
+    observers: Mapping[str, Observer] | None = None,
 ) -> ProgramRecord:
     """Run `compiled` within `budget` (its total time on its clock, a fresh work clock by
     default; its stop event, when set, interrupts every module), inputs positional or by name
@@ -104,13 +106,14 @@ def run_program(
     `mode` is how each anytime module's call is run (see `anytime.runtime.run`): under
     `Isolated()` a module that crashes or hangs loses its own result only (status `crashed` or
     `failed` in its record), and the program goes on without it, as it does after any failed
-    call.
+    call. `observers` watch the runs of the modules they are named by (see
+    `anytime.runtime.observe`), in every call of the module, in called schemas too.
 
     Raises:
         ExecutionError: the inputs do not match the program's, or a module has no code.
     """
     given = budget_of(budget)
-    execution = _Execution(compiled, inputs, given, adaptive, mode)
+    execution = _Execution(compiled, inputs, given, adaptive, mode, observers or {})
     return execution.run()
 
 
@@ -136,7 +139,7 @@ def run_until(
     `node` (a module's call, not made), and return what that call is given; None when it would
     not be made (an input without a result, an alternative found inapplicable). This is how a
     module is measured on the inputs its program feeds it (`anytime profile --upstream`)."""
-    execution = _Execution(compiled, inputs, Budget(total, clock or WorkClock()), False, SOFT)
+    execution = _Execution(compiled, inputs, Budget(total, clock or WorkClock()), False, SOFT, {})
     target = compiled.model.node(node)
     if not isinstance(target, ModuleNode) or target.callee is not None:
         raise ExecutionError(f"node {node} of schema '{compiled.name}' is not a module's call")
@@ -184,9 +187,10 @@ class _Execution:
         budget: Budget,
         adaptive: bool,
         mode: RunMode,
+        observers: Mapping[str, Observer],
     ) -> None:
         self.compiled, self.model = compiled, compiled.model
-        self.adaptive, self.mode = adaptive, mode
+        self.adaptive, self.mode, self.observers = adaptive, mode, observers
         self.total, self.clock, self.stop = budget.allocation, budget.clock, budget.stop
         program = self.model.program
         self.values = bind_inputs(program.name, program.inputs, inputs)
@@ -204,7 +208,8 @@ class _Execution:
     ) -> RunRecord:
         """A module's call with `share` of the time, in the program's mode."""
         budget = Budget(share, self.clock, self.stop)
-        return run(module, args, kwargs, budget=budget, mode=self.mode)
+        observer = self.observers.get(module.name)
+        return run(module, args, kwargs, budget=budget, mode=self.mode, observer=observer)
 
     def run(self, until: int | None = None) -> ProgramRecord:
         """Run the program's calls in order (up to, not including, node `until` when given)."""
@@ -440,7 +445,12 @@ class _Execution:
         """A called schema or an if's branch, run on this run's clock: one record for the
         call, its own calls' records kept after it."""
         sub = _Execution(
-            compiled, inputs, Budget(given, self.clock, self.stop), self.adaptive, self.mode
+            compiled,
+            inputs,
+            Budget(given, self.clock, self.stop),
+            self.adaptive,
+            self.mode,
+            self.observers,
         ).run()
         self.inner.extend(sub.records)
         return RunRecord(

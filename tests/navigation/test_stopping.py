@@ -34,7 +34,7 @@ def report(program):
 
 def test_the_planners_dynamic_profile_is_shipped(program):
     _, trace = program
-    (dynamic,) = trace.dynamic
+    dynamic = trace.dynamic
     assert dynamic.module == "find-path"
     assert dynamic.observed == "estimate"
     assert dynamic.inputs == ("domain",)

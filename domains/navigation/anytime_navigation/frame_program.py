@@ -10,25 +10,23 @@ from typing import Any
 
 import attrs
 import numpy as np
-from attrs import field, frozen
 
 from anytime import (
     AnytimeLibrary,
-    Budget,
     CompiledProgram,
     LibraryEntry,
+    Observer,
+    RunRecord,
     Status,
     Stopping,
     StoppingPolicy,
     compile_file,
-    run,
 )
-from anytime.plugin import AnytimeModule, Context, Result, tabulate
+from anytime.plugin import AnytimeModule, Clock, Result, tabulate
 from anytime.plugin.compose import EventLog, VisionHyperbola, default_time_grid
 
 from .resources import data_file, load_schema_file
 from .vision import Q_A, T_A, T_B
-from .world import Position
 
 __all__ = ["SCHEMA_FILE", "PlanTrace", "navigation_library", "navigation_program"]
 
@@ -64,49 +62,75 @@ def _stand_in_profiles() -> dict[str, Any]:
 PolicyMaker = Callable[[float, float], StoppingPolicy]
 
 
-@frozen
-class PlanTrace:
-    """What the traced planner saw in its last run: the map it was given and the quality of
-    each plan it yielded, with the program time (since the program started) of each.
+class PlanTrace(Observer):
+    """The planner's observer in a frame's program run (`run_program(..., observers=
+    {"find-path": trace})`): the quality of each plan it registered, at program times (since
+    the program started, `reset`), and, under a stopping policy (`stop_with`), the policy's
+    decisions at program times (`decisions`) and the program time at which it stopped the
+    planner (`stopped`; None: it did not). `dynamic` is the planner's dynamic profile, when
+    the library has one."""
 
-    For a run under a stopping policy (`stop_with`): the policy's decisions, at program times
-    (`decisions`), and the program time at which it stopped the planner (`stopped`; empty: it
-    did not). `dynamic` holds the planner's dynamic profile when the library has one."""
+    label = "stopping policy"
 
-    domain: list[Any] = field(factory=list)
-    qualities: list[tuple[float, float]] = field(factory=list)
-    origin: list[float] = field(factory=list)
-    dynamic: list[Any] = field(factory=list)
-    policy: list[PolicyMaker] = field(factory=list)
-    decisions: EventLog = field(factory=EventLog)
-    stopped: list[float] = field(factory=list)
+    def __init__(self, dynamic: Any = None) -> None:
+        self.dynamic = dynamic
+        self.qualities: list[tuple[float, float]] = []
+        self.decisions = EventLog()
+        self.stopped: float | None = None
+        self.policy: PolicyMaker | None = None
+        self._clock: Clock | None = None
+        self._origin = self._began = 0.0
+        self._stopping: Stopping | None = None
 
-    def reset(self, start: float) -> None:
-        self.domain.clear()
+    def reset(self, clock: Clock) -> None:
+        """A program run starts now on `clock`: forget the last one."""
+        self._clock, self._origin = clock, clock.now()
         self.qualities.clear()
-        self.origin[:] = [start]
         self.decisions.events.clear()
-        self.stopped.clear()
+        self.stopped = None
 
     def stop_with(self, make: PolicyMaker | None) -> None:
         """Run the planner under the policy `make` builds (None: to its allocation)."""
-        self.policy[:] = [] if make is None else [make]
+        self.policy = make
 
-    def quality_at(self, elapsed: float) -> float:
-        """The best plan's quality at `elapsed` into the program (0 before the first plan)."""
-        best = 0.0
-        for t, q in self.qualities:
-            if t <= elapsed + 1e-9:
-                best = q
-        return best
+    def started(self, module: AnytimeModule, args: Sequence[Any], allocation: float) -> Any:
+        clock = self._clock
+        self._began = 0.0 if clock is None else clock.now() - self._origin
+        self._stopping = None
+        if self.policy is None:
+            return None
+        domain = args[2]  # find-path(start, goal, domain)
+        policy = self.policy(float(domain.quality), self._began)
+        self._stopping = Stopping(policy, _Shifted(self.decisions, self._began))
+        return self._stopping.started(module, args, allocation)
+
+    def registered(self, elapsed: float, result: Result) -> None:
+        self.qualities.append((self._began + elapsed, float(result.quality)))
+
+    def look(self, elapsed: float, best: Result | None) -> Any:
+        return None if self._stopping is None else self._stopping.look(elapsed, best)
+
+    def ended(self, record: RunRecord) -> None:
+        if self._stopping is not None and record.status == Status.STOPPED:
+            self.stopped = self._began + record.time_used
+
+
+class _Shifted:
+    """An event log that records at program times what is recorded at planner times."""
+
+    def __init__(self, log: EventLog, shift: float) -> None:
+        self.log, self.shift = log, shift
+
+    def record(self, time: float, kind: str, data: Any) -> None:
+        self.log.record(self.shift + time, kind, data)
 
 
 def navigation_library(
     profile_dirs: Sequence[str | Path] = (), *, warn: Callable[[str], None] | None = None
 ) -> tuple[AnytimeLibrary, PlanTrace]:
     """The library `navigate` is compiled against: the navigation plugin's two modules with
-    their measured profiles (analytic stand-ins when those cannot be read, with a warning),
-    `find-path` wrapped so that its plans' qualities are recorded in the returned trace."""
+    their measured profiles (analytic stand-ins when those cannot be read, with a warning), and
+    the planner's observer (`PlanTrace`, with its dynamic profile when there is one)."""
     from . import modules as nav
 
     base = AnytimeLibrary.default(profile_dirs=profile_dirs, plugins=False)
@@ -122,58 +146,18 @@ def navigation_library(
                 warn(f"{str(error).splitlines()[0]}; using an analytic stand-in profile")
             profile = stand_ins[module.name]
         assert profile is not None
-        function = module.function
         if module.name == "find-path":
-            function = _traced(module, trace)
-            trace.dynamic[:] = [] if entry.dynamic_profile is None else [entry.dynamic_profile]
+            trace.dynamic = entry.dynamic_profile
         library.add(
             LibraryEntry.of_module(
                 attrs.evolve(
                     module,
-                    function=function,
                     profile_source=profile,
                     inputs=tuple(profile.inputs) if profile.inputs else module.inputs,
                 )
             )
         )
     return library, trace
-
-
-def _traced(module: AnytimeModule, trace: PlanTrace) -> Callable[..., Any]:
-    """`module`'s function recording its plans' qualities in `trace`; under a policy (see
-    `PlanTrace.stop_with`) the planner is run by the runtime executor with that policy, and its
-    best plan is yielded when the policy stops it."""
-
-    def recorded(ctx: Context, start: Position, goal: Position, domain: Result) -> Any:
-        origin = trace.origin[0] if trace.origin else ctx.start
-        for result in module.function(ctx, start, goal, domain):
-            trace.qualities.append((ctx.clock.now() - origin, float(result.quality)))
-            yield result
-
-    watched = attrs.evolve(module, function=recorded)
-
-    def find_path(ctx: Context, start: Position, goal: Position, domain: Result) -> Any:
-        trace.domain[:] = [domain]
-        if not trace.policy:
-            yield from recorded(ctx, start, goal, domain)
-            return
-        began = ctx.clock.now() - (trace.origin[0] if trace.origin else ctx.start)
-        policy = trace.policy[0](float(domain.quality), began)
-        log = EventLog()
-        record = run(
-            watched,
-            (start, goal, domain),
-            budget=Budget(ctx.remaining, clock=ctx.clock, stop=ctx.stop),
-            observer=Stopping(policy, log),
-        )
-        for event in log:  # at program times, as the trace's qualities
-            trace.decisions.record(began + event.time, event.kind, event.data)
-        if record.status == Status.STOPPED:
-            trace.stopped[:] = [began + record.time_used]
-        if record.result is not None:
-            yield record.result
-
-    return find_path
 
 
 def navigation_program(

@@ -200,7 +200,7 @@ class _TaskRun:
         else:
             self.contracts = grid
         self.model = TaskModel(task, profile)
-        if policy == "stopping" and not trace.dynamic:
+        if policy == "stopping" and trace.dynamic is None:
             raise ValueError(NO_DYNAMIC_PROFILE)
         self.log = EventLog()
         self.chooser = Monitor(
@@ -295,7 +295,7 @@ class _TaskRun:
         map of `quality` and starting at program time `began`: optimal stopping over its
         dynamic profile, with the task model's utility (`FromPlannerStart`)."""
         shifted = FromPlannerStart(self.model, began)
-        dynamic = self.trace.dynamic[0]
+        dynamic = self.trace.dynamic
         return OptimalStopping(dynamic, shifted, shifted, state, input_quality=(quality,))
 
     def plan(
@@ -321,21 +321,25 @@ class _TaskRun:
             movement=world.movement,
         )
         started = self.run_clock.now()
-        self.trace.reset(started)
+        self.trace.reset(self.run_clock)
         if self.policy == "stopping":
             self.trace.stop_with(lambda quality, began: self.stopper(state, quality, began))
         inputs = [position, world.goal, sensor]
         try:
-            result = run_program(
-                self.compiled, inputs, Budget(contract, clock=self.run_clock)
-            ).result
+            ran = run_program(
+                self.compiled,
+                inputs,
+                Budget(contract, clock=self.run_clock),
+                observers={"find-path": self.trace},
+            )
         finally:
             self.trace.stop_with(None)
         spent = self.run_clock.now() - started
         for event in self.trace.decisions:
             self.log.record(state.now + event.time, event.kind, {**event.data, "frame": index})
         allocation = self.compiled.allocation_at(list(self.input_quality or ()), contract)
-        domain = self.trace.domain[0] if self.trace.domain else None
+        result = ran.result
+        domain = next((r.result for r in ran.records if r.module == "get-domain-description"), None)
         new_known = np.array(known, dtype=bool)
         if domain is not None and domain.value is not None:
             x0, y0, x1, y1 = window
@@ -349,7 +353,7 @@ class _TaskRun:
             known=new_known,
             spent=spent,
             trace=tuple(self.trace.qualities),
-            stopped=self.trace.stopped[0] if self.trace.stopped else None,
+            stopped=self.trace.stopped,
         )
 
     def planning_time(self, decision: Any, planned: _Planned) -> float:
