@@ -9,7 +9,17 @@ import anytime
 
 @pytest.mark.parametrize(
     "module",
-    ["anytime", "anytime.compiler", "anytime.dsl", "anytime.profiles", "anytime.measure.builder"],
+    [
+        "anytime",
+        "anytime.compiler",
+        "anytime.dsl",
+        "anytime.profiles",
+        "anytime.measure.builder",
+        "anytime.plugin",
+        "anytime.plugin.cli",
+        "anytime.plugin.figures",
+        "anytime.plugin.compose",
+    ],
 )
 def test_every_name_in_all_resolves(module: str) -> None:
     mod = importlib.import_module(module)
