@@ -49,7 +49,6 @@ import anytime_estimation as estimation  # noqa: E402
 from anytime_survey import PLUGIN as SURVEY  # noqa: E402
 from anytime_survey import Plot, quality  # noqa: E402
 
-
 SIZE = 128
 SEED_BASE = 10_000  # worlds apart from the profile builder's (which draws from SeedSequence)
 

@@ -103,18 +103,30 @@ def _copy(value: Any) -> Any:
         return _UNCOPIED
 
 
-def _equal(a: Any, b: Any) -> bool | None:
-    """Whether `a` and `b` are equal by their own equality, arrays (in lists, tuples and
-    dicts too) element by element."""
+def _equal(a: Any, b: Any, seen: set[tuple[int, int]] | None = None) -> bool:
+    """Whether `a` and `b` (a value as it was registered, and a copy of it) are equal: by
+    their own equality where their class defines one, arrays element by element, and lists,
+    tuples, dicts and plain objects (whose equality is identity) part by part."""
+    seen = set() if seen is None else seen
+    if (id(a), id(b)) in seen:  # a cycle: compared on the way in
+        return True
+    seen.add((id(a), id(b)))
     if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
         return bool(np.array_equal(a, b, equal_nan=_floating(a) and _floating(b)))
     if isinstance(a, list | tuple) and isinstance(b, list | tuple):
-        return type(a) is type(b) and len(a) == len(b) and all(map(_equal, a, b))
+        return (
+            type(a) is type(b)
+            and len(a) == len(b)
+            and all(_equal(x, y, seen) for x, y in zip(a, b, strict=True))
+        )
     if isinstance(a, dict) and isinstance(b, dict):
-        return a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
+        return a.keys() == b.keys() and all(_equal(a[k], b[k], seen) for k in a)
+    plain = getattr(type(a), "__eq__", None) is getattr(object, "__eq__", None)
+    if type(a) is type(b) and plain and hasattr(a, "__dict__"):
+        return _equal(vars(a), vars(b), seen)
     try:
         return bool(a == b)
-    except Exception:  # an equality that cannot answer: not checked
+    except Exception:  # an equality that cannot answer (arrays inside): not checked
         return True
 
 

@@ -25,14 +25,12 @@ from anytime.runtime.monitor import (
     MonitorEvent,
     ValueModel,
 )
-from anytime.runtime.observe import Observer
+from anytime.runtime.observe import Decision, Observer, PolicyError
 from anytime.runtime.offline import Evaluation, Replay, clairvoyant, evaluate, replay
 from anytime.runtime.policies import (
-    Decision,
     FixedStopping,
     MyopicStopping,
     OptimalStopping,
-    PolicyError,
     ProjectedStopping,
     Stopping,
     StoppingModel,

@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import math
 import threading
+from collections.abc import Callable
+from typing import Any
 
 from attrs import Factory, field, frozen
 
@@ -24,8 +26,8 @@ from anytime.clocks import Clock, WorkClock
 from anytime.isolation import WATCHDOG, IsolationError, Limits
 
 
-def _positive(name: str) -> object:
-    def check(instance: object, attribute: object, value: float) -> None:
+def _positive(name: str) -> Callable[[Any, Any, float], None]:
+    def check(instance: Any, attribute: Any, value: float) -> None:
         if isinstance(value, bool) or not isinstance(value, int | float) or not value > 0:
             raise IsolationError(
                 f"{type(instance).__name__}: {name}: expected a positive"
@@ -49,7 +51,7 @@ class Hard:
         poll: on a clock that is not the wall clock, how often (seconds) the caller looks at it.
     """
 
-    poll: float = field(default=0.001, validator=_positive("poll"))  # type: ignore[arg-type]
+    poll: float = field(default=0.001, validator=_positive("poll"))
 
 
 @frozen
@@ -62,7 +64,7 @@ class Isolated:
         limits: the run's memory and CPU limits, or None.
     """
 
-    watchdog: float = field(default=WATCHDOG, validator=_positive("watchdog"))  # type: ignore[arg-type]
+    watchdog: float = field(default=WATCHDOG, validator=_positive("watchdog"))
     limits: Limits | None = None
 
 

@@ -16,8 +16,8 @@ from attrs import frozen
 from numpy.typing import ArrayLike
 
 from anytime.profiles.profile import Array
+from anytime.runtime.observe import PolicyError
 from anytime.runtime.policies import (
-    PolicyError,
     StoppingModel,
     StoppingPolicy,
     Utility,

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any, Protocol
 
 import numpy as np
@@ -44,7 +44,7 @@ from anytime.modules import AnytimeModule, Result
 from anytime.profiles.dynamic import DynamicProfile, Observed
 from anytime.profiles.profile import Array
 from anytime.runtime.driving import describe
-from anytime.runtime.monitor import TIE_TOLERANCE, CostModel, EventLog, ValueModel, model_answer
+from anytime.runtime.monitor import TIE_TOLERANCE, CostModel, ValueModel, model_answer
 from anytime.runtime.observe import Decision, Observer, PolicyError
 
 # --- decisions and the protocol -------------------------------------------------------------
@@ -72,6 +72,12 @@ class StoppingPolicy(Protocol):
         ...
 
 
+class Log(Protocol):
+    """Where a stopping policy's decisions go: an `EventLog`, or anything that records."""
+
+    def record(self, time: float, kind: str, data: Mapping[str, Any]) -> None: ...
+
+
 class Stopping(Observer):
     """A stopping policy as the observer of one run (`run(..., observer=Stopping(policy, log))`):
     asked before the run and at each look it schedules, with the quality of the run's answer
@@ -79,7 +85,7 @@ class Stopping(Observer):
 
     label = "stopping policy"
 
-    def __init__(self, policy: StoppingPolicy, log: EventLog | None = None) -> None:
+    def __init__(self, policy: StoppingPolicy, log: Log | None = None) -> None:
         self.policy, self.log = policy, log
         self.allocation = math.inf
 
