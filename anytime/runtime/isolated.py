@@ -49,6 +49,7 @@ class _SharedTicks:
         self.ticks = 0.0
         self.ctx: Context | None = None
         self.channel: Channel | None = None
+        self.watcher: Watcher | None = None
 
     def now(self) -> float:
         return self.start + self.ticks
@@ -58,7 +59,8 @@ class _SharedTicks:
         struct.pack_into("d", self._memory, 0, self.ticks)
         ctx = self.ctx
         if ctx is not None and self.channel is not None and late(self.ticks, ctx.allocation):
-            self.channel.send(("crossed", self.ticks))
+            looks = 0 if self.watcher is None else self.watcher.looks
+            self.channel.send(("crossed", self.ticks, looks))
             while True:  # the caller answers and ends this process
                 time.sleep(3600)
 
@@ -116,7 +118,7 @@ def run_isolated(
         child_clock: Clock = clock if ticks is None else ticks
         ctx = context(allocation, child_clock, threading.Event(), watcher)
         if ticks is not None:
-            ticks.ctx, ticks.channel = ctx, channel
+            ticks.ctx, ticks.channel, ticks.watcher = ctx, channel, watcher
         if log is not None:
             watcher.observer.log = _SentLog(channel)  # type: ignore[union-attr]
         slot = _SendingSlot(channel, keeps_latest(module))
@@ -150,7 +152,7 @@ def run_isolated(
                 elif kind == "log" and log is not None:
                     log.record(*message[1:])
                 elif kind == "crossed":
-                    outcome = _deadline(module, caller_stop)
+                    outcome, looks = _deadline(module, caller_stop), message[2]
                     if watcher is not None and not late(message[1], allocation):
                         outcome = Outcome(Status.STOPPED)  # its observer's stop time came
                 elif kind == "done":
