@@ -25,9 +25,9 @@ lint: $(INSTALLED)
 typecheck: $(INSTALLED)
 	$(BIN)/mypy
 
-# In parallel, one worker per core (pytest-xdist), each test file on one worker (--dist
-# loadfile: a docs page's blocks share their names; module fixtures are built once). To debug
-# serially, run `$(BIN)/pytest` itself (or `make pytest PYTEST_WORKERS=0`).
+# In parallel, one worker per core (pytest-xdist); each file's tests on one worker, in order,
+# but for a few long files (conftest.py's SPREAD). To debug, run `$(BIN)/pytest` itself: it
+# runs serially (or `make pytest PYTEST_WORKERS=0`).
 PYTEST_WORKERS ?= auto
 pytest: $(INSTALLED)
 	$(BIN)/pytest -n $(PYTEST_WORKERS) --dist loadfile
@@ -57,7 +57,7 @@ $(INSTALLED): pyproject.toml domains/navigation/pyproject.toml domains/routing/p
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev]' -e domains/navigation \
 		-e 'domains/routing[measure]'
-	$(BIN)/python -c 'from anytime_navigation.planner import compile_searches; compile_searches()'
+	$(BIN)/python -c 'from anytime_navigation.planning.planner import compile_searches; compile_searches()'
 	touch $@
 
 clean:

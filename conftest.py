@@ -37,6 +37,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
+import pytest
 from sybil import Document, Example, Region, Sybil
 from sybil.parsers.markdown import CodeBlockParser, PythonCodeBlockParser, SkipParser
 from sybil.parsers.markdown.lexers import RawFencedCodeBlockLexer
@@ -214,3 +215,28 @@ pytest_collect_file = Sybil(
     setup=setup,
     teardown=teardown,
 ).pytest()
+
+
+# --- parallel runs ---------------------------------------------------------------------------
+
+#: Files of long, independent tests that `make test` spreads over its workers (see below).
+SPREAD = frozenset({"tests/routing/test_routing.py"})
+
+
+@pytest.hookimpl(optionalhook=True)  # a pytest-xdist hook: unknown without it (-p no:xdist)
+def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
+    """Under pytest-xdist's `--dist loadfile` (what `make test` runs), the tests of one file run
+    on one worker, in file order (a page's blocks share their names; a module's fixtures are
+    built once), but the tests of a file of `SPREAD` are scheduled one by one, so that one long
+    file does not keep one worker busy after the others are done. The largest files start first,
+    the spread tests last."""
+    if config.getvalue("dist") != "loadfile":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class Scheduling(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            path = nodeid.split("::", 1)[0]
+            return nodeid if path in SPREAD else path
+
+    return Scheduling(config, log)
