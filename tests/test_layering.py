@@ -82,6 +82,9 @@ def above(*allowed: str) -> tuple[str, ...]:
 #: What every layer may import (`LOWEST` below, and `files`, which imports only `errors`).
 LOWEST_PARTS = ("errors", "text", "vocabulary", "clocks", "files")
 
+#: The library's modules: the library, its entries, and where it finds them.
+LIBRARY = ("library", "entries", "sources")
+
 #: What sits above the measuring layer: nothing below it imports these.
 TOP = ("anytime.cli", "anytime.launch", "anytime.plugin", "anytime.testing")
 
@@ -100,11 +103,20 @@ RULES = [
         "anytime.problems",
         above("problems", "modules", "profiles"),
     ),
-    (
-        "the library imports neither the compiler, the runtime, measure nor the CLI",
-        "anytime.library",
-        ("anytime.compiler", "anytime.runtime", "anytime.measure", "anytime.verification", *TOP),
-    ),
+    *[
+        (
+            f"the library ({part}) imports neither the compiler, the runtime, measure nor the CLI",
+            f"anytime.{part}",
+            (
+                "anytime.compiler",
+                "anytime.runtime",
+                "anytime.measure",
+                "anytime.verification",
+                *TOP,
+            ),
+        )
+        for part in LIBRARY
+    ],
     (
         "the compiler imports neither the runtime, measure nor the CLI",
         "anytime.compiler",
@@ -113,7 +125,7 @@ RULES = [
     (
         "the runtime imports neither measure, the library nor the CLI",
         "anytime.runtime",
-        ("anytime.measure", "anytime.library", "anytime.verification", *TOP),
+        ("anytime.measure", *(f"anytime.{part}" for part in LIBRARY), "anytime.verification", *TOP),
     ),
     (
         "measure imports neither verification nor the CLI",
