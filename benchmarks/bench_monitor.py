@@ -4,7 +4,7 @@ seeded worlds.
     .venv/bin/python benchmarks/bench_monitor.py [--worlds 30] [--size 128] [--quick]
 
 Per policy: mean utility, mean prediction error |U - predicted| / |predicted| and mean utility
-ratio U / clairvoyant bound (definitions in `anytime_navigation.task`). Then, for the monitored
+ratio U / clairvoyant bound (defined in `anytime_navigation.task.model`). Then, for the monitored
 policy, the worlds it predicts worst: what the robot walked and spent there, and the monitor's
 prediction of the whole task's utility frame by frame (`FrameRecord.predicted_utility`), which
 shows when it found out. For the `stopping` policy (the monitor's contract as an upper bound,
@@ -22,9 +22,9 @@ import argparse
 import time
 
 import numpy as np
-from anytime_navigation.frame_program import navigation_program
-from anytime_navigation.frames import run_task
-from anytime_navigation.task import NavigationTask, TaskReport
+from anytime_navigation.task.frame_program import navigation_program
+from anytime_navigation.task.frames import run_task
+from anytime_navigation.task.model import NavigationTask, TaskReport
 from anytime_navigation.world import random_world
 
 from anytime.runtime.monitor import DeadlineValue

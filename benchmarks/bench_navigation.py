@@ -61,12 +61,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from anytime_navigation.abstraction import Pyramid
-from anytime_navigation.components import Components
-from anytime_navigation.execution import Execution, execute, plan_quality, waypoints
 from anytime_navigation.movingai import MapError, Scenario, load_problems
-from anytime_navigation.planner import DEFAULT_TOP, MultiPath, atp, compile_searches
-from anytime_navigation.search import find_path
+from anytime_navigation.planning.abstraction import Pyramid
+from anytime_navigation.planning.components import Components
+from anytime_navigation.planning.planner import DEFAULT_TOP, MultiPath, atp, compile_searches
+from anytime_navigation.planning.search import find_path
+from anytime_navigation.task.execution import Execution, execute, plan_quality, waypoints
 from anytime_navigation.world import SQRT2, BoolGrid, Position, random_world
 from attrs import frozen
 from tables import machine, table  # benchmarks/tables.py: a script's own folder is on sys.path

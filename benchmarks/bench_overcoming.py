@@ -33,8 +33,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).parent))
-from anytime_navigation.overcoming import Encounter  # noqa: E402
-from anytime_navigation.overcoming_modules import (  # noqa: E402
+from anytime_navigation.obstacles.overcoming import Encounter  # noqa: E402
+from anytime_navigation.obstacles.overcoming_modules import (  # noqa: E402
     MODULES,
     can_wait,
     left_clear,

@@ -30,9 +30,9 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-from anytime_navigation.execution import execute, optimal_length, plan_quality
 from anytime_navigation.resources import load_schema_file
-from anytime_navigation.vision import Sensor
+from anytime_navigation.task.execution import execute, optimal_length, plan_quality
+from anytime_navigation.task.vision import Sensor
 from anytime_navigation.world import random_world
 from tables import machine, table
 

@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from anytime_navigation.abstraction import Pyramid, cell_bounds, project
+from anytime_navigation.planning.abstraction import Pyramid, cell_bounds, project
 from hypothesis import given
 from hypothesis import strategies as st
 

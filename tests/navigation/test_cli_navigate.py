@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from anytime_navigation.frames import NO_DYNAMIC_PROFILE
+from anytime_navigation.task.frames import NO_DYNAMIC_PROFILE
 from conftest import Cli
 
 from anytime.plot import MISSING_MATPLOTLIB

@@ -10,10 +10,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from anytime_navigation.components import Components
 from anytime_navigation.movingai import load_map
+from anytime_navigation.planning.components import Components
+from anytime_navigation.planning.search import SearchLimit, find_path
 from anytime_navigation.resources import data_file
-from anytime_navigation.search import SearchLimit, find_path
 from grid_moves import draw_free_pair, legal_moves  # tests/navigation/grid_moves.py
 from hypothesis import given, settings
 from hypothesis import strategies as st

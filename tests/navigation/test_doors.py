@@ -9,9 +9,9 @@ import math
 
 import numpy as np
 import pytest
-from anytime_navigation.components import Components
-from anytime_navigation.doors import CROSSING
-from anytime_navigation.search import SearchLimit
+from anytime_navigation.planning.components import Components
+from anytime_navigation.planning.doors import CROSSING
+from anytime_navigation.planning.search import SearchLimit
 from grid_moves import draw_free_pair, legal_moves  # tests/navigation/grid_moves.py
 from hypothesis import given, settings
 from hypothesis import strategies as st

@@ -10,8 +10,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from anytime_navigation.abstraction import Pyramid, cell_bounds, project
-from anytime_navigation.execution import (
+from anytime_navigation.movingai import load_problems
+from anytime_navigation.planning.abstraction import Pyramid, cell_bounds, project
+from anytime_navigation.planning.planner import MultiPath, Segment, atp, segmentize
+from anytime_navigation.planning.search import find_path
+from anytime_navigation.resources import data_file
+from anytime_navigation.task.execution import (
     Execution,
     execute,
     optimal_length,
@@ -19,11 +23,7 @@ from anytime_navigation.execution import (
     route_length,
     waypoints,
 )
-from anytime_navigation.movingai import load_problems
-from anytime_navigation.planner import MultiPath, Segment, atp, segmentize
-from anytime_navigation.resources import data_file
-from anytime_navigation.search import find_path
-from anytime_navigation.vision import prior_map, sense
+from anytime_navigation.task.vision import prior_map, sense
 from anytime_navigation.world import BoolGrid, Position, World, random_world, reachable
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st

@@ -7,8 +7,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from anytime_navigation import abstraction, execution, planner, vision, world
+from anytime_navigation import world
 from anytime_navigation.figures import draw_plan, plot_plan, plot_refinement
+from anytime_navigation.planning import abstraction, planner
+from anytime_navigation.task import execution, vision
 
 from anytime.modules import Context, Result
 from anytime.plot import new_figure

@@ -10,10 +10,10 @@ import subprocess
 import sys
 
 import pytest
-from anytime_navigation.crossing import simulate
-from anytime_navigation.obstacles import random_obstacles
-from anytime_navigation.overcoming_modules import schema_decider
-from anytime_navigation.search import find_path
+from anytime_navigation.obstacles.crossing import simulate
+from anytime_navigation.obstacles.moving import random_obstacles
+from anytime_navigation.obstacles.overcoming_modules import schema_decider
+from anytime_navigation.planning.search import find_path
 from anytime_navigation.world import random_world
 
 

@@ -7,9 +7,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from anytime_navigation.execution import Execution
 from anytime_navigation.resources import data_file
-from anytime_navigation.vision import Sensor
+from anytime_navigation.task.execution import Execution
+from anytime_navigation.task.vision import Sensor
 from anytime_navigation.world import random_world
 
 from anytime import AnytimeLibrary, compile_file, load_schemas

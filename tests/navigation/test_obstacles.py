@@ -2,16 +2,16 @@
 
 import numpy as np
 import pytest
-from anytime_navigation.crossing import simulate
-from anytime_navigation.obstacles import MovingObstacle, Plan, Traffic, random_obstacles
-from anytime_navigation.overcoming import (
+from anytime_navigation.obstacles.crossing import simulate
+from anytime_navigation.obstacles.moving import MovingObstacle, Plan, Traffic, random_obstacles
+from anytime_navigation.obstacles.overcoming import (
     ObstacleSituation,
     decide_best,
     obstacle_arrival,
     side_clear,
 )
+from anytime_navigation.planning.search import find_path
 from anytime_navigation.plugin import PLUGIN
-from anytime_navigation.search import find_path
 from anytime_navigation.world import World, random_world
 
 from anytime.clocks import WorkClock

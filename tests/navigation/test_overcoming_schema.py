@@ -10,14 +10,14 @@ import sys
 
 import numpy as np
 import pytest
-from anytime_navigation.obstacles import MovingObstacle, Plan, Traffic
-from anytime_navigation.overcoming import (
+from anytime_navigation.obstacles.moving import MovingObstacle, Plan, Traffic
+from anytime_navigation.obstacles.overcoming import (
     Candidate,
     ObstacleSituation,
     encounter_at,
     obstacle_arrival,
 )
-from anytime_navigation.overcoming_modules import (
+from anytime_navigation.obstacles.overcoming_modules import (
     PROBLEM_SETS,
     SCHEMA_FILE,
     Attempt,

@@ -8,11 +8,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from anytime_navigation.abstraction import Pyramid, project
-from anytime_navigation.components import Components
-from anytime_navigation.execution import execute, optimal_length, plan_quality
 from anytime_navigation.movingai import load_map
-from anytime_navigation.planner import (
+from anytime_navigation.planning.abstraction import Pyramid, project
+from anytime_navigation.planning.components import Components
+from anytime_navigation.planning.planner import (
     DEFAULT_TOP,
     MultiPath,
     Segment,
@@ -21,6 +20,7 @@ from anytime_navigation.planner import (
     segmentize,
 )
 from anytime_navigation.resources import data_file
+from anytime_navigation.task.execution import execute, optimal_length, plan_quality
 from anytime_navigation.world import random_world
 
 from anytime.modules import Context, Result

@@ -31,7 +31,7 @@ def test_a_plan_imports_them() -> None:
     """The check above would pass if the module names were wrong: planning loads all three."""
     plan = (
         "import sys\n"
-        "from anytime_navigation.planner import compile_searches\n"
+        "from anytime_navigation.planning.planner import compile_searches\n"
         "compile_searches()\n"
         f"print([name for name in {HEAVY!r} if name not in sys.modules])\n"
     )

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from anytime_navigation.movingai import Scenario, load_map, load_scenarios
+from anytime_navigation.planning.search import PathResult, find_path
 from anytime_navigation.resources import data_file
-from anytime_navigation.search import PathResult, find_path
 from anytime_navigation.world import SQRT2
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from anytime_navigation.frame_program import PlanTrace, navigation_program
-from anytime_navigation.frames import _TaskRun, run_task
-from anytime_navigation.task import FrameState, FromPlannerStart, NavigationTask, TaskModel
+from anytime_navigation.task.frame_program import PlanTrace, navigation_program
+from anytime_navigation.task.frames import _TaskRun, run_task
+from anytime_navigation.task.model import FrameState, FromPlannerStart, NavigationTask, TaskModel
 from anytime_navigation.world import random_world
 from hypothesis import given, settings
 from hypothesis import strategies as st

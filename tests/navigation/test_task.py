@@ -7,9 +7,9 @@ import math
 import attrs
 import numpy as np
 import pytest
-from anytime_navigation.frame_program import navigation_program
-from anytime_navigation.frames import run_task
-from anytime_navigation.task import FrameState, NavigationTask, TaskModel, optimal_utility
+from anytime_navigation.task.frame_program import navigation_program
+from anytime_navigation.task.frames import run_task
+from anytime_navigation.task.model import FrameState, NavigationTask, TaskModel, optimal_utility
 from anytime_navigation.world import random_world
 from hypothesis import given, settings
 from hypothesis import strategies as st

@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 import pytest
-from anytime_navigation.vision import (
+from anytime_navigation.task.vision import (
     error_draws,
     fraction_correct,
     prior_map,

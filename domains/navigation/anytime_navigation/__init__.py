@@ -1,18 +1,19 @@
 """The robot-navigation domain of Zilberstein & Russell, the reference plugin.
 
-It registers through the `anytime.plugins` entry point (see pyproject.toml), exactly as a
-third-party plugin would: the entry point names `anytime_navigation.modules`, whose import
-registers the anytime modules; the framework (`anytime`) never imports the domain. The
-domain's subcommands (`anytime plan`, `anytime navigate`) come through the `anytime.commands`
-entry point (`anytime_navigation.cli`), which does not register modules by being imported.
+It is found through the `anytime.plugins` entry point (see pyproject.toml), exactly as a
+third-party plugin would be: the entry point names `anytime_navigation.plugin:PLUGIN`, the
+object that lists the plugin's modules, problem sets, critical events and subcommands
+(`anytime plan`, `anytime navigate`); the framework (`anytime`) never imports the domain.
 
-What is where: the world (`world`: random rectangle worlds with a connectivity guarantee, 4-
-and 8-connected movement) and the MovingAI benchmark loader (`movingai`); the abstraction
-pyramid (`abstraction`); the general path finder (`search`: A*, the papers' baseline); the
-anytime abstract planner (`planner`: the papers' ATP); plan execution and plan quality
-(`execution`); anytime vision (`vision`); the anytime modules with their problem sets
-(`modules`) and measured profiles (`profiles/`); the frame-by-frame task under the monitor
-(`task`); figures (`figures`, `frame_figures`) and the subcommands (`cli`).
+What is where. At the top, the plugin's face and what the whole domain shares: the plugin
+object (`plugin`), the anytime modules with their problem sets (`modules`) and measured
+profiles (`profiles/`), the problems the schemas are promised for (`program_problems`), the
+world (`world`: the grid, positions and moves, random rectangle worlds with a connectivity
+guarantee), the MovingAI benchmark loader (`movingai`), the packaged data (`resources`:
+`schemas/`, `maps/`, `profiles/`), map figures (`figures`) and the subcommands (`cli`). Then,
+by what they do: `planning` (the abstraction pyramid, components and doors, A*, the ATP),
+`task` (vision, plan execution, the task and the monitor's model, the frame loop and its
+figures) and `obstacles` (moving obstacles, overcoming them, crossing the map among them).
 """
 
 __version__ = "0.1.0"

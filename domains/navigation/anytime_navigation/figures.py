@@ -24,9 +24,9 @@ import numpy as np
 from anytime.plugin import Result
 from anytime.plugin.figures import new_figure, save_figure
 
-from .abstraction import cell_bounds
-from .execution import execute, optimal_length, plan_quality
-from .planner import MultiPath
+from .planning.abstraction import cell_bounds
+from .planning.planner import MultiPath
+from .task.execution import execute, optimal_length, plan_quality
 from .world import BoolGrid, Position
 
 if TYPE_CHECKING:

@@ -34,9 +34,8 @@ from anytime.plugin import (
     interruptible,
 )
 
-from .abstraction import Pyramid, project
-from .execution import Execution, execute, optimal_length, plan_quality
-from .overcoming_modules import (  # the situation "obstacle overcoming": part of the plugin
+# the situation "obstacle overcoming": part of the plugin
+from .obstacles.overcoming_modules import (
     can_wait,
     detour_left,
     detour_right,
@@ -44,9 +43,11 @@ from .overcoming_modules import (  # the situation "obstacle overcoming": part o
     right_clear,
     wait,
 )
-from .planner import MultiPath, Segment, atp, quality_estimate, segmentize
-from .search import SearchLimit, find_path_to_box
-from .vision import (
+from .planning.abstraction import Pyramid, project
+from .planning.planner import MultiPath, Segment, atp, quality_estimate, segmentize
+from .planning.search import SearchLimit, find_path_to_box
+from .task.execution import Execution, execute, optimal_length, plan_quality
+from .task.vision import (
     Q_A,
     DomainDescription,
     Sensor,

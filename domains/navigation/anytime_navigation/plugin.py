@@ -5,9 +5,10 @@ from __future__ import annotations
 
 from anytime.plugin import Plugin
 
-from . import modules, overcoming_modules
+from . import modules
 from .cli import add_commands
-from .overcoming import obstacle_arrival
+from .obstacles import overcoming_modules
+from .obstacles.overcoming import obstacle_arrival
 from .program_problems import PROGRAM_PROBLEMS
 
 __all__ = ["PLUGIN"]

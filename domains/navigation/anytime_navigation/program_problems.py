@@ -23,10 +23,10 @@ from attrs import frozen
 
 from anytime.plugin import Instance, ProgramProblems
 
-from .execution import Execution, execute, optimal_length, plan_quality
 from .modules import PROFILE_SIZE
-from .overcoming_modules import RESOLUTION, Attempt, OvercomingProblems
-from .vision import Sensor
+from .obstacles.overcoming_modules import RESOLUTION, Attempt, OvercomingProblems
+from .task.execution import Execution, execute, optimal_length, plan_quality
+from .task.vision import Sensor
 from .world import random_world
 
 __all__ = ["PROGRAM_PROBLEMS", "EncounterProblems", "WorldProblems"]

@@ -1,5 +1,5 @@
 """`anytime navigate`: run one navigation task frame by frame under a policy (see
-`anytime_navigation.task` for the model and the definitions of the reported quantities)."""
+`anytime_navigation.task.model` for the model and the definitions of the reported quantities)."""
 
 from __future__ import annotations
 
@@ -26,11 +26,11 @@ from anytime.plugin.cli import (
 from anytime.plugin.compose import DeadlineValue
 from anytime.plugin.figures import require_matplotlib
 
-from ..frame_program import navigation_program
-from ..frames import NO_DYNAMIC_PROFILE, run_task
 from ..movingai import MapError, load_map
-from ..obstacles import MovingObstacle, random_obstacles
-from ..task import POLICIES, NavigationTask, TaskReport
+from ..obstacles.moving import MovingObstacle, random_obstacles
+from ..task.frame_program import navigation_program
+from ..task.frames import NO_DYNAMIC_PROFILE, run_task
+from ..task.model import POLICIES, NavigationTask, TaskReport
 from ..world import World, is_power_of_two, random_world, reachable
 from .plan import position
 
@@ -238,7 +238,7 @@ def _outputs(report: TaskReport, task: NavigationTask, out: Path, bars: bool | N
     write_atomic(out / "events.jsonl", report.log.to_jsonl())
     written = [str(out / "events.jsonl")]
     try:
-        from ..frame_figures import write_frames
+        from ..task.frame_figures import write_frames
     except ImportError as error:  # matplotlib is the optional `plot` extra
         print(f"anytime: warning: no figures ({error}); install the 'plot' extra", file=sys.stderr)
         return written

@@ -29,12 +29,12 @@ from anytime.plugin.cli import (
     positive_int,
 )
 
-from ..abstraction import Pyramid
-from ..components import Components
-from ..execution import execute, plan_quality
 from ..movingai import MapError, load_map, load_scenarios
-from ..planner import DEFAULT_TOP, atp
-from ..search import find_path
+from ..planning.abstraction import Pyramid
+from ..planning.components import Components
+from ..planning.planner import DEFAULT_TOP, atp
+from ..planning.search import find_path
+from ..task.execution import execute, plan_quality
 from ..world import BoolGrid, Position, reachable
 
 __all__ = ["Problem", "Solution", "add_command", "run_plan"]

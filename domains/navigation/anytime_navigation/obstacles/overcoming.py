@@ -46,9 +46,9 @@ from numpy.typing import NDArray
 from anytime.plugin import Clock, Context, critical_event
 from anytime.plugin.compose import Deadline, proportional_split
 
-from .obstacles import EPS, LOOKAHEAD, PAIRS_PER_TICK, SAFETY_RADIUS, Plan, Traffic
-from .search import SearchLimit, find_path_to_box
-from .world import Position, World
+from ..planning.search import SearchLimit, find_path_to_box
+from ..world import Position, World
+from .moving import EPS, LOOKAHEAD, PAIRS_PER_TICK, SAFETY_RADIUS, Plan, Traffic
 
 __all__ = [
     "ALTERNATIVES",

@@ -19,10 +19,11 @@ from anytime import Budget, CompiledProgram, OptimalStopping, StoppingPolicy, ru
 from anytime.plugin import Clock, Unit, WorkClock
 from anytime.plugin.compose import Adjustment, EventLog, Monitor
 
+from ..obstacles.moving import MovingObstacle, Plan, Traffic
+from ..world import BoolGrid, Position
 from .execution import execute, optimal_length, route_length
 from .frame_program import PlanTrace
-from .obstacles import MovingObstacle, Plan, Traffic
-from .task import (
+from .model import (
     MIN_QUALITY,
     POLICIES,
     FrameRecord,
@@ -34,7 +35,6 @@ from .task import (
     optimal_utility,
 )
 from .vision import Sensor
-from .world import BoolGrid, Position
 
 __all__ = ["NO_DYNAMIC_PROFILE", "WallTicks", "run_task"]
 
@@ -218,7 +218,7 @@ class _TaskRun:
         self.run_clock = _make_clock(clock, compiled, task)
         self.traffic = Traffic(world, self.obstacles) if self.obstacles else None
         if self.traffic is not None and overcome is None:
-            from .overcoming_modules import schema_decider
+            from ..obstacles.overcoming_modules import schema_decider
 
             overcome = schema_decider()
         self.overcome = overcome
@@ -369,7 +369,7 @@ class _TaskRun:
         """Follow `cells` from `start` at `speed`, then stand on the last until `hold`, deciding
         around the obstacles on the way: the cells moved through, the time at the end, and the
         alternatives chosen."""
-        from .crossing import collisions, follow
+        from ..obstacles.crossing import collisions, follow
 
         assert self.traffic is not None
         traffic, counts = self.traffic, self.counts

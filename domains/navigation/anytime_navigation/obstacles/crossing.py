@@ -14,7 +14,8 @@ from attrs import frozen
 from anytime.plugin import Clock, WorkClock
 from anytime.plugin.compose import deadline_from
 
-from .obstacles import EPS, LOOKAHEAD, SAFETY_RADIUS, MovingObstacle, Plan, Traffic
+from ..world import Position, World
+from .moving import EPS, LOOKAHEAD, SAFETY_RADIUS, MovingObstacle, Plan, Traffic
 from .overcoming import (
     Decide,
     Decision,
@@ -22,7 +23,6 @@ from .overcoming import (
     decide_best,
     obstacle_arrival,
 )
-from .world import Position, World
 
 __all__ = ["Followed", "SimulationReport", "collisions", "evade", "follow", "simulate"]
 

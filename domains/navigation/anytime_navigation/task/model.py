@@ -65,8 +65,8 @@ from attrs import Factory, field, frozen
 from anytime.plugin import ConditionalPerformanceProfile
 from anytime.plugin.compose import Array, DeadlineValue, EventLog
 
-from .obstacles import MovingObstacle
-from .world import BoolGrid, Position, World
+from ..obstacles.moving import MovingObstacle
+from ..world import BoolGrid, Position, World
 
 __all__ = [
     "POLICIES",

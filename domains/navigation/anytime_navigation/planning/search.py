@@ -32,7 +32,7 @@ import numpy as np
 import numpy.typing as npt
 from attrs import frozen
 
-from .world import SQRT2
+from ..world import SQRT2
 
 __all__ = ["PathResult", "SearchLimit", "find_path", "find_path_to_box"]
 

@@ -25,7 +25,7 @@ from anytime import (
 from anytime.plugin import AnytimeModule, Clock, Result, tabulate
 from anytime.plugin.compose import EventLog, VisionHyperbola, default_time_grid
 
-from .resources import data_file, load_schema_file
+from ..resources import data_file, load_schema_file
 from .vision import Q_A, T_A, T_B
 
 __all__ = ["SCHEMA_FILE", "PlanTrace", "navigation_library", "navigation_program"]
@@ -131,7 +131,7 @@ def navigation_library(
     """The library `navigate` is compiled against: the navigation plugin's two modules with
     their measured profiles (analytic stand-ins when those cannot be read, with a warning), and
     the planner's observer (`PlanTrace`, with its dynamic profile when there is one)."""
-    from . import modules as nav
+    from .. import modules as nav
 
     base = AnytimeLibrary.default(profile_dirs=profile_dirs, plugins=False)
     stand_ins = _stand_in_profiles()

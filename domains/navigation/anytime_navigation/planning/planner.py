@@ -44,10 +44,10 @@ from attrs import field, frozen
 
 from anytime.plugin import Context, Result
 
+from ..world import BoolGrid, Position
 from .abstraction import Pyramid, project
 from .components import Components, NodePath
 from .search import SearchLimit, find_path
-from .world import BoolGrid, Position
 
 #: The level of the first plan by default: blocks of 8 x 8 cells (measured on the MovingAI maps of
 #: every kind, benchmarks/bench_navigation.py: coarser first plans confine the refinements to
@@ -568,7 +568,7 @@ def compile_searches() -> None:
     (`corridor_search`) into its on-disk cache, or loads them from it: otherwise the first plan
     of a process pays that (tens of seconds the first time after an install, about a second
     from the cache). `make` runs it once after installing."""
-    from .world import random_world
+    from ..world import random_world
 
     for movement in (4, 8):
         world = random_world(64, seed=0, movement=movement)

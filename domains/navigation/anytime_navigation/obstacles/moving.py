@@ -26,7 +26,7 @@ import numpy as np
 from attrs import field, frozen
 from numpy.typing import NDArray
 
-from .world import BoolGrid, Position, World
+from ..world import BoolGrid, Position, World
 
 __all__ = ["MovingObstacle", "Plan", "Traffic", "random_obstacles"]
 

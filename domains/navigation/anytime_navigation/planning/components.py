@@ -40,9 +40,9 @@ import numpy as np
 from attrs import field, frozen
 from numpy.typing import NDArray
 
+from ..world import BoolGrid, Position, is_power_of_two, move_distance
 from .doors import Doors
 from .search import SearchLimit, compiled
-from .world import BoolGrid, Position, is_power_of_two, move_distance
 
 __all__ = ["Components", "Level", "NodePath"]
 

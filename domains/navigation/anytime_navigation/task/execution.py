@@ -65,10 +65,10 @@ from attrs import frozen
 
 from anytime.plugin import Context
 
-from .abstraction import cell_bounds
-from .planner import MultiPath
-from .search import find_path, find_path_to_box
-from .world import SQRT2, BoolGrid, Position, reachable
+from ..planning.abstraction import cell_bounds
+from ..planning.planner import MultiPath
+from ..planning.search import find_path, find_path_to_box
+from ..world import SQRT2, BoolGrid, Position, reachable
 
 __all__ = [
     "Execution",

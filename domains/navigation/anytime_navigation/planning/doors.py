@@ -36,8 +36,8 @@ import numpy as np
 from attrs import frozen
 from numpy.typing import NDArray
 
+from ..world import Position, move_distance
 from .search import SearchLimit, compiled
-from .world import Position, move_distance
 
 __all__ = ["CROSSING", "Doors"]
 

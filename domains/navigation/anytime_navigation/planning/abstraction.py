@@ -19,7 +19,7 @@ import numpy as np
 from attrs import field, frozen
 from numpy.typing import NDArray
 
-from .world import BoolGrid, Position, is_power_of_two
+from ..world import BoolGrid, Position, is_power_of_two
 
 FloatGrid = NDArray[np.float64]
 Anchor = Literal["corner", "centre"]

@@ -72,7 +72,10 @@ from anytime.plugin import (
 )
 from anytime.plugin.compose import Deadline, deadline_from
 
-from .obstacles import Plan, Traffic, random_obstacles
+from ..planning.search import find_path
+from ..resources import data_file, load_schema_file
+from ..world import random_world
+from .moving import Plan, Traffic, random_obstacles
 from .overcoming import (
     ALTERNATIVES,
     DETOUR_WIDTH,
@@ -86,9 +89,6 @@ from .overcoming import (
     obstacle_arrival,
     side_clear,
 )
-from .resources import data_file, load_schema_file
-from .search import find_path
-from .world import random_world
 
 __all__ = [
     "PROBLEM_SETS",
@@ -185,19 +185,19 @@ def _attempt(index: int, ctx: Context, encounter: Encounter) -> Result:
     return Result(Attempt(alternative.name, candidate), quality)
 
 
-@contract("detour-left", inputs=[], profile="profiles/detour-left.yaml")
+@contract("detour-left", inputs=[], profile="../profiles/detour-left.yaml")
 def detour_left(ctx: Context, situation: Encounter) -> Result:
     """A detour on the left of the conflict: A* in a box, one tick per expansion."""
     return _attempt(0, ctx, situation)
 
 
-@contract("detour-right", inputs=[], profile="profiles/detour-right.yaml")
+@contract("detour-right", inputs=[], profile="../profiles/detour-right.yaml")
 def detour_right(ctx: Context, situation: Encounter) -> Result:
     """A detour on the right of the conflict: A* in a box, one tick per expansion."""
     return _attempt(1, ctx, situation)
 
 
-@contract("wait", inputs=[], profile="profiles/wait.yaml")
+@contract("wait", inputs=[], profile="../profiles/wait.yaml")
 def wait(ctx: Context, situation: Encounter) -> Result:
     """Wait in the branch cell for the fewest steps that make the plan conflict-free."""
     return _attempt(2, ctx, situation)

@@ -34,7 +34,8 @@ from numpy.typing import NDArray
 
 from anytime.plugin import Context, Result
 from anytime.plugin.compose import VisionHyperbola
-from anytime_navigation.world import BoolGrid, World
+
+from ..world import BoolGrid, World
 
 FloatGrid = NDArray[np.float64]
 

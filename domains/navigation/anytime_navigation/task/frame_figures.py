@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 if TYPE_CHECKING:
-    from .task import NavigationTask, TaskReport
+    from .model import NavigationTask, TaskReport
 
 __all__ = ["write_frames"]
 
@@ -76,7 +76,7 @@ def write_frames(
     from anytime.plugin.cli import atomic_path
     from anytime.plugin.figures import new_figure, save_figure
 
-    from .figures import draw_plan
+    from ..figures import draw_plan
 
     out = Path(out)
     truth = np.asarray(task.world.blocked, dtype=bool)
