@@ -101,7 +101,7 @@ def _exception_classes() -> list[type[BaseException]]:
 #: KeyboardInterrupts of a user's stop (SIGTERM to the command; an interrupted run carrying its
 #: record to the caller).
 SIGNALS = {
-    "anytime_navigation.search.SearchLimit",
+    "anytime_navigation.planning.search.SearchLimit",
     "anytime.compiler.evaluate._Sample",
     "anytime.launch.Terminated",
     "anytime.runtime.records.RunInterrupted",
