@@ -162,8 +162,11 @@ def within_sampling_error(z: Array) -> None:
 
 
 def z_scores(compiled: Any, quality: list[float], seed: int) -> Array:
-    """Per total of the table: (promised - realised) / se over `RUNS` simulated runs (0 where
-    every run gives the same quality and the promise is that quality, inf where it is not)."""
+    """Per total of the table: (promised - realised) / se over `RUNS` simulated runs. Where
+    every run gave the same quality, 0 if the promise is within what outcomes none of the runs
+    met could add (an outcome of probability p is missed by all of them with probability
+    (1 - p)^RUNS: below 5e-5 for p = 10 / RUNS, each moving the quality by at most 1), else
+    inf."""
     rng = np.random.default_rng(seed)
     cell = (-1,) * len(quality)
     z = []
@@ -171,7 +174,7 @@ def z_scores(compiled: Any, quality: list[float], seed: int) -> Array:
         runs = simulate(compiled, quality, total, RUNS, rng)
         gap = compiled.expected[(*cell, j)] - runs.mean()
         se = runs.std(ddof=1) / np.sqrt(RUNS)
-        z.append(gap / se if se > 1e-12 else (0.0 if abs(gap) < 1e-9 else np.inf))
+        z.append(gap / se if se > 1e-12 else (0.0 if abs(gap) <= 10 / RUNS else np.inf))
     return np.asarray(z)
 
 
