@@ -12,6 +12,7 @@ import struct
 import threading
 import time
 from collections.abc import Mapping, Sequence
+from functools import partial
 from typing import Any
 
 from anytime.clocks import Clock, Unit
@@ -112,31 +113,12 @@ def run_isolated(
     watchdog = mode.watchdog
     ticks = _SharedTicks(clock.now()) if clock.unit != "seconds" else None
     start = clock.now()
-    log = None if watcher is None else getattr(watcher.observer, "log", None)
-
-    def child(channel: Channel) -> None:
-        child_clock: Clock = clock if ticks is None else ticks
-        ctx = context(allocation, child_clock, threading.Event(), watcher)
-        if ticks is not None:
-            ticks.ctx, ticks.channel, ticks.watcher = ctx, channel, watcher
-        if log is not None:
-            watcher.observer.log = _SentLog(channel)  # type: ignore[union-attr]
-        slot = _SendingSlot(channel, keeps_latest(module))
-        try:
-            outcome = drive(module, ctx, args, kwargs, slot, watcher)
-        except BaseException as exc:  # a result that could not be sent, or the like
-            outcome = failure(exc)
-        looks = 0 if watcher is None else watcher.looks
-        channel.send(("done", outcome.status, outcome.error, outcome.traceback, looks))
-
-    slot = Slot(threaded=False, latest=keeps_latest(module))
-    looks = 0
-    outcome: Outcome | None = None
-    exit_code: int | None = None
+    side = _CallerSide(module, allocation, caller_stop, watcher)
+    child = partial(_child, module, args, kwargs, allocation, clock, ticks, watcher)
     began = time.monotonic()
     process = Child(child, mode.limits)
     try:
-        while outcome is None:
+        while side.outcome is None:
             # Whether it had gone before this read: a child that has gone is crashed only once
             # everything it sent before it went is read (it may send its last results, and
             # even "done", after a read and before the next look).
@@ -145,54 +127,110 @@ def run_isolated(
             if ticks is None:
                 wait = min(wait, max(0.0, allocation - (clock.now() - start)))
             messages = process.receive(wait)
-            for message in messages:
-                kind = message[0]
-                if kind == "result":
-                    slot.offer(message[1])
-                elif kind == "log" and log is not None:
-                    log.record(*message[1:])
-                elif kind == "crossed":
-                    outcome, looks = _deadline(module, caller_stop), message[2]
-                    if watcher is not None and not late(message[1], allocation):
-                        outcome = Outcome(Status.STOPPED)  # its observer's stop time came
-                elif kind == "done":
-                    status, error, trace, looks = message[1:]
-                    if status is Status.FAILED and (error or "").startswith("MemoryError"):
-                        status = Status.CRASHED  # it ran out of the memory it may have
-                    outcome = Outcome(status, error, trace)
-                    break
-            if outcome is not None:
+            if side.take(messages) is not None:
                 break
             if gone and not messages:
-                exit_code = process.exit_code
-                outcome = Outcome(Status.CRASHED, died(exit_code))
+                side.exit_code = process.exit_code
+                side.outcome = Outcome(Status.CRASHED, died(side.exit_code))
             elif gone:
                 continue  # read the rest of what it sent first
             elif caller_stop.is_set():
-                outcome = Outcome(Status.INTERRUPTED)
+                side.outcome = Outcome(Status.INTERRUPTED)
             elif ticks is None and clock.now() - start >= allocation:
-                outcome = _deadline(module, caller_stop)
+                side.outcome = _deadline(module, caller_stop)
             elif time.monotonic() - began >= watchdog:
                 used = ticks.read() if ticks is not None else clock.now() - start
-                outcome = Outcome(
+                side.outcome = Outcome(
                     Status.FAILED,
                     f"watchdog: no answer after {watchdog:g} s of wall time (it had used"
                     f" {used:.6g} of its {allocation:g} {clock.unit})",
                 )
     except KeyboardInterrupt as exc:  # Ctrl-C while the caller waits: end the child, answer
-        outcome = interrupted(exc)
+        side.outcome = interrupted(exc)
     finally:
         used = clock.now() - start if ticks is None else ticks.read()  # the answer's time
         process.end()
     if ticks is not None:
         clock.advance(used)  # the caller's clock moves as if the module had run here
-    if watcher is not None:
-        watcher.looks = looks
-        if outcome.status is Status.INTERRUPTED and watcher.reached(used):
-            outcome = Outcome(Status.STOPPED)
-    best, count = slot.close()
-    record = recorded(module, best, count, outcome, used, allocation, looks, exit_code)
-    return answer(record, outcome)
+    return side.record(used)
+
+
+def _child(
+    module: AnytimeModule,
+    args: Sequence[Any],
+    kwargs: Mapping[str, Any],
+    allocation: float,
+    clock: Clock,
+    ticks: _SharedTicks | None,
+    watcher: Watcher | None,
+    channel: Channel,
+) -> None:
+    """(In the child.) The run, as soft mode runs it, sending what it keeps as it keeps it."""
+    ctx = context(allocation, clock if ticks is None else ticks, threading.Event(), watcher)
+    if ticks is not None:
+        ticks.ctx, ticks.channel, ticks.watcher = ctx, channel, watcher
+    if watcher is not None and getattr(watcher.observer, "log", None) is not None:
+        watcher.observer.log = _SentLog(channel)  # type: ignore[attr-defined]
+    slot = _SendingSlot(channel, keeps_latest(module))
+    try:
+        outcome = drive(module, ctx, args, kwargs, slot, watcher)
+    except BaseException as exc:  # a result that could not be sent, or the like
+        outcome = failure(exc)
+    looks = 0 if watcher is None else watcher.looks
+    channel.send(("done", outcome.status, outcome.error, outcome.traceback, looks))
+
+
+class _CallerSide:
+    """What the caller has of an isolated run: the best of the results the child sent, its
+    observer's looks and log, and how the run ended once it knows."""
+
+    def __init__(
+        self,
+        module: AnytimeModule,
+        allocation: float,
+        caller_stop: threading.Event,
+        watcher: Watcher | None,
+    ) -> None:
+        self.module, self.allocation, self.caller_stop = module, allocation, caller_stop
+        self.watcher = watcher
+        self.log = None if watcher is None else getattr(watcher.observer, "log", None)
+        self.slot = Slot(threaded=False, latest=keeps_latest(module))
+        self.looks = 0
+        self.outcome: Outcome | None = None
+        self.exit_code: int | None = None
+
+    def take(self, messages: Sequence[Any]) -> Outcome | None:
+        """The child's messages, in order: how the run ended, if one of them says."""
+        for message in messages:
+            kind = message[0]
+            if kind == "result":
+                self.slot.offer(message[1])
+            elif kind == "log" and self.log is not None:
+                self.log.record(*message[1:])
+            elif kind == "crossed":
+                self.outcome, self.looks = _deadline(self.module, self.caller_stop), message[2]
+                if self.watcher is not None and not late(message[1], self.allocation):
+                    self.outcome = Outcome(Status.STOPPED)  # its observer's stop time came
+            elif kind == "done":
+                status, error, trace, self.looks = message[1:]
+                if status is Status.FAILED and (error or "").startswith("MemoryError"):
+                    status = Status.CRASHED  # it ran out of the memory it may have
+                self.outcome = Outcome(status, error, trace)
+                break
+        return self.outcome
+
+    def record(self, used: float) -> RunRecord:
+        outcome = self.outcome
+        assert outcome is not None
+        if self.watcher is not None:
+            self.watcher.looks = self.looks
+            if outcome.status is Status.INTERRUPTED and self.watcher.reached(used):
+                outcome = Outcome(Status.STOPPED)
+        best, count = self.slot.close()
+        record = recorded(
+            self.module, best, count, outcome, used, self.allocation, self.looks, self.exit_code
+        )
+        return answer(record, outcome)
 
 
 def _deadline(module: AnytimeModule, caller_stop: threading.Event) -> Outcome:
