@@ -17,7 +17,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from anytime.compiler.allocators import ALLOCATORS, DEFAULT_MEMORY, Exhaustive, dp_obstacle
 from anytime.compiler.allocators.lattice import equal_split
@@ -77,6 +77,41 @@ AUTO_EXHAUSTIVE_PER_CELL = 1_000
 #: The exhaustive reference behind `exhaustive_gap` is run where its allocations times the
 #: bytes of evaluating one (`row_bytes`, a measure of the work) stay below this: a few seconds.
 REFERENCE_WORK = 2 * 10**9
+
+
+def _rows(
+    m: int, q_grid: Array, units: NDArray[np.int64]
+) -> tuple[tuple[int, ...], Array, NDArray[np.int64]]:
+    """The table's cell shape, and one row per cell: the input qualities (rows, m) and the
+    total in lattice units (rows,)."""
+    if m:
+        q_cells = np.stack(np.meshgrid(*([q_grid] * m), indexing="ij"), axis=-1).reshape(-1, m)
+    else:
+        q_cells = np.zeros((1, 0))
+    cell_shape = (len(q_grid),) * m + (len(units),)
+    return cell_shape, np.repeat(q_cells, len(units), axis=0), np.tile(units, len(q_cells))
+
+
+def _gap(
+    evaluator: Evaluator,
+    q_rows: Array,
+    u_rows: NDArray[np.int64],
+    dt: float,
+    cap: int,
+    output: Dist,
+) -> float | None:
+    """How far below the exhaustive optimum the table is at its worst cell, where the
+    exhaustive search is affordable as a reference (None where it is not)."""
+    model = evaluator.model
+    reference = Exhaustive(cap)
+    if not (
+        Exhaustive.computable(u_rows, len(model.anytime_nodes))
+        and Exhaustive.rows(u_rows, len(model.anytime_nodes)) * row_bytes(model) <= REFERENCE_WORK
+        and reference.memory_needed(evaluator, u_rows) <= cap
+    ):
+        return None
+    _, optimum = reference.allocate(evaluator, q_rows, u_rows, dt)
+    return float(np.max(optimum - output.expected()))
 
 
 def compile_program(
@@ -139,14 +174,7 @@ def compile_program(
         return loop_profiles(call, most, np.asarray(lattice, dtype=np.float64), name)
 
     model = build_model(program, library, source, compile_branch, callees, compile_loop)
-    m = len(model.quality_inputs)
-    cell_shape = (len(q_grid),) * m + (len(time),)
-    if m:
-        q_cells = np.stack(np.meshgrid(*([q_grid] * m), indexing="ij"), axis=-1).reshape(-1, m)
-    else:
-        q_cells = np.zeros((1, 0))
-    q_rows = np.repeat(q_cells, len(time), axis=0)
-    u_rows = np.tile(units, len(q_cells))
+    cell_shape, q_rows, u_rows = _rows(len(model.quality_inputs), q_grid, units)
 
     evaluator = Evaluator(model)
     n = len(model.anytime_nodes)
@@ -172,17 +200,7 @@ def compile_program(
         name: expected_in_chunks(evaluator, q_rows, split * dt, cap).reshape(cell_shape)
         for name, split in _baselines(model, u_rows, dt).items()
     }
-    gap = None
-    reference = Exhaustive(cap)
-    if chosen == "exhaustive":
-        gap = 0.0
-    elif (
-        Exhaustive.computable(u_rows, n)
-        and exhaustive_rows * row_bytes(model) <= REFERENCE_WORK
-        and reference.memory_needed(evaluator, u_rows) <= cap
-    ):
-        _, optimum = reference.allocate(evaluator, q_rows, u_rows, dt)
-        gap = float(np.max(optimum - output.expected()))
+    gap = 0.0 if chosen == "exhaustive" else _gap(evaluator, q_rows, u_rows, dt, cap, output)
     profile = _compiled_profile(model, output, q_grid, time, cell_shape)
     return CompiledProgram(
         name=program.name,
