@@ -40,7 +40,7 @@ import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
-from attrs import field, frozen
+from attrs import frozen
 from numpy.typing import NDArray
 
 from anytime.plugin import Clock, Context, critical_event
@@ -109,12 +109,12 @@ class Conflict:
 class Encounter:
     """The argument of the schema `overcome-obstacle` (`schemas/obstacles.any`): everything its
     preconditions and alternatives read, i.e. the situation (the world through the traffic,
-    the traffic, the plan, the time) and the conflict the deadline fixed. `outcomes` collects
-    what each alternative did when it ran (for reports; not part of the value)."""
+    the traffic, the plan, the time) and the conflict the deadline fixed. What each
+    alternative did when it ran is in the program's record (`overcoming_modules.schema_decider`);
+    nothing is written into the encounter."""
 
     situation: ObstacleSituation
     conflict: Conflict
-    outcomes: list[Outcome] = field(factory=list, eq=False, repr=False)
 
     @property
     def traffic(self) -> Traffic:

@@ -57,6 +57,7 @@ from anytime import (
     Budget,
     CompiledProgram,
     LibraryEntry,
+    RunRecord,
     compile_program,
     run_program,
 )
@@ -170,18 +171,8 @@ def can_wait(situation: Encounter) -> bool:
 
 def _attempt(index: int, ctx: Context, encounter: Encounter) -> Result:
     alternative = ALTERNATIVES[index]
-    started = ctx.elapsed
     candidate = alternative.concretise(ctx, encounter.situation, encounter.conflict)
     quality = 0.0 if candidate is None else float(candidate.quality)
-    encounter.outcomes.append(
-        Outcome(
-            alternative.name,
-            True,
-            float(ctx.allocation),
-            ctx.elapsed - started,
-            None if candidate is None else quality,
-        )
-    )
     return Result(Attempt(alternative.name, candidate), quality)
 
 
@@ -284,8 +275,7 @@ class OvercomingProblems:
             if met:
                 encounter = met[int(rng.integers(len(met)))]
                 if all_applicable(encounter):
-                    # a fresh one: a run records its outcome in it
-                    return Instance((Encounter(encounter.situation, encounter.conflict),), None)
+                    return Instance((encounter,), None)
 
     def score(self, instance: Instance, value: Any) -> float:
         if not isinstance(value, Attempt) or value.candidate is None:
@@ -340,8 +330,10 @@ def schema_decider(compiled: CompiledProgram | None = None) -> Decide:
         if left < 1:  # no time to deliberate: no decision (the robot keeps its plan)
             return Decision(deadline.computed_at, deadline.t_d, taken, None)
         applicable = [left_clear(encounter), right_clear(encounter), can_wait(encounter)]
-        result = run_program(program, [encounter], Budget(float(left), clock=clock)).result
-        ran = {o.name: o for o in encounter.outcomes}
+        record = run_program(program, [encounter], Budget(float(left), clock=clock))
+        result = record.result
+        names = {a.name for a in ALTERNATIVES}
+        ran = {r.module: _outcome(r) for r in record.records if r.module in names}
         outcomes = tuple(
             ran.get(a.name, Outcome(a.name, ok))
             for a, ok in zip(ALTERNATIVES, applicable, strict=True)
@@ -358,3 +350,12 @@ def schema_decider(compiled: CompiledProgram | None = None) -> Decide:
         )
 
     return decide
+
+
+def _outcome(record: RunRecord) -> Outcome:
+    """What an alternative's run gave, from its record: its share of T_d, the ticks it took,
+    its candidate's quality (None: no candidate)."""
+    attempt = None if record.result is None else record.result.value
+    found = isinstance(attempt, Attempt) and attempt.candidate is not None
+    quality = float(record.result.quality) if found and record.result is not None else None
+    return Outcome(record.module, True, float(record.allocation), float(record.time_used), quality)

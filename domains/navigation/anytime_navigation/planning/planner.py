@@ -72,7 +72,6 @@ __all__ = [
     "compile_searches",
     "quality_estimate",
     "segmentize",
-    "worst_segment",
 ]
 
 
@@ -206,26 +205,11 @@ def segmentize(position: Position, top: int) -> tuple[Segment, ...]:
 
 
 def _score(level: int, obstacleness: float) -> float:
-    return (1 << level) * (1.0 + obstacleness)
-
-
-def worst_segment(plan: MultiPath, pyramid: Pyramid) -> int | None:
-    """WORST-SEGMENT: the index of the route segment to refine, or None when none is refinable.
-
-    Score of a segment at level k > 0 with mean obstacleness o over its cells:
+    """WORST-SEGMENT's score of a segment at level k > 0 with mean obstacleness o over its cells:
     `2^k * (1 + o)`. The level dominates (a segment one level higher scores at least as much
-    unless the lower one is fully blocked), and within a level the most blocked one wins. Ties go
-    to the earliest segment. (`atp` keeps the scores in a heap instead of rescanning the plan;
-    its ties go to the segment created first.)
-    """
-    best, best_score = None, -1.0
-    for i, segment in enumerate(plan.segments):
-        if segment.level == 0:
-            continue
-        score = _score(segment.level, _mean_obstacleness(segment, pyramid))
-        if score > best_score:
-            best, best_score = i, score
-    return best
+    unless the lower one is fully blocked), and within a level the most blocked one wins (`atp`
+    keeps the scores in a heap, `_Worst`; ties go to the segment created first)."""
+    return (1 << level) * (1.0 + obstacleness)
 
 
 def _credit(segment: Segment, obstacleness: float, top: int) -> tuple[float, float]:
@@ -356,36 +340,20 @@ def atp(
     except SearchLimit as stopped:  # the deadline came before the first plan
         ctx.tick(stopped.expansions)
         return
-    # WORST-SEGMENT as a heap of (-score, creation order, segment, its mean obstacleness),
-    # stale entries skipped; the quality estimate as running sums: no rescan of the plan per
-    # refinement.
-    order = itertools.count()
-    live: set[int] = set()
-    heap: list[tuple[float, int, Segment, float]] = []
-    sums = [0.0, 0.0]
-
-    def add(segment: Segment, o: float) -> None:
-        extent, credit = _credit(segment, o, pyramid.top)
-        sums[0] += extent
-        sums[1] += credit
-        if segment.level > 0:
-            live.add(id(segment))
-            heapq.heappush(heap, (-_score(segment.level, o), next(order), segment, o))
+    worst = _Worst(pyramid.top)
 
     def begin(path: NodePath) -> tuple[list[Segment], MultiPath]:
-        """The plan of a top-level route, the heap and the sums made for it."""
-        live.clear()
-        heap.clear()
-        sums[:] = [0.0, 0.0]
+        """The plan of a top-level route, WORST-SEGMENT's heap and the estimate made for it."""
+        worst.clear()
         made = planner.segments(top, path.nodes, _runs(len(path.nodes) - 1, segment_moves))
         for segment, o in made:
-            add(segment, o)
+            worst.add(segment, o)
         route = [segment for segment, _ in made]
         ends = segmentize(start, top), segmentize(goal, top)[::-1]
         return route, MultiPath(start, goal, ends[0], tuple(route), ends[1], components)
 
     segments, plan = begin(found)
-    yield Result(plan, _clip(sums[1] / sums[0]))
+    yield Result(plan, worst.quality())
     if doors and top > 0:
         try:
             rerouted = planner.through_doors(top, found)
@@ -394,30 +362,80 @@ def atp(
             return
         if rerouted is not None:
             segments, plan = begin(rerouted)
-            yield Result(plan, _clip(sums[1] / sums[0]))
+            yield Result(plan, worst.quality())
     while not ctx.expired:
-        while heap and id(heap[0][2]) not in live:
-            heapq.heappop(heap)
-        if not heap:
+        popped = worst.pop()
+        if popped is None:
             return
-        _, _, old, old_obstacleness = heapq.heappop(heap)
-        live.discard(id(old))
+        old, old_obstacleness = popped
         index = next(i for i in range(len(segments)) if segments[i] is old)
         try:
             new = planner.refine(segments, index)
         except SearchLimit as stopped:  # the deadline came mid-refinement: keep the last plan
             ctx.tick(stopped.expansions)
             return
-        extent, credit = _credit(old, old_obstacleness, pyramid.top)
-        sums[0] -= extent
-        sums[1] -= credit
+        worst.remove(old, old_obstacleness)
         for segment, o in new:
-            add(segment, o)
+            worst.add(segment, o)
         segments[index : index + 1] = [segment for segment, _ in new]
         head = plan.head[:-1] if index == 0 else plan.head
         tail = plan.tail[1:] if index == len(segments) - len(new) else plan.tail
         plan = MultiPath(start, goal, head, tuple(segments), tail, components)
-        yield Result(plan, 1.0 if not live else _clip(sums[1] / sums[0]))
+        yield Result(plan, 1.0 if worst.refined else worst.quality())
+
+
+class _Worst:
+    """WORST-SEGMENT and the quality estimate kept up to date as `atp` refines: a heap of
+    (-score, creation order, segment, its mean obstacleness) over the plan's refinable
+    segments, stale entries skipped, and the estimate's two sums (`quality_estimate`), so that
+    no refinement rescans the plan."""
+
+    def __init__(self, top: int) -> None:
+        self.top = top
+        self.order = itertools.count()
+        self.live: set[int] = set()
+        self.heap: list[tuple[float, int, Segment, float]] = []
+        self.extent = 0.0
+        self.credit = 0.0
+
+    def clear(self) -> None:
+        self.live.clear()
+        self.heap.clear()
+        self.extent = self.credit = 0.0
+
+    def add(self, segment: Segment, o: float) -> None:
+        """A segment of mean obstacleness `o` enters the plan."""
+        extent, credit = _credit(segment, o, self.top)
+        self.extent += extent
+        self.credit += credit
+        if segment.level > 0:
+            self.live.add(id(segment))
+            heapq.heappush(self.heap, (-_score(segment.level, o), next(self.order), segment, o))
+
+    def remove(self, segment: Segment, o: float) -> None:
+        """A segment popped for refinement leaves the estimate."""
+        extent, credit = _credit(segment, o, self.top)
+        self.extent -= extent
+        self.credit -= credit
+
+    def pop(self) -> tuple[Segment, float] | None:
+        """The worst refinable segment and its mean obstacleness (out of the heap), or None
+        when none is left."""
+        while self.heap and id(self.heap[0][2]) not in self.live:
+            heapq.heappop(self.heap)
+        if not self.heap:
+            return None
+        _, _, segment, o = heapq.heappop(self.heap)
+        self.live.discard(id(segment))
+        return segment, o
+
+    @property
+    def refined(self) -> bool:
+        """Whether no segment is left to refine (the plan is at the base level)."""
+        return not self.live
+
+    def quality(self) -> float:
+        return _clip(self.credit / self.extent)
 
 
 def _runs(moves: int, most: int | None) -> list[tuple[int, int]]:

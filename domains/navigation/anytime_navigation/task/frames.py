@@ -142,10 +142,27 @@ class _Planned:
     stopped: float | None = None
 
 
+@frozen
+class _Counts:
+    """Among moving obstacles: the decisions made, the ticks in collision, the reflex evasions."""
+
+    decisions: int = 0
+    collisions: int = 0
+    evasions: int = 0
+
+    def __add__(self, other: _Counts) -> _Counts:
+        return _Counts(
+            self.decisions + other.decisions,
+            self.collisions + other.collisions,
+            self.evasions + other.evasions,
+        )
+
+
 @define
 class _Executed:
     """One frame's execution: the cells walked, its time and energy, the speed at its end, the
-    intra-frame adjustments, and the alternatives chosen around obstacles."""
+    intra-frame adjustments, the alternatives chosen around obstacles and what happened among
+    them."""
 
     segment: list[Position]
     time: float
@@ -153,6 +170,7 @@ class _Executed:
     speed: float
     adjustments: list[str]
     choices: Choices
+    counts: _Counts = _Counts()
 
 
 class _TaskRun:
@@ -222,7 +240,6 @@ class _TaskRun:
 
             overcome = schema_decider()
         self.overcome = overcome
-        self.counts = {"decisions": 0, "collisions": 0, "evasions": 0}
         # What the monitor learns frame by frame: the progress per frame, and the detour factor
         # (cells walked over the cells the model predicted for that progress), which starts at
         # 1 with the weight of the start-to-goal distance on the prior map, so that one frame's
@@ -365,39 +382,39 @@ class _TaskRun:
 
     def among_obstacles(
         self, cells: Sequence[Position], start: float, speed: float, hold: float
-    ) -> tuple[list[Position], float, Choices]:
+    ) -> tuple[list[Position], float, Choices, _Counts]:
         """Follow `cells` from `start` at `speed`, then stand on the last until `hold`, deciding
-        around the obstacles on the way: the cells moved through, the time at the end, and the
-        alternatives chosen."""
+        around the obstacles on the way: the cells moved through, the time at the end, the
+        alternatives chosen, and the decisions, collisions and evasions."""
         from ..obstacles.crossing import collisions, follow
 
         assert self.traffic is not None
-        traffic, counts = self.traffic, self.counts
+        traffic = self.traffic
         work = WorkClock()
         work.advance(start)
         plans: list[Plan] = []
         decisions: list[Any] = []
+        evasions = 0
         if len(cells) > 1:
             part = follow(traffic, Plan(start, cells, speed), work, self.overcome, fallback=True)
             plans += part.plans
             decisions += part.decisions
-            counts["evasions"] += len(part.evasions)
+            evasions += len(part.evasions)
         if work.now() < hold - 1e-9:
             steps = max(1, math.ceil((hold - work.now()) * speed))
             standing = Plan(work.now(), [cells[-1]] * (steps + 1), steps / (hold - work.now()))
             part = follow(traffic, standing, work, self.overcome, fallback=True)
             plans += part.plans
             decisions += part.decisions
-            counts["evasions"] += len(part.evasions)
+            evasions += len(part.evasions)
         end = work.now()
-        counts["decisions"] += len(decisions)
-        counts["collisions"] += collisions(traffic, plans, end)
+        counts = _Counts(len(decisions), collisions(traffic, plans, end), evasions)
         moved = _moved(plans, end) if plans else [cells[0]]
         assert moved[-1] == cells[-1]
         choices = tuple(
             (d.chosen, tuple(d.plan.cells)) for d in decisions if d.plan is not None and d.chosen
         )
-        return moved, end, choices
+        return moved, end, choices, counts
 
     def execute_segment(
         self,
@@ -421,10 +438,11 @@ class _TaskRun:
             hold = start
             if following is not None:
                 hold += self.planning_time(*following)
-            walked, finished, choices = self.among_obstacles(segment, start, speed, hold)
+            walked, finished, choices, counts = self.among_obstacles(segment, start, speed, hold)
             length = route_length(walked)
             energy = float(task.energy(speed)) * length
-            return _Executed(walked, finished - start, energy, speed, [], choices), speed_index
+            executed = _Executed(walked, finished - start, energy, speed, [], choices, counts)
+            return executed, speed_index
         t, done, energy = 0.0, 0.0, 0.0
         adjustments: list[str] = []
         if following is not None and n_cells > 0:
@@ -485,7 +503,8 @@ class _TaskRun:
     # --- the task ------------------------------------------------------------------------
 
     def run(self, max_frames: int, on_frame: Callable[[int], object] | None = None) -> TaskReport:
-        world, truth, counts = self.world, self.truth, self.counts
+        world, truth = self.world, self.truth
+        counts = _Counts()  # the whole task's, among moving obstacles
         known = np.zeros_like(truth)
         position = world.start
         now = energy = 0.0
@@ -498,7 +517,8 @@ class _TaskRun:
         planned_at = now
         now += self.planning_time(decision, planned)
         if self.traffic is not None:  # the robot waits for its first plan at the start
-            _, now, _ = self.among_obstacles([position], 0.0, state.speed, now)
+            _, now, _, waited = self.among_obstacles([position], 0.0, state.speed, now)
+            counts += waited
         speed_index = self.speeds.index(state.speed)
 
         while position != world.goal and len(records) < max_frames:
@@ -524,7 +544,6 @@ class _TaskRun:
                 following = (next_decision, next_planned)
             else:  # the last segment: no planning to wait for, the speed is the model's
                 speed_index = self.speeds.index(self.model.last_speed(now, route_length(segment)))
-            frame_counts = dict(counts)
             done, speed_index = self.execute_segment(
                 segment, exec_start, speed_index, following, next_state
             )
@@ -533,6 +552,7 @@ class _TaskRun:
             if following is not None:
                 frame_time = max(done.time, self.planning_time(*following))
             energy += done.energy
+            counts += done.counts
             route.extend(segment[1:])
             known = _touch(known, truth, segment)
             records.append(
@@ -564,8 +584,8 @@ class _TaskRun:
                     if self.traffic is None
                     else self.traffic.at(math.floor(exec_start + done.time)),
                     choices=done.choices,
-                    decisions=counts["decisions"] - frame_counts["decisions"],
-                    collisions=counts["collisions"] - frame_counts["collisions"],
+                    decisions=done.counts.decisions,
+                    collisions=done.counts.collisions,
                     predicted_utility=self.predictions[index],
                     stopped_at=planned.stopped,
                 )
@@ -584,7 +604,7 @@ class _TaskRun:
             state = next_state
             planned = replace(planned, known=_touch(planned.known, truth, segment))
 
-        return self.report(position, now, energy, route, records, predicted)
+        return self.report(position, now, energy, route, records, predicted, counts)
 
     def report(
         self,
@@ -594,6 +614,7 @@ class _TaskRun:
         route: list[Position],
         records: list[FrameRecord],
         predicted: float,
+        counts: _Counts,
     ) -> TaskReport:
         task = self.task
         reached = position == self.world.goal
@@ -622,9 +643,9 @@ class _TaskRun:
             records=tuple(records),
             log=self.log,
             moving_obstacles=len(self.obstacles),
-            decisions=self.counts["decisions"],
-            collisions=self.counts["collisions"],
-            evasions=self.counts["evasions"],
+            decisions=counts.decisions,
+            collisions=counts.collisions,
+            evasions=counts.evasions,
         )
 
 
