@@ -2,7 +2,7 @@
 "Decision-making in real time on the basis of actions planning").
 
 Time is in ticks of the work clock, the world's time: thinking moves it as moving does. The
-robot follows a `Plan` (cells, speed in cells per tick as in `task.py`); it is in cell
+robot follows a `Plan` (cells, speed in cells per tick as in `task.model`); it is in cell
 `cells[floor((t - start) * speed)]` at tick t (a jump model: one cell at a time).
 
 Obstacles. A `MovingObstacle` is an axis-parallel square of side `size` centred at `position`

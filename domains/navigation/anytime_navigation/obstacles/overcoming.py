@@ -1,5 +1,5 @@
 """The situation "obstacle overcoming" (issue 8, part 3; Romanenko, "Decision-making in real
-time on the basis of actions planning"): when a moving obstacle (`obstacles`) will block the
+time on the basis of actions planning"): when a moving obstacle (`moving`) will block the
 robot's plan, decide among alternatives within the time stock the critical event leaves.
 
 When, following its plan, the robot would come within the safety radius of an

@@ -1,4 +1,4 @@
-"""Running a navigation task frame by frame (see `task` for the task, the monitor's model and
+"""Running a navigation task frame by frame (see `model` for the task, the monitor's model and
 the quantities reported): each frame senses and plans with the compiled frame program
 (`frame_program`) under the contract the policy chooses, then executes the plan up to the
 sensor window's edge while the next frame's planning overlaps; with moving obstacles, the
