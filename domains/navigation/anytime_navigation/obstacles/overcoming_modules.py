@@ -74,7 +74,7 @@ from anytime.plugin import (
 from anytime.plugin.compose import Deadline, deadline_from
 
 from ..planning.search import find_path
-from ..resources import data_file, load_schema_file
+from ..resources import data_file, load_schema_file, profile_file
 from ..world import random_world
 from .moving import Plan, Traffic, random_obstacles
 from .overcoming import (
@@ -176,19 +176,19 @@ def _attempt(index: int, ctx: Context, encounter: Encounter) -> Result:
     return Result(Attempt(alternative.name, candidate), quality)
 
 
-@contract("detour-left", inputs=[], profile="../profiles/detour-left.yaml")
+@contract("detour-left", inputs=[], profile=profile_file("detour-left.yaml"))
 def detour_left(ctx: Context, situation: Encounter) -> Result:
     """A detour on the left of the conflict: A* in a box, one tick per expansion."""
     return _attempt(0, ctx, situation)
 
 
-@contract("detour-right", inputs=[], profile="../profiles/detour-right.yaml")
+@contract("detour-right", inputs=[], profile=profile_file("detour-right.yaml"))
 def detour_right(ctx: Context, situation: Encounter) -> Result:
     """A detour on the right of the conflict: A* in a box, one tick per expansion."""
     return _attempt(1, ctx, situation)
 
 
-@contract("wait", inputs=[], profile="../profiles/wait.yaml")
+@contract("wait", inputs=[], profile=profile_file("wait.yaml"))
 def wait(ctx: Context, situation: Encounter) -> Result:
     """Wait in the branch cell for the fewest steps that make the plan conflict-free."""
     return _attempt(2, ctx, situation)
