@@ -35,14 +35,13 @@ from attrs import cmp_using, field, frozen
 from anytime.clocks import WorkClock
 from anytime.compiler.compile import CompiledProgram
 from anytime.errors import AnytimeError
-from anytime.isolation import ISOLATIONS, WATCHDOG, Isolation
 from anytime.measure.progress import ProgressBar
 from anytime.modules import Result
 from anytime.pool import spread
 from anytime.problems import Instance, ProgramProblems, ProgramProblemSet
 from anytime.profiles.profile import Array
 from anytime.runtime.executor import Status
-from anytime.runtime.modes import Budget, Isolated, Soft
+from anytime.runtime.modes import SOFT, Budget, Hard, Isolated, RunMode, Soft
 from anytime.runtime.program import ExecutionError, bind_inputs, run_program
 from anytime.vocabulary import read_only
 
@@ -165,8 +164,7 @@ class _Job:
     totals: tuple[tuple[int, float], ...]  # (index in the table's time grid, total) per check
     runs: int
     entropy: int
-    isolation: Isolation
-    watchdog: float
+    mode: RunMode
 
 
 @frozen(eq=False)
@@ -244,7 +242,7 @@ def _run_one(job: _Job, flat: int) -> _Ran:
             compiled,
             instance.args,
             Budget(total, clock=WorkClock()),
-            mode=Isolated(watchdog=job.watchdog) if job.isolation == "process" else Soft(),
+            mode=job.mode,
         )
     except ExecutionError as exc:
         raise VerifyError(f"schema '{compiled.name}' cannot run ({where}): {exc}") from exc
@@ -303,8 +301,7 @@ def verify(
     executor: Executor | None = None,
     progress: bool | None = None,
     chunk_size: int | None = None,
-    isolation: Isolation = "none",
-    watchdog: float = WATCHDOG,
+    mode: RunMode = SOFT,
     tolerance: float = TOLERANCE,
     sigmas: float = SIGMAS,
 ) -> Verification:
@@ -325,7 +322,8 @@ def verify(
             and the problem set travel with every chunk of runs, so they must pickle.
         progress: draw a progress bar on standard error (None: only on a terminal).
         chunk_size: runs per task; it changes the overhead, never the result.
-        isolation, watchdog: how each module call of a run is run (see `run_program`).
+        mode: how each module call of a run is run (`Soft()`, the default, `Hard()` or
+            `Isolated()`; see `run_program`).
         tolerance, sigmas: a total fails when |realised - promised| > max(tolerance,
             sigmas * se).
 
@@ -336,15 +334,13 @@ def verify(
     plan = problems if isinstance(problems, ProgramProblems) else _wrap(problems)
     totals = _totals(compiled, budgets)
     _check_counts(runs=runs, workers=workers, seed=seed, chunk_size=chunk_size)
-    if isolation not in ISOLATIONS:
-        raise VerifyError(f"isolation: expected 'process' or 'none', got {isolation!r}")
-    if not watchdog > 0:  # NaN too
-        raise VerifyError(f"watchdog: expected a positive number of seconds, got {watchdog!r}")
+    if not isinstance(mode, Soft | Hard | Isolated):
+        raise VerifyError(f"mode: expected Soft(), Hard() or Isolated(), got {mode!r}")
     if not (tolerance >= 0 and sigmas >= 0):
         raise VerifyError(
             f"tolerance and sigmas: expected numbers >= 0, got {tolerance!r} and {sigmas!r}"
         )
-    job = _Job(compiled, plan, totals, runs, int(seed), isolation, float(watchdog))
+    job = _Job(compiled, plan, totals, runs, int(seed), mode)
     count = runs * len(totals)
     if chunk_size is None:
         chunk_size = max(1, min(64, math.ceil(count / max(16, 8 * workers))))

@@ -14,10 +14,12 @@ from conftest import Cli
 
 import anytime.library
 from anytime import AnytimeLibrary, RegistrySource
+from anytime.isolation import Limits
 from anytime.measure.builder import Instance, build_profile, register_problems
 from anytime.modules import AnytimeModule, Context, Registry, Result, contract, interruptible
 from anytime.profiles import tabulate
 from anytime.profiles.io import save_profile
+from anytime.runtime.modes import SOFT, Hard, Isolated, RunMode
 from anytime.testing import (
     CHECKS,
     CatalogueError,
@@ -288,12 +290,33 @@ def test_a_declared_profile_that_disagrees_with_the_behaviour() -> None:
     )
 
 
-@pytest.mark.parametrize("isolation", ["process", "none"])
-def test_numpy_scalar_values_and_contracts_without_a_result_pass(isolation: str) -> None:
+@pytest.mark.parametrize(
+    "mode", [Isolated(), Isolated(limits=Limits(cpu=60)), SOFT], ids=["isolated", "limits", "soft"]
+)
+def test_numpy_scalar_values_and_contracts_without_a_result_pass(mode: RunMode) -> None:
+    # With limits, every run has a process of its own.
     for module in (numpy_counts, halve_or_none):
         problems = Counting() if module.kind == "interruptible" else Halving()
-        report = check_module(module, problems, trials=5, isolation=isolation)  # type: ignore[arg-type]
+        report = check_module(module, problems, trials=5, mode=mode)
         assert report.passed, report.format()
+
+
+@pytest.mark.parametrize(
+    ("mode", "message"),
+    [
+        (
+            Hard(),
+            "mode: Hard() is not for the catalogue: a hard run answers at its deadline whatever"
+            " the module does, which would hide what the deadline and interruption checks test;"
+            " give Soft() or Isolated()",
+        ),
+        ("process", "mode: expected Soft() or Isolated(), got 'process'"),
+    ],
+)
+def test_the_catalogue_refuses_a_mode_it_cannot_check_in(mode: Any, message: str) -> None:
+    with pytest.raises(CatalogueError) as error:
+        check_module(numpy_counts, Counting(), trials=1, mode=mode)
+    assert str(error.value) == message
 
 
 def test_a_module_that_changes_a_registered_value() -> None:
@@ -451,10 +474,8 @@ def test_the_catalogue_checks_on_instances_the_profile_never_saw() -> None:
     """With the same seed as the profile builder it re-measured the very instances the
     profile came from, so "measured agrees with declared" could not fail (difference 0.0)."""
     profiled, checked = Drawn(), Drawn()  # in this process: they record their draws
-    build_profile(
-        good, profiled, time=TIME, input_grids=[QUALITIES], trials=10, seed=0, isolation="none"
-    )
-    check_module(good, checked, trials=10, seed=0, isolation="none")
+    build_profile(good, profiled, time=TIME, input_grids=[QUALITIES], trials=10, seed=0, mode=SOFT)
+    check_module(good, checked, trials=10, seed=0, mode=SOFT)
     assert profiled.draws and checked.draws
     assert not set(profiled.draws) & set(checked.draws)
 

@@ -9,10 +9,12 @@ import pytest
 from conftest import Cli
 
 import anytime.library
+from anytime.measure import builder
 from anytime.measure.builder import Instance, register_problems
 from anytime.modules import Context, Registry, Result, interruptible
 from anytime.profiles import Exponential, tabulate
 from anytime.profiles.io import load_profile, save_profile
+from anytime.runtime.modes import SOFT, Isolated, RunMode
 
 MODULES = Registry()
 
@@ -95,3 +97,29 @@ def test_usage_errors(cli: Cli, argv: list[str], message: str) -> None:
     code, _, err = cli("profile", "halving", *argv)
     assert code == 2
     assert message in err
+
+
+@pytest.mark.parametrize(
+    ("options", "mode"),
+    [
+        ([], Isolated()),
+        (["--watchdog", "5"], Isolated(watchdog=5.0)),
+        (["--isolation", "none"], SOFT),
+    ],
+    ids=["default", "watchdog", "none"],
+)
+def test_isolation_and_watchdog_are_the_builder_s_run_mode(
+    cli: Cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, options: list[str], mode: RunMode
+) -> None:
+    seen: list[RunMode] = []
+    measure = builder.build_profile
+
+    def spy(*args: Any, **kwargs: Any) -> builder.ProfileBuild:
+        seen.append(kwargs["mode"])
+        return measure(*args, **kwargs)
+
+    monkeypatch.setattr(builder, "build_profile", spy)
+    path = tmp_path / "halving.yaml"
+    argv = ["profile", "halving", "--trials", "2", "--no-plugins", "--quiet", "-o", str(path)]
+    code, _, err = cli(*argv, *options)
+    assert (code, err, seen) == (0, "", [mode])

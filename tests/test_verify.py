@@ -243,8 +243,7 @@ def test_a_problem_sets_error_reaches_the_caller_from_a_worker(
         ({"workers": 0}, "workers: expected an integer >= 1, got 0"),
         ({"seed": -1}, "seed: expected an integer >= 0, got -1"),
         ({"chunk_size": 0}, "chunk_size: expected an integer >= 1, got 0"),
-        ({"isolation": "thread"}, "isolation: expected 'process' or 'none', got 'thread'"),
-        ({"watchdog": 0.0}, "watchdog: expected a positive number of seconds, got 0.0"),
+        ({"mode": "process"}, "mode: expected Soft(), Hard() or Isolated(), got 'process'"),
     ],
 )
 def test_bad_arguments(

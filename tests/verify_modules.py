@@ -46,6 +46,7 @@ from anytime.plugin import (
     interruptible,
     tabulate,
 )
+from anytime.runtime.modes import SOFT
 
 SCHEMAS = """
 (defschema fair (x) (polish (guess x) x))
@@ -177,7 +178,7 @@ class Unscored:
 def modules() -> tuple[AnytimeModule, ...]:
     """The modules with their profiles (measured once per process)."""
     measured_guess = build_profile(
-        guess, Guesses(), time=GUESS_TIME, trials=TRIALS, seed=1, isolation="none"
+        guess, Guesses(), time=GUESS_TIME, trials=TRIALS, seed=1, mode=SOFT
     ).profile
     measured_polish = build_profile(
         polish,
@@ -186,7 +187,7 @@ def modules() -> tuple[AnytimeModule, ...]:
         input_grids=[POLISH_QUALITIES],
         trials=TRIALS,
         seed=2,
-        isolation="none",
+        mode=SOFT,
     ).profile
     exact = tabulate(lambda t: np.ones_like(t), GUESS_TIME, kind="contract", module="overrun")
     return (

@@ -14,8 +14,10 @@ from typing import Any
 
 from anytime.errors import InputError as InputError  # defined with the other errors: re-exported
 from anytime.errors import UsageError as UsageError
+from anytime.isolation import ISOLATIONS, WATCHDOG
 from anytime.launch import EXIT_INTERRUPTED as EXIT_INTERRUPTED  # re-exported
 from anytime.library import AnytimeLibrary
+from anytime.runtime.modes import SOFT, Isolated, RunMode
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE = 0, 1, 2
 
@@ -265,6 +267,34 @@ def worker_options(parser: argparse.ArgumentParser, what: str) -> None:
         metavar="ADDRESS",
         help=f"{what} on a Dask cluster (needs the 'dask' extra)",
     )
+
+
+def isolation_options(parser: argparse.ArgumentParser, what: str) -> None:
+    """--isolation and --watchdog: how every `what` (a trial, a run) is run; `run_mode`
+    makes them the one run mode the functions below the command line take."""
+    parser.add_argument(
+        "--isolation",
+        choices=ISOLATIONS,
+        default="process",
+        help=f"run every {what} in a child process of its own (process, the default: a {what}"
+        f" that crashes or hangs fails alone) or in this one (none: faster)",
+    )
+    parser.add_argument(
+        "--watchdog",
+        type=float_in_range(0.001, MAX_WATCHDOG),
+        default=WATCHDOG,
+        metavar="SECONDS",
+        help=f"wall-clock seconds an isolated {what} may take before it counts as failed"
+        f" ({WATCHDOG:g})",
+    )
+
+
+def run_mode(args: argparse.Namespace) -> RunMode:
+    """The run mode of --isolation and --watchdog (see `isolation_options`):
+    `Isolated(watchdog=...)` for process, `SOFT` for none."""
+    if args.isolation == "process":
+        return Isolated(watchdog=args.watchdog)
+    return SOFT
 
 
 def open_library(args: argparse.Namespace) -> AnytimeLibrary:

@@ -10,18 +10,19 @@ from pathlib import Path
 from anytime.cli.common import (
     EXIT_OK,
     MAX_TRIALS,
-    MAX_WATCHDOG,
     MAX_WORKERS,
     InputError,
     UsageError,
     float_in_range,
     int_in_range,
+    isolation_options,
     json_text,
     library_options,
     open_library,
     random_seed,
     refuse_colliding_outputs,
     refuse_overwriting_inputs,
+    run_mode,
     trial_count,
     worker_count,
     worker_options,
@@ -30,7 +31,6 @@ from anytime.cli.schemas import one_schema
 from anytime.compiler.model import CompileError
 from anytime.dsl import load_schemas
 from anytime.files import format_size
-from anytime.isolation import ISOLATIONS, WATCHDOG
 from anytime.library import AnytimeLibrary
 from anytime.measure.builder import (
     ProfileRequest,
@@ -128,7 +128,7 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
         help=f"at most N rounds of measuring and compiling (3; at most {MAX_ROUNDS}); it stops"
         f" when the compiled expectations move by at most {UPSTREAM_TOLERANCE}",
     )
-    _isolation_options(profile, "trial")
+    isolation_options(profile, "trial")
     library_options(profile)
     profile.set_defaults(run=run_profile, usage_error=profile.error)
 
@@ -199,27 +199,9 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     check.add_argument("--json", action="store_true", help="print the report as JSON")
     check.add_argument("--quiet", action="store_true", help="no progress bars")
-    _isolation_options(check, "run")
+    isolation_options(check, "run")
     library_options(check)
     check.set_defaults(run=run_check)
-
-
-def _isolation_options(parser: argparse.ArgumentParser, what: str) -> None:
-    parser.add_argument(
-        "--isolation",
-        choices=ISOLATIONS,
-        default="process",
-        help=f"run every {what} in a child process of its own (process, the default: a {what}"
-        f" that crashes or hangs fails alone) or in this one (none: faster)",
-    )
-    parser.add_argument(
-        "--watchdog",
-        type=float_in_range(0.001, MAX_WATCHDOG),
-        default=WATCHDOG,
-        metavar="SECONDS",
-        help=f"wall-clock seconds an isolated {what} may take before it counts as failed"
-        f" ({WATCHDOG:g})",
-    )
 
 
 def run_profile(args: argparse.Namespace) -> int:
@@ -256,8 +238,7 @@ def run_profile(args: argparse.Namespace) -> int:
         clock=args.clock,
         quiet=args.quiet,
         traces=args.dynamic or args.traces is not None,
-        isolation=args.isolation,
-        watchdog=args.watchdog,
+        mode=run_mode(args),
     )
     build = profile_module(module, request, measurement=library.measurement(module.name))
     written = {"file": output}
@@ -424,8 +405,7 @@ def run_check(args: argparse.Namespace) -> int:
         seed=args.seed,
         workers=args.workers,
         progress=False if args.quiet else None,  # bars on a terminal, unless --quiet
-        isolation=args.isolation,
-        watchdog=args.watchdog,
+        mode=run_mode(args),
     )
     if args.json:
         print(json_text(report.to_dict()))

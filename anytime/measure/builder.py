@@ -24,7 +24,8 @@ the ticks a module reports and does not depend on how busy the machine is.
   a contract module the most a run used past its allocation (0 if none did). It is as
   reproducible as the profile: on the work clock, the same for any workers and chunks.
 - A module that raises (`SystemExit` too), or yields something that is not a `Result`, is a
-  failed run, and so is an isolated run whose process dies or that the watchdog ends. It is
+  failed run, and so is an isolated run whose process dies or that the watchdog ends (see
+  `build_profile`'s `mode`). It is
   scored by what `anytime.runtime.run` keeps of such a run: an interruptible run the last
   result it registered up to each grid time (after the failure, the last one before it; none
   if it failed before its first), a contract run none. Failures are counted and the first
@@ -60,10 +61,9 @@ from attrs import field, frozen
 from numpy.typing import ArrayLike, NDArray
 
 from anytime.errors import AnytimeError, ProfileError
-from anytime.isolation import ISOLATIONS, WATCHDOG, Isolation
 from anytime.measure.chunks import measure_chunk, measure_chunks
 from anytime.measure.progress import ProgressBar
-from anytime.measure.trials import CLOCKS, Chunk, ClockName, Done
+from anytime.measure.trials import CLOCKS, ISOLATED, Chunk, ClockName, Done
 from anytime.modules import AnytimeModule
 from anytime.pool import spread
 from anytime.problems import (
@@ -83,6 +83,7 @@ from anytime.profiles.profile import (
     default_bins,
     new_profile,
 )
+from anytime.runtime.modes import Hard, Isolated, RunMode, Soft
 
 __all__ = [
     "BuildError",
@@ -193,9 +194,9 @@ class ProfileRequest:
         quiet: no progress bar even on a terminal.
         chunk_size: trials per task (default: enough tasks to keep every worker busy).
         traces: keep every trial's quality trace (`ProfileBuild.traces`).
-        isolation: "process" (each trial in a child process; a crash or hang is a failed
-            run) or "none".
-        watchdog: wall-clock seconds an isolated run may take.
+        mode: how the trials run (see `build_profile`): `Isolated(watchdog=...)` (the
+            default: each trial in a child process; a crash or hang is a failed run), `SOFT`
+            or `Hard()`.
     """
 
     trials: int = 100
@@ -206,8 +207,7 @@ class ProfileRequest:
     quiet: bool = False
     chunk_size: int | None = None
     traces: bool = False
-    isolation: Isolation = "process"
-    watchdog: float = WATCHDOG
+    mode: RunMode = ISOLATED
 
 
 def profile_module(
@@ -234,8 +234,7 @@ def profile_module(
             progress=False if request.quiet else None,
             chunk_size=request.chunk_size,
             traces=request.traces,
-            isolation=request.isolation,
-            watchdog=request.watchdog,
+            mode=request.mode,
         )
 
 
@@ -288,8 +287,7 @@ def build_profile(
     progress: bool | None = None,
     chunk_size: int | None = None,
     traces: bool = False,
-    isolation: Isolation = "process",
-    watchdog: float = WATCHDOG,
+    mode: RunMode = ISOLATED,
 ) -> ProfileBuild:
     """Measure `module`'s conditional performance profile on `problems`.
 
@@ -308,20 +306,24 @@ def build_profile(
         chunk_size: trials per task; it changes the overhead, never the result.
         traces: also keep every trial's scored quality at every grid time, and for a module
             that reports an estimate its `Result.quality` there (`ProfileBuild.traces`).
-        isolation: "process" (default) runs the trials in child processes
-            (`anytime.isolation`): a run that crashes its process, or takes longer than
-            `watchdog` seconds of wall time, is a failed run that keeps what it had registered
-            before (see above), and the build goes on; "none" runs them in the worker itself
-            (a little faster, and a module that crashes or hangs takes the build with it).
-        watchdog: the wall-clock seconds one isolated run may take (an interruptible
-            module's trial, or one time of a contract module's).
+        mode: how the trials run (`anytime.runtime.modes`). `Isolated(watchdog=...,
+            limits=...)` (the default) runs them in child processes (`anytime.isolation`),
+            one making a worker's trials in turn: a run that crashes its process, or takes
+            longer than `watchdog` seconds of wall time (an interruptible module's trial, or
+            one time of a contract module's), is a failed run that keeps what it had
+            registered before (see above), and the build goes on; with `limits`, every run has
+            a process of its own (a fork per run) and the limits are each run's. `SOFT` runs
+            them in the worker itself (a little faster, and a module that crashes or hangs
+            takes the build with it). `Hard(poll=...)` runs them there too, each trial's run
+            hard, as `anytime.runtime.run(mode=Hard())` runs it: the profile is what hard runs
+            answer with (a contract run still working at its allocation answers with none;
+            an interruptible run ends at the tick that passes the largest grid time), and the
+            measured step is how late a run answered, not how long the module went on.
     """
     started = _time.perf_counter()
     grid = _check(module, time, input_grids, bins, trials, seed, workers, clock, chunk_size)
-    if isolation not in ISOLATIONS:
-        raise BuildError(f"isolation: expected 'process' or 'none', got {isolation!r}")
-    if not watchdog > 0:  # NaN too
-        raise BuildError(f"watchdog: expected a positive number of seconds, got {watchdog!r}")
+    if not isinstance(mode, Soft | Hard | Isolated):
+        raise BuildError(f"mode: expected Soft(), Hard() or Isolated(), got {mode!r}")
     entropy = int(seed) if seed is not None else secrets.randbits(128)  # as SeedSequence() does
     total = trials * math.prod(grid.cell_shape)
     if chunk_size is None:
@@ -336,8 +338,7 @@ def build_profile(
             trials,
             start,
             min(start + chunk_size, total),
-            isolation,
-            watchdog,
+            mode,
         )
         for start in range(0, total, chunk_size)
     ]

@@ -60,7 +60,6 @@ from attrs import frozen
 from numpy.typing import ArrayLike
 
 from anytime.errors import AnytimeError, ProfileError
-from anytime.isolation import WATCHDOG, Isolation
 from anytime.library import AnytimeLibrary, LibraryEntry
 from anytime.measure.checks import (
     Check,
@@ -74,9 +73,11 @@ from anytime.measure.checks import (
     check_seed,
 )
 from anytime.measure.progress import ProgressBar
+from anytime.measure.trials import ISOLATED
 from anytime.modules import AnytimeModule
 from anytime.problems import BuildError, Grid, ProblemSet, registered_problems
 from anytime.profiles.profile import ConditionalPerformanceProfile
+from anytime.runtime.modes import Hard, Isolated, RunMode, Soft
 
 __all__ = [
     "CHECKS",
@@ -209,8 +210,7 @@ def check_module(
     confidence: float = 0.99,
     workers: int = 1,
     progress: bool | None = False,
-    isolation: Isolation = "process",
-    watchdog: float = WATCHDOG,
+    mode: RunMode = ISOLATED,
 ) -> CatalogueReport:
     """Run the catalogue on `module` (see the module docstring).
 
@@ -230,13 +230,18 @@ def check_module(
             on how many).
         progress: draw progress bars on standard error (the runs, then the profile's trials);
             None: only on a terminal.
-        isolation: "process" (default) makes every run, and every trial of the profile check,
-            in a child process (`anytime.isolation`): a run that crashes its process fails the
-            errors check with how it died, and the catalogue goes on; "none" runs them here.
-        watchdog: wall-clock seconds one isolated run may take before it counts as failed.
+        mode: `Isolated(watchdog=..., limits=...)` (the default) makes every run, and every
+            trial of the profile check, in a child process (`anytime.isolation`): a run that
+            crashes its process fails the errors check with how it died, and one that takes
+            more than `watchdog` seconds of wall time fails it too; the catalogue goes on.
+            With `limits`, every run has a process of its own and the limits are each run's.
+            `SOFT` runs them here. `Hard()` is refused: a hard run answers at its deadline
+            whatever the module does, which would hide what the deadline and interruption
+            checks are there to see.
 
     Raises:
-        CatalogueError: an elementary module, or no grid to run on.
+        CatalogueError: an elementary module, no grid to run on, or a mode that is not
+            `Soft()` or `Isolated()`.
         BuildError: the problem set breaks its contract (as the profile builder reports it).
     """
     if module.kind not in ("interruptible", "contract"):
@@ -248,11 +253,19 @@ def check_module(
         raise CatalogueError(f"trials: expected an integer >= 1, got {trials!r}")
     if not 0 < confidence < 1:
         raise CatalogueError(f"confidence: expected a number between 0 and 1, got {confidence!r}")
+    if isinstance(mode, Hard):
+        raise CatalogueError(
+            "mode: Hard() is not for the catalogue: a hard run answers at its deadline whatever"
+            " the module does, which would hide what the deadline and interruption checks test;"
+            " give Soft() or Isolated()"
+        )
+    if not isinstance(mode, Soft | Isolated):
+        raise CatalogueError(f"mode: expected Soft() or Isolated(), got {mode!r}")
     declared, verdict = _declared(module)
     grid = _grid(module, declared, time, input_grids, registered)
     own = check_seed(seed)
     session = Session(module, problems, grid, trials, own)
-    session.isolation, session.watchdog = isolation, watchdog
+    session.mode = mode
     checks = [check_pickle(module, problems)]
     total = len(session.cells) * trials * (len(grid.time) + 1)
     with ProgressBar(total, label=f"{module.name} checks", unit="runs", enabled=progress) as bar:
@@ -276,8 +289,7 @@ def check_module(
             confidence,
             workers,
             progress,
-            isolation,
-            watchdog,
+            mode,
         )
     assert verdict is not None
     checks.append(verdict)

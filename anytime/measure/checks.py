@@ -18,14 +18,14 @@ import numpy as np
 from attrs import frozen
 
 from anytime.clocks import Unit, WorkClock
-from anytime.isolation import WATCHDOG, Isolation, Lost, calls
+from anytime.isolation import Lost, calls
 from anytime.measure.builder import build_profile
-from anytime.measure.trials import Trial
+from anytime.measure.trials import ISOLATED, Trial
 from anytime.modules import AnytimeModule, Result
 from anytime.problems import Grid, ProblemSet
 from anytime.profiles.profile import Array, ConditionalPerformanceProfile
 from anytime.runtime.executor import RunRecord, Status, run
-from anytime.runtime.modes import Budget
+from anytime.runtime.modes import Budget, Isolated, RunMode, Soft
 from anytime.runtime.observe import Observer
 
 __all__ = [
@@ -201,8 +201,7 @@ class Session:
             for index in np.ndindex(*grid.cell_shape)
         ]
         self.done: Callable[[], object] = lambda: None  # called after every run (progress)
-        self.isolation: Isolation = "process"
-        self.watchdog = WATCHDOG
+        self.mode: Soft | Isolated = ISOLATED  # every run in a child process, or here
 
     def _instances(self) -> Iterator[tuple[int, int, tuple[float, ...], str]]:
         for cell, qualities in enumerate(self.cells):
@@ -262,11 +261,23 @@ class Session:
 
     def _runs(self, specs: list[_Spec]) -> list[_Run]:
         """The runs of `specs`, isolated in child processes unless the session says not: a
-        run whose process dies or hangs is a run that crashed (or failed, on the watchdog)."""
-        if self.isolation == "none":
-            outcomes: Iterator[_Run | Lost] = (self._run(*spec) for spec in specs)
+        run whose process dies or hangs is a run that crashed (or failed, on the watchdog).
+        One process makes the runs in turn; with the mode's limits, each has its own."""
+        mode = self.mode
+
+        def call(spec: _Spec) -> _Run:
+            return self._run(*spec)
+
+        if not isinstance(mode, Isolated):
+            outcomes: Iterator[_Run | Lost] = (call(spec) for spec in specs)
+        elif mode.limits is None:
+            outcomes = calls(call, specs, watchdog=mode.watchdog)
         else:
-            outcomes = calls(lambda spec: self._run(*spec), specs, watchdog=self.watchdog)
+            outcomes = (
+                outcome
+                for spec in specs
+                for outcome in calls(call, [spec], watchdog=mode.watchdog, limits=mode.limits)
+            )
         runs = []
         for spec, outcome in zip(specs, outcomes, strict=True):
             runs.append(self._lost(spec, outcome) if isinstance(outcome, Lost) else outcome)
@@ -468,8 +479,7 @@ def check_profile(
     confidence: float,
     workers: int,
     progress: bool | None = False,
-    isolation: Isolation = "process",
-    watchdog: float = WATCHDOG,
+    mode: RunMode = ISOLATED,
 ) -> Check:
     build = build_profile(
         module,
@@ -481,8 +491,7 @@ def check_profile(
         seed=seed,
         workers=workers,
         progress=progress,
-        isolation=isolation,
-        watchdog=watchdog,
+        mode=mode,
     )
     measured = build.profile
     exact = declared.mean is not None  # else compare what both say with bin representatives

@@ -1,5 +1,6 @@
-"""Measuring chunks of a build's trials: in the builder's process, or isolated (the default)
-in a child process that runs them in turn (`anytime.measure.isolated_trials`)."""
+"""Measuring chunks of a build's trials: isolated (the default, mode `Isolated`) in a child
+process that runs them in turn (`anytime.measure.isolated_trials`), else in the builder's
+process (or worker), each trial's run soft or hard as the mode says."""
 
 from __future__ import annotations
 
@@ -10,13 +11,15 @@ import numpy as np
 
 from anytime.measure.isolated_trials import isolated_outcomes
 from anytime.measure.trials import Chunk, Done, Measured, measured, trial_of
+from anytime.runtime.modes import Isolated
 
 
 def measure_chunk(chunk: Chunk) -> Done:
     """Run one chunk of trials. Isolated (the default), they run in turn in a child process
     (see `isolated_outcomes`): a trial whose process dies, or that takes longer than the
-    watchdog, is a failed trial that keeps what its run had registered before, as
-    `anytime.runtime.run` keeps it, and the next trials go on in a new process."""
+    mode's watchdog, is a failed trial that keeps what its run had registered before, as
+    `anytime.runtime.run` keeps it, and the next trials go on in a new process. Soft or hard,
+    they run here, each trial's run in that mode."""
     return next(measure_chunks([chunk]))
 
 
@@ -28,8 +31,8 @@ def measure_chunks(chunks: Sequence[Chunk]) -> Iterator[Done]:
     first = chunks[0]
     flats = [flat for chunk in chunks for flat in range(chunk.start, chunk.stop)]
     outcomes: Iterator[Measured]
-    if first.isolation == "process":
-        outcomes = isolated_outcomes(first, flats)
+    if isinstance(first.mode, Isolated):
+        outcomes = isolated_outcomes(first, flats, first.mode)
     else:
         outcomes = (measured(first, flat) for flat in flats)
     for chunk in chunks:

@@ -12,6 +12,10 @@ dies, or that the watchdog ends, keeps what `anytime.runtime.run` keeps of such 
 - A contract trial, the runs it finished (each sent to the caller, scored: a few numbers);
   the lost run has no result, and the trial goes on at its next grid time in a new process,
   as separate runs of `run` would.
+
+With `Isolated(limits=...)` every run has a process of its own, as `run` gives it, so that the
+limits are each run's (an interruptible trial's one run, each of a contract trial's runs); the
+limits also cover making the trial's problem, which the child does before the run.
 """
 
 from __future__ import annotations
@@ -42,6 +46,7 @@ from anytime.measure.trials import (
     trial_of,
 )
 from anytime.profiles.profile import Array
+from anytime.runtime.modes import Isolated
 
 
 class _Noting:
@@ -88,18 +93,31 @@ class Sender:
 
 
 def _measuring(
-    chunk: Chunk, flats: Sequence[int], position: int, begin: int, memory: mmap.mmap, out: Channel
+    chunk: Chunk,
+    flats: Sequence[int],
+    position: int,
+    begin: int,
+    memory: mmap.mmap,
+    single: bool,
+    out: Channel,
 ) -> None:
-    """The child: trials `flats[position:]` in turn, the first from grid index `begin` on."""
+    """The child: trials `flats[position:]` in turn, the first from grid index `begin` on;
+    `single`, only one run (the first trial's, or its contract run at `begin`)."""
     sender = Sender(out, memory)
+    times = len(chunk.grid.time)
     for index in range(position, len(flats)):
         sender.run_begins()  # nothing of the trial before is its
+        first = begin if index == position else 0
+        end = first + 1 if single and chunk.module.kind == "contract" else None
         try:
-            value = measured(chunk, flats[index], sender, begin if index == position else 0)
+            value = measured(chunk, flats[index], sender, first, end)
         except BaseException as exc:  # a problem set that breaks its contract, and the like
             out.send(("raised", _portable(exc)))
             return
-        out.send(("value", value))
+        if end is None or end == times:  # the trial is done (else "ran" said what it did)
+            out.send(("value", value))
+        if single:
+            return
 
 
 def _portable(exc: BaseException) -> BaseException:
@@ -112,24 +130,28 @@ def _portable(exc: BaseException) -> BaseException:
     return exc
 
 
-def isolated_outcomes(chunk: Chunk, flats: Sequence[int]) -> Iterator[Measured]:
+def isolated_outcomes(chunk: Chunk, flats: Sequence[int], mode: Isolated) -> Iterator[Measured]:
     """The outcomes of trials `flats` of the chunk's build, in order, run in child processes:
     one makes them in turn, and a new one goes on after a trial whose process dies or that
-    takes longer than the watchdog (an interruptible trial, or each run of a contract trial).
-    An error the trial raises in the caller's code (the problem set) is raised here."""
+    takes longer than the mode's watchdog (an interruptible trial, or each run of a contract
+    trial); with the mode's limits, a new one for every run (see above). An error the trial
+    raises in the caller's code (the problem set) is raised here."""
     if not flats:
         return
     memory = mmap.mmap(-1, NOTE.size)  # anonymous and shared with the forks
-    watchdog = chunk.watchdog
+    watchdog = mode.watchdog
+    single = mode.limits is not None  # a process per run: the limits are each run's
+    last = len(chunk.grid.time) - 1
     position = 0
-    progress = _Progress(chunk, flats[0])
+    progress = _Progress(chunk, flats[0], mode)
     while True:
-        target = partial(_measuring, chunk, flats, position, progress.begin, memory)
-        process = Child(target)
+        target = partial(_measuring, chunk, flats, position, progress.begin, memory, single)
+        process = Child(target, mode.limits)
         lost = ""
+        renew = False  # the process did its one run (`single`): the next goes on in a new one
         try:
             since = _time.monotonic()
-            while not lost:
+            while not lost and not renew:
                 gone = process.gone  # then whatever it sent before it went is read below
                 messages = process.receive(
                     min(0.05, max(0.0, since + watchdog - _time.monotonic()))
@@ -142,11 +164,14 @@ def isolated_outcomes(chunk: Chunk, flats: Sequence[int]) -> Iterator[Measured]:
                         position += 1
                         if position == len(flats):
                             return
-                        progress = _Progress(chunk, flats[position])
+                        progress = _Progress(chunk, flats[position], mode)
                         since = _time.monotonic()
+                        renew = single
                     elif kind == "ran":
                         progress.ran(*data)
                         since = _time.monotonic()  # each contract run has its watchdog
+                        if single and data[0] < last:
+                            progress.begin, renew = data[0] + 1, True
                 if messages:
                     continue
                 if gone:
@@ -155,20 +180,22 @@ def isolated_outcomes(chunk: Chunk, flats: Sequence[int]) -> Iterator[Measured]:
                     lost = f"watchdog: no answer after {watchdog:g} s of wall time"
         finally:
             process.end()
+        if renew:
+            continue
         done = progress.lost(lost, NOTE.unpack_from(memory, 0))
         if done is not None:
             yield done
             position += 1
             if position == len(flats):
                 return
-            progress = _Progress(chunk, flats[position])
+            progress = _Progress(chunk, flats[position], mode)
 
 
 class _Progress:
     """What the caller has of the isolated trial under way (see `isolated_outcomes`)."""
 
-    def __init__(self, chunk: Chunk, flat: int) -> None:
-        self.chunk, self.flat = chunk, flat
+    def __init__(self, chunk: Chunk, flat: int, mode: Isolated) -> None:
+        self.chunk, self.flat, self.mode = chunk, flat, mode
         self.time = chunk.grid.time
         # A contract trial: the grid index it goes on from (after a lost run), its row, and
         # each finished (or lost) run's failures, overrun and step.
@@ -236,7 +263,8 @@ class _Progress:
         as a run whose crash does not come from its instance may)."""
         if count > 0:
             replay = partial(_replay, self.chunk, self.flat)
-            [value] = list(calls(replay, [count], watchdog=self.chunk.watchdog))
+            mode = self.mode
+            [value] = list(calls(replay, [count], watchdog=mode.watchdog, limits=mode.limits))
             if not isinstance(value, Lost):
                 return value  # type: ignore[no-any-return]
         out = empty_row(self.time)

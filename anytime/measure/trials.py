@@ -19,18 +19,21 @@ from attrs import field, frozen
 from numpy.typing import NDArray
 
 from anytime.clocks import Clock, WallClock, WorkClock
-from anytime.isolation import WATCHDOG, Isolation
 from anytime.modules import AnytimeModule, Result
 from anytime.problems import BuildError, Grid, Instance, ProblemSet
 from anytime.profiles.profile import Array
 from anytime.runtime.executor import Status, run
-from anytime.runtime.modes import Budget
+from anytime.runtime.modes import SOFT, Budget, Hard, Isolated, RunMode, Soft
 from anytime.runtime.observe import Decision, Observer
 
 if TYPE_CHECKING:
     from anytime.measure.isolated_trials import Sender
 
 ClockName = Literal["work", "wall"]
+
+#: The builder's and the catalogue's default mode: every trial (every run) in a child process,
+#: with the default watchdog and no limits.
+ISOLATED = Isolated()
 
 CLOCKS: dict[str, tuple[Callable[[], Clock], Literal["ticks", "seconds"]]] = {
     "work": (WorkClock, "ticks"),
@@ -50,8 +53,9 @@ class Chunk:
     trials: int
     start: int
     stop: int
-    isolation: Isolation = "process"  # each trial's run in a child process (see `measure_chunk`)
-    watchdog: float = WATCHDOG  # wall seconds an isolated run may take (see `isolated_outcomes`)
+    # Isolated: the trials in child processes (see `measure_chunk`), its watchdog the wall
+    # seconds an isolated run may take (see `isolated_outcomes`); else each trial's run() here.
+    mode: RunMode = ISOLATED
 
 
 @frozen(eq=False)
@@ -101,20 +105,33 @@ def trial_of(chunk: Chunk, flat: int) -> Trial:
         np.random.SeedSequence(chunk.entropy, spawn_key=(cell, instance)),
         CLOCKS[chunk.clock][0],
         f"trial {instance} at input qualities {list(qualities)}",
+        in_process(chunk.mode),
     )
 
 
-def measured(chunk: Chunk, flat: int, sender: Sender | None = None, begin: int = 0) -> Measured:
-    """Run trial `flat` of the chunk (a contract module's from grid index `begin` on: the
-    rows before it stay without a result). Isolated, `sender` keeps the caller informed of
-    what the run has done, should its process die (see `Sender`)."""
+def in_process(mode: RunMode) -> Soft | Hard:
+    """The mode of a trial's `run` where the trial runs: an isolated build's trials run soft in
+    their child process, the others as the mode says."""
+    return SOFT if isinstance(mode, Isolated) else mode
+
+
+def measured(
+    chunk: Chunk,
+    flat: int,
+    sender: Sender | None = None,
+    begin: int = 0,
+    end: int | None = None,
+) -> Measured:
+    """Run trial `flat` of the chunk (a contract module's from grid index `begin` on, up to
+    `end` if given: the rows outside stay without a result). Isolated, `sender` keeps the
+    caller informed of what the run has done, should its process die (see `Sender`)."""
     times = chunk.grid.time
     out = empty_row(times)
     trial = trial_of(chunk, flat)
     if chunk.module.kind == "interruptible":
         failed, overran, longest = run_interruptible(trial, times, out, sender)
     else:
-        failed, overran, longest = run_contract(trial, times, out, sender, begin)
+        failed, overran, longest = run_contract(trial, times, out, sender, begin, end)
     row = (out.quality, out.scored, out.reported)
     return Measured(row, float(out.finished[0]), failed, overran, longest)
 
@@ -152,6 +169,7 @@ class Trial:
     seeds: np.random.SeedSequence
     clock: Callable[[], Clock]
     where: str
+    mode: Soft | Hard = SOFT  # how each of its runs is run (see `in_process`)
 
     def problem(self) -> tuple[Instance, tuple[Any, ...]]:
         rng = np.random.default_rng(self.seeds)
@@ -252,7 +270,7 @@ def run_interruptible(
     # The last grid time is the trace's stop time, not the run's allocation, so that a module
     # that returns by itself after it (having watched its time) is told apart from a run ended
     # at a result past it (status stopped).
-    record = run(trial.module, args, budget=Budget(clock=clock), observer=trace)
+    record = run(trial.module, args, budget=Budget(clock=clock), mode=trial.mode, observer=trace)
     failed: Failures = []
     if record.status in (Status.FAILED, Status.CRASHED):
         failed.append((record.error or "failed", record.traceback or ""))
@@ -345,11 +363,17 @@ class _Watch:
 
 
 def run_contract(
-    trial: Trial, time: Array, out: Row, sender: Sender | None = None, begin: int = 0
+    trial: Trial,
+    time: Array,
+    out: Row,
+    sender: Sender | None = None,
+    begin: int = 0,
+    end: int | None = None,
 ) -> tuple[Failures, int, float]:
-    """One run per grid time (from index `begin` on) on the same instance, with that time as
-    its allocation; `out` records at `time[j]` the score of its result and the quality it
-    reported, where it returned one (a run that raised or returned None has none).
+    """One run per grid time (from index `begin` on, up to `end` if given) on the same
+    instance, with that time as its allocation; `out` records at `time[j]` the score of its
+    result and the quality it reported, where it returned one (a run that raised or returned
+    None has none).
 
     Also returns the step: the most any of the runs used past its allocation (0 if none did),
     whether it returned a result, none, or raised.
@@ -357,7 +381,7 @@ def run_contract(
     failed: Failures = []
     overruns = 0
     step = 0.0
-    for j in range(begin, len(time)):
+    for j in range(begin, len(time) if end is None else end):
         ran_failed, overran, past = _contract_run(trial, j, float(time[j]), out, sender)
         failed += ran_failed
         overruns += overran
@@ -379,7 +403,7 @@ def _contract_run(
     if sender is not None:
         clock = sender.noting(clock)
         sender.started(clock.now())
-    record = run(trial.module, args, budget=Budget(allocation, clock=clock))
+    record = run(trial.module, args, budget=Budget(allocation, clock=clock), mode=trial.mode)
     past = float(record.time_used - allocation)
     overran = int(record.status is Status.CONTRACT_EXPIRED)
     if record.status in (Status.FAILED, Status.CRASHED):

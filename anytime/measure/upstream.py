@@ -51,6 +51,7 @@ from anytime.measure.builder import build_profile
 from anytime.modules import AnytimeModule, Result
 from anytime.problems import Instance, ProblemSet, ProgramProblems
 from anytime.profiles.profile import Array, ConditionalPerformanceProfile
+from anytime.runtime.modes import SOFT, RunMode
 from anytime.runtime.program import run_until
 
 __all__ = [
@@ -316,6 +317,7 @@ def measure_upstream(
     progress: bool | None = None,
     on_round: Callable[[int, Round], None] | None = None,
     problems: ProgramProblems | None = None,
+    mode: RunMode = SOFT,
 ) -> UpstreamMeasurement:
     """Measure module `name` on the inputs schema `schema` feeds it, compiled against
     `library` (see the module's docstring), for up to `rounds` rounds, until the compiled
@@ -323,7 +325,8 @@ def measure_upstream(
     module's declared measurement's, else its current profile's; the program's problems are
     `problems` (default: the ones a plugin declares for the schema), whose time grid and
     resolution, when declared, are the compilation's (else `time_grid`, `resolution`).
-    `on_round(k, round)` is told of each round as it ends.
+    `on_round(k, round)` is told of each round as it ends. The trials run as `mode` says (see
+    `build_profile`; by default in the worker itself, soft).
 
     Raises:
         UpstreamError: the module is not called once, as a module, by the schema; or its
@@ -396,7 +399,7 @@ def measure_upstream(
             seed=seed + index,
             workers=workers,
             progress=progress,
-            isolation="none",
+            mode=mode,
         )
         profile = attrs.evolve(build.profile, module=module.name)
         if fallback is None and current is not None:

@@ -26,6 +26,7 @@ from anytime.measure.builder import (
 )
 from anytime.modules import Context, Registry, Result, contract, elementary, interruptible
 from anytime.profiles.io import save_profile
+from anytime.runtime.modes import SOFT, Hard, Isolated, RunMode
 
 # Toy modules live at the top level of this file: worker processes import them by reference.
 TOYS = Registry()
@@ -211,6 +212,28 @@ def test_a_failing_contract_run_scores_zero_and_is_counted(
     assert build.profile.mean[1:].tolist() == [mean, mean]
     assert (build.runs, build.failures, build.overruns) == (6, failures, overruns)
     assert build.first_failure == first or (build.first_failure or "").startswith(str(first))
+
+
+@pytest.mark.parametrize(
+    ("mode", "mean", "step"),
+    [(SOFT, 1.0, 20.0), (Isolated(), 1.0, 20.0), (Hard(), 0.0, 20.0)],
+    ids=["soft", "isolated", "hard"],
+)
+def test_an_overrunning_contract_run_answers_as_its_mode_answers(
+    mode: RunMode, mean: float, step: float
+) -> None:
+    # Soft (and soft in an isolated trial's process) the run keeps the result it returned
+    # late; hard, it answered at the tick that passed its allocation, with none.
+    build = build_profile(brittle, Modes("overrun"), time=[0, 10, 20], trials=2, mode=mode)
+    assert build.profile.mean is not None
+    assert build.profile.mean[1:].tolist() == [mean, mean]
+    assert (build.failures, build.overruns, build.profile.step) == (0, 4, step)
+
+
+def test_the_mode_is_a_run_mode() -> None:
+    with pytest.raises(BuildError) as caught:
+        build_profile(brittle, Modes(""), time=[0, 10], mode="none")  # type: ignore[arg-type]
+    assert str(caught.value) == "mode: expected Soft(), Hard() or Isolated(), got 'none'"
 
 
 @interruptible("mumbler", inputs=[], registry=TOYS)

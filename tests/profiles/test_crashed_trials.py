@@ -23,10 +23,11 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from anytime.isolation import Child, Isolation, calls
+from anytime.isolation import Child, Limits, calls
 from anytime.measure.builder import Instance, ProfileBuild, build_profile
 from anytime.modules import AnytimeModule, Context, Registry, Result, contract, interruptible
-from anytime.runtime import Isolated, RunRecord, Soft, Status, run
+from anytime.runtime import Hard, Isolated, RunMode, RunRecord, Status, run
+from anytime.runtime.modes import SOFT
 
 MODULES = Registry()
 TICKS = 12  # the flaky climb registers a better result at each of its ticks, up to this many
@@ -106,7 +107,7 @@ def _instances(problems: FlakyClimbs, seed: int, n: int) -> list[Instance]:
 
 
 def _runs(
-    module: AnytimeModule, problems: FlakyClimbs, instances: list[Instance], isolation: Isolation
+    module: AnytimeModule, problems: FlakyClimbs, instances: list[Instance], mode: RunMode
 ) -> tuple[NDArray[np.float64], NDArray[np.bool_], list[list[RunRecord]]]:
     """Each instance run by `run` with each grid time as its allocation: the realised (scored)
     quality, whether there was a result, and the records."""
@@ -116,12 +117,7 @@ def _runs(
     for i, instance in enumerate(instances):
         row = []
         for j, t in enumerate(TIME):
-            record = run(
-                module,
-                instance.args,
-                budget=t,
-                mode=Isolated() if isolation == "process" else Soft(),
-            )
+            record = run(module, instance.args, budget=t, mode=mode)
             if record.result is not None:
                 quality[i, j] = problems.score(instance, record.result.value)
                 had[i, j] = True
@@ -169,15 +165,15 @@ def _z(build: ProfileBuild, fresh: NDArray[np.float64]) -> NDArray[np.float64]:
     return z
 
 
-@pytest.mark.parametrize("isolation", ["none", "process"])
-def test_a_raising_module_is_scored_as_run_keeps_it(isolation: Isolation) -> None:
+@pytest.mark.parametrize("mode", [SOFT, Hard(), Isolated()], ids=["soft", "hard", "isolated"])
+def test_a_raising_module_is_scored_as_run_keeps_it(mode: RunMode) -> None:
     module, problems = _module("flaky-climb"), FlakyClimbs("raise")
-    trials = 200 if isolation == "none" else 60
+    trials = 200 if mode == SOFT else 60
     build = build_profile(
-        module, problems, time=TIME, trials=trials, seed=SEED, traces=True, isolation=isolation
+        module, problems, time=TIME, trials=trials, seed=SEED, traces=True, mode=mode
     )
     instances = _instances(problems, SEED, trials)
-    quality, had, records = _runs(module, problems, instances, "none")
+    quality, had, records = _runs(module, problems, instances, SOFT)
     _assert_profile_is_the_runs(build, quality, had)
     crashed = [i for i, instance in enumerate(instances) if instance.args[1] <= TICKS]
     assert 0 < len(crashed) < trials
@@ -197,21 +193,28 @@ def test_a_raising_module_is_scored_as_run_keeps_it(isolation: Isolation) -> Non
 
 def test_a_raising_module_s_profile_is_what_fresh_runs_deliver_within_2_se() -> None:
     module, problems = _module("flaky-climb"), FlakyClimbs("raise")
-    build = build_profile(module, problems, time=TIME, trials=400, seed=SEED, isolation="none")
-    fresh, _, _ = _runs(module, problems, _instances(problems, SEED + 1, 400), "none")
+    build = build_profile(module, problems, time=TIME, trials=400, seed=SEED, mode=SOFT)
+    fresh, _, _ = _runs(module, problems, _instances(problems, SEED + 1, 400), SOFT)
     z = _z(build, fresh)
     assert np.all(np.abs(z) <= 2), z
 
 
-@pytest.mark.parametrize("how", ["exit", "kill"])
-def test_a_trial_whose_process_dies_keeps_what_it_registered_before(how: str) -> None:
+@pytest.mark.parametrize(
+    ("how", "mode"),
+    [("exit", Isolated(30)), ("kill", Isolated(30)), ("exit", Isolated(30, Limits(cpu=60)))],
+    ids=["exit", "kill", "exit-limits"],
+)
+def test_a_trial_whose_process_dies_keeps_what_it_registered_before(
+    how: str, mode: Isolated
+) -> None:
+    # With limits, each trial has a process of its own (its replay too).
     module, problems = _module("flaky-climb"), FlakyClimbs(how)
     trials = 24
     build = build_profile(
-        module, problems, time=TIME, trials=trials, seed=SEED, traces=True, watchdog=30
+        module, problems, time=TIME, trials=trials, seed=SEED, traces=True, mode=mode
     )
     instances = _instances(problems, SEED, trials)
-    quality, had, records = _runs(module, problems, instances, "process")
+    quality, had, records = _runs(module, problems, instances, Isolated())
     _assert_profile_is_the_runs(build, quality, had)
     crashed = [i for i, instance in enumerate(instances) if instance.args[1] <= TICKS]
     assert 0 < len(crashed) < trials
@@ -234,7 +237,7 @@ def test_an_isolated_flaky_module_s_profile_is_what_fresh_isolated_runs_deliver(
     module, problems = _module("flaky-climb"), FlakyClimbs("exit")
     trials = 200
     build = build_profile(module, problems, time=TIME, trials=trials, seed=SEED, traces=True)
-    fresh, _, _ = _runs(module, problems, _instances(problems, SEED + 1, trials), "process")
+    fresh, _, _ = _runs(module, problems, _instances(problems, SEED + 1, trials), Isolated())
     z = _z(build, fresh)
     assert np.all(np.abs(z) <= 2), z
     assert build.traces is not None
@@ -248,17 +251,27 @@ def test_an_isolated_flaky_module_s_profile_is_what_fresh_isolated_runs_deliver(
     assert np.all(old_z < -2), old_z
 
 
-@pytest.mark.parametrize(("how", "isolation"), [("raise", "none"), ("exit", "process")])
+@pytest.mark.parametrize(
+    ("how", "mode"),
+    [
+        ("raise", SOFT),
+        ("raise", Hard()),
+        ("exit", Isolated()),
+        ("exit", Isolated(limits=Limits(cpu=60))),
+    ],
+    ids=["raise-soft", "raise-hard", "exit-isolated", "exit-isolated-limits"],
+)
 def test_a_flaky_contract_s_lost_runs_have_no_result_and_the_others_count(
-    how: str, isolation: Isolation
+    how: str, mode: RunMode
 ) -> None:
+    # With limits, each run has a process of its own (the builder's and `run`'s alike).
     module, problems = _module("flaky-contract"), FlakyClimbs(how, "contract")
     trials = 16
     build = build_profile(
-        module, problems, time=TIME, trials=trials, seed=SEED, traces=True, isolation=isolation
+        module, problems, time=TIME, trials=trials, seed=SEED, traces=True, mode=mode
     )
     instances = _instances(problems, SEED, trials)
-    quality, had, records = _runs(module, problems, instances, isolation)
+    quality, had, records = _runs(module, problems, instances, mode)
     _assert_profile_is_the_runs(build, quality, had)
     lost = sum(r.status in (Status.FAILED, Status.CRASHED) for row in records for r in row)
     assert lost == int((~had).sum()) > 0  # every lost run, and only those, has no result

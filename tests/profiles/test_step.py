@@ -21,6 +21,7 @@ from anytime.measure.builder import Instance, build_profile
 from anytime.modules import Context, Registry, Result, contract, interruptible
 from anytime.profiles import tabulate
 from anytime.profiles.io import load_profile, profile_from_dict, profile_to_dict, save_profile
+from anytime.runtime.modes import SOFT
 
 # Modules at the top level of this file: worker processes import them by reference.
 STEPS = Registry()
@@ -118,7 +119,7 @@ def test_the_step_is_the_largest_gap_when_every_run_ends_by_itself(
     longest = max(sum(work) + tail for work, tail in trials)
     problems = Given(trials)
     build = build_profile(  # in this process: the problem set records what it made
-        gaps, problems, time=[0, longest + 1], trials=len(trials), progress=False, isolation="none"
+        gaps, problems, time=[0, longest + 1], trials=len(trials), progress=False, mode=SOFT
     )
     assert [made for made in problems.made] == trials
     assert build.profile.step == max(max([*work, tail]) for work, tail in trials)

@@ -328,6 +328,7 @@ BUILDER_CASES = {
     "sigterm": "its process was killed by SIGTERM (signal 15)",
     "loop": "watchdog: no answer after 0.5 s of wall time",
     "raise": "RuntimeError: broken",
+    "memory": "MemoryError",  # under the mode's limits, each trial's own (a process per run)
 }
 
 
@@ -340,9 +341,9 @@ def test_the_builder_measures_the_other_trials_when_one_crashes_or_hangs(
     assert module is not None
     problems = OneBadTrial(how, _draw(0, BAD_TRIAL))
     before = _session_processes()
-    build = build_profile(
-        module, problems, time=[1, 2, 3], trials=60, workers=workers, watchdog=WATCHDOG
-    )
+    # Filling 256 MB takes a few tenths of a second: the watchdog is not what ends it.
+    mode = Isolated(SLACK, Limits(memory=256 << 20)) if how == "memory" else Isolated(WATCHDOG)
+    build = build_profile(module, problems, time=[1, 2, 3], trials=60, workers=workers, mode=mode)
     assert (build.failures, dict(build.reasons)) == (1, {BUILDER_CASES[how]: 1})
     assert build.first_failure is not None
     assert build.first_failure.startswith(
@@ -363,7 +364,7 @@ def test_the_catalogue_reports_a_crashing_trial_and_goes_on() -> None:
     # Trial 2 of 5 crashes once it has had 2 ticks: given 3 (of 1, 2, 3), or interrupted later.
     problems = OneBadTrial("segfault", _draw(check_seed(0), 2))
     before = _session_processes()
-    report = check_module(module, problems, trials=5, time=[1, 2, 3], watchdog=WATCHDOG)
+    report = check_module(module, problems, trials=5, time=[1, 2, 3], mode=Isolated(WATCHDOG))
     checks = {check.name: check for check in report.checks}
     assert not checks["errors"].passed
     assert checks["errors"].message == (
