@@ -63,7 +63,7 @@ from numpy.typing import ArrayLike, NDArray
 from anytime.errors import AnytimeError, ProfileError
 from anytime.measure.chunks import measure_chunk, measure_chunks
 from anytime.measure.progress import ProgressBar
-from anytime.measure.trials import CLOCKS, ISOLATED, Chunk, ClockName, Done
+from anytime.measure.trials import CLOCKS, Chunk, ClockName, Done
 from anytime.modules import AnytimeModule
 from anytime.pool import spread
 from anytime.problems import (
@@ -83,7 +83,8 @@ from anytime.profiles.profile import (
     default_bins,
     new_profile,
 )
-from anytime.runtime.modes import Hard, Isolated, RunMode, Soft
+from anytime.runtime.modes import ISOLATED, Hard, Isolated, RunMode, Soft
+from anytime.vocabulary import PROFILE_KINDS
 
 __all__ = [
     "BuildError",
@@ -426,7 +427,7 @@ def _check(
 ) -> Grid:
     """The build's grid, once every argument is known to be usable."""
     where = f"profile of module '{module.name}'"
-    if module.kind not in ("interruptible", "contract"):
+    if module.kind not in PROFILE_KINDS:
         raise BuildError(
             f"{where}: only interruptible and contract modules have a profile to measure"
             f" (this one is {module.kind})"

@@ -39,6 +39,7 @@ from anytime.problems import Measurement, registered_problems
 from anytime.profiles.profile import ConditionalPerformanceProfile
 from anytime.runtime.executor import Status, run
 from anytime.runtime.modes import Budget
+from anytime.vocabulary import PROFILE_KINDS
 
 __all__ = ["Calibration", "CalibrationError", "calibrate", "convert_profile"]
 
@@ -156,7 +157,7 @@ def calibrate(
         CalibrationError: the module is elementary, fails on an instance, or reports no ticks;
             or `seconds` is not a positive budget.
     """
-    if module.kind not in ("interruptible", "contract"):
+    if module.kind not in PROFILE_KINDS:
         raise CalibrationError(
             f"module '{module.name}' is {module.kind}: only interruptible and contract modules"
             " report ticks to calibrate"

@@ -73,11 +73,11 @@ from anytime.measure.checks import (
     check_seed,
 )
 from anytime.measure.progress import ProgressBar
-from anytime.measure.trials import ISOLATED
 from anytime.modules import AnytimeModule
 from anytime.problems import BuildError, Grid, ProblemSet, registered_problems
 from anytime.profiles.profile import ConditionalPerformanceProfile
-from anytime.runtime.modes import Hard, Isolated, RunMode, Soft
+from anytime.runtime.modes import ISOLATED, Hard, Isolated, RunMode, Soft
+from anytime.vocabulary import PROFILE_KINDS
 
 __all__ = [
     "CHECKS",
@@ -176,7 +176,7 @@ def catalogue_cases(library: AnytimeLibrary | None = None) -> list[CatalogueCase
     library = library if library is not None else AnytimeLibrary.default()
     cases = []
     for entry in library:
-        if entry.module is None or entry.kind not in ("interruptible", "contract"):
+        if entry.module is None or entry.kind not in PROFILE_KINDS:
             continue
         try:
             measurement = library.measurement(entry.name)
@@ -244,7 +244,7 @@ def check_module(
             `Soft()` or `Isolated()`.
         BuildError: the problem set breaks its contract (as the profile builder reports it).
     """
-    if module.kind not in ("interruptible", "contract"):
+    if module.kind not in PROFILE_KINDS:
         raise CatalogueError(
             f"module '{module.name}' is {module.kind}: the catalogue checks interruptible and"
             " contract modules"

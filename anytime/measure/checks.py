@@ -20,12 +20,12 @@ from attrs import frozen
 from anytime.clocks import Unit, WorkClock
 from anytime.isolation import Lost, calls
 from anytime.measure.builder import build_profile
-from anytime.measure.trials import ISOLATED, Trial
+from anytime.measure.trials import Trial
 from anytime.modules import AnytimeModule, Result
 from anytime.problems import Grid, ProblemSet
 from anytime.profiles.profile import Array, ConditionalPerformanceProfile
 from anytime.runtime.executor import RunRecord, Status, run
-from anytime.runtime.modes import Budget, Isolated, RunMode, Soft
+from anytime.runtime.modes import ISOLATED, Budget, Isolated, RunMode, Soft
 from anytime.runtime.observe import Observer
 
 __all__ = [

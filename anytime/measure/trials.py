@@ -23,19 +23,17 @@ from anytime.modules import AnytimeModule, Result
 from anytime.problems import BuildError, Grid, Instance, ProblemSet
 from anytime.profiles.profile import Array
 from anytime.runtime.executor import Status, run
-from anytime.runtime.modes import SOFT, Budget, Hard, Isolated, RunMode, Soft
+from anytime.runtime.modes import ISOLATED, SOFT, Budget, Hard, Isolated, RunMode, Soft
 from anytime.runtime.observe import Decision, Observer
+from anytime.vocabulary import Unit
 
 if TYPE_CHECKING:
     from anytime.measure.isolated_trials import Sender
 
 ClockName = Literal["work", "wall"]
 
-#: The builder's and the catalogue's default mode: every trial (every run) in a child process,
-#: with the default watchdog and no limits.
-ISOLATED = Isolated()
 
-CLOCKS: dict[str, tuple[Callable[[], Clock], Literal["ticks", "seconds"]]] = {
+CLOCKS: dict[str, tuple[Callable[[], Clock], Unit]] = {
     "work": (WorkClock, "ticks"),
     "wall": (WallClock, "seconds"),
 }

@@ -53,6 +53,7 @@ from anytime.problems import Instance, ProblemSet, ProgramProblems
 from anytime.profiles.profile import Array, ConditionalPerformanceProfile
 from anytime.runtime.modes import SOFT, RunMode
 from anytime.runtime.program import run_until
+from anytime.vocabulary import PROFILE_KINDS
 
 __all__ = [
     "MAX_DRAWS",
@@ -337,7 +338,7 @@ def measure_upstream(
         problems = library.program_problems(schema)
     entry = library[name]
     module = entry.module
-    if module is None or module.kind not in ("interruptible", "contract"):
+    if module is None or module.kind not in PROFILE_KINDS:
         raise UpstreamError(f"'{name}' is not an interruptible or contract module with code")
     try:
         measurement = library.measurement(name)

@@ -70,6 +70,7 @@ class Isolated:
 
 RunMode = Soft | Hard | Isolated
 SOFT = Soft()
+ISOLATED = Isolated()
 
 
 @frozen
