@@ -211,7 +211,7 @@ def bench_overhead(runs: int, block: int) -> str:
     labels = {
         "soft": "soft (caller's thread)",
         "hard": "hard (worker thread)",
-        "process": 'process (isolation="process")',
+        "process": "process (mode=Isolated())",
         "bare Child": "the process alone: a bare Child (fork, pipe, end)",
         "soft after process": "soft, right after a process run",
     }
