@@ -2,6 +2,7 @@
 of tests/verify_modules.py installed."""
 
 import importlib.metadata
+import signal
 from collections.abc import Callable
 from pathlib import Path
 
@@ -15,6 +16,15 @@ from anytime.library import PLUGIN_GROUP
 Cli = Callable[..., tuple[int, str, str]]
 
 ROOT = Path(__file__).resolve().parent.parent
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """A background job of a non-interactive shell (`make test &`, a CI step's `cmd &`) starts
+    with Ctrl-C ignored, and the commands the tests start would inherit that: the Ctrl-C tests
+    (tests/cli/test_cli_interrupt.py) would wait for commands that never see it. Python's own
+    handler is put back (it is reset to the default in a started command)."""
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @pytest.fixture

@@ -117,9 +117,20 @@ def _interrupt(
         os.killpg(process.pid, signal.SIGINT)
     else:
         os.kill(process.pid, sent)
-    stdout, stderr = process.communicate(timeout=60)
+    stdout, stderr = _communicate(process)
     _no_process_left(process.pid)
     return subprocess.CompletedProcess(argv, process.returncode, stdout, stderr)
+
+
+def _communicate(process: subprocess.Popen[str]) -> tuple[str, str]:
+    """The command's output once it has ended; if it has not within a minute, its process group
+    is killed (so that a failing test leaves nothing running) and the test fails."""
+    try:
+        return process.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, signal.SIGKILL)
+        process.communicate()
+        raise
 
 
 def _no_process_left(group: int) -> None:
@@ -180,7 +191,7 @@ def test_ctrl_c_while_the_command_starts(tmp_path: Path, after: float) -> None:
     )
     time.sleep(after)  # some moment of the start-up (not a timing assertion: any will do)
     os.killpg(process.pid, signal.SIGINT)
-    stdout, stderr = process.communicate(timeout=60)
+    stdout, stderr = _communicate(process)
     assert (process.returncode, stdout, stderr) == (130, "", INTERRUPTED)
     assert os.listdir(tmp_path) == []
 
