@@ -76,7 +76,7 @@ class EncounterProblems:
     draws: OvercomingProblems = OvercomingProblems()
 
     def instance(self, rng: np.random.Generator) -> Instance:
-        (encounter,) = self.draws.instance(rng, ()).args  # a fresh one: it records its runs
+        (encounter,) = self.draws.instance(rng, ()).args
         return Instance((encounter,))
 
     def score(self, instance: Instance, value: Any) -> float:
