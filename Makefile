@@ -25,10 +25,10 @@ lint: $(INSTALLED)
 typecheck: $(INSTALLED)
 	$(BIN)/mypy
 
-# In parallel, one worker per core (pytest-xdist); each file's tests on one worker, in order,
-# but for a few long files (conftest.py's SPREAD). To debug, run `$(BIN)/pytest` itself: it
-# runs serially (or `make pytest PYTEST_WORKERS=0`).
-PYTEST_WORKERS ?= auto
+# In parallel, one worker per (logical) core with pytest-xdist; a file's tests on one worker, in
+# order, but for a few long files (conftest.py's SPREAD). To debug, run `$(BIN)/pytest` itself:
+# it runs serially (or `make pytest PYTEST_WORKERS=0`).
+PYTEST_WORKERS ?= logical
 pytest: $(INSTALLED)
 	$(BIN)/pytest -n $(PYTEST_WORKERS) --dist loadfile
 
