@@ -220,7 +220,15 @@ pytest_collect_file = Sybil(
 # --- parallel runs ---------------------------------------------------------------------------
 
 #: Files of long, independent tests that `make test` spreads over its workers (see below).
-SPREAD = frozenset({"tests/routing/test_routing.py"})
+SPREAD = frozenset(
+    {
+        "tests/compiler/test_multistart.py",
+        "tests/compiler/test_shared_results.py",
+        "tests/dsl/test_properties.py",
+        "tests/profiles/test_crashed_trials.py",
+        "tests/routing/test_routing.py",
+    }
+)
 
 
 @pytest.hookimpl(optionalhook=True)  # a pytest-xdist hook: unknown without it (-p no:xdist)
