@@ -106,6 +106,8 @@ class Watcher:
     def watch(self, ctx: Context) -> None:
         self.ctx = ctx
         ctx.allocation = min(self.allocation, self.stop_at)
+        if at_or_after(0.0, self.look_at):  # a look at the start: before the first work
+            self.pending = 0.0
 
     def clock(self, clock: Clock) -> Clock:
         """`clock` as the module sees it: each report of work may be a look."""
