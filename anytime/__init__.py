@@ -62,6 +62,7 @@ if TYPE_CHECKING:
     from anytime.profiles.io import load_profile, save_profile
     from anytime.runtime import (
         Budget,
+        ConformalStopping,
         Decision,
         FixedStopping,
         Hard,
@@ -92,6 +93,7 @@ __all__ = [
     "BudgetCheck",
     "CompiledProgram",
     "ConditionalPerformanceProfile",
+    "ConformalStopping",
     "Context",
     "DataflowGraph",
     "Decision",
@@ -207,6 +209,7 @@ _WHERE = {
     "Observer": "anytime.runtime",
     "Stopping": "anytime.runtime",
     "Decision": "anytime.runtime",
+    "ConformalStopping": "anytime.runtime",
     "FixedStopping": "anytime.runtime",
     "MyopicStopping": "anytime.runtime",
     "OptimalStopping": "anytime.runtime",

@@ -2,6 +2,7 @@
 interruption, the frame monitor, stopping policies, and deadlines from critical events."""
 
 from anytime.isolation import WATCHDOG, IsolationError, Limits
+from anytime.runtime.conformal import ConformalStopping, ConformalTable
 from anytime.runtime.deadline import (
     CostBoundError,
     CriticalEvent,
@@ -49,6 +50,8 @@ __all__ = [
     "Hard",
     "Budget",
     "Adjustment",
+    "ConformalStopping",
+    "ConformalTable",
     "ContractDecision",
     "CostBoundError",
     "CostModel",
