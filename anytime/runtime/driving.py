@@ -106,8 +106,6 @@ class Watcher:
     def watch(self, ctx: Context) -> None:
         self.ctx = ctx
         ctx.allocation = min(self.allocation, self.stop_at)
-        if at_or_after(0.0, self.look_at):  # a look at the start: before the first work
-            self.pending = 0.0
 
     def clock(self, clock: Clock) -> Clock:
         """`clock` as the module sees it: each report of work may be a look."""
@@ -160,8 +158,11 @@ class Watcher:
 
     def after_work(self, elapsed: float) -> None:
         """After a report of work: a look due now waits for the module's next move (a result
-        it registers at this time is part of the answer then)."""
-        if self.error is None and not self.stopped and at_or_after(elapsed, self.look_at):
+        it registers at this time is part of the answer then). Before the run has an answer
+        there is nothing to look at: a look due then is taken at the first result."""
+        if self.best is None or self.error is not None or self.stopped:
+            return
+        if at_or_after(elapsed, self.look_at):
             self.pending = elapsed
 
     def reached(self, elapsed: float) -> bool:

@@ -16,7 +16,6 @@ from attrs import frozen
 from numpy.typing import ArrayLike
 
 from anytime.profiles.profile import Array
-from anytime.runtime.driving import at_or_after
 from anytime.runtime.observe import PolicyError
 from anytime.runtime.policies import (
     StoppingModel,
@@ -47,10 +46,11 @@ def replay(
     ended: int | None = None,
 ) -> Replay:
     """Run `policy` on one recorded trace, as the executor would: it is consulted at the first
-    grid time at or after each `look_at` (with the answer there, None before the first) and
-    stops there, or at the first grid time at or after `stop_at`, never after `allocation`
-    (default: the trace's last time). A run whose module reports its work at every grid time
-    makes the same looks and decisions live (`run(..., observer=Stopping(policy))`).
+    grid time with an answer at or after each `look_at` and stops there, or at the first grid
+    time at or after `stop_at`, never after `allocation` (default: the trace's last time). A
+    run whose module reports its work at every grid time makes the same looks and decisions
+    live (`run(..., observer=Stopping(policy))`): the executor looks at the report of work that
+    reaches the time asked, once the run has an answer.
 
     Args:
         time: the trace's grid times (m,).
@@ -76,8 +76,8 @@ def replay(
     for j in range(last + 1):  # one step of the run per grid time
         if ended is not None and j >= ended:
             return Replay(j, looks)  # the module returned: the run is over
-        if at_or_after(float(t[j]), decision.look_at):
-            decision = policy.observe(float(t[j]), float(q[j]) if had[j] else None)
+        if had[j] and t[j] >= decision.look_at:  # the executor looks at results only
+            decision = policy.observe(float(t[j]), float(q[j]))
             looks += 1
             if decision.stop:
                 return Replay(j, looks)

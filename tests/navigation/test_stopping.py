@@ -84,7 +84,7 @@ def test_where_the_policy_stops_planners_early(report):
     reasons = [e.data["reason"] for e in report.log.of_kind("stopping") if e.data["frame"] == 0]
     assert reasons == [
         "expected utility 685.082",
-        "going on is worth 685.082",
+        "going on is worth 685.044",
         "going on is worth 685.087",
         "stopping now is worth 674.013, going on less",
     ]

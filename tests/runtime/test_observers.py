@@ -80,15 +80,16 @@ def test_looks_come_at_the_ticks_asked_for_not_only_at_results() -> None:
     looker = Looker(first=3, period=5)
     record = run(sparse, [10], budget=22, observer=looker)
     looks = [c[1:] for c in looker.calls if c[0] == "look"]
-    # A look sees the answer as it stands at its time, a result registered then included.
-    assert looks == [(3.0, None), (8.0, None), (13.0, 10), (18.0, 10)]
+    # Nothing to look at before the first result (10): the looks due at 3 and 8 wait for it;
+    # then a look at each tick asked for, between results (15) or at one (20), which it sees.
+    assert looks == [(10.0, 10), (15.0, 10), (20.0, 20)]
     assert looker.calls[0] == ("started", "sparse", (10,), 22.0)
     assert [c for c in looker.calls if c[0] == "registered"] == [
         ("registered", 10.0, 10),
         ("registered", 20.0, 20),
     ]
     assert looker.calls[-1] == ("ended", Status.COMPLETED, 22.0)  # it saw expired and returned
-    assert (record.looks, record.result) == (4, Result(20, 0.2))
+    assert (record.looks, record.result) == (3, Result(20, 0.2))
 
 
 def test_a_look_at_the_time_of_a_result_sees_that_result() -> None:
@@ -99,11 +100,12 @@ def test_a_look_at_the_time_of_a_result_sees_that_result() -> None:
 
 @MODES
 def test_a_look_between_results_stops_the_run_with_its_best_result(mode: Any) -> None:
-    """Stopped at its second look (tick 14), between results: status stopped, the answer the
-    result of tick 10, and the same record in every mode on the work clock."""
+    """Its first look waits for the first result (10); stopped at its second look (tick 17),
+    between results: status stopped, the answer the result of tick 10, and the same record in
+    every mode on the work clock."""
     record = run(sparse, [10], budget=100, mode=mode, observer=Looker(first=7, period=7, stop=2))
     assert (record.status, record.result, record.looks) == (Status.STOPPED, Result(10, 0.1), 2)
-    assert record.time_used <= 15  # the tick after the look at 14 is the module's last
+    assert record.time_used <= 18  # the tick after the look at 17 is the module's last
 
 
 def test_an_observer_that_fails_at_a_look_fails_the_run_and_keeps_the_best_result() -> None:

@@ -154,12 +154,11 @@ def test_replay_follows_the_decisions_on_the_grid() -> None:
 
     time = [0, 10, 20, 30, 40]
     result = replay(Script(), time, [0, 0, 0.5, 0.6, 0.7], scored=[0, 0, 1, 1, 1])
-    # Looked at 10 (the first grid time after 5, before the first answer), stopped at 30.
-    assert (result.stop_index, result.looks) == (3, 1)
+    assert (result.stop_index, result.looks) == (3, 1)  # looked at 20 (the first answer after 5)
     assert replay(Script(), time, [0.1] * 5, allocation=15) == Replay(1, 1)  # at the deadline
-    # A run whose module returned at 20 is over there: its look at 10, no stop at 25.
+    # A run whose module returned at 20 is over there: no look at 20, no stop at 25.
     assert replay(Script(), time, [0, 0, 0.5, 0.6, 0.7], scored=[0, 0, 1, 1, 1], ended=2) == (
-        Replay(2, 1)
+        Replay(2, 0)
     )
 
 
