@@ -58,8 +58,8 @@ class ConformalTable:
 
     Attributes:
         looks: the grid indices it looks at (every `stride`-th, and `last`).
-        bound: `(m, K, S)` the conformal bound on the gain at each grid time (NaN where it does
-            not look), quality bin and stall bin.
+        bound: `(m, K, S)` the conformal bound on the gain at each grid time, quality bin and
+            stall bin (inf: too few calibration runs looked there to bound it).
         traces: `(m, K, S)` how many calibration traces the bound rests on.
         level: `(m, K, S)` where they are: w < K the quality bins within w of the state's, in
             its stall bin; K + w the same in any stall bin (2K - 1: every trace that reached
@@ -138,6 +138,7 @@ class ConformalStopping:
         self._seen = calibration.observed[cell] * calibration.scored[cell]  # (n, m)
         self._true = calibration.quality[cell]
         self._end = calibration.end_index()[cell]
+        self._scored = calibration.scored[cell]
         if isinstance(bins, int):
             if bins < 1:
                 raise PolicyError(f"{self.name}: bins must be >= 1, got {bins!r}")
@@ -170,25 +171,24 @@ class ConformalStopping:
 
     def observe(self, time: float, quality: float | None) -> Decision:
         q = 0.0 if quality is None or self.observed == "none" else float(quality)
-        if q > self._best:
-            self._best, self._improved = q, float(time)
         j = int(
             np.clip(np.searchsorted(self.time, time * (1 + 1e-12), side="right") - 1, 0, self.last)
         )
+        if q > self._best:
+            self._best, self._improved = q, float(self.time[j])
         if j >= self.last:
             return Decision.now("the last grid time within the allocation")
         table = self.table(self.allocation)
-        look = int(table.looks[np.searchsorted(table.looks, j, side="right") - 1])
-        b, s = self._state(np.array([q]), np.array([float(time) - self._improved]))
-        bound = float(table.bound[look, b[0], s[0]])
-        n, level = int(table.traces[look, b[0], s[0]]), int(table.level[look, b[0], s[0]])
+        b, s = self._state(np.array([q]), np.array([float(self.time[j]) - self._improved]))
+        bound = float(table.bound[j, b[0], s[0]])
+        n, level = int(table.traces[j, b[0], s[0]]), int(table.level[j, b[0], s[0]])
         where = self._where(level)
         risk = f"{1 - self.alpha:.3g}"
         if bound < self.epsilon:
             return Decision.now(
                 f"gain bound {bound:.4g} < {self.epsilon:g} at {risk}, on {n} traces ({where})"
             )
-        following = table.looks[table.looks > look]
+        following = table.looks[table.looks > j]
         at = float(self.time[following[0]]) if len(following) else float(self.time[self.last])
         shown = "inf (too few traces)" if bound == math.inf else f"{bound:.4g}"
         return Decision.later(
@@ -218,33 +218,34 @@ class ConformalStopping:
         ahead = np.where(np.arange(m)[None, :] <= self._end[:, None], worth, -np.inf)
         gain = np.maximum.accumulate(ahead[:, ::-1], axis=1)[:, ::-1] - worth  # (n, m)
         looks = np.unique(np.r_[np.arange(0, m, self.stride), last]).astype(np.intp)
-        # The state at each look, as the policy sees it at its looks only.
-        seen = self._seen[:, looks]
-        best = np.maximum.accumulate(seen, axis=1)
-        rose = np.ones(seen.shape, bool)
-        rose[:, 1:] = seen[:, 1:] > best[:, :-1]
-        since = np.where(rose, np.arange(len(looks))[None, :], 0)
-        last_rise = np.maximum.accumulate(since, axis=1)
-        stall = t[looks][None, :] - t[looks][last_rise]
-        qbin, sbin = self._state(seen, stall)  # (n, L) each
         k_bins, s_bins = len(self.bins) - 1, len(self.stalled) + 1
-        bound = np.full((m, k_bins, s_bins), np.nan)
+        bound = np.full((m, k_bins, s_bins), np.inf)
         count = np.zeros((m, k_bins, s_bins), np.intp)
         level = np.zeros((m, k_bins, s_bins), np.intp)
         stop = np.full(n, last, np.intp)
         alive = np.ones(n, bool)
-        for i, j in enumerate(looks):  # forward over the looks, vectorised over traces and states
+        scored = self._scored[:, :m]
+        due = np.zeros(n, np.intp)  # the grid index of each run's next look
+        best = np.full(n, -np.inf)
+        improved = np.zeros(n)
+        for j in range(m):  # forward over the grid, vectorised over runs and states
             ended = alive & (self._end <= j)  # the run returned by itself: over there
             stop[ended] = self._end[ended]
             alive &= ~ended
-            reach = alive.copy()
-            b, c, lv = self._bounds(gain[reach, j], qbin[reach, i], sbin[reach, i])
-            bound[j], count[j], level[j] = b, c, lv
+            # A look is taken at the first grid time with an answer at or after the one asked
+            # for, as `replay` and the executor take it; the state is what the looks saw.
+            reach = alive & scored[:, j] & (due <= j)
+            seen = self._seen[:, j]
+            rose = reach & (seen > best)
+            best[rose], improved[rose] = seen[rose], t[j]
+            qbin, sbin = self._state(seen[reach], t[j] - improved[reach])
+            bound[j], count[j], level[j] = self._bounds(gain[reach, j], qbin, sbin)
             stopping = np.zeros(n, bool)
-            stopping[reach] = b[qbin[reach, i], sbin[reach, i]] < self.epsilon
-            stopping |= reach & (j == last)
+            stopping[reach] = bound[j][qbin, sbin] < self.epsilon
+            stopping |= alive & (j == last)
             stop[stopping] = j
             alive &= ~stopping
+            due[reach] = looks[np.searchsorted(looks, j, side="right")] if j < last else m
         return ConformalTable(last, looks, bound, count, level, stop, gain[np.arange(n), stop])
 
     def _bounds(

@@ -22,7 +22,7 @@ from anytime import ConformalStopping, Registry, Result, interruptible
 from anytime.profiles.dynamic import QualityTraces
 from anytime.runtime import EventLog, PolicyError, Stopping, Utility, replay, run
 
-SETTINGS = settings(max_examples=40, deadline=None)
+SETTINGS = settings(max_examples=100, deadline=None)
 
 
 def saturating(
@@ -122,6 +122,7 @@ def test_coverage_in_utility() -> None:
     st.sampled_from([math.inf, 0.0, 25.0, 40.0]),
     st.booleans(),
     st.integers(1, 30),
+    st.booleans(),
 )
 @SETTINGS
 def test_the_calibration_stops_each_calibration_trace_where_replay_does(
@@ -135,19 +136,24 @@ def test_the_calibration_stops_each_calibration_trace_where_replay_does(
     allocation: float,
     ends: bool,
     min_traces: int,
+    late: bool,
 ) -> None:
+    """With runs that end by themselves and runs whose first answer comes late (a look asked
+    for before it is taken at it)."""
     recorded = traces(seed, m, trials, "estimate" if seed % 2 else "true")
-    if ends:
-        finished = np.random.default_rng(seed).uniform(0, recorded.time[-1], trials)
-        recorded = QualityTraces(
-            module="walk",
-            time=recorded.time,
-            quality=recorded.quality,
-            scored=recorded.scored,
-            estimate=recorded.estimate,
-            reports=recorded.reports,
-            finished=finished,
-        )
+    rng = np.random.default_rng(seed)
+    scored = recorded.scored
+    if late:
+        scored = np.arange(m)[None, :] >= rng.integers(0, m, (trials, 1))
+    recorded = QualityTraces(
+        module="walk",
+        time=recorded.time,
+        quality=recorded.quality * scored,
+        scored=scored,
+        estimate=None if recorded.estimate is None else recorded.estimate * scored,
+        reports=recorded.reports,
+        finished=rng.uniform(0, recorded.time[-1], trials) if ends else None,
+    )
     policy = ConformalStopping(
         recorded, epsilon, alpha, bins=3, stalled=stalled, stride=stride, min_traces=min_traces
     )
