@@ -121,10 +121,13 @@ def _measuring(
 
 
 def _portable(exc: BaseException) -> BaseException:
-    """`exc` if it pickles, else a RuntimeError carrying its traceback's text."""
+    """`exc` if it pickles, else a RuntimeError carrying its traceback's text (an interrupt
+    that does not pickle, a plain KeyboardInterrupt: it still interrupts the caller)."""
     try:
         pickle.loads(pickle.dumps(exc))
     except Exception:
+        if isinstance(exc, KeyboardInterrupt):
+            return KeyboardInterrupt(str(exc))
         text = "".join(traceback.format_exception(exc)).rstrip()
         return RuntimeError(f"in an isolated process:\n{text}")
     return exc

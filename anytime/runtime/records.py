@@ -68,3 +68,7 @@ class RunInterrupted(KeyboardInterrupt):
     def __init__(self, record: RunRecord) -> None:
         super().__init__(f"run of '{record.module}' interrupted")
         self.record = record
+
+    def __reduce__(self) -> tuple[type[RunInterrupted], tuple[RunRecord]]:
+        # Pickled with its record (a run in a child process reports it to its caller).
+        return (type(self), (self.record,))

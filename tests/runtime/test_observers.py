@@ -189,3 +189,24 @@ def test_run_takes_a_mode_and_at_most_six_parameters() -> None:
     assert {"budget", "mode", "observer"} <= set(parameters)
     with pytest.raises(TypeError, match=r"run: mode: expected Soft\(\), Hard\(\) or Isolated"):
         run(sparse, [5], budget=Budget(10), mode="hard")  # type: ignore[arg-type]
+
+
+@interruptible("pressed", inputs=[], registry=TOYS)
+def pressed(ctx: Context) -> Iterator[Result]:
+    ctx.tick()
+    yield Result("draft", 0.4)
+    raise KeyboardInterrupt
+
+
+def test_an_interrupted_run_crosses_a_process_boundary_with_its_record() -> None:
+    """The builder's isolated trials send what their run raised to the caller: an interrupt
+    arrives as itself, with its record."""
+    import pickle
+
+    from anytime.runtime import RunInterrupted
+
+    with pytest.raises(RunInterrupted) as raised:
+        run(pressed, budget=10)
+    again = pickle.loads(pickle.dumps(raised.value))
+    assert isinstance(again, RunInterrupted) and again.record == raised.value.record
+    assert (again.record.status, again.record.result) == (Status.INTERRUPTED, Result("draft", 0.4))
