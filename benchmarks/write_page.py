@@ -103,7 +103,9 @@ BENCHMARKS = [
         " the module reports and, for comparison, its true quality (targets: optimal >= 0.98,"
         " never below fixed or myopic by more than the standard error); then with a cost per"
         " look, choosing when to look against looking never and every step (target: it beats"
-        " both).",
+        " both); then the stopping rule with a guarantee (ConformalStopping): how often a run"
+        " could still gain more than epsilon after its stop, against the alpha it promises"
+        " (target: at most alpha + 0.01), and the time it used.",
     ),
     (
         "bench_promises.py",
