@@ -353,3 +353,45 @@ def test_replay_stops_a_trace_where_a_run_of_it_stops(
         record = run(playback, [trace], budget=allocation, observer=Stopping(policy))
         kept = 0 if record.result is None else record.result.value  # the grid index of its answer
         assert (kept, record.looks) == (offline.stop_index, offline.looks), policy.name
+
+
+@interruptible("stall", inputs=[], registry=TOYS)
+def stall(ctx: Context, qualities: list[float]) -> Iterator[Result]:
+    """A recorded trace played back by a module that registers only when it improves (a search
+    that stalls): ten ticks of work a step, no result while the quality stays where it was."""
+    best = -1.0
+    for k, q in enumerate(qualities[1:], 1):
+        for _ in range(10):
+            if ctx.expired:  # a module that watches its time
+                return
+            ctx.tick(1)
+        if q > best:
+            best = q
+            yield Result(k, q)
+
+
+@given(st.integers(0, 10**6), st.floats(0, 2), st.sampled_from([0.0, 2.0]), st.floats(10, 95))
+@settings(max_examples=40, deadline=None)
+def test_a_run_that_stalls_stops_where_replay_stops_its_trace(
+    seed: int, rate: float, cost: float, allocation: float
+) -> None:
+    """Looks come on the policy's schedule, not at registrations: a module that improves
+    rarely is looked at when the policy asks, and a run keeps the answer `replay` stops its
+    trace at, with the same looks but perhaps the last: a look due where the run ends anyway
+    (at its deadline, or when the policy asked to look and to stop at the same time) is one
+    replay takes and a live run whose module then returns does not."""
+    profile = DynamicProfile.from_traces(traces(seed, 10, 30), states=3)
+    model = Linear(10, rate / 10)
+    trace = [float(q) for q in np.floor(traces(seed + 1, 10, 1).quality[0] * 4) / 4]  # plateaus
+    scored = [False] + [True] * (len(trace) - 1)  # its first result comes at its first step
+    makers = {
+        "optimal": lambda: OptimalStopping(profile, model, model, monitoring_cost=cost),
+        "myopic": lambda: MyopicStopping(profile, model, model, monitoring_cost=cost),
+        "projected": lambda: ProjectedStopping(profile, model, model),
+    }
+    for name, make in makers.items():  # a policy afresh for each run
+        offline = replay(make(), profile.time, trace, allocation, scored=scored)
+        record = run(stall, [trace], budget=allocation, observer=Stopping(make()))
+        kept = 0 if record.result is None else record.result.value
+        assert trace[kept] == trace[offline.stop_index], name
+        assert record.looks in (offline.looks, offline.looks - 1), name
