@@ -364,7 +364,7 @@ def _calling(
         try:
             value = function(items[index])
         except BaseException as exc:
-            out.send(("raised", _portable(exc)))
+            out.send(("raised", portable(exc)))
             return
         out.send(("value", value))
 
@@ -396,11 +396,15 @@ def _answers(
     return index
 
 
-def _portable(exc: BaseException) -> BaseException:
-    """`exc` if it pickles, else a RuntimeError carrying its traceback's text."""
+def portable(exc: BaseException) -> BaseException:
+    """`exc` if it pickles, for a child to send to its caller; else a RuntimeError carrying its
+    traceback's text (an interrupt that does not pickle, a plain KeyboardInterrupt: it still
+    interrupts the caller)."""
     try:
         pickle.loads(pickle.dumps(exc))
     except Exception:
+        if isinstance(exc, KeyboardInterrupt):
+            return KeyboardInterrupt(str(exc))
         text = "".join(traceback.format_exception(exc)).rstrip()
         return RuntimeError(f"in an isolated process:\n{text}")
     return exc

@@ -17,7 +17,8 @@ passed, failed or skipped, with a message that says what was seen and where:
 - **interruption**: stopped from outside at a random tick, a run answers with the best result
   the module registered before the stop (its latest, for a module that does not report its
   true quality), never with none once one was registered, and that
-  result's value has not changed since it was registered; a contract module, given a random
+  result's value has not changed since it was registered (by the value's own equality, arrays
+  element by element, objects without one part by part); a contract module, given a random
   allocation, answers with the result it returned;
 - **profile**: the profile measured with `build_profile` (`trials` fresh instances per
   input-quality cell, independent of those a profile built with the same seed was measured on,

@@ -21,10 +21,8 @@ limits also cover making the trial's problem, which the child does before the ru
 from __future__ import annotations
 
 import mmap
-import pickle
 import struct
 import time as _time
-import traceback
 from collections.abc import Iterator, Sequence
 from functools import partial
 
@@ -32,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from anytime.clocks import Clock
-from anytime.isolation import Channel, Child, Lost, calls, died
+from anytime.isolation import Channel, Child, Lost, calls, died, portable
 from anytime.measure.trials import (
     NOTE,
     NOW,
@@ -112,25 +110,12 @@ def _measuring(
         try:
             value = measured(chunk, flats[index], sender, first, end)
         except BaseException as exc:  # a problem set that breaks its contract, and the like
-            out.send(("raised", _portable(exc)))
+            out.send(("raised", portable(exc)))
             return
         if end is None or end == times:  # the trial is done (else "ran" said what it did)
             out.send(("value", value))
         if single:
             return
-
-
-def _portable(exc: BaseException) -> BaseException:
-    """`exc` if it pickles, else a RuntimeError carrying its traceback's text (an interrupt
-    that does not pickle, a plain KeyboardInterrupt: it still interrupts the caller)."""
-    try:
-        pickle.loads(pickle.dumps(exc))
-    except Exception:
-        if isinstance(exc, KeyboardInterrupt):
-            return KeyboardInterrupt(str(exc))
-        text = "".join(traceback.format_exception(exc)).rstrip()
-        return RuntimeError(f"in an isolated process:\n{text}")
-    return exc
 
 
 def isolated_outcomes(chunk: Chunk, flats: Sequence[int], mode: Isolated) -> Iterator[Measured]:
