@@ -10,6 +10,7 @@ import numpy as np
 from attrs import frozen
 
 from anytime.compiler.allocators import reallocate
+from anytime.compiler.allocators.reallocate import QUANTUM, replanner
 from anytime.compiler.compile import CompiledProgram
 from anytime.compiler.evaluate import NO_RESULT
 from anytime.compiler.loops import run_time_split
@@ -71,6 +72,11 @@ class ProgramRecord:
         return self.result.quality if self.result is not None else 0.0
 
 
+#: The most a search for a new split may cost, as a share of the time left, on the run's clock
+#: (by the mean of the model's searches so far): beyond, only remembered plans are used.
+SEARCH_SHARE = 0.05
+
+
 class Execution:
     """One run of a compiled program: the state its calls share."""
 
@@ -96,6 +102,8 @@ class Execution:
         self.inner: list[RunRecord] = []  # the calls of called schemas and of ifs' branches
         self.judged: dict[int, float] = {}  # the qualities decisions go by
         self.applicable: dict[int, list[bool]] = {}  # each best-of's, once decided
+        self.informed = False  # whether a call has shown what the plan did not know yet
+        self.replans = 0  # adaptive re-plans asked for (looked up or searched)
 
     def call(
         self, module: AnytimeModule, args: Sequence[Any], kwargs: Mapping[str, Any], share: float
@@ -120,6 +128,8 @@ class Execution:
                 self.judged[node.index] = self.judge(node, record)
             else:
                 self.judged[node.index] = NO_RESULT
+            if self.adaptive and not self.informed:
+                self.informed = self.informative(node, record)
         output = self.model.graph.output
         if isinstance(output, NodeRef):
             last = self.records.get(output.index)
@@ -372,8 +382,8 @@ class Execution:
         """The time a node gets: its planned share (re-planned first in adaptive mode), less
         whatever earlier calls used past theirs (a module may overshoot by its last step), so
         that the calls still to run keep their planned time and the program its contract."""
-        if self.adaptive and self.judged:
-            self.replan()
+        if self.adaptive and self.informed:
+            self.adapt()
         spent = self.clock.now() - self.start
         later = sum(
             float(self.allocation[n.time_index])
@@ -386,9 +396,62 @@ class Execution:
         self.allocation[node.time_index] = given  # what it was given, as recorded
         return given
 
+    def informative(self, node: CompileNode, record: RunRecord) -> bool:
+        """Whether a finished call tells the plan something it did not know (the value of
+        information of the rest is 0 otherwise, so re-planning could only cost): it left a
+        lattice unit or more of its share unused, or its outcome is a draw the plan only knew
+        the distribution of -- no result from a call that ran, a true quality from a module
+        whose profile is not deterministic (or is, but was wrong), the result of a loop, an if
+        or a called schema. A quality judged by a module's profile at the time it used is
+        what the plan expected, and is not news."""
+        if not isinstance(node, ModuleNode | LoopNode | IfNode):
+            return False  # a best-of's or a function's quality is that of calls already seen
+        share = float(self.allocation[node.time_index])
+        if share - record.time_used >= self.compiled.resolution - 1e-9:
+            return True
+        if not isinstance(node, ModuleNode) or node.callee is not None:
+            return True
+        if record.result is None:
+            return record.time_used > 0
+        module = node.entry.module if node.entry is not None else None
+        if module is None or module.reports != "true":
+            return False
+        if not node.deterministic:
+            return True
+        predicted = judged_inputs(node, self.judged, self.qualities)
+        q = np.asarray(predicted, dtype=np.float64).reshape(1, -1)
+        expected = float(node.profile.expected(q, np.asarray([record.time_used]))[0])
+        return abs(record.result.quality - expected) > QUANTUM
+
+    def adapt(self) -> None:
+        """Adaptive mode, after a call that was news: the split of the time left that the
+        compiler finds best given the qualities judged so far, where it is expected to beat the
+        split planned (the model's `Replanner`, which remembers its answers). A search costs
+        time on the run's clock (none on the work clock): where its mean so far is more than
+        `SEARCH_SHARE` of the time left, the plan is kept unless the answer is remembered."""
+        self.informed = False
+        self.replans += 1
+        observed = dict(self.judged)
+        for other in self.model.anytime_nodes:
+            if other.index not in observed and self.ruled_out(other):
+                observed[other.index] = 0.0
+        free = [n.time_index for n in self.model.anytime_nodes if n.index not in observed]
+        left = max(0.0, self.total - (self.clock.now() - self.start))
+        planner = replanner(self.model, self.compiled.resolution)
+        kind = type(self.clock).__name__
+        spent, searches = planner.costs.get(kind, (0.0, 0))
+        affordable = searches == 0 or spent / searches <= SEARCH_SHARE * left
+        before, done = self.clock.now(), planner.searches
+        new = planner.plan(self.qualities, self.allocation, free, left, observed, affordable)
+        if planner.searches > done:
+            planner.costs[kind] = (spent + self.clock.now() - before, searches + 1)
+        if new is not None:
+            self.allocation = new
+
     def replan(self) -> None:
-        """Adaptive mode: the best split of the time left among the nodes still to run, given
-        the qualities judged so far (the alternatives ruled out count as quality 0)."""
+        """Where a map's count is not the one planned for: the best split of the time left
+        among the nodes still to run, given the qualities judged so far (the alternatives ruled
+        out count as quality 0)."""
         observed = dict(self.judged)
         for other in self.model.anytime_nodes:
             if other.index not in observed and self.ruled_out(other):

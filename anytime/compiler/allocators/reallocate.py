@@ -1,20 +1,34 @@
 """Re-splitting time during a run: `reallocate`, the compiler's own search on its lattice over
 some positions of an allocation, the others kept and the nodes that have run at the qualities
-seen. The runtime uses it to re-split a best-of's time among its applicable alternatives and to
-re-plan adaptively."""
+seen. The runtime uses it to re-split a best-of's time among its applicable alternatives; to
+re-plan adaptively it asks a model's `Replanner`, which runs the same search only where a new
+split is worth more than the one kept, and remembers its answers."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections import OrderedDict
+from collections.abc import Hashable, Mapping, Sequence
+from weakref import WeakKeyDictionary
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from anytime.compiler.allocators.exhaustive import Exhaustive
 from anytime.compiler.allocators.hill_climbing import HillClimbing
+from anytime.compiler.dist import NO_RESULT
 from anytime.compiler.evaluate import Evaluator
 from anytime.compiler.model import CompileModel
 from anytime.profiles.profile import Array
+
+#: Observed qualities are planned on rounded to this (so that the plans of one program's runs
+#: recur and are looked up, not searched again).
+QUANTUM = 0.01
+#: The least gain in expected output quality for which a new split replaces the kept one (on
+#: top of twice the evaluation's standard error where the shared results were sampled): below
+#: it the two are the same plan up to rounding.
+LEAST_GAIN = 1e-9
+#: Re-plans a `Replanner` remembers (the least recently used forgotten first).
+CACHE_SIZE = 4096
 
 
 class Restricted:
@@ -45,6 +59,32 @@ class Restricted:
         return self.evaluator.expected(quality, full, dict(self.observed))
 
 
+def _search(
+    evaluator: Evaluator,
+    resolution: float,
+    qualities: Sequence[float],
+    allocation: Array,
+    free: list[int],
+    budget: float,
+    observed: Mapping[int, float],
+) -> Array:
+    """`reallocate`'s answer, with a given evaluator."""
+    new = np.array(allocation, dtype=np.float64)
+    if not free:
+        return new
+    new[free] = 0.0
+    if budget <= 0:
+        return new
+    units = np.array([int(np.floor(budget / resolution + 1e-9))])
+    restricted = Restricted(evaluator, new, free, observed)
+    q = np.asarray(qualities, dtype=np.float64).reshape(1, -1)
+    search = Exhaustive() if Exhaustive.computable(units, len(free)) else HillClimbing()
+    split, _ = search.allocate(restricted, q, units, resolution)
+    new[free] = split[0] * resolution
+    new[free[0]] += budget - units[0] * resolution
+    return new
+
+
 def reallocate(
     model: CompileModel,
     resolution: float,
@@ -58,19 +98,101 @@ def reallocate(
     others kept as in `allocation` and the nodes in `observed` at the qualities seen: the
     compiler's own search on its lattice (exhaustive where affordable, else hill-climbing),
     whatever the lattice cannot hold going to the first free position. Used by the runtime to
-    re-split a best-of's time among its applicable alternatives and to re-plan adaptively."""
-    new = np.array(allocation, dtype=np.float64)
-    free = list(free)
-    if not free:
+    re-split a best-of's time among its applicable alternatives."""
+    return _search(
+        Evaluator(model), resolution, qualities, allocation, list(free), budget, observed
+    )
+
+
+class Replanner:
+    """The adaptive re-plans of one model: `reallocate`'s search, kept only where it beats the
+    split already planned, and remembered by what it was asked (the plans of a program's runs
+    recur: the same totals, the same outcomes of the same modules)."""
+
+    def __init__(self, model: CompileModel, resolution: float) -> None:
+        self.model, self.resolution = model, resolution
+        self.evaluator = Evaluator(model)
+        self.plans: OrderedDict[Hashable, Array | None] = OrderedDict()
+        self.searches = 0  # searches run (the rest were looked up)
+        # What the runtime measured its searches to cost, by the kind of clock: (sum, count).
+        self.costs: dict[str, tuple[float, int]] = {}
+
+    def plan(
+        self,
+        qualities: Sequence[float],
+        allocation: Array,
+        free: Sequence[int],
+        budget: float,
+        observed: Mapping[int, float],
+        search: bool = True,
+    ) -> Array | None:
+        """The allocation to run from here: `allocation` with `budget` re-split among the
+        positions `free` where the best split the search finds, given the qualities
+        `observed` (rounded to `QUANTUM`), is expected to do better than the one `allocation`
+        holds by more than `LEAST_GAIN` and the evaluation's error; else `allocation` as it
+        is. None when the answer is not remembered and `search` is False."""
+        free = list(free)
+        units = int(np.floor(max(budget, 0.0) / self.resolution + 1e-9))
+        seen = {i: _rounded(q) for i, q in observed.items()}
+        key = (
+            tuple(free),
+            units,
+            tuple(np.round(np.asarray(allocation, dtype=np.float64)[free], 9).tolist()),
+            tuple(sorted(seen.items())),
+            tuple(float(q) for q in qualities),
+        )
+        if key in self.plans:
+            self.plans.move_to_end(key)
+            split = self.plans[key]
+        elif not search:
+            return None
+        else:
+            split = self._better_split(qualities, allocation, free, units, seen)
+            self.plans[key] = split
+            if len(self.plans) > CACHE_SIZE:
+                self.plans.popitem(last=False)
+        new = np.array(allocation, dtype=np.float64)
+        if split is not None:
+            new[free] = split
+            new[free[0]] += max(budget, 0.0) - units * self.resolution
         return new
-    new[free] = 0.0
-    if budget <= 0:
-        return new
-    units = np.array([int(np.floor(budget / resolution + 1e-9))])
-    restricted = Restricted(Evaluator(model), new, free, observed)
-    q = np.asarray(qualities, dtype=np.float64).reshape(1, -1)
-    search = Exhaustive() if Exhaustive.computable(units, len(free)) else HillClimbing()
-    split, _ = search.allocate(restricted, q, units, resolution)
-    new[free] = split[0] * resolution
-    new[free[0]] += budget - units[0] * resolution
-    return new
+
+    def _better_split(
+        self,
+        qualities: Sequence[float],
+        allocation: Array,
+        free: list[int],
+        units: int,
+        observed: Mapping[int, float],
+    ) -> Array | None:
+        """The searched split of `units` among `free` (in time), or None where it is not
+        expected to beat the kept one."""
+        if not free:
+            return None
+        self.searches += 1
+        budget = units * self.resolution
+        found = _search(
+            self.evaluator, self.resolution, qualities, allocation, free, budget, observed
+        )
+        kept = np.array(allocation, dtype=np.float64)
+        # Both on the same evaluation (the same draws where the shared results are sampled).
+        dist = self.evaluator.evaluate(qualities, np.vstack([found, kept]), dict(observed))
+        value, error = dist.expected(), dist.standard_error
+        if value[0] - value[1] <= LEAST_GAIN + 2.0 * float(error.max()):
+            return None
+        return found[free]
+
+
+_REPLANNERS: WeakKeyDictionary[CompileModel, Replanner] = WeakKeyDictionary()
+
+
+def replanner(model: CompileModel, resolution: float) -> Replanner:
+    """The model's `Replanner` (one per model and resolution, kept while the model lives)."""
+    found = _REPLANNERS.get(model)
+    if found is None or found.resolution != resolution:
+        found = _REPLANNERS[model] = Replanner(model, resolution)
+    return found
+
+
+def _rounded(quality: float) -> float:
+    return quality if quality == NO_RESULT else round(quality / QUANTUM) * QUANTUM
