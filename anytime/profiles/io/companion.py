@@ -12,10 +12,12 @@ from __future__ import annotations
 import errno
 import hashlib
 import io
+import math
 import zipfile
+import zlib
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any, NoReturn, cast
+from typing import IO, Any, NoReturn, cast
 
 import numpy as np
 
@@ -70,27 +72,29 @@ def with_companion(data: object, filename: str, tables: Sequence[str], fail: Fai
                 f"tables.shapes.{key}",
                 f"expected a list of axis lengths, got {describe(shape)}",
             )
-    arrays = read_archive(filename, name, str(header["sha256"]), fail)
-    if sorted(arrays) != sorted(shapes):
-        fail(
-            "tables.shapes",
-            f"expected the companion '{name}' to hold {', '.join(sorted(shapes))},"
-            f" got {', '.join(sorted(arrays)) or 'nothing'}",
-        )
-    for key, array in arrays.items():
-        if list(array.shape) != shapes[key] or array.dtype.kind not in "fiu":
+        if math.prod(shape) > MAX_CELLS:  # refused before the companion is opened
             fail(
                 f"tables.shapes.{key}",
-                f"expected numbers of shape {shapes[key]} (the header's), got"
-                f" {array.dtype} of shape {list(array.shape)} in the companion '{name}'",
+                f"expected at most {MAX_CELLS} cells, got shape {shape}"
+                f" ({math.prod(shape):,} cells)",
             )
+    arrays = read_archive(filename, name, str(header["sha256"]), shapes, fail)
     rest = {key: value for key, value in data.items() if key != "tables"}
     return {**rest, **{key: a.astype(np.float64) for key, a in arrays.items()}}
 
 
-def read_archive(filename: str, name: str, sha256: str, fail: Fail) -> dict[str, Array]:
+def read_archive(
+    filename: str, name: str, sha256: str, shapes: Mapping[str, list[int]], fail: Fail
+) -> dict[str, Array]:
     """The arrays of the companion `name` beside the file `filename`, if its digest is
-    `sha256`."""
+    `sha256` and it holds the tables `shapes` declares (table -> shape), each of that shape.
+
+    A member is judged before it is decompressed: its `.npy` header (read alone, a few hundred
+    bytes) must declare the shape of `shapes` and numbers, and the member's uncompressed size
+    in the zip directory must be the one that header implies. The zip reader decompresses no
+    more than that size (a longer stream fails its CRC), so a small archive that would expand
+    to gigabytes (a zip bomb) costs what its declared table costs, at most `MAX_CELLS` cells.
+    """
     path = Path(filename).parent / name
     try:
         raw = read_input(path, limit=MAX_COMPANION_BYTES, kind="profile companions")
@@ -103,11 +107,89 @@ def read_archive(filename: str, name: str, sha256: str, fail: Fail) -> dict[str,
             f"the companion '{name}' is not the one this file was written with (expected"
             f" sha256 {sha256}, got {digest}): write the profile again",
         )
-    try:
-        with np.load(io.BytesIO(raw), allow_pickle=False) as archive:
-            return {key: archive[key] for key in archive.files}
-    except (OSError, ValueError, zipfile.BadZipFile) as exc:
+
+    def damaged(exc: object) -> NoReturn:
         fail("tables.file", f"the companion '{name}' is not an archive of arrays: {exc}")
+
+    try:
+        archive = zipfile.ZipFile(io.BytesIO(raw))
+        infos = archive.infolist()
+    except _ARCHIVE_ERRORS as exc:
+        damaged(exc)
+    members: dict[str, tuple[zipfile.ZipInfo, _Header]] = {}
+    for info in infos:
+        key = info.filename.removesuffix(".npy")
+        if key in members:
+            damaged(f"it holds '{info.filename}' twice")
+        try:  # the header alone: a few hundred bytes, whatever the member expands to
+            with archive.open(info) as member:
+                header = _npy_header(member)
+        except _ARCHIVE_ERRORS as exc:
+            damaged(exc)
+        if header[2].hasobject:
+            damaged("Object arrays cannot be loaded when allow_pickle=False")
+        members[key] = info, header
+    if sorted(members) != sorted(shapes):
+        fail(
+            "tables.shapes",
+            f"expected the companion '{name}' to hold {', '.join(sorted(shapes))},"
+            f" got {', '.join(sorted(members)) or 'nothing'}",
+        )
+    arrays = {}
+    for key, (info, (shape, fortran, dtype, start)) in members.items():
+        if list(shape) != shapes[key] or dtype.kind not in "fiu":
+            fail(
+                f"tables.shapes.{key}",
+                f"expected numbers of shape {shapes[key]} (the header's), got"
+                f" {dtype} of shape {list(shape)} in the companion '{name}'",
+            )
+        size = start + math.prod(shape) * dtype.itemsize
+        if info.file_size != size:  # a header that lies about what follows it
+            fail(
+                "tables.file",
+                f"the companion '{name}' is damaged or forged: its member '{info.filename}'"
+                f" holds {info.file_size:,} bytes, where its header ({dtype} of shape"
+                f" {list(shape)}) says {size:,}",
+            )
+        try:
+            with archive.open(info) as member:
+                body = member.read(size)[start:]  # the CRC is checked at the end of the member
+        except _ARCHIVE_ERRORS as exc:
+            damaged(exc)
+        if len(body) != size - start:  # cannot happen once the CRC held; kept as a net
+            damaged(f"its member '{info.filename}' ends early")
+        array = np.frombuffer(body, dtype=dtype)
+        arrays[key] = array.reshape(shape, order="F" if fortran else "C")
+    return arrays
+
+
+#: What reading a damaged archive raises (a bad CRC, a truncated or unknown stream, a bad header).
+_ARCHIVE_ERRORS = (
+    OSError,
+    EOFError,
+    ValueError,
+    RuntimeError,  # an encrypted member
+    NotImplementedError,  # an unknown compression method
+    zipfile.BadZipFile,
+    zlib.error,
+)
+
+
+#: What a `.npy` header declares: shape, Fortran order, dtype, and where the data starts.
+_Header = tuple[tuple[int, ...], bool, np.dtype[Any], int]
+
+
+def _npy_header(member: IO[bytes]) -> _Header:
+    """The shape, order and dtype a `.npy` stream declares, and where its data starts; only the
+    header is read (numpy bounds its length)."""
+    version = np.lib.format.read_magic(member)
+    if version == (1, 0):
+        shape, fortran, dtype = np.lib.format.read_array_header_1_0(member)
+    elif version == (2, 0):
+        shape, fortran, dtype = np.lib.format.read_array_header_2_0(member)
+    else:
+        raise ValueError(f"unsupported .npy format version {version[0]}.{version[1]}")
+    return shape, fortran, dtype, member.tell()
 
 
 # --- writing ---------------------------------------------------------------------------------
