@@ -11,6 +11,7 @@ This module imports nothing of the framework (every layer imports it).
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 
 from attrs import frozen
@@ -32,6 +33,16 @@ class AnytimeError(Exception):
             self.where = where
 
 
+#: The most diagnostics a schema error prints; the rest are counted ("... and 3,912 more
+#: errors"). A file can hold thousands of errors, and each prints its line.
+MAX_REPORTED = 20
+
+#: The most characters of its source line a diagnostic quotes: a window around its column
+#: (a one-line file of 200 KB would otherwise be printed whole under every error).
+EXCERPT = 100
+_VISIBLE = re.compile(r"\S")
+
+
 @frozen
 class Diagnostic:
     """One message about one place in a source file (line and column are 1-based)."""
@@ -44,13 +55,20 @@ class Diagnostic:
     width: int = 1  # how many characters the caret underlines
 
     def format(self) -> str:
+        """The message, then at most `EXCERPT` characters of the source line around the column
+        (cut ends shown as "...") and a caret under the place."""
         head = f"{self.filename}:{self.line}:{self.column}: error: {self.message}"
-        if not self.source_line.strip():
+        text = self.source_line
+        start = max(0, min(self.column - 1 - EXCERPT // 3, len(text) - EXCERPT))
+        piece = text[start : start + EXCERPT].expandtabs(1).rstrip()  # a tab is one column
+        if not piece.strip():
             return head
-        line = self.source_line.expandtabs(1).rstrip()
-        width = max(1, min(self.width, len(line) - self.column + 1))
-        caret = " " * (self.column - 1) + "^" + "~" * (width - 1)
-        return f"{head}\n  {line}\n  {caret}"
+        before = "..." if start > 0 else ""
+        after = "..." if _VISIBLE.search(text, start + EXCERPT) else ""
+        line, column = before + piece, self.column - start + len(before)
+        width = max(1, min(self.width, len(line) - column + 1))
+        caret = " " * (column - 1) + "^" + "~" * (width - 1)
+        return f"{head}\n  {line}{after}\n  {caret}"
 
 
 class SchemaError(AnytimeError):
@@ -70,7 +88,12 @@ class SchemaError(AnytimeError):
         super().__init__(first.message)
 
     def __str__(self) -> str:
-        return "\n".join(d.format() for d in self.diagnostics)
+        """The first `MAX_REPORTED` diagnostics, then how many more there are."""
+        text = "\n".join(d.format() for d in self.diagnostics[:MAX_REPORTED])
+        more = len(self.diagnostics) - MAX_REPORTED
+        if more > 0:
+            text += f"\n... and {more:,} more error{'s' if more > 1 else ''}"
+        return text
 
 
 class SchemaSyntaxError(SchemaError, SyntaxError):

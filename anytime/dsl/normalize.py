@@ -8,6 +8,7 @@ are raised together in one `SchemaError`.
 
 from __future__ import annotations
 
+import itertools
 from collections import deque
 from collections.abc import Collection, Iterable, Mapping, Sequence
 
@@ -56,12 +57,14 @@ class _Checker:
         self.diagnostics: list[Diagnostic] = []
         self.hints = 0
 
-    def suggest(self, name: str, known: Collection[str]) -> str:
-        """`text.suggest`'s hint for the first `MAX_HINTS` errors of the file, then ""."""
-        if self.hints >= MAX_HINTS or not known:
+    def suggest(self, name: str, *known: Collection[str]) -> str:
+        """`text.suggest`'s hint among the names of every collection of `known`, for the first
+        `MAX_HINTS` errors of the file, then "" (at once: the names are not even gathered, so
+        thousands of errors cost each a constant)."""
+        if self.hints >= MAX_HINTS or not any(known):
             return ""
         self.hints += 1
-        return suggest(name, known)
+        return suggest(name, itertools.chain(*known))
 
     def error(self, span: Span | None, message: str) -> None:
         self.diagnostics.append(self.source.source.diagnostic(message, span or Span(1, 1, 1, 2)))
@@ -115,7 +118,7 @@ class _Checker:
         self, step: CallStep, known: KnownFunctions, schema_arity: Mapping[str, int]
     ) -> None:
         if step.function not in known:
-            hint = self.suggest(step.function, [*known, *schema_arity])
+            hint = self.suggest(step.function, known, schema_arity)
             self.error(step.function_span, f"unknown function '{step.function}'{hint}")
             return
         arity = known.get(step.function) if isinstance(known, Mapping) else None
