@@ -14,6 +14,7 @@ from anytime.runtime.deadline import (
     proportional_split,
 )
 from anytime.runtime.executor import RunInterrupted, RunRecord, Status, run
+from anytime.runtime.learned import HistoryStopping, HistoryTable
 from anytime.runtime.modes import Budget, Hard, Isolated, RunMode, Soft
 from anytime.runtime.monitor import (
     Adjustment,
@@ -52,6 +53,8 @@ __all__ = [
     "Adjustment",
     "ConformalStopping",
     "ConformalTable",
+    "HistoryStopping",
+    "HistoryTable",
     "ContractDecision",
     "CostBoundError",
     "CostModel",

@@ -43,7 +43,7 @@ from numpy.typing import NDArray
 from anytime.profiles.dynamic import Observed, QualityTraces, quantile_bins
 from anytime.profiles.profile import Array
 from anytime.runtime.observe import Decision, PolicyError
-from anytime.runtime.policies import Utility, check_allocation
+from anytime.runtime.policies import Utility, check_allocation, trace_cell
 
 #: Default number of quality bins (states) of the conditioning.
 DEFAULT_BINS = 20
@@ -134,7 +134,7 @@ class ConformalStopping:
         self.utility, self.stride, self.min_traces = utility, stride, min_traces
         self.observed: Observed | None = calibration.reports
         self.time = calibration.time
-        cell = _cell(calibration, input_quality, self.name)
+        cell = trace_cell(calibration, input_quality, self.name)
         self._seen = calibration.observed[cell] * calibration.scored[cell]  # (n, m)
         self._true = calibration.quality[cell]
         self._end = calibration.end_index()[cell]
@@ -329,17 +329,3 @@ def _number(name: str, what: str, value: Any, positive: bool = False) -> float:
         need = "a finite number > 0" if positive else "a finite number"
         raise PolicyError(f"{name}: {what} must be {need}, got {value!r}")
     return number
-
-
-def _cell(traces: QualityTraces, input_quality: Sequence[float], name: str) -> tuple[Any, ...]:
-    """The index of the input-quality cell to calibrate at (the nearest grid point)."""
-    grids = traces.input_grids
-    if len(input_quality) != len(grids):
-        raise PolicyError(
-            f"{name}: the traces have {len(grids)} input-quality axes, got {len(input_quality)}"
-            " input qualities"
-        )
-    return tuple(
-        int(np.argmin(np.abs(np.asarray(g) - float(x))))
-        for g, x in zip(grids, input_quality, strict=True)
-    )

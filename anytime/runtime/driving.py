@@ -136,7 +136,11 @@ class Watcher:
         return self.stopped or self.reached(elapsed)
 
     def look(self, elapsed: float) -> None:
-        if at_or_after(elapsed, self.look_at):
+        # A look at the time the run ends anyway (the observer's stop time, or the deadline)
+        # could not change its answer: it is not taken, as `replay` does not take it.
+        if at_or_after(elapsed, self.look_at) and not at_or_after(
+            elapsed, min(self.stop_at, self.allocation)
+        ):
             self.looks += 1
             self.follow(self.observer.look(elapsed, self.best), elapsed)
 

@@ -47,7 +47,9 @@ def replay(
 ) -> Replay:
     """Run `policy` on one recorded trace, as the executor would: it is consulted at the first
     grid time with an answer at or after each `look_at` and stops there, or at the first grid
-    time at or after `stop_at`, never after `allocation` (default: the trace's last time). A
+    time at or after `stop_at`, never after `allocation` (default: the trace's last time); a
+    look due where the run ends anyway (its stop time, or a deadline on the grid) is not
+    taken, since it could not change the answer. A
     run whose module reports its work at every grid time makes the same looks and decisions
     live (`run(..., observer=Stopping(policy))`): the executor looks at the report of work that
     reaches the time asked, once the run has an answer.
@@ -76,13 +78,13 @@ def replay(
     for j in range(last + 1):  # one step of the run per grid time
         if ended is not None and j >= ended:
             return Replay(j, looks)  # the module returned: the run is over
+        if t[j] >= decision.stop_at or j == last and t[j] >= deadline:
+            return Replay(j, looks)  # the run ends here: a look could not change its answer
         if had[j] and t[j] >= decision.look_at:  # the executor looks at results only
             decision = policy.observe(float(t[j]), float(q[j]))
             looks += 1
-            if decision.stop:
+            if decision.stop or t[j] >= decision.stop_at:
                 return Replay(j, looks)
-        if t[j] >= decision.stop_at:
-            return Replay(j, looks)
     return Replay(last, looks)
 
 

@@ -41,7 +41,7 @@ from attrs import field, frozen
 from numpy.typing import ArrayLike
 
 from anytime.modules import AnytimeModule, Result
-from anytime.profiles.dynamic import DynamicProfile, Observed
+from anytime.profiles.dynamic import DynamicProfile, Observed, QualityTraces
 from anytime.profiles.profile import Array
 from anytime.runtime.driving import describe
 from anytime.runtime.monitor import TIE_TOLERANCE, CostModel, ValueModel, model_answer
@@ -223,6 +223,21 @@ class StoppingModel:
         return int(np.clip(np.searchsorted(bins, q, side="right") - 1, 0, len(bins) - 2))
 
 
+def trace_cell(traces: QualityTraces, input_quality: Sequence[float], name: str) -> tuple[int, ...]:
+    """The index of the input-quality cell of `traces` nearest to `input_quality`: where a
+    policy learned from traces learns."""
+    grids = traces.input_grids
+    if len(input_quality) != len(grids):
+        raise PolicyError(
+            f"{name}: the traces have {len(grids)} input-quality axes, got {len(input_quality)}"
+            " input qualities"
+        )
+    return tuple(
+        int(np.argmin(np.abs(np.asarray(g) - float(x))))
+        for g, x in zip(grids, input_quality, strict=True)
+    )
+
+
 def check_allocation(name: str, allocation: float) -> float:
     value = float(allocation)
     if math.isnan(value) or value < 0:
@@ -314,11 +329,12 @@ def _every_step_value(
     model: StoppingModel, stop: Array, last: int, monitoring_cost: float
 ) -> float:
     """The expected utility of looking at every grid time from the first and stopping in the
-    states `stop` (m, K) marks (at `last` in every state), each look costing `monitoring_cost`."""
+    states `stop` (m, K) marks (at `last` in every state, where the run ends without a look),
+    each look costing `monitoring_cost`."""
     alive = model.marginal[0].copy()
     total = looks = 0.0
     for j in range(last + 1):  # forward over time steps, vectorised over states
-        looks += alive.sum()
+        looks += alive.sum() if j < last else 0.0  # the run ends at `last`: no look there
         stopping = alive if j == last else alive * stop[j]
         total += stopping @ model.stop_utility[j]
         if j < last:

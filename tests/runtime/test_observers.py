@@ -160,7 +160,8 @@ def test_run_programs_observers_watch_the_named_modules() -> None:
     looker = Looker(first=25, period=25)
     record = run_program(compiled, [10], 100, observers={"sparse": looker})
     assert record.result == Result(100, 1.0)
-    assert [c[1] for c in looker.calls if c[0] == "look"] == [25.0, 50.0, 75.0, 100.0]
+    # Not at 100: a look where the run ends anyway could not change its answer.
+    assert [c[1] for c in looker.calls if c[0] == "look"] == [25.0, 50.0, 75.0]
 
 
 @settings(max_examples=30, deadline=None)
