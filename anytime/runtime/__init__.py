@@ -28,7 +28,15 @@ from anytime.runtime.monitor import (
     ValueModel,
 )
 from anytime.runtime.observe import Decision, Observer, PolicyError
-from anytime.runtime.offline import Evaluation, Replay, clairvoyant, evaluate, replay
+from anytime.runtime.offline import (
+    Assessment,
+    Evaluation,
+    Replay,
+    assess,
+    clairvoyant,
+    evaluate,
+    replay,
+)
 from anytime.runtime.policies import (
     FixedStopping,
     MyopicStopping,
@@ -54,6 +62,8 @@ __all__ = [
     "ConformalStopping",
     "ConformalTable",
     "HistoryStopping",
+    "Assessment",
+    "assess",
     "HistoryTable",
     "ContractDecision",
     "CostBoundError",

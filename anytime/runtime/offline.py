@@ -1,7 +1,9 @@
 """Stopping policies offline: on recorded traces, and exactly on a dynamic profile's model.
 
 `replay` runs a policy on one recorded trace as the executor would run it on the module;
-`clairvoyant` is the best utility a trace allowed (the yardstick of regret); `evaluate` computes
+`clairvoyant` is the best utility a trace allowed (the yardstick of regret); `assess` replays a
+policy on every trace of a recording (runs it was not built from: the check of what it promises);
+`evaluate` computes
 any policy's expected utility exactly on a profile's Markov chain, by enumerating the chain's
 state paths (for small models: a policy may read the whole history, so nothing smaller is
 exact), which is how the tests check that the optimal policy is optimal on its own model.
@@ -10,11 +12,13 @@ exact), which is how the tests check that the optimal policy is optimal on its o
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 from attrs import frozen
 from numpy.typing import ArrayLike
 
+from anytime.profiles.dynamic import QualityTraces
 from anytime.profiles.profile import Array
 from anytime.runtime.observe import PolicyError
 from anytime.runtime.policies import (
@@ -23,6 +27,7 @@ from anytime.runtime.policies import (
     Utility,
     check_allocation,
     check_monitoring_cost,
+    trace_cell,
 )
 
 #: How many state paths `evaluate` enumerates at most.
@@ -146,3 +151,64 @@ def clairvoyant(time: ArrayLike, true_quality: ArrayLike, utility: Utility) -> A
     flat = q.reshape(-1, len(t))
     best: Array = utility(t, flat.T).max(axis=0).reshape(q.shape[:-1])
     return best
+
+
+@frozen
+class Assessment:
+    """What a policy realised on recorded runs.
+
+    Attributes:
+        utility: the mean utility, looks paid for.
+        standard_error: that mean's standard error.
+        clairvoyant: the mean of the best utility each run allowed.
+        looks: the mean number of looks.
+        runs: how many runs.
+    """
+
+    utility: float
+    standard_error: float
+    clairvoyant: float
+    looks: float
+    runs: int
+
+    @property
+    def fraction(self) -> float:
+        """The mean utility as a fraction of the clairvoyant's."""
+        return self.utility / self.clairvoyant if self.clairvoyant else math.nan
+
+
+def assess(
+    policy: StoppingPolicy,
+    traces: QualityTraces,
+    utility: Utility,
+    allocation: float | None = None,
+    monitoring_cost: float = 0.0,
+    input_quality: Sequence[float] = (),
+) -> Assessment:
+    """Replay `policy` on every run of `traces` (as the executor would run it: see `replay`,
+    each run ending where it ended by itself) and score it: U(true quality, time) at its stop,
+    less `monitoring_cost` per look. On runs the policy was not built from, this is the check
+    of what it promises (its `expected_utility`)."""
+    c = check_monitoring_cost("assess", monitoring_cost)
+    cell = trace_cell(traces, input_quality, "assess")
+    t = traces.time
+    deadline = float(t[-1]) if allocation is None else check_allocation("assess", allocation)
+    last = int(np.searchsorted(t, deadline * (1 + 1e-12), side="right")) - 1
+    if last < 0:
+        raise PolicyError(f"assess: no grid time within the allocation {deadline:g}")
+    observed, scored = traces.observed[cell], traces.scored[cell]
+    quality, ends = traces.quality[cell][:, : last + 1], traces.end_index()[cell]
+    runs = [  # one replay per run: a policy may read the whole history
+        replay(policy, t, observed[i], deadline, scored[i], int(ends[i]))
+        for i in range(len(observed))
+    ]
+    stop = np.array([r.stop_index for r in runs])
+    looks = np.array([r.looks for r in runs], dtype=np.float64)
+    worth = utility(t[: last + 1], quality.T).T
+    got = worth[np.arange(len(stop)), stop] - c * looks
+    # What each run allowed: up to the allocation and its own end.
+    reach = np.arange(last + 1)[None, :] <= ends[:, None]
+    best = np.where(reach, worth, -np.inf).max(axis=1)
+    n = len(got)
+    se = float(got.std(ddof=1) / math.sqrt(n)) if n > 1 else math.inf
+    return Assessment(float(got.mean()), se, float(best.mean()), float(looks.mean()), n)
