@@ -21,6 +21,7 @@ from anytime.runtime import (
     OptimalStopping,
     PolicyError,
     Utility,
+    assess,
     clairvoyant,
     replay,
 )
@@ -151,3 +152,21 @@ def test_bad_arguments_are_named() -> None:
     with pytest.raises(PolicyError) as error:
         HistoryStopping(recorded, utility).start(-1)
     assert str(error.value) == "history: allocation must be a number >= 0, got -1"
+
+
+def test_assess_scores_a_policy_as_replaying_each_run_does() -> None:
+    """`assess` is the replay of every run, scored at its stop, looks paid, against the best
+    each run allowed (up to its own end)."""
+    recorded = kinds([[0.0, 0.3, 0.5, 0.5, 0.5], [0.0, 0.2, 0.4, 0.6, 0.9]], 3, [2.0, 4.0])
+    model = Linear(1.0, 0.05)
+    utility = Utility(model, model)
+    policy = HistoryStopping(recorded, utility, monitoring_cost=0.01)
+    got = assess(policy, recorded, utility, monitoring_cost=0.01)
+    values = realised(policy, recorded, model)
+    assert (got.utility, got.runs) == (pytest.approx(values.mean()), 6)
+    assert got.standard_error == pytest.approx(values.std(ddof=1) / math.sqrt(6))
+    assert got.clairvoyant == pytest.approx((0.5 - 0.05 * 2 + 0.9 - 0.05 * 4) / 2)
+    assert got.fraction == pytest.approx(got.utility / got.clairvoyant)
+    with pytest.raises(PolicyError) as error:
+        assess(policy, recorded, utility, allocation=-1.0)
+    assert str(error.value) == "assess: allocation must be a number >= 0, got -1.0"
