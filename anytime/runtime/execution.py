@@ -10,7 +10,7 @@ import numpy as np
 from attrs import frozen
 
 from anytime.compiler.allocators import reallocate
-from anytime.compiler.allocators.reallocate import QUANTUM, replanner
+from anytime.compiler.allocators.reallocate import QUANTUM, Replanner, replanner
 from anytime.compiler.compile import CompiledProgram
 from anytime.compiler.evaluate import NO_RESULT
 from anytime.compiler.loops import run_time_split
@@ -103,7 +103,9 @@ class Execution:
         self.judged: dict[int, float] = {}  # the qualities decisions go by
         self.applicable: dict[int, list[bool]] = {}  # each best-of's, once decided
         self.informed = False  # whether a call has shown what the plan did not know yet
-        self.replans = 0  # adaptive re-plans asked for (looked up or searched)
+        # The last node with time of its own: what finishes after it leaves nothing to re-plan.
+        self.last_timed = max((n.index for n in self.model.anytime_nodes), default=-1)
+        self.planner: Replanner | None = None  # the model's, once asked
 
     def call(
         self, module: AnytimeModule, args: Sequence[Any], kwargs: Mapping[str, Any], share: float
@@ -404,8 +406,9 @@ class Execution:
         whose profile is not deterministic (or is, but was wrong), the result of a loop, an if
         or a called schema. A quality judged by a module's profile at the time it used is
         what the plan expected, and is not news."""
-        if not isinstance(node, ModuleNode | LoopNode | IfNode):
-            return False  # a best-of's or a function's quality is that of calls already seen
+        if node.index >= self.last_timed or not isinstance(node, ModuleNode | LoopNode | IfNode):
+            return False  # nothing left to re-plan; a best-of's or a function's quality is
+            # that of calls already seen
         share = float(self.allocation[node.time_index])
         if share - record.time_used >= self.compiled.resolution - 1e-9:
             return True
@@ -430,18 +433,22 @@ class Execution:
         time on the run's clock (none on the work clock): where its mean so far is more than
         `SEARCH_SHARE` of the time left, the plan is kept unless the answer is remembered."""
         self.informed = False
-        self.replans += 1
         observed = dict(self.judged)
-        for other in self.model.anytime_nodes:
-            if other.index not in observed and self.ruled_out(other):
-                observed[other.index] = 0.0
-        free = [n.time_index for n in self.model.anytime_nodes if n.index not in observed]
-        left = max(0.0, self.total - (self.clock.now() - self.start))
-        planner = replanner(self.model, self.compiled.resolution)
+        nodes = self.model.anytime_nodes
+        if self.applicable:  # only a best-of's decision rules nodes out
+            for other in nodes:
+                if other.index not in observed and self.ruled_out(other):
+                    observed[other.index] = 0.0
+        free = [n.time_index for n in nodes if n.index not in observed]
+        before = self.clock.now()
+        left = max(0.0, self.total - (before - self.start))
+        planner = self.planner
+        if planner is None or planner.model is not self.model:
+            planner = self.planner = replanner(self.model, self.compiled.resolution)
         kind = type(self.clock).__name__
         spent, searches = planner.costs.get(kind, (0.0, 0))
         affordable = searches == 0 or spent / searches <= SEARCH_SHARE * left
-        before, done = self.clock.now(), planner.searches
+        done = planner.searches
         new = planner.plan(self.qualities, self.allocation, free, left, observed, affordable)
         if planner.searches > done:
             planner.costs[kind] = (spent + self.clock.now() - before, searches + 1)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from collections.abc import Hashable, Mapping, Sequence
+from math import comb
 from weakref import WeakKeyDictionary
 
 import numpy as np
@@ -15,6 +16,7 @@ from numpy.typing import ArrayLike
 
 from anytime.compiler.allocators.exhaustive import Exhaustive
 from anytime.compiler.allocators.hill_climbing import HillClimbing
+from anytime.compiler.allocators.lattice import compositions
 from anytime.compiler.dist import NO_RESULT
 from anytime.compiler.evaluate import Evaluator
 from anytime.compiler.model import CompileModel
@@ -27,6 +29,8 @@ QUANTUM = 0.01
 #: top of twice the evaluation's standard error where the shared results were sampled): below
 #: it the two are the same plan up to rounding.
 LEAST_GAIN = 1e-9
+#: The most splits a re-plan evaluates in one call (beyond, the compiler's search runs).
+ONE_CALL_ROWS = 20_000
 #: Re-plans a `Replanner` remembers (the least recently used forgotten first).
 CACHE_SIZE = 4096
 
@@ -113,6 +117,7 @@ class Replanner:
         self.model, self.resolution = model, resolution
         self.evaluator = Evaluator(model)
         self.plans: OrderedDict[Hashable, Array | None] = OrderedDict()
+        self.asked = 0  # re-plans asked for
         self.searches = 0  # searches run (the rest were looked up)
         # What the runtime measured its searches to cost, by the kind of clock: (sum, count).
         self.costs: dict[str, tuple[float, int]] = {}
@@ -131,14 +136,15 @@ class Replanner:
         `observed` (rounded to `QUANTUM`), is expected to do better than the one `allocation`
         holds by more than `LEAST_GAIN` and the evaluation's error; else `allocation` as it
         is. None when the answer is not remembered and `search` is False."""
+        self.asked += 1
         free = list(free)
         units = int(np.floor(max(budget, 0.0) / self.resolution + 1e-9))
         seen = {i: _rounded(q) for i, q in observed.items()}
         key = (
             tuple(free),
             units,
-            tuple(np.round(np.asarray(allocation, dtype=np.float64)[free], 9).tolist()),
-            tuple(sorted(seen.items())),
+            np.asarray(allocation, dtype=np.float64)[free].tobytes(),
+            tuple(seen.items()),  # in the order the nodes ran
             tuple(float(q) for q in qualities),
         )
         if key in self.plans:
@@ -149,7 +155,7 @@ class Replanner:
         else:
             split = self._better_split(qualities, allocation, free, units, seen)
             self.plans[key] = split
-            if len(self.plans) > CACHE_SIZE:
+            while len(self.plans) > CACHE_SIZE:
                 self.plans.popitem(last=False)
         new = np.array(allocation, dtype=np.float64)
         if split is not None:
@@ -170,17 +176,26 @@ class Replanner:
         if not free:
             return None
         self.searches += 1
-        budget = units * self.resolution
-        found = _search(
-            self.evaluator, self.resolution, qualities, allocation, free, budget, observed
-        )
         kept = np.array(allocation, dtype=np.float64)
-        # Both on the same evaluation (the same draws where the shared results are sampled).
-        dist = self.evaluator.evaluate(qualities, np.vstack([found, kept]), dict(observed))
+        if comb(units + len(free) - 1, len(free) - 1) <= ONE_CALL_ROWS:
+            # Every split of the lattice and the kept one in one evaluation (its cost is
+            # mostly per call): the exhaustive search's answer, and the same draws for both.
+            splits = compositions(units, len(free)) * self.resolution
+            rows = np.tile(kept, (len(splits) + 1, 1))
+            rows[:-1, free] = splits
+        else:
+            budget = units * self.resolution
+            found = _search(
+                self.evaluator, self.resolution, qualities, allocation, free, budget, observed
+            )
+            rows = np.vstack([found, kept])
+        dist = self.evaluator.evaluate(qualities, rows, dict(observed))
         value, error = dist.expected(), dist.standard_error
-        if value[0] - value[1] <= LEAST_GAIN + 2.0 * float(error.max()):
+        best = int(np.argmax(value[:-1]))
+        if value[best] - value[-1] <= LEAST_GAIN + 2.0 * float(max(error[best], error[-1])):
             return None
-        return found[free]
+        split: Array = rows[best, free]
+        return split
 
 
 _REPLANNERS: WeakKeyDictionary[CompileModel, Replanner] = WeakKeyDictionary()
