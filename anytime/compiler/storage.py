@@ -13,6 +13,13 @@ and takes every table from the file; a module whose profile has changed since is
 since the table was optimal for the old one. A file saved before the codes has only the
 sentences: its obstacle to dp is the one found again (where it reads the same), and any other
 sentence is kept as it was written (`Code.TEXT`).
+
+Everything loaded is checked with the rules `anytime plot` reads a compiled file by, each
+error a `CompileError` whose `where` is the file and whose message names the field (and the
+first bad cell): tables of the program's shape, of numbers (not ragged), allocations finite
+and >= 0, baselines qualities in [0, 1], standard errors finite and >= 0, the resolution a
+finite number > 0 whose lattice up to the largest total has at most `MAX_LATTICE` points, the
+allocators among the known ones. A tampered file is refused, never run.
 """
 
 from __future__ import annotations
@@ -25,7 +32,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from anytime.compiler.allocators import dp_obstacle
+from anytime.compiler.allocators import ALLOCATORS, dp_obstacle
 from anytime.compiler.loops import loop_profiles
 from anytime.compiler.model import CompileError, CompileModel, IfNode, LoopNode, ModuleNode
 from anytime.compiler.outcomes import Note, text
@@ -41,7 +48,13 @@ from anytime.profiles.io import (
     read_profile_file,
     save_profile,
 )
+from anytime.profiles.io.document import format_number
 from anytime.profiles.profile import ConditionalPerformanceProfile
+
+#: The most points of the time lattice (the multiples of a file's resolution up to its largest
+#: total) a loaded file may imply: its loops' profiles are computed on it again. The command
+#: line compiles on at most 20,000.
+MAX_LATTICE = 1_000_000
 
 #: The compile result's fields that are plain data, as the file carries them.
 _FIELDS = (
@@ -98,7 +111,7 @@ def load_compiled(path: str | os.PathLike[str], library: AnytimeLibrary) -> Comp
         )
     loader = _Loader(filename, library, schemas)
     tables = {"allocation": data.get("allocation"), "modules": data.get("modules")}
-    return loader.program(schemas[top], profile, {**document, **tables}, "compiled")
+    return loader.program(schemas[top], profile, {**document, **tables}, "compiled", top=True)
 
 
 def _document(compiled: CompiledProgram) -> dict[str, Any]:
@@ -190,7 +203,17 @@ class _Loader:
         profile: ConditionalPerformanceProfile,
         document: Mapping[str, Any],
         field: str,
+        *,
+        top: bool = False,
     ) -> CompiledProgram:
+        """The compiled `program` from its `document` (whose fields are under `field`; the top
+        program's `modules` and `allocation` are the file's own top-level fields)."""
+        table_field = "" if top else f"{field}."
+        cells = profile.probability.shape[:-1]
+        allocation = self.numbers(f"{table_field}allocation", document.get("allocation"))
+        values = {name: document.get(name) for name in _FIELDS}
+        dt = self.resolution(values["resolution"], field, float(profile.time[-1]))
+        allocator, requested = self.allocators(values, field)
         callees_doc = _mapping(document.get("callees", {}))
         callees = {
             name: self.nested(self.schemas[name], callees_doc.get(name), f"{field}.callees.{name}")
@@ -201,27 +224,26 @@ class _Loader:
         def branch(sub: Program) -> CompiledProgram:
             return self.nested(sub, branches_doc.get(sub.name), f"{field}.branches.{sub.name}")
 
-        # A loop's profiles are computed again from its call's (checked below) on the lattice.
-        dt = float(document.get("resolution") or 1.0)
-        lattice = np.arange(int(np.rint(profile.time[-1] / dt)) + 1, dtype=np.float64) * dt
-
         def loop(call: ModuleNode, most: int, name: str) -> tuple[Any, ...]:
+            # a loop's profiles are computed again from its call's (checked below)
+            lattice = np.arange(int(np.rint(profile.time[-1] / dt)) + 1, dtype=np.float64) * dt
             return loop_profiles(call, most, lattice, name)
 
         model = build_model(program, self.library, self.schemas.source, branch, callees, loop)
         if list(document.get("modules") or []) != list(model.module_names):
             raise self.fail(
-                f"{field}.modules",
+                f"{table_field}modules",
                 f"expected {list(model.module_names)} (the program's), got "
                 f"{document.get('modules')!r}",
             )
-        cells = profile.probability.shape[:-1]
-        allocation = np.asarray(document.get("allocation"), dtype=np.float64)
-        if allocation.shape != (*cells, len(model.module_names)):
+        expected = (*cells, len(model.module_names))
+        if allocation.shape != expected:
             raise self.fail(
-                f"{field}.allocation",
-                f"expected shape {(*cells, len(model.module_names))}, got {allocation.shape}",
+                f"{table_field}allocation",
+                f"expected a table of shape {list(expected)} (input grids, time, one per"
+                f" module), got {list(allocation.shape)}",
             )
+        self.check(f"{table_field}allocation", allocation, _bad_time, "a finite time >= 0")
         printed = _mapping(document.get("profiles", {}))
         for node in _modules_of(model.anytime_nodes):
             if isinstance(node, ModuleNode) and node.callee is None:
@@ -231,27 +253,116 @@ class _Loader:
                         f"module '{node.name}' has a profile other than the one the program "
                         "was compiled against: compile it again",
                     )
-        baselines = {
-            str(k): np.asarray(v, dtype=np.float64)
-            for k, v in _mapping(document.get("baselines", {})).items()
-        }
-        values = {name: document.get(name) for name in _FIELDS}
         obstacle, warnings = self.notes(document, field, model)
         return CompiledProgram(
             name=program.name,
             model=model,
             profile=profile,
             allocation=allocation,
-            allocator=str(values["allocator"]),
-            baselines=baselines,
-            exhaustive_gap=_optional(values["exhaustive_gap"], float),
-            resolution=float(values["resolution"] or 1.0),
-            requested=str(values["requested"] or "auto"),
+            allocator=allocator,
+            baselines=self.baselines(document, field, cells),
+            exhaustive_gap=self.gap(values["exhaustive_gap"], field),
+            resolution=dt,
+            requested=requested,
             dp_obstacle=obstacle,
             standard_error=self.standard_error(document, field, profile),
-            kept_smaller=tuple(float(t) for t in values["kept_smaller"] or ()),
+            kept_smaller=self.kept_smaller(values["kept_smaller"], field),
             warnings=warnings,
         )
+
+    # --- the checks of the plain fields ------------------------------------------------------
+
+    def numbers(self, field: str, value: Any) -> np.ndarray:
+        """`value` as a table of numbers (any shape): a ragged or non-numeric one is an error."""
+        try:
+            array = np.asarray(value)
+        except ValueError:  # ragged
+            array = None
+        if array is None or array.dtype.kind not in "iuf" or array.ndim == 0:
+            got = "nothing" if value is None else "a ragged or non-numeric table"
+            raise self.fail(field, f"expected a table of numbers, got {got}")
+        return array.astype(np.float64)
+
+    def check(self, field: str, table: np.ndarray, bad: Callable[[Any], Any], what: str) -> None:
+        """An error naming the first cell of `table` where `bad` holds (vectorised)."""
+        wrong = np.asarray(bad(table))
+        if np.any(wrong):
+            index = tuple(int(i) for i in np.argwhere(wrong)[0])
+            where = field + "".join(f"[{i}]" for i in index)
+            raise self.fail(where, f"expected {what}, got {format_number(float(table[index]))}")
+
+    def resolution(self, value: Any, field: str, largest: float) -> float:
+        """The allocations' time step: a finite number > 0 (1 in a file without one) whose
+        lattice up to the largest total has at most `MAX_LATTICE` points."""
+        if value is None:
+            return 1.0
+        expected = "a finite number > 0 (the allocations' time step)"
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise self.fail(f"{field}.resolution", f"expected {expected}, got {value!r}")
+        dt = float(value)
+        if not np.isfinite(dt) or dt <= 0:
+            raise self.fail(f"{field}.resolution", f"expected {expected}, got {format_number(dt)}")
+        points = largest / dt + 1
+        if points > MAX_LATTICE:
+            raise self.fail(
+                f"{field}.resolution",
+                f"expected at most {MAX_LATTICE:,} multiples of it up to the largest total"
+                f" {format_number(largest)}, got {format_number(dt)} ({points:.3g} points)",
+            )
+        return dt
+
+    def allocators(self, values: Mapping[str, Any], field: str) -> tuple[str, str]:
+        """The allocator that ran (one of `ALLOCATORS`) and the one asked for ("auto" in a
+        file without one)."""
+        allocator, requested = values["allocator"], values["requested"] or "auto"
+        names = list(ALLOCATORS)
+        if allocator not in names:
+            raise self.fail(f"{field}.allocator", f"expected one of {names}, got {allocator!r}")
+        if requested not in ("auto", *names):
+            raise self.fail(
+                f"{field}.requested", f"expected one of {['auto', *names]}, got {requested!r}"
+            )
+        return str(allocator), str(requested)
+
+    def baselines(
+        self, document: Mapping[str, Any], field: str, cells: tuple[int, ...]
+    ) -> dict[str, np.ndarray]:
+        """The baselines' expected qualities, each shaped like the table's cells, in [0, 1]."""
+        value = document.get("baselines", {})
+        if not isinstance(value, Mapping):
+            raise self.fail(f"{field}.baselines", f"expected a mapping, got {value!r}")
+        baselines = {}
+        for key, table in value.items():
+            where = f"{field}.baselines.{key}"
+            array = self.numbers(where, table)
+            if array.shape != cells:
+                raise self.fail(
+                    where,
+                    f"expected shape {list(cells)} (input grids, time), got {list(array.shape)}",
+                )
+            self.check(where, array, _bad_quality, "a quality in [0, 1]")
+            baselines[str(key)] = array
+        return baselines
+
+    def gap(self, value: Any, field: str) -> float | None:
+        """The gap to the exhaustive optimum: a finite number, or None (not computed)."""
+        if value is None:
+            return None
+        if isinstance(value, bool) or not isinstance(value, int | float) or not np.isfinite(value):
+            raise self.fail(
+                f"{field}.exhaustive_gap", f"expected a finite number or null, got {value!r}"
+            )
+        return float(value)
+
+    def kept_smaller(self, value: Any, field: str) -> tuple[float, ...]:
+        """The totals where a smaller split was kept: finite numbers >= 0."""
+        if value is None or value == []:
+            return ()
+        array = self.numbers(f"{field}.kept_smaller", value)
+        if array.ndim != 1:
+            raise self.fail(f"{field}.kept_smaller", "expected a list of totals")
+        self.check(f"{field}.kept_smaller", array, _bad_time, "a finite total >= 0")
+        return tuple(float(t) for t in array)
 
     def notes(
         self, document: Mapping[str, Any], field: str, model: CompileModel
@@ -280,27 +391,40 @@ class _Loader:
     def standard_error(
         self, document: Mapping[str, Any], field: str, profile: ConditionalPerformanceProfile
     ) -> np.ndarray | None:
-        """The table's standard errors (None: every cell exact), shaped like its cells."""
+        """The table's standard errors (None: every cell exact), shaped like its cells,
+        finite and >= 0."""
         value = document.get("standard_error")
         if value is None:
             return None
-        error = np.asarray(value, dtype=np.float64)
+        where = f"{field}.standard_error"
+        error = self.numbers(where, value)
         cells = profile.probability.shape[:-1]
-        if error.shape != cells or not np.all(error >= 0):
+        if error.shape != cells:
             raise self.fail(
-                f"{field}.standard_error",
-                f"expected numbers >= 0 of shape {cells}, got {error.shape}",
+                where, f"expected shape {list(cells)} (input grids, time), got {list(error.shape)}"
             )
+        self.check(where, error, _bad_time, "a finite number >= 0")
         return error
 
     def nested(self, program: Program, document: Any, field: str) -> CompiledProgram:
         if not isinstance(document, Mapping):
             raise self.fail(field, "missing (the file holds no table for it)")
+        prefix = f"{self.filename}: {field}"
         try:
-            profile = profile_from_dict(document.get("profile"), f"{self.filename}: {field}")
-        except AnytimeError as error:
-            raise self.fail(f"{field}.profile", str(error)) from None
+            profile = profile_from_dict(document.get("profile"), prefix)
+        except AnytimeError as error:  # its message names the file: said once, by `where`
+            problem = str(error).removeprefix(f"{prefix}: ")
+            raise self.fail(f"{field}.profile", problem) from None
         return self.program(program, profile, document, field)
+
+
+def _bad_time(table: np.ndarray) -> Any:
+    return ~np.isfinite(table) | (table < 0)
+
+
+def _bad_quality(table: np.ndarray) -> Any:
+    # an expected quality is a sum of products: 1 may come out a rounding error above it
+    return ~np.isfinite(table) | (table < 0) | (table > 1 + 1e-9)
 
 
 def _modules_of(nodes: Any) -> list[Any]:
