@@ -123,6 +123,20 @@ BENCHMARKS = [
         " worlds per cell) and their interpolation between measured input qualities.",
     ),
     (
+        "bench_adaptive.py",
+        ["--quick"],
+        "Runtime: adaptive re-allocation against the fixed allocation",
+        "Fixed and adaptive runs of the same fresh instances: the test plugin"
+        " tests/plugins/estimation_plugin's three schemas (a chain, a two-input program, a"
+        " best-of), the navigation plugin's navigate and navigate-two-planners (a DAG: one"
+        " sensed map read by two planners), two DAGs over one shared sensed map whose modules"
+        " draw their qualities from their profiles, and the routing plugin's deliver-best."
+        " Mean quality with standard errors, the paired difference and its standard error"
+        " (target: adaptive >= fixed - se), the re-plans asked for and searched, and the time"
+        " of the adaptive runs' `run_program` calls over the fixed ones', wall clock and CPU"
+        " (target: <= 1.1). `--quick` uses 64 x 64 worlds and fewer instances.",
+    ),
+    (
         "bench_shapes.py",
         [],
         "Compiler: promises on every program shape",

@@ -12,10 +12,14 @@ list of their results, its quality their mean. When a map's collection is not of
 table was planned for, the time left is re-split among the calls still to run with that count's
 profile of the loop (as in adaptive mode).
 
-In **adaptive** mode, each time a module finishes the time that is left is re-allocated among
-the modules still to run, given the quality its result was *observed* to have: the compiled
-profiles are conditional, so the best split of the rest depends on it (Zilberstein & Russell).
-Both re-splits are the compiler's `reallocate`.
+In **adaptive** mode, the time that is left is re-allocated among the modules still to run
+given the qualities *observed* so far: the compiled profiles are conditional, so the best split
+of the rest depends on them (Zilberstein & Russell). It re-plans by value of information: only
+after a call that showed the plan something new (time it left unused, a quality drawn from a
+stochastic profile and reported true, no result; not a quality its profile predicts), keeping
+the new split only where the compiler expects it to beat the planned one, and remembering the
+re-plans of a program across its runs (the compiler's `Replanner`; `Execution.adapt`). The
+best-of's and the loop's re-splits are the compiler's `reallocate`.
 
 No placeholders: a call one of whose inputs has no result (its producer registered none) is not
 made, and has no result either (its record says why), unless its module declares
