@@ -21,6 +21,7 @@ import yaml
 from anytime.errors import ProfileError
 from anytime.profiles import ConditionalPerformanceProfile
 from anytime.profiles.io import MAX_CELLS, load_profile, read_profile_file, save_profile
+from anytime.profiles.io.companion import MAX_MEMBERS
 
 #: The `cli` fixture (tests/conftest.py): runs `anytime` in-process, (exit code, stdout, stderr).
 Cli = Callable[..., tuple[int, str, str]]
@@ -198,6 +199,26 @@ def test_a_member_given_twice_is_refused(pair: Path) -> None:
     assert _refused(pair) == (
         f"{pair}: tables.file: the companion 'plan.npz' is not an archive of arrays:"
         " it holds 'probability.npy' twice"
+    )
+
+
+def test_a_directory_of_many_members_is_refused_before_it_is_listed(
+    pair: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w") as archive:
+        for i in range(100):
+            archive.writestr(f"t{i}.npy", b"")
+    _install(pair, buffer.getvalue())
+
+    def unlisted(*args: object) -> None:
+        raise AssertionError("the directory was listed")
+
+    monkeypatch.setattr(zipfile, "ZipFile", unlisted)
+    assert MAX_MEMBERS == 64
+    assert _refused(pair) == (
+        f"{pair}: tables.file: the companion 'plan.npz' is not an archive of arrays:"
+        " its directory lists 100 members (at most 64)"
     )
 
 

@@ -112,6 +112,12 @@ def read_archive(
         fail("tables.file", f"the companion '{name}' is not an archive of arrays: {exc}")
 
     try:
+        listed = _listed(raw)
+    except _ARCHIVE_ERRORS as exc:
+        damaged(exc)
+    if listed is not None and listed > MAX_MEMBERS:  # before a ZipInfo is made for each
+        damaged(f"its directory lists {listed:,} members (at most {MAX_MEMBERS})")
+    try:
         archive = zipfile.ZipFile(io.BytesIO(raw))
         infos = archive.infolist()
     except _ARCHIVE_ERRORS as exc:
@@ -153,7 +159,8 @@ def read_archive(
             )
         try:
             with archive.open(info) as member:
-                body = member.read(size)[start:]  # the CRC is checked at the end of the member
+                member.read(start)  # the header, read above
+                body = member.read(size - start)  # the CRC is checked at the member's end
         except _ARCHIVE_ERRORS as exc:
             damaged(exc)
         if len(body) != size - start:  # cannot happen once the CRC held; kept as a net
@@ -161,6 +168,19 @@ def read_archive(
         array = np.frombuffer(body, dtype=dtype)
         arrays[key] = array.reshape(shape, order="F" if fortran else "C")
     return arrays
+
+
+#: The most members a companion's zip directory may list (it holds at most the seven tables and
+#: the time grid): millions of tiny entries would cost gigabytes of directory objects.
+MAX_MEMBERS = 64
+
+
+def _listed(raw: bytes) -> int | None:
+    """How many members the zip directory of `raw` says it lists (its end record, zip64
+    included), read without listing them; None when it cannot tell (ZipFile then says why)."""
+    end_record = getattr(zipfile, "_EndRecData", None)  # the one zipfile reads itself
+    record = end_record(io.BytesIO(raw)) if end_record is not None else None
+    return int(record[4]) if record else None  # zipfile._ECD_ENTRIES_TOTAL
 
 
 #: What reading a damaged archive raises (a bad CRC, a truncated or unknown stream, a bad header).
