@@ -149,7 +149,7 @@ class HistoryStopping:
         worth = f"expected utility {table.expected_utility:.6g} (se {table.standard_error:.2g})"
         if action == BLIND:
             return Decision.later(math.inf, self.time[i], f"does not look: {worth}")
-        return Decision.later(self.time[0], self.time[self.last], f"looks: {worth}")
+        return Decision.later(self._first_look(0), self.time[self.last], f"looks: {worth}")
 
     def observe(self, time: float, quality: float | None) -> Decision:
         j = int(
@@ -166,8 +166,10 @@ class HistoryStopping:
             return Decision.now("the last grid time within the allocation")
         table = self.table(self.allocation)
         members, _ = self._neighbourhood(j)
-        if len(members) == 0:  # no training run was looked at here: go on as planned
-            return Decision.later(self.time[j + 1], self.time[self.last], "no training run here")
+        if len(members) == 0:  # no training run was looked at here: look where one was
+            return Decision.later(
+                self._first_look(j + 1), self.time[self.last], "no training run was looked at here"
+            )
         distance = ((self._seen[members, : j + 1] - self._history[: j + 1]) ** 2).sum(axis=1)
         k = min(table.neighbours, len(members))
         near = members[np.argpartition(distance, k - 1)[:k]]
@@ -288,6 +290,14 @@ class HistoryStopping:
                 order = np.take_along_axis(part, rank, axis=1)
             self._near[j] = (members, order)
         return self._near[j]
+
+    def _first_look(self, j: int) -> float:
+        """The first grid time from index j on where a training run was looked at (had an
+        answer and was running): before it there is nothing to learn from."""
+        for i in range(j, self.last + 1):
+            if len(self._neighbourhood(i)[0]):
+                return float(self.time[i])
+        return float(self.time[self.last])
 
     def _table_or_zero(self, allocation: float) -> tuple[float, float]:
         if self._last(check_allocation(self.name, allocation)) < 0:
