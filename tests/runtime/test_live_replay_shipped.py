@@ -61,7 +61,7 @@ def test_a_live_run_keeps_what_replay_stops_its_trace_at(
     library = AnytimeLibrary.default()
     module, problems = library[name].module, library.measurement(name).problems
     inputs = [[input_quality]] * len(module.inputs)
-    trials = 24
+    trials = 12
     build = build_profile(
         module,
         problems,
