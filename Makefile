@@ -6,7 +6,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 INSTALLED := $(VENV)/.installed
 
-.PHONY: demo test lint typecheck pytest slow wheel-check bench docs clean
+.PHONY: demo test lint typecheck pytest slow wheel-check bench docs site clean
 
 # The main job: a robot crosses a 128x128 world it does not know, frame by frame, under the
 # monitor; the frame program is schemas/navigation.any compiled against the measured profiles.
@@ -46,9 +46,16 @@ slow: $(INSTALLED)
 bench: $(INSTALLED)
 	$(BIN)/python benchmarks/write_page.py
 
-# The option lists of docs/cli.md, from the command line's own --help (the tests check them).
+# The option lists of docs/cli.md, from the command line's own --help, and the API reference
+# pages (docs/reference/), from the public packages' names (the tests check both).
 docs: $(INSTALLED)
 	$(BIN)/python docs/cli_help.py
+	$(BIN)/python docs/api_pages.py
+
+# The documentation site (site/): the pages of docs/ and the API reference from the
+# docstrings, warnings as errors (CI builds it).
+site: $(INSTALLED)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet
 
 $(INSTALLED): pyproject.toml domains/navigation/pyproject.toml domains/routing/pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 11))' || \
@@ -61,4 +68,4 @@ $(INSTALLED): pyproject.toml domains/navigation/pyproject.toml domains/routing/p
 	touch $@
 
 clean:
-	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache .hypothesis *.egg-info
+	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache .hypothesis *.egg-info site

@@ -324,8 +324,8 @@ def verify(
         chunk_size: runs per task; it changes the overhead, never the result.
         mode: how each module call of a run is run (`Soft()`, the default, `Hard()` or
             `Isolated()`; see `run_program`).
-        tolerance, sigmas: a total fails when |realised - promised| > max(tolerance,
-            sigmas * se).
+        tolerance: a total fails when |realised - promised| > max(tolerance, sigmas * se).
+        sigmas: see `tolerance`.
 
     Raises:
         VerifyError: bad arguments, or the problem set fails or breaks its contract.

@@ -66,12 +66,38 @@ def test_the_pages_link_to_pages_that_exist() -> None:
     assert broken == []
 
 
-def _cli_help() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("cli_help", ROOT / "docs" / "cli_help.py")
+def _docs_script(name: str) -> ModuleType:
+    spec = importlib.util.spec_from_file_location(name, ROOT / "docs" / f"{name}.py")
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+def _cli_help() -> ModuleType:
+    return _docs_script("cli_help")
+
+
+def test_every_public_name_has_an_entry_in_the_api_reference() -> None:
+    """The reference pages list every name of every public package's `__all__` (as
+    mkdocstrings entries, which `mkdocs build --strict` renders from the docstrings)."""
+    api = _docs_script("api_pages")
+    entries = {
+        line[4:].strip()
+        for page in (ROOT / "docs" / "reference").glob("*.md")
+        for line in page.read_text(encoding="utf-8").splitlines()
+        if line.startswith("::: ")
+    }
+    missing = [
+        f"{package}.{name}"
+        for package, *_ in api.PACKAGES
+        for name in importlib.import_module(package).__all__
+        if name not in api.SKIP and f"{package}.{name}" not in entries
+    ]
+    assert missing == [], "run `make docs`"
+    for path, text in api.pages().items():
+        assert path.read_text(encoding="utf-8") == text, f"{path.name} is out of date: `make docs`"
+    assert {"anytime", "anytime.plugin"} <= {package for package, *_ in api.PACKAGES}
 
 
 def test_the_cli_reference_shows_what_the_commands_print() -> None:
