@@ -177,6 +177,18 @@ def test_a_header_of_another_shape_is_refused_before_its_data(
     assert decompressed[0] <= 64 << 10
 
 
+def test_numbers_wider_than_eight_bytes_are_refused_before_their_data(
+    pair: Path, decompressed: list[int]
+) -> None:
+    """A float128 table would cost twice what `MAX_CELLS` cells of float64 cost."""
+    _install(pair, _bomb(1 << 20, {**HEADER, "descr": "<f16"}))
+    assert _refused(pair) == (
+        f"{pair}: tables.shapes.probability: expected numbers of shape [2, 6, 4] (the"
+        " header's), got float128 of shape [2, 6, 4] in the companion 'plan.npz'"
+    )
+    assert decompressed[0] <= 64 << 10
+
+
 def test_a_member_that_is_not_a_npy_stream_is_refused(pair: Path) -> None:
     buffer = io.BytesIO()
     with zipfile.ZipFile(buffer, "w") as archive:

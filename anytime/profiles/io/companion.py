@@ -143,7 +143,7 @@ def read_archive(
         )
     arrays = {}
     for key, (info, (shape, fortran, dtype, start)) in members.items():
-        if list(shape) != shapes[key] or dtype.kind not in "fiu":
+        if list(shape) != shapes[key] or dtype.kind not in "fiu" or dtype.itemsize > 8:
             fail(
                 f"tables.shapes.{key}",
                 f"expected numbers of shape {shapes[key]} (the header's), got"
