@@ -2,9 +2,10 @@
 
 Every error the framework raises on bad input derives from `AnytimeError` and from the builtin it
 resembles, so callers can catch either. Errors about a place in a source file carry
-`Diagnostic`s that print as `FILE:LINE:COL: error: MESSAGE`, the source line and a caret. No
-other message carries a prefix saying it is an error: the command line adds one, in one place
-(`anytime.cli.describe`, used by `main`).
+`Diagnostic`s that print as `FILE:LINE:COL: error: MESSAGE`, the source line (at most `EXCERPT`
+characters of it, around the place) and a caret; a schema error prints its first `MAX_REPORTED`
+and counts the rest. No other message carries a prefix saying it is an error: the command line
+adds one, in one place (`anytime.cli.describe`, used by `main`).
 
 This module imports nothing of the framework (every layer imports it).
 """
@@ -72,7 +73,8 @@ class Diagnostic:
 
 
 class SchemaError(AnytimeError):
-    """A schema file is wrong; `diagnostics` lists every error found, in source order."""
+    """A schema file is wrong; `diagnostics` lists every error found, in source order (the
+    message shows the first `MAX_REPORTED` of them and counts the rest)."""
 
     filename: str | None  # as on SyntaxError, which a subclass also derives from
 
