@@ -5,6 +5,12 @@ The file then has `tables: {file, sha256, shapes}` in their place, and a compani
 or shapes are not the header's is an error, as is a table given in both. Writers add it when the
 tables hold more than `COMPANION_THRESHOLD` numbers: a million-cell table loads in under a
 second, not a minute.
+
+A companion is judged before it is decompressed (`read_archive`): every declared shape has at
+most `MAX_CELLS` cells, the zip directory lists at most `MAX_MEMBERS` members, and each member's
+`.npy` header, read alone, must declare its table's shape and numbers of at most 8 bytes, and
+its size in the directory must be the one that header implies. A zip bomb, or a header that
+lies, is a `ProfileError` naming the file, the field and the member, not "out of memory".
 """
 
 from __future__ import annotations
