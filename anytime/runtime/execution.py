@@ -72,11 +72,6 @@ class ProgramRecord:
         return self.result.quality if self.result is not None else 0.0
 
 
-#: The most a search for a new split may cost, as a share of the time left, on the run's clock
-#: (by the mean of the model's searches so far): beyond, only remembered plans are used.
-SEARCH_SHARE = 0.05
-
-
 class Execution:
     """One run of a compiled program: the state its calls share."""
 
@@ -429,9 +424,8 @@ class Execution:
     def adapt(self) -> None:
         """Adaptive mode, after a call that was news: the split of the time left that the
         compiler finds best given the qualities judged so far, where it is expected to beat the
-        split planned (the model's `Replanner`, which remembers its answers). A search costs
-        time on the run's clock (none on the work clock): where its mean so far is more than
-        `SEARCH_SHARE` of the time left, the plan is kept unless the answer is remembered."""
+        split planned (the model's `Replanner`, which remembers its answers). A search not
+        remembered is made only where it is worth its time (`worth`)."""
         self.informed = False
         observed = dict(self.judged)
         nodes = self.model.anytime_nodes
@@ -445,15 +439,32 @@ class Execution:
         planner = self.planner
         if planner is None or planner.model is not self.model:
             planner = self.planner = replanner(self.model, self.compiled.resolution)
-        kind = type(self.clock).__name__
-        spent, searches = planner.costs.get(kind, (0.0, 0))
-        affordable = searches == 0 or spent / searches <= SEARCH_SHARE * left
-        done = planner.searches
-        new = planner.plan(self.qualities, self.allocation, free, left, observed, affordable)
-        if planner.searches > done:
-            planner.costs[kind] = (spent + self.clock.now() - before, searches + 1)
-        if new is not None:
-            self.allocation = new
+        args = (self.qualities, self.allocation, free, left, observed)
+        new = planner.plan(*args, search=False)
+        if new is None:  # not remembered
+            kind = type(self.clock).__name__
+            spent, gained, searches = planner.costs.get(kind, (0.0, 0.0, 0))
+            if searches and not self.worth(spent / searches, gained / searches, left):
+                return
+            new = planner.plan(*args)
+            assert new is not None
+            used = self.clock.now() - before
+            planner.costs[kind] = (spent + used, gained + planner.gain, searches + 1)
+        self.allocation = new
+
+    def worth(self, cost: float, gain: float, left: float) -> bool:
+        """Whether a search is worth making that is expected (by the means of the program's
+        searches on this kind of clock) to take `cost` of the run's clock and to gain `gain` in
+        expected quality: the time it takes is lost to the calls still to run, and what that
+        time is worth is read off the compiled profile at the time left (the gain of its last
+        `cost`). On the work clock a search takes no time, and is always made."""
+        if cost <= 0.0:
+            return True
+        if cost >= left:
+            return False
+        q = np.tile(np.asarray(self.qualities, dtype=np.float64), (2, 1))
+        value = self.compiled.profile.expected(q, np.array([left, left - cost]))
+        return gain > float(value[0] - value[1])
 
     def replan(self) -> None:
         """Where a map's count is not the one planned for: the best split of the time left

@@ -5,8 +5,8 @@ A call whose outcome the plan already knew (a quality its profile predicts, its 
 used) is not news: adaptive runs do not re-plan after it, and are the fixed runs exactly. A call
 that is news is re-planned after, and the plan is remembered: the runs of one program search
 once per distinct outcome. A new split is kept only where the compiler expects it to beat the
-split planned (a property over random observations and kept splits). A search that costs more
-than its share of the time left on the run's clock is not run.
+split planned (a property over random observations and kept splits). A search is made only
+where its expected gain beats what its time on the run's clock is worth.
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ from test_program import (
     rising,
 )
 
+from anytime.clocks import WorkClock
 from anytime.compiler import CompiledProgram
 from anytime.compiler.allocators.reallocate import (
     CACHE_SIZE,
@@ -40,7 +41,9 @@ from anytime.compiler.allocators.reallocate import (
 from anytime.compiler.evaluate import Evaluator
 from anytime.modules import Context, Registry, Result, contract, interruptible
 from anytime.profiles import tabulate
-from anytime.runtime import run_program
+from anytime.runtime import Budget, run_program
+from anytime.runtime.execution import Execution
+from anytime.runtime.modes import SOFT
 
 ESTIMATES = Registry()
 
@@ -110,12 +113,12 @@ def test_the_runs_of_a_program_search_once_per_outcome(
 def test_a_search_costlier_than_its_share_of_the_time_left_is_not_run(
     adaptive_program: CompiledProgram,
 ) -> None:
-    """With the searches measured to cost more than 5% of any time left on the work clock, a
-    run whose re-plan is not remembered keeps its compiled split."""
+    """With the searches measured to cost more than the time left on the work clock, a run
+    whose re-plan is not remembered keeps its compiled split."""
     total = 35.0  # a total no other test re-plans at
     planner = replanner(adaptive_program.model, adaptive_program.resolution)
     saved = dict(planner.costs)
-    planner.costs["WorkClock"] = (1e9, 1)
+    planner.costs["WorkClock"] = (1e9, 1.0, 1)
     try:
         searched = planner.searches
         fixed = run_program(adaptive_program, {"seed": 3}, total)
@@ -161,3 +164,19 @@ def test_a_planner_remembers_at_most_its_cache_size(adaptive_program: CompiledPr
     planner.plan([], np.array([0.0, 5.0, 5.0]), [1, 2], 10.0, {0: 0.5})
     assert len(planner.plans) == CACHE_SIZE
     assert 0 not in planner.plans
+
+
+def test_a_search_is_worth_making_where_its_gain_beats_what_its_time_is_worth(
+    adaptive_program: CompiledProgram,
+) -> None:
+    """`worth`: free on the work clock; never when it would take all the time left; else
+    where its expected gain is more than the compiled profile's gain over its last `cost` of
+    the time left."""
+    execution = Execution(adaptive_program, {"seed": 0}, Budget(40.0, WorkClock()), True, SOFT, {})
+    expected = adaptive_program.profile.expected(np.zeros((2, 0)), np.array([30.0, 25.0]))
+    lost = float(expected[0] - expected[1])
+    assert lost > 0
+    assert execution.worth(0.0, 0.0, 30.0)
+    assert not execution.worth(30.0, 1.0, 30.0)
+    assert execution.worth(5.0, lost + 1e-6, 30.0)
+    assert not execution.worth(5.0, lost, 30.0)

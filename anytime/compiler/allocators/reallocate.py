@@ -117,10 +117,12 @@ class Replanner:
         self.model, self.resolution = model, resolution
         self.evaluator = Evaluator(model)
         self.plans: OrderedDict[Hashable, Array | None] = OrderedDict()
-        self.asked = 0  # re-plans asked for
+        self.asked = 0  # re-plans answered (looked up or searched)
         self.searches = 0  # searches run (the rest were looked up)
-        # What the runtime measured its searches to cost, by the kind of clock: (sum, count).
-        self.costs: dict[str, tuple[float, int]] = {}
+        self.gain = 0.0  # the expected gain of the last search's answer over the planned split
+        # What the runtime measured its searches to cost and found them to gain, by the kind
+        # of clock: (time, gain, searches).
+        self.costs: dict[str, tuple[float, float, int]] = {}
 
     def plan(
         self,
@@ -136,7 +138,6 @@ class Replanner:
         `observed` (rounded to `QUANTUM`), is expected to do better than the one `allocation`
         holds by more than `LEAST_GAIN` and the evaluation's error; else `allocation` as it
         is. None when the answer is not remembered and `search` is False."""
-        self.asked += 1
         free = list(free)
         units = int(np.floor(max(budget, 0.0) / self.resolution + 1e-9))
         seen = {i: _rounded(q) for i, q in observed.items()}
@@ -147,16 +148,17 @@ class Replanner:
             tuple(seen.items()),  # in the order the nodes ran
             tuple(float(q) for q in qualities),
         )
-        if key in self.plans:
-            self.plans.move_to_end(key)
+        try:
             split = self.plans[key]
-        elif not search:
-            return None
-        else:
+            self.plans.move_to_end(key)
+        except KeyError:  # not remembered (or forgotten meanwhile, by another thread's plan)
+            if not search:
+                return None
             split = self._better_split(qualities, allocation, free, units, seen)
             self.plans[key] = split
             while len(self.plans) > CACHE_SIZE:
                 self.plans.popitem(last=False)
+        self.asked += 1
         new = np.array(allocation, dtype=np.float64)
         if split is not None:
             new[free] = split
@@ -173,6 +175,7 @@ class Replanner:
     ) -> Array | None:
         """The searched split of `units` among `free` (in time), or None where it is not
         expected to beat the kept one."""
+        self.gain = 0.0
         if not free:
             return None
         self.searches += 1
@@ -194,6 +197,7 @@ class Replanner:
         best = int(np.argmax(value[:-1]))
         if value[best] - value[-1] <= LEAST_GAIN + 2.0 * float(max(error[best], error[-1])):
             return None
+        self.gain = float(value[best] - value[-1])
         split: Array = rows[best, free]
         return split
 
