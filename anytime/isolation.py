@@ -25,10 +25,11 @@ import select
 import signal
 import struct
 import sys
+import threading
 import time
 import traceback
 from collections.abc import Callable, Generator, Iterator, Sequence
-from contextlib import suppress
+from contextlib import contextmanager, suppress
 from functools import partial
 from pathlib import Path
 from typing import Any, Literal
@@ -115,6 +116,9 @@ class Child:
                 os.close(read)
                 os.setpgid(0, 0)
                 signal.signal(signal.SIGTERM, signal.SIG_DFL)  # the caller's stop kills it
+                # Not the caller's counting handler: no Ctrl-C of the user's reaches a group of
+                # its own, so every KeyboardInterrupt here is its code's (`counting_interrupts`).
+                signal.signal(signal.SIGINT, signal.default_int_handler)
                 _die_with(parent)
                 _apply(limits)
                 target(Channel(write))
@@ -230,7 +234,63 @@ class Child:
         return messages
 
 
+# --- whose KeyboardInterrupt -------------------------------------------------------------------
+#
+# A KeyboardInterrupt is the user's when a SIGINT (a Ctrl-C) or a SIGTERM reached this process
+# while the code that raised it ran; one raised with no such signal is the code's own (a module
+# that raises it in a trial is a failed trial, not a stop of the command). A child process of its
+# own (`Child`) leads its own process group, so a terminal's Ctrl-C never reaches it: there,
+# every KeyboardInterrupt is its code's. Pool workers ignore SIGINT likewise.
+
+_signals = [0]  # the SIGINTs and SIGTERMs this process has received while they were counted
+
+
+def interrupt_signals() -> int:
+    """How many SIGINTs and SIGTERMs this process has received while `counting_interrupts`
+    counted them (compare two readings: a change means the user asked to stop)."""
+    return _signals[0]
+
+
+def _counting(earlier: Any) -> Callable[[int, Any], Any]:
+    def handler(signum: int, frame: Any) -> Any:
+        _signals[0] += 1
+        return earlier(signum, frame)
+
+    handler.counts = True  # type: ignore[attr-defined]
+    return handler
+
+
+@contextmanager
+def counting_interrupts() -> Iterator[None]:
+    """While the block runs, count the SIGINTs and SIGTERMs that reach this process (see
+    `interrupt_signals`); their handlers still run as before. Only the main thread can install
+    handlers: elsewhere, and for a signal Python does not handle (ignored, or left to kill the
+    process), nothing changes (such a signal raises no KeyboardInterrupt anyway)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    earlier: dict[int, Any] = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        handler = signal.getsignal(sig)
+        if callable(handler) and not getattr(handler, "counts", False):
+            earlier[sig] = handler
+            signal.signal(sig, _counting(handler))
+    try:
+        yield
+    finally:
+        for number, put_back in earlier.items():
+            signal.signal(number, put_back)
+
+
 _PR_SET_PDEATHSIG = 1
+
+
+def die_with_parent(parent: int) -> None:
+    """Have the kernel kill this process (forked by `parent`) when the thread that forked it
+    ends (Linux): a parent killed outright (SIGKILL) cannot end its children, which would
+    otherwise run on, orphaned. Isolated children and the local pool's workers
+    (`anytime.pool`) ask for it as they start; it exits at once if `parent` is already gone."""
+    _die_with(parent)
 
 
 def _die_with(parent: int) -> None:

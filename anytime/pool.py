@@ -4,7 +4,9 @@
 finish: in this process (one worker, no executor), on a pool of local processes, or on any
 `concurrent.futures.Executor` (a Dask cluster's: `anytime.measure.builder.dask_executor`).
 The workers ignore Ctrl-C (the terminal sends it to them too): the caller stops them, cancels
-what has not started and re-raises, so no worker outlives an interrupted command.
+what has not started and re-raises, so no worker outlives an interrupted command. A worker also
+dies with the thread that started it (Linux: `PR_SET_PDEATHSIG`), so that a caller killed
+outright (`kill -9`) leaves no worker behind.
 
 Local workers are forks of the caller. `initializer(*initargs)` runs in each when it starts,
 and with the fork start method its arguments reach it without being pickled: a caller can hand
@@ -18,10 +20,13 @@ The profile builder spreads its chunks of trials with it, `anytime verify` its r
 from __future__ import annotations
 
 import multiprocessing
+import os
 import signal
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
 from typing import Any, TypeVar
+
+from anytime.isolation import die_with_parent
 
 __all__ = ["spread"]
 
@@ -29,9 +34,10 @@ T = TypeVar("T")
 R = TypeVar("R")
 
 
-def _ignore_interrupts(initializer: Callable[..., None] | None, *initargs: Any) -> None:
+def _worker_starts(parent: int, initializer: Callable[..., None] | None, *initargs: Any) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # a forked worker must die of the parent's stop
+    die_with_parent(parent)  # and of its parent's death: a `kill -9` of it must not orphan it
     if initializer is not None:
         initializer(*initargs)
 
@@ -74,8 +80,8 @@ def spread(
         pool = own = ProcessPoolExecutor(
             workers,
             mp_context=_context(),
-            initializer=_ignore_interrupts,
-            initargs=(initializer, *initargs),
+            initializer=_worker_starts,
+            initargs=(os.getpid(), initializer, *initargs),
         )
     else:
         pool = executor

@@ -61,6 +61,7 @@ from attrs import field, frozen
 from numpy.typing import ArrayLike, NDArray
 
 from anytime.errors import AnytimeError, ProfileError
+from anytime.isolation import counting_interrupts
 from anytime.measure.chunks import measure_chunk, measure_chunks
 from anytime.measure.progress import ProgressBar
 from anytime.measure.trials import CLOCKS, Chunk, ClockName, Done
@@ -353,7 +354,9 @@ def build_profile(
     step = 0.0
     first: tuple[int, str] | None = None
     reasons: dict[str, int] = {}
-    with ProgressBar(total, label=module.name, enabled=progress) as bar:
+    # Counted: a KeyboardInterrupt a trial's module raises itself is a failed trial, the
+    # user's Ctrl-C stops the build (see `anytime.measure.trials.run_trial`).
+    with counting_interrupts(), ProgressBar(total, label=module.name, enabled=progress) as bar:
         for done in _run(chunks, executor, workers):
             quality[done.start : done.start + len(done.quality)] = done.quality
             rows = slice(done.start, done.start + len(done.quality))

@@ -61,6 +61,7 @@ from attrs import frozen
 from numpy.typing import ArrayLike
 
 from anytime.errors import AnytimeError, ProfileError
+from anytime.isolation import counting_interrupts
 from anytime.library import AnytimeLibrary, LibraryEntry
 from anytime.measure.checks import (
     Check,
@@ -269,7 +270,8 @@ def check_module(
     session.mode = mode
     checks = [check_pickle(module, problems)]
     total = len(session.cells) * trials * (len(grid.time) + 1)
-    with ProgressBar(total, label=f"{module.name} checks", unit="runs", enabled=progress) as bar:
+    bar = ProgressBar(total, label=f"{module.name} checks", unit="runs", enabled=progress)
+    with counting_interrupts(), bar:  # a module's own KeyboardInterrupt is a failed run
         session.done = bar.update
         deadline = session.deadline_runs()
         interruption = session.interruption_runs()

@@ -20,12 +20,12 @@ from attrs import frozen
 from anytime.clocks import Unit, WorkClock
 from anytime.isolation import Lost, calls
 from anytime.measure.builder import build_profile
-from anytime.measure.trials import Trial
+from anytime.measure.trials import Trial, run_trial
 from anytime.modules import AnytimeModule, Result
 from anytime.problems import Grid, ProblemSet
 from anytime.profiles.profile import Array, ConditionalPerformanceProfile
-from anytime.runtime.executor import RunRecord, Status, run
-from anytime.runtime.modes import ISOLATED, Budget, Isolated, RunMode, Soft
+from anytime.runtime.executor import RunRecord, Status
+from anytime.runtime.modes import ISOLATED, SOFT, Budget, Isolated, RunMode, Soft
 from anytime.runtime.observe import Observer
 
 __all__ = [
@@ -231,7 +231,7 @@ class Session:
         clock = _ProbeClock(allocation, stop, stop_at)
         answers = _Answers(copies=stop_at < math.inf)
         budget = Budget(allocation, clock=clock, stop=stop)
-        record = run(self.module, args, budget=budget, observer=answers)
+        record = run_trial(self.module, args, budget, SOFT, answers)
         return _Run(record, answers.log(record), where, allocation, clock.largest, clock.negative)
 
     def deadline_runs(self) -> list[_Run]:

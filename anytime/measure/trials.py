@@ -14,17 +14,20 @@ import traceback
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, Literal
 
+import attrs
 import numpy as np
 from attrs import field, frozen
 from numpy.typing import NDArray
 
 from anytime.clocks import Clock, WallClock, WorkClock
+from anytime.isolation import interrupt_signals
 from anytime.modules import AnytimeModule, Result
 from anytime.problems import BuildError, Grid, Instance, ProblemSet
 from anytime.profiles.profile import Array
-from anytime.runtime.executor import Status, run
+from anytime.runtime.executor import RunRecord, Status, run
 from anytime.runtime.modes import ISOLATED, SOFT, Budget, Hard, Isolated, RunMode, Soft
 from anytime.runtime.observe import Decision, Observer
+from anytime.runtime.records import RunInterrupted
 from anytime.vocabulary import Unit
 
 if TYPE_CHECKING:
@@ -173,7 +176,7 @@ class Trial:
         rng = np.random.default_rng(self.seeds)
         try:
             instance = self.problems.instance(rng, self.qualities)
-        except Exception as exc:
+        except _NOT_AN_INTERRUPT as exc:
             raise BuildError(
                 f"{_name(self.problems)}.instance failed ({self.where}): {_headline(exc)}"
             ) from exc
@@ -183,7 +186,7 @@ class Trial:
         where = f"{_name(self.problems)}.score ({self.where})"
         try:
             quality = self.problems.score(instance, value)
-        except Exception as exc:
+        except _NOT_AN_INTERRUPT as exc:
             raise BuildError(f"{where} failed: {_headline(exc)}") from exc
         try:
             q = float(quality)
@@ -192,6 +195,52 @@ class Trial:
         if not 0.0 <= q <= 1.0:  # also refuses NaN
             raise BuildError(f"{where}: expected a quality in [0, 1], got {quality!r}")
         return q
+
+
+#: What a problem set's or a module's code may raise that is not a stop the user asked for
+#: (`SystemExit` included: a plugin's `sys.exit()` must not end the command).
+_NOT_AN_INTERRUPT = (Exception, SystemExit, GeneratorExit)
+
+
+def run_trial(
+    module: AnytimeModule,
+    args: Sequence[Any],
+    budget: Budget,
+    mode: Soft | Hard,
+    observer: Observer | None = None,
+) -> RunRecord:
+    """`anytime.runtime.run` of one trial's (or catalogue's) run, where whatever the module
+    raises is a failed run: a `KeyboardInterrupt` it raised itself (no SIGINT or SIGTERM
+    reached this process meanwhile, see `anytime.isolation.interrupt_signals`) too, and any
+    other `BaseException` the executor lets through. The user's Ctrl-C still stops the
+    caller."""
+    signals = interrupt_signals()
+    start = budget.clock.now()
+    try:
+        return run(module, args, budget=budget, mode=mode, observer=observer)
+    except RunInterrupted as exc:
+        if interrupt_signals() != signals:
+            raise
+        cause = exc.__cause__ if exc.__cause__ is not None else exc
+        return attrs.evolve(
+            exc.record,
+            status=Status.FAILED,
+            error=_headline(cause),
+            traceback="".join(traceback.format_exception(cause)),
+        )
+    except BaseException as exc:
+        if isinstance(exc, KeyboardInterrupt) and interrupt_signals() != signals:
+            raise
+        used = budget.clock.now() - start
+        return RunRecord(
+            module.name,
+            Status.FAILED,
+            None,
+            used,
+            budget.allocation,
+            error=_headline(exc),
+            traceback="".join(traceback.format_exception(exc)),
+        )
 
 
 def _name(problems: ProblemSet) -> str:
@@ -268,7 +317,7 @@ def run_interruptible(
     # The last grid time is the trace's stop time, not the run's allocation, so that a module
     # that returns by itself after it (having watched its time) is told apart from a run ended
     # at a result past it (status stopped).
-    record = run(trial.module, args, budget=Budget(clock=clock), mode=trial.mode, observer=trace)
+    record = run_trial(trial.module, args, Budget(clock=clock), trial.mode, trace)
     failed: Failures = []
     if record.status in (Status.FAILED, Status.CRASHED):
         failed.append((record.error or "failed", record.traceback or ""))
@@ -401,7 +450,7 @@ def _contract_run(
     if sender is not None:
         clock = sender.noting(clock)
         sender.started(clock.now())
-    record = run(trial.module, args, budget=Budget(allocation, clock=clock), mode=trial.mode)
+    record = run_trial(trial.module, args, Budget(allocation, clock=clock), trial.mode)
     past = float(record.time_used - allocation)
     overran = int(record.status is Status.CONTRACT_EXPIRED)
     if record.status in (Status.FAILED, Status.CRASHED):

@@ -176,6 +176,8 @@ def _child(
         outcome = drive(module, ctx, args, kwargs, slot, watcher)
     except BaseException as exc:  # a result that could not be sent, or the like
         outcome = failure(exc)
+    if outcome.interrupt is not None:  # no Ctrl-C reaches a process of its own: the module's
+        outcome = failure(outcome.interrupt)
     looks = 0 if watcher is None else watcher.looks
     channel.send(("done", outcome.status, outcome.error, outcome.traceback, looks))
 

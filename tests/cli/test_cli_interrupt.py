@@ -31,7 +31,7 @@ MODULES = Registry()
 
 @interruptible("pressed", inputs=[], registry=MODULES)
 def pressed(ctx: Context, x: float) -> Iterator[Result]:
-    """Ctrl-C pressed while the module runs."""
+    """A module that raises KeyboardInterrupt itself (no Ctrl-C was pressed)."""
     ctx.tick(1)
     yield Result(x, 0.5)
     raise KeyboardInterrupt
@@ -48,15 +48,21 @@ class Problems:
 register_problems(pressed, Problems(), time=[0, 1, 2])
 
 
-def test_a_module_interrupted_in_process(
-    cli: Cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+@pytest.mark.parametrize("isolation", ["process", "none"])
+def test_a_modules_own_keyboard_interrupt_is_a_failed_trial(
+    cli: Cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, isolation: str
 ) -> None:
+    """No SIGINT reached the command: the interrupt is the module's, each trial fails (keeping
+    the result it had), and the profile is written (a Ctrl-C is the tests below)."""
     monkeypatch.setattr(anytime.library, "REGISTRY", MODULES)
     out = tmp_path / "pressed.yaml"
     out.write_text("old\n")
-    code, stdout, err = cli("profile", "pressed", "--no-plugins", "--quiet", "-o", str(out))
-    assert (code, stdout, err) == (130, "", INTERRUPTED)
-    assert out.read_text() == "old\n" and os.listdir(tmp_path) == ["pressed.yaml"]
+    argv = ["profile", "pressed", "--trials", "4", "--no-plugins", "--quiet", "-o", str(out)]
+    code, stdout, err = cli(*argv, "--isolation", isolation)
+    assert (code, err) == (0, "")
+    assert "4 of 4 runs failed; first: KeyboardInterrupt (trial 0 at input qualities [])" in stdout
+    assert "  4 x KeyboardInterrupt\n" in stdout
+    assert out.read_text() != "old\n"
 
 
 def test_interrupted_before_the_rename_keeps_the_old_file(
@@ -149,6 +155,19 @@ def test_ctrl_c_in_the_profile_builders_worker_pool(tmp_path: Path) -> None:
     out = tmp_path / "find-path.yaml"
     out.write_text("old\n")
     argv = ["profile", "find-path", "--trials", "5000", "--workers", "2", "-o", str(out)]
+    done = _interrupt(argv, tmp_path)
+    assert (done.returncode, done.stdout, done.stderr) == (130, "", INTERRUPTED)
+    assert out.read_text() == "old\n" and os.listdir(tmp_path) == ["find-path.yaml"]
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="SIGINT to a process")
+@pytest.mark.parametrize("isolation", ["process", "none"])
+def test_ctrl_c_in_the_profile_builder_without_workers(tmp_path: Path, isolation: str) -> None:
+    """The user's Ctrl-C (a SIGINT to the command) stops the build, whether the trial it meets
+    runs in the command's process or in a child of its own, unlike a module's own interrupt."""
+    out = tmp_path / "find-path.yaml"
+    out.write_text("old\n")
+    argv = ["profile", "find-path", "--trials", "5000", "--isolation", isolation, "-o", str(out)]
     done = _interrupt(argv, tmp_path)
     assert (done.returncode, done.stdout, done.stderr) == (130, "", INTERRUPTED)
     assert out.read_text() == "old\n" and os.listdir(tmp_path) == ["find-path.yaml"]
