@@ -10,7 +10,7 @@ import numpy as np
 from attrs import frozen
 
 from anytime.compiler.allocators import reallocate
-from anytime.compiler.allocators.reallocate import QUANTUM, Replanner, replanner
+from anytime.compiler.allocators.reallocate import Replanner, replanner
 from anytime.compiler.compile import CompiledProgram
 from anytime.compiler.evaluate import NO_RESULT
 from anytime.compiler.loops import run_time_split
@@ -37,6 +37,7 @@ from anytime.runtime.values import (
     decision_quality,
     is_collection,
     judged_inputs,
+    news,
     no_result,
     passed,
     plain,
@@ -394,32 +395,12 @@ class Execution:
         return given
 
     def informative(self, node: CompileNode, record: RunRecord) -> bool:
-        """Whether a finished call tells the plan something it did not know (the value of
-        information of the rest is 0 otherwise, so re-planning could only cost): it left a
-        lattice unit or more of its share unused, or its outcome is a draw the plan only knew
-        the distribution of -- no result from a call that ran, a true quality from a module
-        whose profile is not deterministic (or is, but was wrong), the result of a loop, an if
-        or a called schema. A quality judged by a module's profile at the time it used is
-        what the plan expected, and is not news."""
+        """Whether a finished call is news to the plan (`values.news`); what finishes after
+        the last call with time of its own leaves nothing to re-plan."""
         if node.index >= self.last_timed or not isinstance(node, ModuleNode | LoopNode | IfNode):
-            return False  # nothing left to re-plan; a best-of's or a function's quality is
-            # that of calls already seen
-        share = float(self.allocation[node.time_index])
-        if share - record.time_used >= self.compiled.resolution - 1e-9:
-            return True
-        if not isinstance(node, ModuleNode) or node.callee is not None:
-            return True
-        if record.result is None:
-            return record.time_used > 0
-        module = node.entry.module if node.entry is not None else None
-        if module is None or module.reports != "true":
             return False
-        if not node.deterministic:
-            return True
-        predicted = judged_inputs(node, self.judged, self.qualities)
-        q = np.asarray(predicted, dtype=np.float64).reshape(1, -1)
-        expected = float(node.profile.expected(q, np.asarray([record.time_used]))[0])
-        return abs(record.result.quality - expected) > QUANTUM
+        share = float(self.allocation[node.time_index])
+        return news(node, record, share, self.compiled.resolution, self.judged, self.qualities)
 
     def adapt(self) -> None:
         """Adaptive mode, after a call that was news: the split of the time left that the

@@ -10,10 +10,13 @@ from typing import Any
 import numpy as np
 
 from anytime.compiler.allocators import reallocate
+from anytime.compiler.allocators.reallocate import QUANTUM
 from anytime.compiler.compile import CompiledProgram
 from anytime.compiler.model import (
     ChoiceNode,
     CompileNode,
+    IfNode,
+    LoopNode,
     ModuleNode,
 )
 from anytime.errors import AnytimeError
@@ -67,6 +70,39 @@ def decision_quality(
         return result.quality
     q = np.asarray(judged_inputs(node, judged, qualities)).reshape(1, -1)
     return float(node.profile.expected(q, np.asarray([used]))[0])
+
+
+def news(
+    node: CompileNode,
+    record: RunRecord,
+    share: float,
+    resolution: float,
+    judged: Mapping[int, float],
+    qualities: Sequence[float],
+) -> bool:
+    """Whether a finished call, given `share`, tells the plan something it did not know (else
+    the value of the information is 0, and re-planning could only cost): it left `resolution`
+    or more of its share unused, or its outcome is a draw the plan knew only the distribution
+    of -- no result from a call that ran, a true quality from a module whose profile is not
+    deterministic (or is, but did not predict it), the result of a loop, an if or a called
+    schema. A quality judged by a module's profile at the time it used is what the plan
+    expected; a best-of's or a function's quality is that of calls already seen."""
+    if not isinstance(node, ModuleNode | LoopNode | IfNode):
+        return False
+    if share - record.time_used >= resolution - 1e-9:
+        return True
+    if not isinstance(node, ModuleNode) or node.callee is not None:
+        return True
+    if record.result is None:
+        return record.time_used > 0
+    module = node.entry.module if node.entry is not None else None
+    if module is None or module.reports != "true":
+        return False
+    if not node.deterministic:
+        return True
+    q = np.asarray(judged_inputs(node, judged, qualities), dtype=np.float64).reshape(1, -1)
+    expected = float(node.profile.expected(q, np.asarray([record.time_used]))[0])
+    return abs(record.result.quality - expected) > QUANTUM
 
 
 def judged_inputs(
