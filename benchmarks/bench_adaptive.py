@@ -27,9 +27,12 @@ paired difference adaptive - fixed with its standard error, `diff / se` (target:
 is adaptive >= fixed - se; a difference that is the same in every run has se 0 and is shown
 as it is), how many re-plans were asked for and how many needed a search (the rest were
 remembered), and the wall time of all the adaptive runs' `run_program` calls over the fixed
-ones' (target: <= 1.1). The re-plans are remembered across the runs of a program, as they are
-in any process that runs one compiled program more than once: the first runs pay for the
-searches (the `searched` column), and the ratio includes them.
+ones' (target: <= 1.1), with the process's CPU time over the same calls beside it (less moved
+by other load on a shared machine; a row where the two runs of every instance are the same
+runs, re-plans 0, shows what that load alone does to the ratios). The re-plans are remembered
+across the runs of a program, as they are in any process that runs one compiled program more
+than once: the first runs pay for the searches (the `searched` column), and the ratios
+include them.
 """
 
 from __future__ import annotations
