@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import pytest
@@ -115,11 +116,45 @@ def test_table_and_summary_line(cli: Cli) -> None:
         "Q",
     ]
     assert lines[1].split()[:5] == ["1", "1,11", "1,12", "1.0000", "1.0000"]
-    assert len(lines) == 5
-    assert lines[-1].startswith(
+    assert len(lines) == 6
+    assert lines[-2].startswith(
         "3 problems, atp, 8-connected (optimal lengths from the .scen file): mean length /"
         " optimal 1.0000, "
     )
+    assert re.fullmatch(
+        r"once: \d+\.\d{3} s loading the compiled searches, \d+\.\d{3} s building the"
+        r" abstraction \(not in the times above\)",
+        lines[-1],
+    )
+
+
+SUMMARY = {
+    "planner",
+    "movement",
+    "optimal_from",
+    "problems",
+    "mean_length_ratio",
+    "expansions",
+    "seconds",
+    "mean_first_quality",
+    "mean_final_quality",
+    "load_seconds",
+    "build_seconds",
+}
+
+
+@pytest.mark.parametrize("planner", ["astar", "atp"])
+def test_one_off_costs_are_their_own_fields(cli: Cli, planner: str) -> None:
+    """Loading the compiled searches (once per process) and building the planner's description
+    of the map (once per map) are reported apart; each problem's time is its planning alone,
+    and the summary's time is their sum, with neither one-off cost in it."""
+    result = _json(cli, "--planner", planner, "--limit", "5")
+    summary = result["summary"]
+    assert set(summary) == SUMMARY
+    assert summary["load_seconds"] >= 0.0 and summary["build_seconds"] > 0.0
+    assert summary["seconds"] == sum(p["seconds"] for p in result["problems"])
+    for problem in result["problems"]:
+        assert set(problem) == KEYS and problem["seconds"] > 0.0
 
 
 def test_help(cli: Cli) -> None:

@@ -377,3 +377,164 @@ def widened_children(
             children[k] = child[c]
             k += 1
     return children
+
+
+@_compiled
+def _before(f: FloatArray, h: FloatArray, c: IntArray, i: int, j: int) -> bool:
+    """Whether heap entry i comes before entry j: keys (f, -g, counter), as `heapq` orders the
+    tuples of the pure-Python A* (`search.find_path_to_box`), so both pop in the same order."""
+    if f[i] != f[j]:
+        return bool(f[i] < f[j])
+    if h[i] != h[j]:
+        return bool(h[i] < h[j])
+    return bool(c[i] < c[j])
+
+
+@_compiled
+def grid_astar(
+    mult: FloatArray,
+    stride: int,
+    source: int,
+    goal: int,
+    goal_x: int,
+    goal_y: int,
+    octile: bool,
+    unit: float,
+    g: FloatArray,
+    parent: IntArray,
+    seen: IntArray,
+    done: IntArray,
+    generation: int,
+) -> tuple[IntArray, float, int]:
+    """A* on a whole grid from cell `source` to cell `goal` (padded, ravelled indices; `mult` the
+    step multiplier of each padded cell, < 0 where impassable, a row `stride` cells; the goal's
+    padded coordinates `goal_x`, `goal_y`): the pure-Python `search.find_path_to_box` for one
+    source and a one-cell box, step for step (the same heuristic, arithmetic and heap order:
+    the same path and expansions).
+
+    `g`, `parent`, `seen` and `done` are the caller's, one entry per padded cell, kept between
+    queries: an entry of `g` or `parent` counts only where `seen` is `generation`, a cell is
+    closed only where `done` is, so no query clears a map-sized array.
+
+    Returns (the path's padded cells, source first; empty when the goal is not reached), its
+    cost, and the expansions (the goal, popped last, not counted)."""
+    diagonal_unit = unit * (_SQRT2 - 1.0)
+    capacity = 1024
+    hf = np.empty(capacity, dtype=np.float64)
+    hg = np.empty(capacity, dtype=np.float64)
+    hc = np.empty(capacity, dtype=np.int64)
+    hn = np.empty(capacity, dtype=np.int64)
+    straight = (1, -1, stride, -stride)
+    sdx = (1, -1, 0, 0)
+    sdy = (0, 0, 1, -1)
+    seen[source] = generation
+    g[source] = 0.0
+    parent[source] = -1
+    sy, sx = source // stride, source % stride
+    dx0, dy0 = abs(sx - goal_x), abs(sy - goal_y)
+    if octile:
+        h0 = unit * max(dx0, dy0) + diagonal_unit * min(dx0, dy0)
+    else:
+        h0 = unit * (dx0 + dy0)
+    counter = 1
+    hf[0], hg[0], hc[0], hn[0] = h0, -0.0, counter, source
+    size = 1
+    expansions = 0
+    found = False
+    while size > 0:
+        node = hn[0]
+        # pop the least entry: the last one sifted down from the root
+        size -= 1
+        if size > 0:
+            hf[0], hg[0], hc[0], hn[0] = hf[size], hg[size], hc[size], hn[size]
+            i = 0
+            while True:
+                child = 2 * i + 1
+                if child >= size:
+                    break
+                if child + 1 < size and _before(hf, hg, hc, child + 1, child):
+                    child += 1
+                if not _before(hf, hg, hc, child, i):
+                    break
+                hf[i], hf[child] = hf[child], hf[i]
+                hg[i], hg[child] = hg[child], hg[i]
+                hc[i], hc[child] = hc[child], hc[i]
+                hn[i], hn[child] = hn[child], hn[i]
+                i = child
+        if done[node] == generation:
+            continue  # a stale entry: the cell was closed with a smaller g
+        if node == goal:
+            found = True
+            break
+        done[node] = generation
+        expansions += 1
+        g_node = g[node]
+        y, x = node // stride, node % stride
+        for k in range(8 if octile else 4):
+            if k < 4:
+                offset = straight[k]
+                nx, ny = x + sdx[k], y + sdy[k]
+                m = mult[node + offset]
+                if m < 0.0:
+                    continue
+                step = m
+            else:
+                ddx = 1 if k == 4 or k == 6 else -1
+                ddy = 1 if k < 6 else -1
+                offset = ddy * stride + ddx
+                nx, ny = x + ddx, y + ddy
+                m = mult[node + offset]
+                if m < 0.0 or mult[node + ddx] < 0.0 or mult[node + ddy * stride] < 0.0:
+                    continue  # no corner cutting: both orthogonal neighbours free
+                step = _SQRT2 * m
+            neighbour = node + offset
+            if done[neighbour] == generation:
+                continue
+            g_new = g_node + step
+            if seen[neighbour] != generation or g_new < g[neighbour]:
+                seen[neighbour] = generation
+                g[neighbour] = g_new
+                parent[neighbour] = node
+                dx, dy = abs(nx - goal_x), abs(ny - goal_y)
+                if octile:
+                    if dx > dy:
+                        h = unit * dx + diagonal_unit * dy
+                    else:
+                        h = unit * dy + diagonal_unit * dx
+                else:
+                    h = unit * (dx + dy)
+                counter += 1
+                if size == capacity:
+                    capacity *= 2
+                    hf2 = np.empty(capacity, dtype=np.float64)
+                    hg2 = np.empty(capacity, dtype=np.float64)
+                    hc2 = np.empty(capacity, dtype=np.int64)
+                    hn2 = np.empty(capacity, dtype=np.int64)
+                    hf2[:size], hg2[:size], hc2[:size], hn2[:size] = hf, hg, hc, hn
+                    hf, hg, hc, hn = hf2, hg2, hc2, hn2
+                # push: sift the new entry up from the end
+                i = size
+                hf[i], hg[i], hc[i], hn[i] = g_new + h, -g_new, counter, neighbour
+                size += 1
+                while i > 0:
+                    up = (i - 1) >> 1
+                    if not _before(hf, hg, hc, i, up):
+                        break
+                    hf[i], hf[up] = hf[up], hf[i]
+                    hg[i], hg[up] = hg[up], hg[i]
+                    hc[i], hc[up] = hc[up], hc[i]
+                    hn[i], hn[up] = hn[up], hn[i]
+                    i = up
+    if not found:
+        return np.empty(0, dtype=np.int64), np.inf, expansions
+    count = 0
+    u = goal
+    while u >= 0:
+        count += 1
+        u = parent[u]
+    path = np.empty(count, dtype=np.int64)
+    u = goal
+    for i in range(count - 1, -1, -1):
+        path[i] = u
+        u = parent[u]
+    return path, g[goal], expansions

@@ -34,7 +34,7 @@ from attrs import frozen
 
 from ..world import SQRT2
 
-__all__ = ["PathResult", "SearchLimit", "find_path", "find_path_to_box"]
+__all__ = ["GridAstar", "PathResult", "SearchLimit", "find_path", "find_path_to_box"]
 
 Position = tuple[int, int]
 
@@ -149,25 +149,8 @@ def find_path_to_box(
     Impassable sources are ignored and impassable box cells cannot be reached; otherwise as
     `find_path`.
     """
-    obstacleness = np.asarray(cost, dtype=np.float64)
-    if obstacleness.ndim != 2:
-        raise ValueError(f"cost must be a 2-D grid indexed [y, x], got shape {obstacleness.shape}")
+    obstacleness, blocked, weight = _grids(cost, weight, impassable, movement)
     height, width = obstacleness.shape
-    if movement not in (4, 8):
-        raise ValueError(f"movement must be 4 or 8, got {movement!r}")
-    weight = float(weight)
-    if not weight >= 0.0 or math.isinf(weight):
-        raise ValueError(f"weight must be finite and >= 0, got {weight!r}")
-    if obstacleness.size and not obstacleness.min() >= 0.0:
-        raise ValueError("obstacleness must be >= 0 (and not NaN)")
-    if impassable is None:
-        blocked = obstacleness >= 1.0
-    else:
-        blocked = np.asarray(impassable, dtype=bool)
-        if blocked.shape != obstacleness.shape:
-            raise ValueError(
-                f"impassable has shape {blocked.shape}, cost has shape {obstacleness.shape}"
-            )
     starts = [_cell(source, width, height, "start") for source in sources]
     initial = [0.0] * len(starts) if source_costs is None else [float(c) for c in source_costs]
     if len(initial) != len(starts):
@@ -180,18 +163,8 @@ def find_path_to_box(
     if not usable or blocked[by0 : by1 + 1, bx0 : bx1 + 1].all():
         return None
 
-    # The step multiplier 1 + weight * obstacleness per cell, _BLOCKED where impassable.
+    padded, unit = _multipliers(obstacleness, blocked, weight)
     stride = width + 2
-    padded = np.empty((height + 2, stride))
-    padded[[0, -1], :] = _BLOCKED
-    padded[:, [0, -1]] = _BLOCKED
-    inner = padded[1:-1, 1:-1]
-    np.multiply(obstacleness, weight, out=inner)
-    inner += 1.0
-    np.copyto(inner, _BLOCKED, where=blocked)
-    # The cheapest cost per unit of length anywhere scales the heuristic: every step costs at
-    # least this much per unit of length it covers, so the heuristic stays consistent.
-    unit = 1.0 if weight == 0.0 else float(np.min(inner, where=~blocked, initial=math.inf))
     size = padded.size
     g_values = np.full(size, math.inf)
     parents = np.empty(size, dtype=np.int64)  # read only along the path found, all written
@@ -311,6 +284,127 @@ def find_path_to_box(
     return PathResult(
         path=path, length=length, cost=g[node] + max(target[node], 0.0), expansions=expansions
     )
+
+
+def _grids(
+    cost: npt.ArrayLike, weight: float, impassable: npt.ArrayLike | None, movement: int
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.bool_], float]:
+    """The obstacleness and impassable grids `find_path_to_box` reads, checked, and the weight
+    as a float."""
+    obstacleness = np.asarray(cost, dtype=np.float64)
+    if obstacleness.ndim != 2:
+        raise ValueError(f"cost must be a 2-D grid indexed [y, x], got shape {obstacleness.shape}")
+    if movement not in (4, 8):
+        raise ValueError(f"movement must be 4 or 8, got {movement!r}")
+    weight = float(weight)
+    if not weight >= 0.0 or math.isinf(weight):
+        raise ValueError(f"weight must be finite and >= 0, got {weight!r}")
+    if obstacleness.size and not obstacleness.min() >= 0.0:
+        raise ValueError("obstacleness must be >= 0 (and not NaN)")
+    if impassable is None:
+        blocked = obstacleness >= 1.0
+    else:
+        blocked = np.asarray(impassable, dtype=bool)
+        if blocked.shape != obstacleness.shape:
+            raise ValueError(
+                f"impassable has shape {blocked.shape}, cost has shape {obstacleness.shape}"
+            )
+    return obstacleness, blocked, weight
+
+
+def _multipliers(
+    obstacleness: npt.NDArray[np.float64], blocked: npt.NDArray[np.bool_], weight: float
+) -> tuple[npt.NDArray[np.float64], float]:
+    """The step multiplier 1 + weight * obstacleness per cell of the grid padded with one
+    impassable cell on every side (_BLOCKED where impassable), and the heuristic's unit."""
+    height, width = obstacleness.shape
+    padded = np.empty((height + 2, width + 2))
+    padded[[0, -1], :] = _BLOCKED
+    padded[:, [0, -1]] = _BLOCKED
+    inner = padded[1:-1, 1:-1]
+    np.multiply(obstacleness, weight, out=inner)
+    inner += 1.0
+    np.copyto(inner, _BLOCKED, where=blocked)
+    # The cheapest cost per unit of length anywhere scales the heuristic: every step costs at
+    # least this much per unit of length it covers, so the heuristic stays consistent.
+    unit = 1.0 if weight == 0.0 else float(np.min(inner, where=~blocked, initial=math.inf))
+    return padded, unit
+
+
+class GridAstar:
+    """`find_path` compiled (numba: `corridor_search.grid_astar`), for many queries on one map:
+    the same moves, costs, heuristic and tie-breaking (heap key `(f, -g, counter)`), so the same
+    path and expansions as `find_path`, several times faster. It is the baseline the anytime
+    planner is measured against (benchmarks/bench_navigation.py) and `anytime plan --planner
+    astar`.
+
+    Building one checks and pads the map once and allocates its scratch arrays (one entry per
+    cell, stamped with a query number instead of cleared), so a query costs its search alone.
+    The first query of a process loads the compiled search from numba's cache (`compiled()`).
+    The work is reported to `ctx` in one `ctx.tick(expansions)` at the end: a compiled search
+    cannot be interrupted (`find_path` with a `ctx` can).
+    """
+
+    def __init__(
+        self,
+        cost: npt.ArrayLike,
+        *,
+        movement: int = 4,
+        weight: float = 1.0,
+        impassable: npt.ArrayLike | None = None,
+    ) -> None:
+        obstacleness, blocked, weight = _grids(cost, weight, impassable, movement)
+        self.shape = obstacleness.shape
+        self.movement = movement
+        padded, self.unit = _multipliers(obstacleness, blocked, weight)
+        self.stride = padded.shape[1]
+        self.mult = padded.ravel()
+        size = self.mult.size
+        self.g = np.empty(size)
+        self.parent = np.empty(size, dtype=np.int64)
+        self.seen = np.zeros(size, dtype=np.int64)
+        self.done = np.zeros(size, dtype=np.int64)
+        self.generation = 0
+
+    def find_path(self, start: Position, goal: Position, *, ctx: Any = None) -> PathResult | None:
+        """A cheapest path from `start` to `goal`, as `find_path` finds it, or None."""
+        height, width = self.shape
+        sx, sy = _cell(start, width, height, "start")
+        gx, gy = _cell(goal, width, height, "goal")
+        stride = self.stride
+        source, target = (sy + 1) * stride + sx + 1, (gy + 1) * stride + gx + 1
+        if self.mult[source] < 0.0 or self.mult[target] < 0.0:
+            return None
+        self.generation += 1
+        cells, cost, expansions = compiled().grid_astar(
+            self.mult,
+            stride,
+            source,
+            target,
+            gx + 1,
+            gy + 1,
+            self.movement == 8,
+            self.unit,
+            self.g,
+            self.parent,
+            self.seen,
+            self.done,
+            self.generation,
+        )
+        if ctx is not None:
+            ctx.tick(expansions)
+        if not len(cells):
+            return None
+        steps = np.abs(np.diff(cells))
+        diagonals = int(np.count_nonzero((steps != 1) & (steps != stride)))
+        length = (len(cells) - 1 - diagonals) + SQRT2 * diagonals
+        xs, ys = (cells % stride - 1).tolist(), (cells // stride - 1).tolist()
+        return PathResult(
+            path=tuple(zip(xs, ys, strict=True)),
+            length=length,
+            cost=float(cost),
+            expansions=int(expansions),
+        )
 
 
 def _pair(position: Position, what: str) -> Position:
