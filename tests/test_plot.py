@@ -207,12 +207,42 @@ def test_the_framework_figures_import_no_domain(tmp_path: Path) -> None:
 # --- the command -----------------------------------------------------------------------------
 
 
-def test_plot_a_profile_file_next_to_it(tmp_path: Path, cli: Cli) -> None:
+def test_plot_a_profile_file_into_the_current_directory(
+    tmp_path: Path, cli: Cli, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Not next to FILE: a shipped profile's directory is the installed package's."""
+    profile = tmp_path / "profiles" / "exp.yaml"
+    profile.parent.mkdir()
+    save_profile(exponential(inputs=1), profile)
+    monkeypatch.chdir(tmp_path)
+    code, out, err = cli("plot", str(profile), "--title", "A title")
+    assert (code, out, err) == (0, "wrote exp.png\n", "")
+    assert png_size(tmp_path / "exp.png") == (700, 450)
+    assert not (profile.parent / "exp.png").exists()
+
+
+def test_plot_compiles_a_schema_as_compile_does(
+    tmp_path: Path, cli: Cli, setup: tuple[Path, Path]
+) -> None:
+    """Every compile option reaches the figure: with --resolution it draws the table
+    `anytime compile` prints with it; a profile file refuses them."""
+    schemas, library = setup
+    common = ["--schema", "p", "--profiles", str(library), "--no-plugins", "--time-grid", "0:40:10"]
+    coarse = cli("compile", str(schemas), *common, "--resolution", "10")
+    assert coarse[0] == 0, coarse
+    code, out, err = cli(
+        "plot", str(schemas), *common, "--resolution", "10", "-o", str(tmp_path / "s.png")
+    )
+    assert (code, out, err) == (0, f"wrote {tmp_path / 's.png'}\n", "")
     profile = tmp_path / "exp.yaml"
     save_profile(exponential(inputs=1), profile)
-    code, out, err = cli("plot", str(profile), "--title", "A title")
-    assert (code, out, err) == (0, f"wrote {tmp_path / 'exp.png'}\n", "")
-    assert png_size(tmp_path / "exp.png") == (700, 450)
+    code, out, err = cli("plot", str(profile), "--resolution", "2", "-o", str(tmp_path / "e.png"))
+    assert (code, out, err) == (
+        1,
+        "",
+        f"anytime: error: --resolution is for schema files (.any), and {profile} is read as a"
+        " profile file\n",
+    )
 
 
 def test_plot_a_compiled_file_and_a_schema(
@@ -232,7 +262,7 @@ def test_plot_a_compiled_file_and_a_schema(
     assert png_size(tmp_path / "c.png") == (700, 700)
     code, out, err = cli(
         "plot", str(schemas), "--schema", "P", "--profiles", str(library), "--no-plugins",
-        "--time-grid", "0:40:10",
+        "--time-grid", "0:40:10", "-o", str(tmp_path / "p.png"),
     )  # fmt: skip
     assert (code, out, err) == (0, f"wrote {tmp_path / 'p.png'}\n", "")
     assert png_size(tmp_path / "p.png") == (700, 700)

@@ -25,10 +25,13 @@ from anytime.cli.common import (
     library_options,
     open_library,
     refuse_overwriting_inputs,
-    time_grid,
 )
-from anytime.cli.schemas import check_schema_name, compile_schemas
-from anytime.compiler.compile import ALLOCATOR_NAMES
+from anytime.cli.schemas import (
+    check_schema_name,
+    check_time_unit,
+    compile_options,
+    compile_schemas,
+)
 from anytime.dsl import load_schemas
 from anytime.plot import (
     MissingMatplotlibError,
@@ -60,35 +63,42 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "-o",
         "--output",
         metavar="OUT.png",
-        help="the image to write; its suffix names the format (default: FILE with .png)",
+        help="the image to write; its suffix names the format (default: FILE's name with .png,"
+        " in the current directory)",
     )
     plot.add_argument("--title", metavar="T", help="the figure's title (default: a description)")
-    schema = plot.add_argument_group("schema files (.any), as for `anytime compile`")
+    schema = plot.add_argument_group(
+        "schema files (.any), compiled as `anytime compile` compiles them"
+    )
     schema.add_argument("--schema", metavar="NAME", help="the schema to compile and draw")
+    compile_options(schema)
     library_options(schema)
-    schema.add_argument(
-        "--allocator", choices=ALLOCATOR_NAMES, default="auto", help="as for compile (auto)"
-    )
-    schema.add_argument(
-        "--time-grid",
-        type=time_grid,
-        metavar="START:STOP:STEP",
-        help="the totals to compile for (default: as for compile)",
-    )
     plot.set_defaults(run=run_plot)
+
+
+#: The options only a schema file takes, and their defaults (given otherwise: an error).
+SCHEMA_ONLY = {
+    "schema": None,
+    "time_grid": None,
+    "resolution": None,
+    "allocator": "auto",
+    "time_unit": None,
+    "strict": False,
+}
 
 
 def run_plot(args: argparse.Namespace) -> int:
     source = Path(args.file)
-    output = Path(args.output) if args.output is not None else source.with_suffix(".png")
+    # Here, not next to FILE: a shipped profile lives in the installed package.
+    output = Path(args.output) if args.output is not None else Path(source.stem + ".png")
     refuse_overwriting_inputs(output, source)
     try:
         require_matplotlib()  # before any work
         if source.suffix.lower() == SCHEMA_SUFFIX:
             _plot_schema(args, output)
         else:
-            for option in ("schema", "time_grid"):
-                if getattr(args, option) is not None:
+            for option, default in SCHEMA_ONLY.items():
+                if getattr(args, option) != default:
                     flag = "--" + option.replace("_", "-")
                     raise InputError(
                         f"{flag} is for schema files ({SCHEMA_SUFFIX}), and "
@@ -129,9 +139,19 @@ def _plot_schema(args: argparse.Namespace, output: Path) -> None:
         check_schema_name(schemas, args.schema)
         name = args.schema.lower()
     compiled = compile_schemas(
-        schemas, library, args.time_grid, schema=name, allocator=args.allocator
+        schemas,
+        library,
+        args.time_grid,
+        schema=name,
+        allocator=args.allocator,
+        input_quality=args.input_quality,
+        resolution=args.resolution,
+        memory=args.memory,
+        strict=args.strict,
     )
-    plot_compiled(next(c for c in compiled if c.name == name), output, title=args.title)
+    wanted = next(c for c in compiled if c.name == name)
+    check_time_unit([wanted], args.time_unit, args.file)
+    plot_compiled(wanted, output, title=args.title)
 
 
 def _allocation_table(
