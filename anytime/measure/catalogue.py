@@ -33,7 +33,10 @@ passed, failed or skipped, with a message that says what was seen and where:
 
 The time grid is the declared profile's (so the profile is compared at its own cells, without
 interpolation), else the grid registered with the problem set; `time=` and `input_grids=`
-override it. A module that neither ticks nor yields hangs the catalogue as it would hang a run.
+override it. Isolated (the default), a module that neither ticks nor yields fails its run on
+the watchdog, and is then taken to be stuck: the runs after it are skipped (each would wait the
+watchdog again; the errors check says how many), and so are the checks left without a run and
+the profile check. Run in-process (`SOFT`), such a module hangs the catalogue as it hangs a run.
 
 In a domain plugin's tests, run every module of the library that has a registered problem set::
 
@@ -53,8 +56,9 @@ In a domain plugin's tests, run every module of the library that has a registere
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from contextlib import suppress
+from functools import partial
 from typing import Any, cast
 
 from attrs import frozen
@@ -66,6 +70,7 @@ from anytime.library import AnytimeLibrary, LibraryEntry
 from anytime.measure.checks import (
     Check,
     Session,
+    _Run,
     check_deadline,
     check_errors,
     check_interruption,
@@ -235,7 +240,8 @@ def check_module(
         mode: `Isolated(watchdog=..., limits=...)` (the default) makes every run, and every
             trial of the profile check, in a child process (`anytime.isolation`): a run that
             crashes its process fails the errors check with how it died, and one that takes
-            more than `watchdog` seconds of wall time fails it too; the catalogue goes on.
+            more than `watchdog` seconds of wall time fails it too, and the runs after it
+            are skipped (see above); the catalogue goes on.
             With `limits`, every run has a process of its own and the limits are each run's.
             `SOFT` runs them here. `Hard()` is refused: a hard run answers at its deadline
             whatever the module does, which would hide what the deadline and interruption
@@ -276,11 +282,22 @@ def check_module(
         deadline = session.deadline_runs()
         interruption = session.interruption_runs()
     runs = deadline + interruption
-    checks.append(check_quality(runs))
+    made = [r for r in runs if not r.skipped]
+    checks.append(_unless_none_ran("quality", made, session, check_quality))
     checks.append(check_errors(runs))
-    checks.append(check_deadline(module, deadline))
-    checks.append(check_interruption(module, interruption))
-    if declared is not None:
+    deadline_made = [r for r in deadline if not r.skipped]
+    interruption_made = [r for r in interruption if not r.skipped]
+    checks.append(
+        _unless_none_ran("deadline", deadline_made, session, partial(check_deadline, module))
+    )
+    checks.append(
+        _unless_none_ran(
+            "interruption", interruption_made, session, partial(check_interruption, module)
+        )
+    )
+    if session.stuck is not None:  # measuring its profile would wait the watchdog per trial
+        verdict = Check("profile", True, f"skipped: the module is stuck ({session.stuck})", True)
+    elif declared is not None:
         verdict = check_profile(
             module,
             problems,
@@ -297,6 +314,15 @@ def check_module(
     assert verdict is not None
     checks.append(verdict)
     return CatalogueReport(module.name, module.kind, tuple(checks), trials, seed, len(runs))
+
+
+def _unless_none_ran(
+    name: str, runs: list[_Run], session: Session, check: Callable[[list[_Run]], Check]
+) -> Check:
+    """`check(runs)`, or a skipped check when the session skipped every one of its runs."""
+    if not runs and session.stuck is not None:
+        return Check(name, True, f"skipped: the module is stuck ({session.stuck})", True)
+    return check(runs)
 
 
 # --- the grid and the declared profile ---------------------------------------------------------

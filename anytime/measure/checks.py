@@ -142,6 +142,7 @@ class _Run:
     allocation: float
     largest_step: float  # the largest tick begun before the deadline (or the first one)
     negative: bool  # a tick of negative work was reported
+    skipped: bool = False  # not run: an earlier run of the module hit the watchdog
 
 
 class _ProbeClock:
@@ -202,6 +203,9 @@ class Session:
         ]
         self.done: Callable[[], object] = lambda: None  # called after every run (progress)
         self.mode: Soft | Isolated = ISOLATED  # every run in a child process, or here
+        # The first run that hit the watchdog ("REASON, WHERE"): the module is stuck, and the
+        # runs after it are skipped rather than each wait the watchdog again.
+        self.stuck: str | None = None
 
     def _instances(self) -> Iterator[tuple[int, int, tuple[float, ...], str]]:
         for cell, qualities in enumerate(self.cells):
@@ -279,10 +283,27 @@ class Session:
                 for outcome in calls(call, [spec], watchdog=mode.watchdog, limits=mode.limits)
             )
         runs = []
-        for spec, outcome in zip(specs, outcomes, strict=True):
-            runs.append(self._lost(spec, outcome) if isinstance(outcome, Lost) else outcome)
+        for spec in specs:
+            if self.stuck is not None:
+                runs.append(self._skipped(spec))
+            else:
+                outcome = next(outcomes)
+                runs.append(self._lost(spec, outcome) if isinstance(outcome, Lost) else outcome)
+                if isinstance(outcome, Lost) and outcome.exit_code is None:  # the watchdog
+                    self.stuck = f"{outcome.reason}, {spec[3]}"
+                    close = getattr(outcomes, "close", None)
+                    if close is not None:
+                        close()  # ends the process that would go on with the next runs
             self.done()
         return runs
+
+    def _skipped(self, spec: _Spec) -> _Run:
+        """The run of `spec`, not made: an earlier run hit the watchdog."""
+        *_, where, allocation, _ = spec
+        record = RunRecord(
+            self.module.name, Status.FAILED, None, 0.0, allocation, error="not run: stuck"
+        )
+        return _Run(record, (), where, allocation, 0.0, False, skipped=True)
 
     def _lost(self, spec: _Spec, lost: Lost) -> _Run:
         """The run of `spec` whose process did not come back."""
@@ -372,7 +393,20 @@ def check_quality(runs: list[_Run]) -> Check:
     )
 
 
+def skipped_note(runs: list[_Run]) -> str:
+    """What a message says of the runs skipped after one hit the watchdog ("" if none)."""
+    skipped = sum(r.skipped for r in runs)
+    if not skipped:
+        return ""
+    return (
+        f"; the other {skipped} runs were skipped: a module whose run hits the watchdog is taken"
+        " to be stuck (each further run would wait the watchdog again)"
+    )
+
+
 def check_errors(runs: list[_Run]) -> Check:
+    note = skipped_note(runs)
+    runs = [r for r in runs if not r.skipped]
     bad = [
         (r, r.record.error or "failed")
         for r in runs
@@ -382,7 +416,9 @@ def check_errors(runs: list[_Run]) -> Check:
     ]
     if bad:
         crashed = any(r.record.status is Status.CRASHED for r, _ in bad)
-        return Check("errors", False, _first(bad, len(runs), "failed" if crashed else "raised"))
+        hung = any(r.record.error.startswith("watchdog") for r, _ in bad if r.record.error)
+        what = "failed" if crashed or hung else "raised"
+        return Check("errors", False, _first(bad, len(runs), what) + note)
     return Check("errors", True, f"none of {len(runs)} runs raised")
 
 
