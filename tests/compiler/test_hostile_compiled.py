@@ -20,6 +20,7 @@ from hypothesis import strategies as st
 from anytime.compiler import CompiledProgram, CompileError, compile_file, save_compiled
 from anytime.compiler.storage import MAX_LATTICE, load_compiled
 from anytime.dsl import parse_schemas
+from anytime.errors import AnytimeError
 from anytime.library import AnytimeLibrary
 
 #: The `cli` fixture (tests/conftest.py): runs `anytime` in-process, (exit code, stdout, stderr).
@@ -255,3 +256,41 @@ def test_plot_refuses_a_ragged_table_in_one_line(tmp_path: Path, cli: Cli) -> No
         f"anytime: error: {path}: allocation: expected a table of shape [11, 1] (input grids,"
         " time, one per module), got a ragged or non-numeric table\n",
     )
+
+
+def _leaves(node: Any, path: tuple[Any, ...] = ()) -> list[tuple[Any, ...]]:
+    """The paths of every value in the document (lists and mappings included)."""
+    found = [path] if path else []
+    if isinstance(node, dict):
+        for key, value in node.items():
+            found += _leaves(value, (*path, key))
+    elif isinstance(node, list):
+        for i, value in enumerate(node):
+            found += _leaves(value, (*path, i))
+    return found
+
+
+JUNK = st.sampled_from(
+    [None, "x", -1, 0, NAN, INF, 1e300, True, [], {}, [[1], [2, 3]], {"a": 1}, [NAN], "1e3"]
+)
+
+
+@settings(max_examples=60, deadline=None)
+@given(data=st.data(), junk=JUNK)
+def test_any_value_replaced_by_junk_loads_or_is_refused_as_bad_input(
+    saved: tuple[Path, dict[str, Any]], data: st.DataObject, junk: Any
+) -> None:
+    """Whatever value of the file is replaced by whatever junk, `load_compiled` loads it or
+    raises an error of the tree that names the file: never a raw ValueError or TypeError."""
+    path, original = saved
+    document = yaml.safe_load(yaml.safe_dump(original))
+    where = data.draw(st.sampled_from(_leaves(document)))
+    node = document
+    for key in where[:-1]:
+        node = node[key]
+    node[where[-1]] = junk
+    path.write_text(yaml.safe_dump(document), encoding="utf-8")
+    try:
+        load_compiled(path, _library())
+    except AnytimeError as error:
+        assert error.where == str(path) or str(error).startswith(f"{path}:")
