@@ -163,6 +163,7 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     calibrate_.add_argument("--json", action="store_true", help="print JSON")
     calibrate_.add_argument("--quiet", action="store_true", help="no progress bar")
+    isolation_options(calibrate_, "calibration run")  # its watchdog: at most --seconds + 2
     library_options(calibrate_)
     calibrate_.set_defaults(run=run_calibrate, usage_error=calibrate_.error)
 
@@ -373,7 +374,9 @@ def run_calibrate(args: argparse.Namespace) -> int:
     bar = False if args.quiet else None  # a progress bar on a terminal, unless --quiet
     plan = library.measurement(module.name)
     with timed_progress(args.seconds, label=f"{module.name} calibration", enabled=bar):
-        calibration = calibrate(module, args.seconds, measurement=plan, seed=args.seed)
+        calibration = calibrate(
+            module, args.seconds, measurement=plan, seed=args.seed, mode=run_mode(args)
+        )
     if profile is not None:
         converted = convert_profile(profile, calibration.ticks_per_second, to=args.to)
         _save(Path(args.output), lambda path: save_profile(converted, path))

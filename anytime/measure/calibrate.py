@@ -13,6 +13,13 @@ the run with `time.perf_counter`, and a run still going when the budget is spent
 from outside. The answer is the median of the runs' rates with its spread: the smallest and
 largest, and a distribution-free 95% interval of the median (order statistics).
 
+Isolated (the default, `Isolated()`), the runs are made in turn in a child process
+(`anytime.isolation.calls`), each timed there: a run whose process dies is a `CalibrationError`
+saying how it died, and so is one still going `GRACE` seconds of wall time after the budget is
+spent (a module that loops or sleeps without reporting work cannot be stopped by its clock: the
+watchdog, the smaller of the mode's and the budget plus `GRACE`, ends it). `SOFT` runs them in
+this process (such a module then hangs the calibration).
+
 `convert_profile` rescales a profile's time axis by the factor and changes its `time_unit`;
 nothing else changes. The time values are rounded to the shortest decimal within a few units
 in the last place when (and only when) that decimal converts back to the input, so a grid
@@ -24,7 +31,9 @@ from __future__ import annotations
 import math
 import threading
 import time as _time
-from collections.abc import Callable
+from collections.abc import Callable, Generator
+from contextlib import closing
+from functools import partial
 from typing import Any
 
 import attrs
@@ -33,18 +42,22 @@ from attrs import frozen
 
 from anytime.clocks import Unit, WorkClock
 from anytime.errors import AnytimeError, ProfileError
-from anytime.measure.trials import Trial
+from anytime.isolation import Lost, calls, counting_interrupts
+from anytime.measure.trials import Trial, run_trial
 from anytime.modules import AnytimeModule
 from anytime.problems import Measurement, registered_problems
 from anytime.profiles.profile import ConditionalPerformanceProfile
-from anytime.runtime.executor import Status, run
-from anytime.runtime.modes import Budget
+from anytime.runtime.executor import Status
+from anytime.runtime.modes import ISOLATED, SOFT, Budget, Isolated, RunMode, Soft
 from anytime.vocabulary import PROFILE_KINDS
 
 __all__ = ["Calibration", "CalibrationError", "calibrate", "convert_profile"]
 
 #: Significant digits a converted time value may be rounded to, and how far it may move.
 _DIGITS, _ULPS = 12, 4
+#: Wall-clock seconds an isolated calibration run may go on after the budget is spent (its
+#: clock stops it at its next report of work) before the watchdog ends it.
+GRACE = 2.0
 
 
 class CalibrationError(AnytimeError, ValueError):
@@ -142,6 +155,7 @@ def calibrate(
     measurement: Measurement | None = None,
     seed: int = 0,
     max_runs: int = 100_000,
+    mode: RunMode = ISOLATED,
 ) -> Calibration:
     """Measure `module`'s ticks per second on instances of its problem set.
 
@@ -151,11 +165,14 @@ def calibrate(
         seed: instance i at input-quality cell c is made from `SeedSequence(seed, spawn_key=(c,
             i))`, as the profile builder makes them; runs cycle through the cells.
         max_runs: stop after this many runs even if budget is left.
+        mode: `Isolated(watchdog=..., limits=...)` (the default: the runs in a child process,
+            see the module docstring; with limits, a process per run) or `SOFT` (here).
 
     Raises:
         BuildError: no problem set is registered for the module.
-        CalibrationError: the module is elementary, fails on an instance, or reports no ticks;
-            or `seconds` is not a positive budget.
+        CalibrationError: the module is elementary, fails on an instance (raises, its process
+            dies, or it does not answer in time), or reports no ticks; or `seconds` is not a
+            positive budget, or the mode is neither `Soft()` nor `Isolated()`.
     """
     if module.kind not in PROFILE_KINDS:
         raise CalibrationError(
@@ -164,50 +181,108 @@ def calibrate(
         )
     if not seconds > 0:
         raise CalibrationError(f"seconds: expected a positive budget, got {seconds!r}")
+    if not isinstance(mode, Soft | Isolated):
+        raise CalibrationError(f"mode: expected Soft() or Isolated(), got {mode!r}")
     plan = measurement if measurement is not None else registered_problems(module.name)
     grid = plan.grid
     cells = [
         tuple(float(g[i]) for g, i in zip(grid.input_grids, index, strict=True))
         for index in np.ndindex(*grid.cell_shape)
     ]
-    allocation = float(grid.time[-1])
     rates: list[float] = []
     ticks = spent = 0.0
     runs = 0
-    deadline = _time.perf_counter() + seconds
-    while runs < max_runs and (runs == 0 or _time.perf_counter() < deadline):
-        cell, instance = runs % len(cells), runs // len(cells)
-        at = f" at input qualities {list(cells[cell])}" if cells[cell] else ""
-        trial = Trial(
-            module,
-            plan.problems,
-            cells[cell],
-            np.random.SeedSequence(seed, spawn_key=(cell, instance)),
-            WorkClock,  # unused: the trial only makes the problem; `run` gets its clock
-            f"trial {instance}{at}",
-        )
-        _, args = trial.problem()
-        stop = threading.Event()
-        clock = _MeteredClock(stop, deadline)
-        started = _time.perf_counter()
-        record = run(module, args, budget=Budget(allocation, clock=clock, stop=stop))
-        took = _time.perf_counter() - started
-        runs += 1
-        if record.status is Status.FAILED:
-            raise CalibrationError(
-                f"module '{module.name}' failed while being calibrated ({trial.where}):"
-                f" {record.error}"
-            )
-        ticks += record.time_used
-        spent += took
-        if record.time_used > 0 and took > 0:
-            rates.append(record.time_used / took)
+    deadline = _time.perf_counter() + seconds  # perf_counter: one monotonic clock for the forks
+    one = partial(_one_run, module, plan, cells, float(grid.time[-1]), seed, deadline)
+    with counting_interrupts(), closing(_outcomes(one, range(max_runs), mode, seconds)) as ran:
+        for index, outcome in enumerate(ran):
+            if outcome is None:  # the budget was spent before it began
+                break
+            where = _where(cells, index)
+            if isinstance(outcome, Lost):
+                how, hint = "crashed", ""
+                if outcome.exit_code is None:
+                    how = "did not answer"
+                    hint = (
+                        f" (the budget was {seconds:g} s: it must report its work with"
+                        " ctx.tick(n) often enough to be stopped)"
+                    )
+                raise CalibrationError(
+                    f"module '{module.name}' {how} while being calibrated ({where}):"
+                    f" {outcome.reason}{hint}"
+                )
+            status, error, used, took = outcome
+            runs += 1
+            if status is Status.FAILED:
+                raise CalibrationError(
+                    f"module '{module.name}' failed while being calibrated ({where}): {error}"
+                )
+            ticks += used
+            spent += took
+            if used > 0 and took > 0:
+                rates.append(used / took)
     if not rates:
         raise CalibrationError(
             f"module '{module.name}' reported no ticks while being calibrated: it must report"
             " its work with ctx.tick(n)"
         )
     return Calibration(module.name, tuple(rates), runs, ticks, spent)
+
+
+#: What one calibration run gives: its status, its error, the ticks it used and its seconds.
+_Ran = tuple[Status, str | None, float, float]
+
+
+def _outcomes(
+    one: Callable[[int], _Ran | None], indices: range, mode: Soft | Isolated, seconds: float
+) -> Generator[_Ran | Lost | None, None, None]:
+    """`one(i)` for each index, here or (isolated) in child processes, each run watched."""
+    if not isinstance(mode, Isolated):
+        yield from map(one, indices)
+        return
+    watchdog = min(mode.watchdog, seconds + GRACE)
+    if mode.limits is None:
+        yield from calls(one, indices, watchdog=watchdog)
+        return
+    for index in indices:  # a process per run: the limits are each run's
+        yield from calls(one, [index], watchdog=watchdog, limits=mode.limits)
+
+
+def _where(cells: list[tuple[float, ...]], index: int) -> str:
+    cell, instance = index % len(cells), index // len(cells)
+    at = f" at input qualities {list(cells[cell])}" if cells[cell] else ""
+    return f"trial {instance}{at}"
+
+
+def _one_run(
+    module: AnytimeModule,
+    plan: Measurement,
+    cells: list[tuple[float, ...]],
+    allocation: float,
+    seed: int,
+    deadline: float,
+    index: int,
+) -> _Ran | None:
+    """(Here, or in a child process.) Calibration run `index`, timed; None once the budget is
+    spent (the first run is always made)."""
+    if index > 0 and _time.perf_counter() >= deadline:
+        return None
+    cell, instance = index % len(cells), index // len(cells)
+    trial = Trial(
+        module,
+        plan.problems,
+        cells[cell],
+        np.random.SeedSequence(seed, spawn_key=(cell, instance)),
+        WorkClock,  # unused: the trial only makes the problem; `run` gets its clock
+        _where(cells, index),
+    )
+    _, args = trial.problem()
+    stop = threading.Event()
+    clock = _MeteredClock(stop, deadline)
+    started = _time.perf_counter()
+    record = run_trial(module, args, Budget(allocation, clock=clock, stop=stop), SOFT)
+    took = _time.perf_counter() - started
+    return record.status, record.error, record.time_used, took
 
 
 def convert_profile(
