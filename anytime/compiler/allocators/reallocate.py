@@ -6,9 +6,9 @@ split is worth more than the one kept, and remembers its answers."""
 
 from __future__ import annotations
 
+import math
 from collections import OrderedDict
 from collections.abc import Hashable, Mapping, Sequence
-from math import comb
 from weakref import WeakKeyDictionary
 
 import numpy as np
@@ -116,7 +116,7 @@ class Replanner:
     def __init__(self, model: CompileModel, resolution: float) -> None:
         self.model, self.resolution = model, resolution
         self.evaluator = Evaluator(model)
-        self.plans: OrderedDict[Hashable, Array | None] = OrderedDict()
+        self.plans: OrderedDict[Hashable, tuple[float, ...] | None] = OrderedDict()
         self.asked = 0  # re-plans answered (looked up or searched)
         self.searches = 0  # searches run (the rest were looked up)
         self.gain = 0.0  # the expected gain of the last search's answer over the planned split
@@ -138,15 +138,20 @@ class Replanner:
         `observed` (rounded to `QUANTUM`), is expected to do better than the one `allocation`
         holds by more than `LEAST_GAIN` and the evaluation's error; else `allocation` as it
         is. None when the answer is not remembered and `search` is False."""
+        # The lookup is on every re-plan of every run: plain Python on a few numbers.
         free = list(free)
-        units = int(np.floor(max(budget, 0.0) / self.resolution + 1e-9))
-        seen = {i: _rounded(q) for i, q in observed.items()}
+        left = max(budget, 0.0)
+        units = math.floor(left / self.resolution + 1e-9)
+        planned = allocation.tolist()
+        seen = {
+            i: q if q == NO_RESULT else round(q / QUANTUM) * QUANTUM for i, q in observed.items()
+        }
         key = (
             tuple(free),
             units,
-            np.asarray(allocation, dtype=np.float64)[free].tobytes(),
+            tuple([planned[i] for i in free]),
             tuple(seen.items()),  # in the order the nodes ran
-            tuple(float(q) for q in qualities),
+            tuple(qualities),
         )
         try:
             split = self.plans[key]
@@ -159,11 +164,11 @@ class Replanner:
             while len(self.plans) > CACHE_SIZE:
                 self.plans.popitem(last=False)
         self.asked += 1
-        new = np.array(allocation, dtype=np.float64)
         if split is not None:
-            new[free] = split
-            new[free[0]] += max(budget, 0.0) - units * self.resolution
-        return new
+            for i, t in zip(free, split, strict=True):
+                planned[i] = t
+            planned[free[0]] += left - units * self.resolution
+        return np.array(planned, dtype=np.float64)
 
     def _better_split(
         self,
@@ -172,7 +177,7 @@ class Replanner:
         free: list[int],
         units: int,
         observed: Mapping[int, float],
-    ) -> Array | None:
+    ) -> tuple[float, ...] | None:
         """The searched split of `units` among `free` (in time), or None where it is not
         expected to beat the kept one."""
         self.gain = 0.0
@@ -180,7 +185,7 @@ class Replanner:
             return None
         self.searches += 1
         kept = np.array(allocation, dtype=np.float64)
-        if comb(units + len(free) - 1, len(free) - 1) <= ONE_CALL_ROWS:
+        if math.comb(units + len(free) - 1, len(free) - 1) <= ONE_CALL_ROWS:
             # Every split of the lattice and the kept one in one evaluation (its cost is
             # mostly per call): the exhaustive search's answer, and the same draws for both.
             splits = compositions(units, len(free)) * self.resolution
@@ -198,8 +203,7 @@ class Replanner:
         if value[best] - value[-1] <= LEAST_GAIN + 2.0 * float(max(error[best], error[-1])):
             return None
         self.gain = float(value[best] - value[-1])
-        split: Array = rows[best, free]
-        return split
+        return tuple(rows[best, free].tolist())
 
 
 _REPLANNERS: WeakKeyDictionary[CompileModel, Replanner] = WeakKeyDictionary()
@@ -211,7 +215,3 @@ def replanner(model: CompileModel, resolution: float) -> Replanner:
     if found is None or found.resolution != resolution:
         found = _REPLANNERS[model] = Replanner(model, resolution)
     return found
-
-
-def _rounded(quality: float) -> float:
-    return quality if quality == NO_RESULT else round(quality / QUANTUM) * QUANTUM
