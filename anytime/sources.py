@@ -175,7 +175,8 @@ class PluginSource:
             label = f"plugin '{entry_point.name}' ({entry_point.value})"
             try:
                 plugin = self._plugin(entry_point)
-            except Exception as error:  # a plugin's failure must not break the others
+            except (Exception, SystemExit, GeneratorExit) as error:  # a plugin's failure
+                # (its sys.exit() at import too) must not break the others nor the command
                 problems.append(f"{label}: {type(error).__name__}: {_one_line(error)}")
                 continue
             plugins.append(plugin)

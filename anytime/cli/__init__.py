@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import threading
 from collections.abc import Callable, Sequence
 from typing import NoReturn
 
@@ -31,7 +32,7 @@ from anytime.cli.common import (
 )
 from anytime.errors import AnytimeError, SchemaError
 from anytime.launch import interrupted, sigterm_interrupts
-from anytime.library import load_plugins
+from anytime.library import Plugin, PluginSource, discover_plugins
 
 __all__ = ["InputError", "UsageError", "build_parser", "describe", "main"]
 
@@ -53,7 +54,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _main(argv: Sequence[str] | None) -> int:
     command: str | None = None
     try:
-        parser = build_parser()
+        parser = build_parser(plugins=_wants_plugins(sys.argv[1:] if argv is None else argv))
         args = parser.parse_args(argv)
         command = args.command
         if command is None:
@@ -128,7 +129,50 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
+#: Seconds the command waits for the installed plugins to import (to add their commands) before
+#: it goes on without the rest: a plugin that hangs at import must not hang `--help`.
+PLUGIN_SECONDS = 10.0
+
+
+def _wants_plugins(argv: Sequence[str]) -> bool:
+    """False when `--no-plugins` is among the options (before a `--`): then no plugin is
+    imported at all, its commands neither."""
+    for arg in argv:
+        if arg == "--":
+            return True
+        if arg == "--no-plugins":
+            return False
+    return True
+
+
+def _installed_plugins() -> tuple[Plugin, ...]:
+    """The installed plugins that import within `PLUGIN_SECONDS`, in a thread the command
+    waits for: one still importing then is warned about by name and left to go on (a command
+    that reads the library imports it again and waits for it; `--no-plugins` does without).
+    A plugin that fails to import is reported by the library that loads it (`open_library`)."""
+    loaded: list[Plugin] = []
+    current: list[str] = []
+
+    def load() -> None:
+        for entry_point in discover_plugins():
+            current[:] = [f"plugin '{entry_point.name}' ({entry_point.value})"]
+            loaded.extend(PluginSource([entry_point]).load().plugins)
+        current.clear()
+
+    thread = threading.Thread(target=load, name="anytime:plugins", daemon=True)
+    thread.start()
+    thread.join(PLUGIN_SECONDS)
+    if thread.is_alive() and current:
+        print(
+            f"anytime: warning: {current[0]} did not finish importing in {PLUGIN_SECONDS:g} s:"
+            " the commands of it and of the plugins after it are not available (a command"
+            " that reads the library waits for it; --no-plugins runs without plugins)",
+            file=sys.stderr,
+        )
+    return tuple(loaded)
+
+
+def build_parser(plugins: bool = True) -> argparse.ArgumentParser:
     parser: argparse.ArgumentParser = _Parser(  # its subcommands are _Parsers too
         prog="anytime",
         description="Compose anytime algorithms: write program schemas, compile them into "
@@ -138,13 +182,12 @@ def build_parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(dest="command", metavar="COMMAND")
     for group in (schemas, verify, library, measure, plot):
         group.add_commands(commands)
-    plugins, _ = load_plugins()  # a plugin that fails to load is reported by the library
-    for plugin in plugins:
+    for plugin in _installed_plugins() if plugins else ():
         if plugin.add_commands is None:
             continue
         try:
             plugin.add_commands(_Commands(commands))
-        except Exception as error:  # one plugin's failure must not break the command line
+        except (Exception, SystemExit) as error:  # one plugin's must not break the command
             print(
                 f"anytime: warning: commands of plugin '{plugin.name}' not loaded:"
                 f" {type(error).__name__}: {error}",
