@@ -1,12 +1,15 @@
-"""Stopping policies on recorded traces of three interruptible modules of two domains, against
-the clairvoyant stopping point of each trace (not a test: nothing here is asserted).
+"""Stopping policies on recorded traces of four interruptible modules, against the clairvoyant
+stopping point of each trace, and on synthetic families against their exact Bayes optimum (not
+a test: nothing here is asserted).
 
-Modules: the navigation plugin's anytime abstract planner (`find-path`), and the routing
-plugin's 2-opt/Or-opt tours (`plan-tours`) and its k-means clustering (`cluster-stops`), each
-run at one input quality on its own registered problem set. The traces are recorded by the
-profile builder (`traces=True`) on a grid finer than the shipped profile's: training traces with
-one seed, test traces with another (disjoint instances). Each policy is built from the training
-traces' dynamic profile and replayed on every test trace.
+Modules: the navigation plugin's anytime abstract planner (`find-path`), the routing plugin's
+2-opt/Or-opt tours (`plan-tours`) and its k-means clustering (`cluster-stops`), each run at one
+input quality on its own registered problem set, and a module that stalls, the toy test
+plugin's random-restart local search (`toy-search`, tests/plugins/toy_plugin: it registers a
+result only when it improves, often at first and rarely after ~40 ticks). The traces are
+recorded by the profile builder (`traces=True`) on a grid finer than the shipped profile's:
+training traces with one seed, test traces with another (disjoint instances). Each policy is
+built from the training traces' dynamic profile and replayed on every test trace.
 
 Utility: U(q, t) = q^p - c t / T with T the grid's last time (the value of the answer's
 quality, less the cost of the time used), for several (p, c); a monitoring cost m is charged
@@ -22,9 +25,24 @@ utility, max over t of U(q_t, t) of each test trace, which knows the whole trace
    beats the other two in every setting.
 3. A stopping rule with a guarantee (`ConformalStopping`, calibrated on the training traces):
    how often a test run could still have gained more than epsilon after its stop (the risk it
-   promises to keep below alpha; target: at most alpha + 0.01) and the time it used.
+   promises to keep below alpha; target: at most alpha + 0.01) and the time it used and saved
+   against running each run to its end.
+4. Synthetic families with their exact Bayes optimum, computed here: q(t) = 1 - exp(-lambda t)
+   on 32 grid times, lambda drawn per run from a prior on 600 rates (log-uniform, or gamma).
+   The monitor sees the true quality, a quantised estimate (q floored to 10 levels) or a
+   biased one (the quantised q times 1 + beta, beta drawn per run from five values): each a
+   deterministic function of the hidden state, so the posterior given the looks is the prior
+   restricted to the states that would have shown the same, and backward induction over the
+   cells of states the looks cannot tell apart is exact Bayes (with a monitoring cost, a
+   memoised recursion over (time of the last look, cell) choosing the next look or a stop
+   without looking; a cell is a range of rates per bias). Policies are built on 2,000
+   training runs and replayed on 2,000 test runs; the Bayes policy is replayed too, and its
+   realised mean checked against its exact value. Targets for the optimal (and history)
+   policy: >= 0.98 of the Bayes optimum, never below fixed by more than the se of the paired
+   difference, its claimed expected utility within 2 se of what it realises.
 
-Run: .venv/bin/python benchmarks/bench_stopping.py [--quick] [--trials N]
+Run: .venv/bin/python benchmarks/bench_stopping.py [--quick] [--quick-synthetic] [--trials N]
+[--part all|modules|synthetic]
 """
 
 from __future__ import annotations
@@ -50,6 +68,7 @@ from anytime.problems import ProblemSet
 from anytime.profiles import DynamicProfile, QualityTraces, load_traces, save_traces
 from anytime.profiles.profile import Array
 from anytime.runtime.conformal import ConformalStopping
+from anytime.runtime.learned import HistoryStopping
 from anytime.runtime.observe import Decision
 from anytime.runtime.offline import clairvoyant, replay
 from anytime.runtime.policies import (
@@ -222,9 +241,15 @@ def view_of(traces: QualityTraces, view: str) -> QualityTraces:
 
 
 def free_looks(
-    case: Case, profile: DynamicProfile, test: QualityTraces, label: str
+    case: Case,
+    profile: DynamicProfile,
+    train: QualityTraces,
+    test: QualityTraces,
+    label: str,
+    history: bool,
 ) -> list[list[str]]:
-    """Rows of section 1: each policy's utility ratio, per utility setting."""
+    """Rows of section 1: each policy's utility ratio, per utility setting (the history
+    policy's, learned on the training traces, when asked: "-" otherwise)."""
     rows = []
     for power, rate in SETTINGS:
         value, cost = PowerValue(power), TimeCost(rate, case.time[-1])
@@ -240,6 +265,9 @@ def free_looks(
                 ("optimal", OptimalStopping),
             )
         }
+        learned = history_policy(train, utility, 0.0, case.input_quality) if history else None
+        if learned is not None:
+            got["history"] = realised(learned, test, utility, 0.0)[0]
         others = ("fixed", "myopic")
         lead = min((got["optimal"] - got[o]).mean() / best.mean() for o in others)
         se = max(paired_se(got["optimal"], got[o], best) for o in others)
@@ -247,6 +275,7 @@ def free_looks(
             [
                 f"{label}, q^{power} - {rate:g} t/T",
                 *(ratio(got[name], best) for name in got),
+                *(["-"] if "history" not in got else []),
                 f"{lead:+.4f} ({se:.4f})",
             ]
         )
@@ -637,13 +666,12 @@ class SharedFits(ProjectedStopping):
         return self.fits[key]
 
 
-def history_policy(train: QualityTraces, utility: Utility, monitoring: float) -> Any:
-    """The history policy, or None while anytime.runtime.learned is not there."""
-    try:
-        from anytime.runtime.learned import HistoryStopping
-    except ImportError:
-        return None
-    return HistoryStopping(train, utility, monitoring_cost=monitoring)
+def history_policy(
+    train: QualityTraces, utility: Utility, monitoring: float, input_quality: float = 1.0
+) -> HistoryStopping:
+    """The history policy learned on the training traces (at their input quality)."""
+    inputs = [input_quality] * len(train.input_grids)
+    return HistoryStopping(train, utility, monitoring_cost=monitoring, input_quality=inputs)
 
 
 @frozen
@@ -745,8 +773,10 @@ def synthetic_section(quick: bool) -> tuple[list[list[str]], list[list[str]], di
     the claims against what was realised, and the targets."""
     shares, claims = [], []
     met = dict.fromkeys(("optimal", "history", "rows"), 0)
+    # Quick: one family, one linear and one convex utility (the history policy learns for
+    # ~10 s a row on 2,000 traces).
     settings = SYNTHETIC_SETTINGS[::3] if quick else SYNTHETIC_SETTINGS
-    for family in FAMILIES:
+    for family in list(FAMILIES)[:1] if quick else FAMILIES:
         for view in SYNTHETIC_VIEWS:
             hyp = hypotheses(family, view)
             train, _ = synthetic_traces(hyp, view, family, TRAIN_SEED)
@@ -791,13 +821,25 @@ def synthetic_section(quick: bool) -> tuple[list[list[str]], list[list[str]], di
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="fewer traces (about a minute)")
+    parser.add_argument(
+        "--quick", action="store_true", help="fewer module traces, and the quick synthetic rows"
+    )
+    parser.add_argument(
+        "--quick-synthetic",
+        action="store_true",
+        help="section 4 on one family and two utilities (12 rows, not 48)",
+    )
     parser.add_argument("--trials", type=int, help="training and test traces (default 400)")
     parser.add_argument(
         "--traces",
         type=Path,
         help="a directory to keep the recorded traces in (anytime-traces/1 files), read back"
         " when they are there with as many trials",
+    )
+    parser.add_argument(
+        "--history",
+        action="store_true",
+        help="the history policy in section 1 too (it learns for ~5 s a row on 400 traces)",
     )
     parser.add_argument(
         "--part",
@@ -811,7 +853,7 @@ def main() -> None:
     if args.part != "synthetic":
         modules(args, started)
     if args.part != "modules":
-        synthetic(args.quick)
+        synthetic(args.quick or args.quick_synthetic)
     print(f"(all: {time.perf_counter() - started:.0f} s)")
 
 
@@ -834,7 +876,7 @@ def modules(args: argparse.Namespace, started: float) -> None:
             train, test = (view_of(traces, view) for traces in data[case.module])
             profile = DynamicProfile.from_traces(train, states=STATES)
             label = f"{case.module} ({case.domain}), {view}"
-            free_rows.extend(free_looks(case, profile, test, label))
+            free_rows.extend(free_looks(case, profile, train, test, label, args.history))
             costly_rows.extend(costly_looks(case, profile, test, label))
             guarantee_rows.extend(guaranteed(case, train, test, label))
     print()
@@ -846,6 +888,7 @@ def modules(args: argparse.Namespace, started: float) -> None:
                 "myopic",
                 "projected",
                 "optimal",
+                "history",
                 "optimal - best of fixed, myopic (se)",
             ],
             free_rows,
@@ -853,7 +896,8 @@ def modules(args: argparse.Namespace, started: float) -> None:
     )
     print(
         f"\n(mean utility over {trials} test traces as a fraction of the clairvoyant's; the"
-        f" policies come from {trials} training traces of other instances; target: optimal >="
+        f" policies come from {trials} training traces of other instances; history: the policy"
+        " learned on the training runs' histories, with --history only; target: optimal >="
         " 0.98, and its lead over fixed and myopic never below minus its standard error)"
     )
     print()
