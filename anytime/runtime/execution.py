@@ -417,6 +417,8 @@ class Execution:
         free = [n.time_index for n in nodes if n.index not in observed]
         before = self.clock.now()
         left = max(0.0, self.total - (before - self.start))
+        if len(free) == 1 and left < self.allocation[free[0]] + self.compiled.resolution - 1e-9:
+            return  # one call left, and not a lattice unit more for it: nothing to re-split
         planner = self.planner
         if planner is None or planner.model is not self.model:
             planner = self.planner = replanner(self.model, self.compiled.resolution)
