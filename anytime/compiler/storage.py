@@ -230,7 +230,8 @@ class _Loader:
             return loop_profiles(call, most, lattice, name)
 
         model = build_model(program, self.library, self.schemas.source, branch, callees, loop)
-        if list(document.get("modules") or []) != list(model.module_names):
+        modules = document.get("modules")
+        if not isinstance(modules, list) or modules != list(model.module_names):
             raise self.fail(
                 f"{table_field}modules",
                 f"expected {list(model.module_names)} (the program's), got "
