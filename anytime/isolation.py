@@ -32,7 +32,7 @@ from collections.abc import Callable, Generator, Iterator, Sequence
 from contextlib import contextmanager, suppress
 from functools import partial
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, NoReturn
 
 from attrs import field, frozen
 
@@ -45,7 +45,14 @@ ISOLATIONS: tuple[Isolation, ...] = ("none", "process")
 WATCHDOG = 60.0
 #: Seconds a child (and its group) is given to end after SIGTERM before SIGKILL.
 GRACE = 0.05
+#: Seconds a caller waits, once its child has gone, for the end of the pipe (every writer gone)
+#: when no message is waiting: what the child sent is read before its exit is judged, also if
+#: a process it started holds the pipe open for a moment.
+DRAIN = 1.0
 _HEADER = struct.Struct("<Q")  # the length of each pickled message
+# Held from making a child's pipe until the caller has closed its write end: a child forked
+# meanwhile by another thread would hold that end open, and its pipe would not end with it.
+_FORKING = threading.Lock()
 _SUPERVISOR_FAILED = 70  # the child's exit code when its target could not run (EX_SOFTWARE)
 
 
@@ -107,39 +114,21 @@ class Child:
         for stream in (sys.stdout, sys.stderr):  # else the child would print the caller's buffer
             with suppress(Exception):
                 stream.flush()
-        read, write = os.pipe()
-        parent = os.getpid()
-        pid = os.fork()
-        if pid == 0:  # the child: never returns into the caller's code
-            code = 0
-            try:
-                os.close(read)
-                os.setpgid(0, 0)
-                signal.signal(signal.SIGTERM, signal.SIG_DFL)  # the caller's stop kills it
-                # Not the caller's counting handler: no Ctrl-C of the user's reaches a group of
-                # its own, so every KeyboardInterrupt here is its code's (`counting_interrupts`).
-                signal.signal(signal.SIGINT, signal.default_int_handler)
-                _die_with(parent)
-                _apply(limits)
-                target(Channel(write))
-            except (BrokenPipeError, KeyboardInterrupt):  # the caller stopped listening, or
-                code = _SUPERVISOR_FAILED  # a Ctrl-C reached it before it left the caller's group
-            except BaseException:
-                code = _SUPERVISOR_FAILED
-                with suppress(BaseException):
-                    traceback.print_exc()
-            finally:
-                for stream in (sys.stdout, sys.stderr):
-                    with suppress(BaseException):
-                        stream.flush()
-                os._exit(code)
-        with suppress(OSError):  # as the child does: whichever runs first makes the group
-            os.setpgid(pid, pid)
-        os.close(write)
+        with _FORKING:
+            read, write = os.pipe()
+            parent = os.getpid()
+            pid = os.fork()
+            if pid == 0:  # the child: never returns into the caller's code
+                _FORKING.release()  # its copy: a child may make children of its own
+                _run_child(target, limits, read, write, parent)
+            with suppress(OSError):  # as the child does: whichever runs first makes the group
+                os.setpgid(pid, pid)
+            os.close(write)
         os.set_blocking(read, False)
         self.pid = pid
         self.exit_code: int | None = None  # once it has gone: its exit code, or -signal
         self._read: int | None = read
+        self._eof = False  # the pipe has ended: every process holding its write end is gone
         self._buffer = bytearray()
         self._reaped = False
         self._pidfd: int | None = None
@@ -162,8 +151,22 @@ class Child:
                 select.select(watched, [], [], max(0.0, step))
             messages = self._parse()
         if not messages and self._exited():  # what it sent before it went is in the pipe
-            messages = self._parse()
+            messages = self._drain()
         return messages
+
+    def _drain(self) -> list[Any]:
+        """(The child has gone.) The messages it sent, read up to the end of the pipe, which
+        comes once every process holding its write end is gone: the child, and what it started
+        (waited for `DRAIN` seconds at most; `end` ends them). Until then, a message still on
+        its way is not taken for none: the exit is judged on everything the child sent."""
+        deadline = time.monotonic() + DRAIN
+        while True:
+            messages = self._parse()
+            left = deadline - time.monotonic()
+            if messages or self._eof or self._read is None or left <= 0:
+                return messages
+            with suppress(InterruptedError):
+                select.select([self._read], [], [], left)
 
     def end(self, grace: float = GRACE) -> None:
         """End the child and its process group: SIGTERM, then SIGKILL to whatever is left
@@ -221,6 +224,7 @@ class Child:
             except BlockingIOError:
                 break
             if not data:
+                self._eof = True
                 break
             self._buffer += data
         messages = []
@@ -280,6 +284,34 @@ def counting_interrupts() -> Iterator[None]:
     finally:
         for number, put_back in earlier.items():
             signal.signal(number, put_back)
+
+
+def _run_child(
+    target: Callable[[Channel], None], limits: Limits | None, read: int, write: int, parent: int
+) -> NoReturn:
+    """(In a `Child`.) Run the target and exit (0, or `_SUPERVISOR_FAILED` if it raised)."""
+    code = 0
+    try:
+        os.close(read)
+        os.setpgid(0, 0)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)  # the caller's stop kills it
+        # Not the caller's counting handler: no Ctrl-C of the user's reaches a group of its
+        # own, so every KeyboardInterrupt here is its code's (see `counting_interrupts`).
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        _die_with(parent)
+        _apply(limits)
+        target(Channel(write))
+    except (BrokenPipeError, KeyboardInterrupt):  # the caller stopped listening, or
+        code = _SUPERVISOR_FAILED  # a Ctrl-C reached it before it left the caller's group
+    except BaseException:
+        code = _SUPERVISOR_FAILED
+        with suppress(BaseException):
+            traceback.print_exc()
+    finally:
+        for stream in (sys.stdout, sys.stderr):
+            with suppress(BaseException):
+                stream.flush()
+        os._exit(code)
 
 
 _PR_SET_PDEATHSIG = 1
