@@ -17,6 +17,8 @@ from typing import Any
 import numpy as np
 import pytest
 import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from anytime.errors import ProfileError
 from anytime.profiles import ConditionalPerformanceProfile
@@ -272,3 +274,39 @@ def test_the_issues_bomb_of_two_to_the_31_zeros(pair: Path, decompressed: list[i
         f"holds {128 + (1 << 31):,} bytes, where its header (float64 of shape [2, 6, 4]) says 512"
     )
     assert decompressed[0] <= 64 << 10
+
+
+@pytest.fixture(scope="module")
+def honest(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, bytes, bytes]:
+    """A pair on disk, with its companion stored (np.savez) and deflated (savez_compressed)."""
+    path = tmp_path_factory.mktemp("fuzz") / "plan.yaml"
+    save_profile(_profile(), path, companion=True)
+    deflated = io.BytesIO()
+    np.savez_compressed(deflated, probability=_profile().probability)
+    return path, path.with_name("plan.npz").read_bytes(), deflated.getvalue()
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    deflate=st.booleans(),
+    flips=st.lists(
+        st.tuples(st.floats(min_value=0, max_value=1, exclude_max=True), st.integers(0, 255)),
+        min_size=1,
+        max_size=4,
+    ),
+)
+def test_any_damaged_companion_loads_or_is_refused_naming_the_file(
+    honest: tuple[Path, bytes, bytes], deflate: bool, flips: list[tuple[float, int]]
+) -> None:
+    """A few bytes of the archive (its directory, headers or data) changed, the digest made to
+    match: the profile loads (the change was in the numbers, and they are valid) or is a
+    `ProfileError` naming the file; never another exception."""
+    path, stored, deflated = honest
+    data = bytearray(deflated if deflate else stored)
+    for place, value in flips:
+        data[int(place * len(data))] = value
+    _install(path, bytes(data))
+    try:
+        load_profile(path)
+    except ProfileError as error:
+        assert str(error).startswith(f"{path}: ")
