@@ -3,13 +3,15 @@ compilation found as fields, and its notes as codes (`anytime.compiler.outcomes`
 
 from __future__ import annotations
 
+import math
+import warnings
 from collections.abc import Sequence
 
 import numpy as np
 from attrs import frozen
 
 from anytime.compiler import evaluate
-from anytime.compiler.model import CompileModel
+from anytime.compiler.model import CompileError, CompileModel
 from anytime.compiler.outcomes import Code, Note
 from anytime.profiles.profile import Array, ConditionalPerformanceProfile
 
@@ -139,9 +141,49 @@ class CompiledProgram:
         not have helped), spending the rest would run the split it rejected. Between grid
         totals the split is the interpolation of its neighbours', which spends no more than
         `total` (each neighbour spends no more than its own); beyond the grid, the largest
-        total's split."""
-        q = np.asarray(quality, dtype=np.float64)
-        return self.profile.interpolate(self.allocation, q, np.float64(total))
+        total's split, with a `BeyondTableWarning` (compile a larger time grid to use the rest).
+
+        Raises:
+            CompileError: not one quality in [0, 1] per quality-carrying program input, or a
+                total that is not a number >= 0.
+        """
+        inputs = len(self.profile.input_grids)
+        try:
+            q = np.asarray(quality, dtype=np.float64).reshape(-1)
+        except (TypeError, ValueError):
+            raise CompileError(
+                f"{self.name}: allocation_at: expected {inputs} input qualit"
+                f"{'y' if inputs == 1 else 'ies'}, got {quality!r}"
+            ) from None
+        if len(q) != inputs or not np.all((q >= 0) & (q <= 1)):  # NaN fails too
+            raise CompileError(
+                f"{self.name}: allocation_at: expected {inputs} input qualit"
+                f"{'y' if inputs == 1 else 'ies'} in [0, 1] (one per quality-carrying input),"
+                f" got {[float(x) for x in q]}"
+            )
+        try:
+            t = float(total)
+        except (TypeError, ValueError):
+            t = math.nan
+        if not (t >= 0 and math.isfinite(t)):
+            raise CompileError(
+                f"{self.name}: allocation_at: expected a total time >= 0, got {total!r}"
+            )
+        largest = float(self.profile.time[-1])
+        if t > largest * (1 + 1e-12):
+            warnings.warn(
+                f"{self.name}: a total of {t:g} is beyond the compiled table's largest,"
+                f" {largest:g}: its split is used and the rest left unused (compile with a"
+                " time grid up to the total to use it)",
+                BeyondTableWarning,
+                stacklevel=2,
+            )
+        return self.profile.interpolate(self.allocation, q, np.float64(t))
+
+
+class BeyondTableWarning(UserWarning):
+    """A compiled program was asked for a total beyond its table: the largest total's split
+    is used."""
 
 
 #: The note of each allocator where it was asked for (or chosen by "auto" where dp is exact).

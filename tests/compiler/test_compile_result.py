@@ -11,7 +11,7 @@ import pytest
 from toy_modules import toy_registry
 
 from anytime import AnytimeLibrary, compile_file, load_schemas
-from anytime.compiler import MESSAGES, Code, Note, compile_program
+from anytime.compiler import MESSAGES, Code, CompiledProgram, Note, compile_program
 from anytime.dsl import parse_schemas
 from anytime.library import RegistrySource
 
@@ -119,3 +119,36 @@ def test_the_message_table_renders_the_notes_as_the_reports_always_said_them() -
     )
     assert Note.from_dict(outside.to_dict()) == outside
     assert str(stochastic) == f"{stochastic}" == stochastic.message
+
+
+def test_allocation_at_refuses_what_it_cannot_answer_and_warns_beyond_the_table() -> None:
+    """One quality in [0, 1] per program input and a total >= 0, or a clear error; beyond the
+    table's largest total, that total's split, with a warning that says so."""
+    from anytime.compiler.model import CompileError
+    from anytime.compiler.result import BeyondTableWarning
+
+    compiled = toy("auto")
+    assert isinstance(compiled, CompiledProgram)
+    at = compiled.allocation_at
+    np.testing.assert_array_equal(at([0.5], 40), compiled.allocation[1, -1])
+    bad = [
+        ((), 10, "p: allocation_at: expected 1 input quality in [0, 1] (one per"
+         " quality-carrying input), got []"),
+        ([1.5], 10, "p: allocation_at: expected 1 input quality in [0, 1] (one per"
+         " quality-carrying input), got [1.5]"),
+        ([0.5], -1, "p: allocation_at: expected a total time >= 0, got -1"),
+        ([0.5], float("nan"), "p: allocation_at: expected a total time >= 0, got nan"),
+        ([0.5], "ten", "p: allocation_at: expected a total time >= 0, got 'ten'"),
+        ("q", 10, "p: allocation_at: expected 1 input quality, got 'q'"),
+    ]  # fmt: skip
+    for quality, total, message in bad:
+        with pytest.raises(CompileError) as error:
+            at(quality, total)
+        assert str(error.value) == message
+    with pytest.warns(BeyondTableWarning) as caught:
+        beyond = at([0.5], 3000)
+    assert str(caught[0].message) == (
+        "p: a total of 3000 is beyond the compiled table's largest, 40: its split is used and"
+        " the rest left unused (compile with a time grid up to the total to use it)"
+    )
+    np.testing.assert_array_equal(beyond, at([0.5], 40))
