@@ -53,6 +53,14 @@ _HEADER = struct.Struct("<Q")  # the length of each pickled message
 # Held from making a child's pipe until the caller has closed its write end: a child forked
 # meanwhile by another thread would hold that end open, and its pipe would not end with it.
 _FORKING = threading.Lock()
+
+
+def _new_forking_lock() -> None:
+    global _FORKING
+    _FORKING = threading.Lock()  # a fork's copy may be held (by a thread it does not have)
+
+
+os.register_at_fork(after_in_child=_new_forking_lock)
 _SUPERVISOR_FAILED = 70  # the child's exit code when its target could not run (EX_SOFTWARE)
 
 
@@ -119,7 +127,6 @@ class Child:
             parent = os.getpid()
             pid = os.fork()
             if pid == 0:  # the child: never returns into the caller's code
-                _FORKING.release()  # its copy: a child may make children of its own
                 _run_child(target, limits, read, write, parent)
             with suppress(OSError):  # as the child does: whichever runs first makes the group
                 os.setpgid(pid, pid)
