@@ -10,8 +10,10 @@ deletes the files this command wrote there before (those matching its patterns),
 directory holds afterwards is exactly one run's output, and a run interrupted before it had
 anything to write leaves the earlier run's output as it was. Other files are left alone.
 
-The lock is an advisory `flock` on a hidden file `DIR/.anytime.lock`: the kernel releases it when
-the holder exits, however it exits, so a crashed run never leaves the directory locked.
+The lock is an advisory `flock` on the directory itself: the kernel releases it when the holder
+exits, however it exits, so a crashed run never leaves the directory locked, and nothing of the
+lock is left in the directory. Where the system lists its locks (Linux: /proc/locks) the refusal
+names the process that holds it.
 """
 
 from __future__ import annotations
@@ -25,10 +27,10 @@ from pathlib import Path
 
 from anytime.files import OutputFileError
 
-__all__ = ["LOCK_NAME", "OwnedDirectory", "owned_directory"]
+__all__ = ["OwnedDirectory", "owned_directory"]
 
-#: The lock file `owned_directory` keeps in the directory (left there: deleting it would race).
-LOCK_NAME = ".anytime.lock"
+#: Where Linux lists the file locks held (to name the process holding a directory).
+PROC_LOCKS = Path("/proc/locks")
 
 try:
     import fcntl
@@ -63,7 +65,7 @@ def owned_directory(path: str | os.PathLike[str], owns: Sequence[str]) -> Iterat
     out = Path(path)
     try:
         out.mkdir(parents=True, exist_ok=True)
-        handle = os.open(out / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o644)
+        handle = os.open(out, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
     except OSError as error:
         raise OutputFileError(error.errno, error.strerror, str(out)) from None
     try:
@@ -79,20 +81,33 @@ def _lock(handle: int, out: Path) -> None:
     try:
         fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:
-        holder = os.pread(handle, 32, 0).decode("ascii", "replace").strip() or "unknown"
+        holder = _holder(os.fstat(handle))
+        who = "another run" if holder is None else f"another run (process {holder})"
         raise OutputFileError(
             errno.EBUSY,
-            f"another run (process {holder}) is writing there; wait for it or choose another"
-            " directory",
+            f"{who} is writing there; wait for it or choose another directory",
             str(out),
         ) from None
-    os.ftruncate(handle, 0)
-    os.pwrite(handle, f"{os.getpid()}\n".encode("ascii"), 0)
+
+
+def _holder(stat: os.stat_result) -> int | None:
+    """The process holding a flock on the file of `stat`, from the system's list of locks
+    (None: not listed, or no list to read)."""
+    device = f"{os.major(stat.st_dev):02x}:{os.minor(stat.st_dev):02x}:{stat.st_ino}"
+    try:
+        lines = PROC_LOCKS.read_text(encoding="ascii", errors="replace").splitlines()
+    except OSError:
+        return None
+    for line in lines:  # "1: FLOCK  ADVISORY  WRITE 4242 08:01:1234567 0 EOF"
+        fields = line.split()
+        if len(fields) >= 6 and fields[1] == "FLOCK" and fields[5] == device:
+            return int(fields[4]) if fields[4].isdigit() else None
+    return None
 
 
 def _clear(out: Path, owns: Sequence[str]) -> None:
     for entry in out.iterdir():
-        if entry.name == LOCK_NAME or not any(fnmatch.fnmatchcase(entry.name, p) for p in owns):
+        if not any(fnmatch.fnmatchcase(entry.name, p) for p in owns):
             continue
         if not entry.is_file() or entry.is_symlink():
             continue  # a directory or link of that name is the user's, not an output of ours

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from anytime.files import OutputFileError
-from anytime.outdir import LOCK_NAME, owned_directory
+from anytime.outdir import owned_directory
 
 OWNS = ("frame-*.png", "run.gif", "events.jsonl")
 
@@ -24,7 +24,7 @@ def test_earlier_outputs_are_deleted_and_other_files_kept(tmp_path: Path) -> Non
         (tmp_path / "frame-000.png").write_text("this run's")
         out.fresh()  # once only: this run's outputs stay
         assert (tmp_path / "frame-000.png").exists()
-    assert left == [LOCK_NAME, "frame-dir.png", "frame.png.txt", "notes.txt"]
+    assert left == ["frame-dir.png", "frame.png.txt", "notes.txt"]  # and no lock file
 
 
 def test_a_missing_directory_is_made(tmp_path: Path) -> None:
@@ -49,10 +49,31 @@ def test_a_second_run_into_the_directory_is_refused_while_the_first_writes(
         assert not (tmp_path / "frame-000.png").exists()
 
 
-def test_a_lock_file_left_by_a_dead_run_does_not_lock(tmp_path: Path) -> None:
-    (tmp_path / LOCK_NAME).write_text("999999999\n")  # no process holds the lock
+def test_a_run_that_died_leaves_nothing_locked_and_nothing_behind(tmp_path: Path) -> None:
+    """The lock is the directory's own, released by the kernel when its holder dies: a run
+    killed while it held it does not lock the next one out, and leaves no file."""
+    import signal
+    import subprocess
+    import sys
+
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import sys, time\nfrom anytime.outdir import owned_directory\n"
+         f"with owned_directory({str(tmp_path)!r}, ['x']):\n    print('held', flush=True)\n"
+         "    time.sleep(60)"],
+        stdout=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    assert holder.stdout is not None and holder.stdout.readline() == "held\n"
+    with pytest.raises(OutputFileError) as caught, owned_directory(tmp_path, OWNS):
+        pass
+    assert str(caught.value) == (
+        f"cannot write '{tmp_path}': another run (process {holder.pid}) is writing there;"
+        " wait for it or choose another directory"
+    )
+    holder.send_signal(signal.SIGKILL)
+    holder.wait()
     with owned_directory(tmp_path, OWNS):
-        assert (tmp_path / LOCK_NAME).read_text() == f"{os.getpid()}\n"
+        pass
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_a_file_where_the_directory_should_be(tmp_path: Path) -> None:
