@@ -269,15 +269,20 @@ def worker_options(parser: argparse.ArgumentParser, what: str) -> None:
     )
 
 
-def isolation_options(parser: argparse.ArgumentParser, what: str) -> None:
+def isolation_options(
+    parser: argparse.ArgumentParser, what: str, crash: str = "", bound: str = ""
+) -> None:
     """--isolation and --watchdog: how every `what` (a trial, a run) is run; `run_mode`
-    makes them the one run mode the functions below the command line take."""
+    makes them the one run mode the functions below the command line take. `crash`: what
+    becomes of a `what` that crashes or hangs (default: it fails alone); `bound`: what else
+    bounds the watchdog, if anything."""
+    crash = crash or f"a {what} that crashes or hangs fails alone"
     parser.add_argument(
         "--isolation",
         choices=ISOLATIONS,
         default="process",
-        help=f"run every {what} in a child process of its own (process, the default: a {what}"
-        f" that crashes or hangs fails alone) or in this one (none: faster)",
+        help=f"run every {what} in a child process of its own (process, the default: {crash})"
+        " or in this one (none: faster)",
     )
     parser.add_argument(
         "--watchdog",
@@ -285,7 +290,7 @@ def isolation_options(parser: argparse.ArgumentParser, what: str) -> None:
         default=WATCHDOG,
         metavar="SECONDS",
         help=f"wall-clock seconds an isolated {what} may take before it counts as failed"
-        f" ({WATCHDOG:g})",
+        f" ({WATCHDOG:g}{bound})",
     )
 
 

@@ -163,7 +163,12 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     calibrate_.add_argument("--json", action="store_true", help="print JSON")
     calibrate_.add_argument("--quiet", action="store_true", help="no progress bar")
-    isolation_options(calibrate_, "calibration run")  # its watchdog: at most --seconds + 2
+    isolation_options(
+        calibrate_,
+        "run",
+        crash="a run that crashes or hangs is an error, not the command's end",
+        bound="; at most the budget + 2",
+    )
     library_options(calibrate_)
     calibrate_.set_defaults(run=run_calibrate, usage_error=calibrate_.error)
 
