@@ -4,6 +4,7 @@ utility."""
 
 from __future__ import annotations
 
+import attrs
 import numpy as np
 import pytest
 from anytime_navigation.task.frame_program import PlanTrace, navigation_program
@@ -20,9 +21,8 @@ def program():
 
 
 def stuck_task():
-    """A 128 x 128 world (docs/navigation.md's) where planning, not walking, takes the first
-    frame's time (the robot waits for its first plan): the policy stops that planner before
-    its contract."""
+    """A 128 x 128 world (docs/navigation.md's) where the policy stops a planner before its
+    contract (frame 1's, while the robot walks its first segment)."""
     return NavigationTask(random_world(128, seed=3), radius=32, seed=3)
 
 
@@ -80,13 +80,12 @@ def test_a_planner_is_never_stopped_after_its_contract(report):
 
 def test_where_the_policy_stops_planners_early(report):
     stopped = [(r.index, r.contract, r.stopped_at) for r in report.records if r.stopped_at]
-    assert stopped == [(0, 800.0, 769.0)]
-    reasons = [e.data["reason"] for e in report.log.of_kind("stopping") if e.data["frame"] == 0]
+    assert stopped == [(1, 1000.0, 795.0)]
+    reasons = [e.data["reason"] for e in report.log.of_kind("stopping") if e.data["frame"] == 1]
     assert reasons == [
-        "expected utility 685.082",
-        "going on is worth 685.044",
-        "going on is worth 685.087",
-        "stopping now is worth 674.013, going on less",
+        "expected utility 718.069",
+        "going on is worth 718.657",
+        "stopping now is worth 718.081, going on less",
     ]
 
 
@@ -95,13 +94,13 @@ def test_a_planner_stopped_early_ends_its_frames_planning(program, report):
     monitored = run_task(stuck_task(), compiled, trace, policy="monitored")
     assert report.predicted_utility == monitored.predicted_utility
     assert report.records[0].contract == monitored.records[0].contract
-    # Frame 0's planner, stopped at 769 ticks instead of its contract of 800, ends that frame's
-    # planning 31 ticks sooner: every later frame starts that much sooner, and so does the
-    # task end. The utility is the same: the value is the full 1000 at either time.
-    assert report.records[0].start == monitored.records[0].start == 0.0
-    ahead = [b.start - a.start for a, b in zip(report.records, monitored.records, strict=True)]
-    assert ahead[1:] == [31.0] * (len(ahead) - 1)
-    assert report.completion_time == monitored.completion_time - 31.0
+    # Frame 1's planner, stopped at 795 ticks instead of its contract of 1000, ends that
+    # frame's planning sooner, but the robot's walk of its first segment (1220 ticks) takes the
+    # frame's time: every frame starts when it did, and the task ends as it did.
+    assert [r.frame_time for r in report.records] == [r.frame_time for r in monitored.records]
+    assert report.records[0].frame_time > report.records[1].stopped_at
+    assert [r.start for r in report.records] == [r.start for r in monitored.records]
+    assert report.completion_time == monitored.completion_time
     assert report.utility == monitored.utility
 
 
@@ -134,5 +133,8 @@ def test_the_policys_utility_is_the_task_models(program):
     policy = run.stopper(state, 0.9, 200.0)
     times = policy.model.time
     utility = policy.model.utility(times, np.full((len(times), 1), 0.8))[:, 0]
-    expected = [run.model.utility(state, 200.0 + t, 0.8) for t in times]
+    # The policy's quality is its plan's: the model reads it as a plan's, not the route's.
+    plans = attrs.evolve(run.model, route_quality=False)
+    assert run.model.route_quality  # a calibrated size
+    expected = [plans.utility(state, 200.0 + t, 0.8) for t in times]
     assert utility == pytest.approx(expected, rel=1e-12)

@@ -7,12 +7,15 @@ import math
 import attrs
 import numpy as np
 import pytest
+from anytime_navigation.task.calibration import task_value
 from anytime_navigation.task.frame_program import navigation_program
 from anytime_navigation.task.frames import run_task
 from anytime_navigation.task.model import FrameState, NavigationTask, TaskModel, optimal_utility
 from anytime_navigation.world import random_world
 from hypothesis import given, settings
 from hypothesis import strategies as st
+
+from anytime.plugin.compose import DeadlineValue
 
 
 @pytest.fixture(scope="module")
@@ -67,11 +70,15 @@ def test_later_frames_are_stretched_by_at_least_the_shortest_route(model):
     contract=st.sampled_from([200.0, 600.0, 1000.0]),
 )
 def test_the_plan_being_made_stretches_only_its_own_frame(model, remaining, step, speed, contract):
+    # Without a deadline the plan's frames go at the slowest speed, whatever the state's (the
+    # speed of a segment walked meanwhile: none here).
+    untimed = attrs.evolve(model, task=attrs.evolve(model.task, value=DeadlineValue(1.0, 0, 0)))
     state = FrameState(0.0, remaining, speed, step, waiting=True)
     c, q = np.array([[contract]]), np.array([[1.0, 0.5]])
-    cost = np.asarray(model.cost(state, c, q)).reshape(-1)
+    cost = np.asarray(untimed.cost(state, c, q)).reshape(-1)
     this = min(remaining, step)
-    assert math.isclose(cost[1] - cost[0], float(model.task.energy(speed)) * this, rel_tol=1e-9)
+    slowest = float(model.task.energy(min(model.task.speeds)))
+    assert math.isclose(cost[1] - cost[0], slowest * this, rel_tol=1e-9)
 
 
 @settings(max_examples=50, deadline=None)
@@ -124,7 +131,8 @@ def test_the_first_frames_progress_is_a_straight_line_to_the_windows_edge(
 
 def test_a_declined_adjustment_keeps_the_speed(program):
     compiled, trace = program
-    task = NavigationTask(random_world(128, seed=4), radius=32, seed=4)  # a world where one is
+    # A world where one is declined: the benchmark's deadline on a 64 x 64 world.
+    task = NavigationTask(random_world(64, seed=0), radius=16, seed=0, value=task_value(64))
     report = run_task(task, compiled, trace)
     said = [a for r in report.records for a in r.adjustments]
     assert set(said) <= {"faster", "slower", "hold", "faster declined", "slower declined"}

@@ -21,6 +21,7 @@ from anytime.plugin.compose import Adjustment, EventLog, Monitor
 
 from ..obstacles.moving import MovingObstacle, Plan, Traffic
 from ..world import BoolGrid, Position
+from .calibration import shipped
 from .execution import execute, optimal_length, route_length
 from .frame_program import PlanTrace
 from .model import (
@@ -98,8 +99,15 @@ def run_task(
     obstacles: Sequence[MovingObstacle] = (),
     overcome: Any = None,
     on_frame: Callable[[int], object] | None = None,
+    calibrated: bool = True,
 ) -> TaskReport:
     """Run `task` under `policy` (`fixed` needs `contract`) and report what happened.
+
+    With `calibrated` (the default) and a calibration shipped for the task's size, sensor
+    radius and movement (`calibration.shipped`), the monitor plans with the frame program's
+    profile measured in the task (`TaskCalibration.profile`, its contracts the monitored
+    policy's grid) and the measured first frame's progress; else with the compiled program's
+    profile.
 
     `on_frame(n)`, if given, is called after each frame with the number of frames done (for a
     progress bar).
@@ -117,7 +125,7 @@ def run_task(
     `evade` as a fallback. Then the speed is the frame's speed throughout its segment (no
     intra-frame adjustments), and detours are searched on the true map near the robot.
     """
-    run = _TaskRun(task, compiled, trace, policy, contract, clock, obstacles, overcome)
+    run = _TaskRun(task, compiled, trace, policy, contract, clock, obstacles, overcome, calibrated)
     return run.run(max_frames, on_frame)
 
 
@@ -187,6 +195,7 @@ class _TaskRun:
         clock: str,
         obstacles: Sequence[MovingObstacle],
         overcome: Any,
+        calibrated: bool = True,
     ) -> None:
         if policy not in POLICIES:
             raise ValueError(f"policy must be one of {', '.join(POLICIES)}, got {policy!r}")
@@ -201,6 +210,12 @@ class _TaskRun:
             )
         self.best_length = best
         profile = compiled.profile
+        side = int(self.truth.shape[1])
+        calibration = (
+            shipped(side, task.radius, world.movement)
+            if calibrated and self.truth.shape[0] == side and not obstacles
+            else None
+        )
         n_inputs = profile.n_inputs
         self.input_quality = (1.0,) * n_inputs if n_inputs else None
         expected = np.asarray(profile.expected(np.ones(n_inputs), profile.time)).reshape(-1)
@@ -215,14 +230,31 @@ class _TaskRun:
             self.contracts = grid[:1]
         elif policy == "max":
             self.contracts = grid[-1:]
+        elif calibration is not None:
+            self.contracts = np.asarray(calibration.contracts)
         else:
             self.contracts = grid
-        self.model = TaskModel(task, profile)
+        # The profile the monitor plans with: what a contract buys in the task when measured
+        # there, else the compiled program's (the planner on a whole map sensed at once).
+        planning = profile if calibration is None else calibration.profile()
+        self.model = TaskModel(
+            task,
+            planning,
+            progress=1.0 if calibration is None else calibration.progress_ratio,
+            route_quality=calibration is not None,
+            # the monitor chooses every frame's contract; the baselines keep theirs
+            later=self.contracts if policy in ("monitored", "stopping") else None,
+        )
+        self.calibration = calibration
         if policy == "stopping" and trace.dynamic is None:
             raise ValueError(NO_DYNAMIC_PROFILE)
         self.log = EventLog()
         self.chooser = Monitor(
-            profile, self.model, self.model, grid=self.contracts, input_quality=self.input_quality
+            planning,
+            self.model,
+            self.model,
+            grid=self.contracts,
+            input_quality=None if calibration is not None else self.input_quality,
         )
         self.checker = Monitor(
             profile,
@@ -311,7 +343,8 @@ class _TaskRun:
         """The planner's stopping policy in the frame the monitor chose `state` for, given a
         map of `quality` and starting at program time `began`: optimal stopping over its
         dynamic profile, with the task model's utility (`FromPlannerStart`)."""
-        shifted = FromPlannerStart(self.model, began)
+        # The policy's quality is its plan's, which stretches its own frame (`TaskModel`).
+        shifted = FromPlannerStart(replace(self.model, route_quality=False), began)
         dynamic = self.trace.dynamic
         return OptimalStopping(dynamic, shifted, shifted, state, input_quality=(quality,))
 
@@ -484,21 +517,25 @@ class _TaskRun:
         than at the state's, `elapsed` into the contract of `decision`, the plan being made
         having `reached` its quality so far (it is taken at the better of that and the
         contract's expected quality: the planner answers with its best plan)."""
-        c, q = decision.contract, max(decision.expected_quality, reached)
+        c, q = decision.contract, decision.expected_quality
+        if not self.model.route_quality:  # the quality is the plan's, and it is its best
+            q = max(q, reached)
         now = replace(state, elapsed=elapsed)
         return self.model.utility(replace(now, speed=speed), c, q) > self.model.utility(now, c, q)
 
     def learn(
-        self, known: BoolGrid, start: Position, end: Position, walked: float, q: float
+        self, known: BoolGrid, start: Position, end: Position, walked: float, contract: float
     ) -> None:
         """After a frame from `start` to `end`: the progress it made on the robot's map, and the
-        cells it walked against what the model predicted for that progress (plan quality q)."""
+        cells it walked against what the model predicted for that progress (its stretch at the
+        frame's contract, `TaskModel.later_factor`)."""
         world = self.world
         before = _belief_distance(known, start, world.goal, world.movement)
         after = _belief_distance(known, end, world.goal, world.movement) if end != world.goal else 0
         self.progress.append(max(1.0, before - after))
         self.walked += walked
-        self.foreseen += max(before - after, 1.0) / max(q, 0.5)
+        stretch = float(self.model.later_factor(np.asarray(contract)))
+        self.foreseen += max(before - after, 1.0) * stretch
 
     # --- the task ------------------------------------------------------------------------
 
@@ -590,7 +627,7 @@ class _TaskRun:
                     stopped_at=planned.stopped,
                 )
             )
-            self.learn(known, position, end, route_length(segment), decision.expected_quality)
+            self.learn(known, position, end, route_length(segment), decision.contract)
             position = end
             if on_frame is not None:
                 on_frame(len(records))

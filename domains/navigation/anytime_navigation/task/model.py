@@ -171,38 +171,61 @@ def _later_route_factor(profile: ConditionalPerformanceProfile | None, floor: fl
     return factor
 
 
+def _contracts(value: Any) -> tuple[float, ...] | None:
+    return None if value is None else tuple(float(c) for c in value)
+
+
 @frozen
 class TaskModel:
     """The monitor's value and cost models for navigation.
 
     With `d` the remaining distance from where the plan starts (times the detour factor: what
     the frames so far walked per cell of progress, over what this model predicted for them,
-    1 before any frame; frame by frame the robot plans with only a window of the map known, so
-    its route is longer than one plan's quality says, and the monitor learns by how much), `q`
-    the quality of the plan being made, `c` the contract and `v` the speed, the route left is
-    `L = s / q + (d - s) * R(c)` cells, `s = min(d, step)`: the plan being made covers one
-    frame's progress, and each later frame makes a plan of its own (assumed to get the same
-    contract), so the rest of the route is stretched by the expected `R(c) = E[1 / q]` of the
-    profile at `c`, not by this plan's `1 / q` (charging one plan's quality to the whole route
-    made the monitor expect lateness from a poor first plan and pay for speed it did not
-    need). Without a profile, `R(c)` is taken as `1 / q` (one plan for the whole route). The
-    route takes `f = ceil(d / step)` frames of `e = L / (f v)` ticks each, each overlapped with
-    the next frame's planning. Before that the robot either waits for the plan (first frame:
-    `c`) or executes its current segment, `n` cells left, meanwhile (`max(c - a, n / v)`, `a`
-    the contract time already run), so
+    1 before any frame), `q` a quality of the profile's distribution at the contract `c` and
+    `s = min(d, step)` (one frame's progress, stretched likewise), the route left is
 
-        T_hat = now + (c or max(c - a, n / v)) + (f - 1) * max(c, e) + e,
-        E_hat = energy(v) * (n + L),
+    - a plan's quality (the compiled program's profile): `L = s / q + (d - s) * R(c)`: the
+      plan being made covers one frame, and each later frame makes a plan of its own (assumed
+      to get the same contract), so the rest of the route is stretched by the expected
+      `R(c) = E[1 / q]` of the profile at `c`, not by this plan's `1 / q` (charging one plan's
+      quality to the whole route made the monitor expect lateness from a poor first plan).
+      Without a profile, `R(c)` is taken as `1 / q` (one plan for the whole route);
+    - with `route_quality`, the whole route's quality as the task walks it (optimal length /
+      route length, frame after frame: the profile of `calibration`):
+      `L = (s + (d - s) * R(c_L) / R(c)) / q`, the later frames at the contract `c_L` of
+      `later` (the monitor's grid: it chooses each frame's contract when the frame comes)
+      that does best for this route, or `c_L = c` without `later` (a fixed contract). The
+      expectation over `q` is then one of the value itself, which is not linear in the route
+      (a route a little longer than the mean can make the robot late).
 
-    value `V(T_hat)`, cost `E_hat`. A plan of quality below `floor` is not taken at its word:
-    the robot's obstacle avoidance still follows it toward the goal, so its part of the route
-    is counted as if of quality `floor` (without a floor, a profile's few failed runs at
-    quality ~0 would dominate the expectation of `1 / q`).
+    The route makes `x = r / step` frames' progress (`r` the remaining distance, not stretched
+    by the detour), so it takes `f = ceil(x)` frames: `f - 1` full ones of `e = L / (x u)`
+    ticks each, each overlapped with the next frame's planning, and a last one of
+    `e_1 = (x - f + 1) e`. Before that the robot either waits for the plan (first frame: `c`)
+    or walks its current segment, `n` cells left, at the state's speed `v` meanwhile
+    (`max(c - a, n / v)`, `a` the contract time already run), so
+
+        T_hat = now + (c or max(c - a, n / v)) + (f - 1) * max(c_L, e) + e_1,
+        E_hat = energy(v) * n + energy(u) * L,
+
+    value `V(T_hat)`, cost `E_hat`. The robot chooses each frame's speed when the frame comes,
+    knowing more of its route, so the plan's frames go at the `u` of highest utility for this
+    route among the mixes of two neighbouring speeds of the grid (a share of the frames at
+    each: energy is convex in the speed, so a mix arrives on time for less than the faster
+    speed throughout; `energy(u)` is the mix's energy per cell, `1 / u` its ticks per cell).
+    A plan of quality below `floor` is not taken at its word: the robot's obstacle avoidance
+    still follows it toward the goal, so its part of the route is counted as if of quality
+    `floor` (without a floor, a profile's few failed runs at quality ~0 would dominate the
+    expectation of `1 / q`). `progress` scales `first_step` (measured: `calibration`).
     """
 
     task: NavigationTask
     profile: ConditionalPerformanceProfile | None = None
     floor: float = 0.5
+    progress: float = 1.0
+    route_quality: bool = False
+    later: tuple[float, ...] | None = field(default=None, converter=_contracts)
+    _cache: dict[Any, tuple[Array, Array]] = field(init=False, eq=False, repr=False, factory=dict)
     _later: Array = field(
         init=False,
         eq=False,
@@ -214,20 +237,73 @@ class TaskModel:
     )
 
     def _parts(self, state: FrameState, contract: Array, quality: Array) -> tuple[Array, Array]:
+        """The completion time and the energy of the rest of the task, each shaped as
+        `contract` and `quality` broadcast together, at the later contract and speeds of
+        highest utility (the monitor asks for the value, then the cost, of the same arrays:
+        the last answer is kept)."""
+        c, q = np.asarray(contract), np.asarray(quality)
+        key = (state, c.shape, q.shape, c.tobytes(), q.tobytes())
+        if key not in self._cache:
+            self._cache.clear()
+            self._cache[key] = self._outcome(state, contract, quality)
+        return self._cache[key]
+
+    def _outcome(self, state: FrameState, contract: Array, quality: Array) -> tuple[Array, Array]:
         q = np.maximum(np.asarray(quality, dtype=np.float64), max(self.floor, MIN_QUALITY))
         c = np.asarray(contract, dtype=np.float64)
         d = state.remaining * state.detour
-        frames = max(1.0, math.ceil(d / max(state.step, 1.0)))
-        this = min(d, max(state.step, 1.0))
-        later = 1.0 / q if self.profile is None else self.later_factor(c)
-        path = this / q + (d - this) * later
-        per_frame = path / frames / state.speed
+        # Frames are counted in progress on the robot's map, which the detour does not stretch.
+        x = max(1.0, state.remaining / max(state.step, 1.0))
+        frames = math.ceil(x)
+        this = min(d, max(state.step, 1.0) * state.detour)
+        if self.route_quality:
+            # This plan's frame at contract c, the later ones at the contract c_L chosen when
+            # they come (last axis but one), or c again: a route of quality q at c is one of
+            # quality q * R(c) / R(c_L) at c_L.
+            c_later = c[..., None] if self.later is None else np.asarray(self.later)
+            ratio = self.later_factor(c_later) / self.later_factor(c)[..., None]
+            path = (this + (d - this) * ratio) / q[..., None]
+        else:
+            stretch = 1.0 / q if self.profile is None else self.later_factor(c)
+            path = (this / q + (d - this) * stretch)[..., None]
+            c_later = c[..., None]
+        path, c_later, c = np.broadcast_arrays(path, c_later, c[..., None])
+        # The robot chooses each frame's speed when the frame starts, knowing more of its
+        # route: the plan's own frames go at the best mix of speeds of the grid for that route.
+        pace, spend = self._mixes
+        per_frame = path[..., None] / x * pace
         if state.waiting:
             wait = c
         else:
             wait = np.maximum(c - state.elapsed, state.current / state.speed)
-        completion = state.now + wait + (frames - 1) * np.maximum(c, per_frame) + per_frame
-        return completion, path + state.current
+        last = (x - frames + 1) * per_frame
+        completion = (
+            state.now
+            + wait[..., None]
+            + (frames - 1) * np.maximum(c_later[..., None], per_frame)
+            + last
+        )
+        energy = self.task.energy(state.speed) * state.current + spend * path[..., None]
+        utility = np.asarray(self.task.value(completion), dtype=np.float64) - energy
+        shape = utility.shape[:-2]
+        best = np.argmax(utility.reshape(*shape, -1), axis=-1)[..., None]  # ties: the slowest
+        return (
+            np.take_along_axis(completion.reshape(*shape, -1), best, axis=-1)[..., 0],
+            np.take_along_axis(energy.reshape(*shape, -1), best, axis=-1)[..., 0],
+        )
+
+    @property
+    def _mixes(self) -> tuple[Array, Array]:
+        """Ticks and energy per cell of the mixes of two neighbouring speeds of the grid (a
+        share of the cells at each), from the slowest to the fastest: frame by frame the robot
+        can walk some frames faster than others, which arrives on time for less energy than
+        one faster speed throughout (energy per cell is convex in the speed)."""
+        v = np.asarray(self.task.speeds, dtype=np.float64)
+        e = np.asarray(self.task.energy(v), dtype=np.float64)
+        share = np.linspace(0.0, 1.0, 11)[:-1, None]  # of the faster of each pair
+        pace = ((1 - share) / v[:-1] + share / v[1:]).T.reshape(-1)
+        spend = ((1 - share) * e[:-1] + share * e[1:]).T.reshape(-1)
+        return np.append(pace, 1.0 / v[-1]), np.append(spend, e[-1])
 
     def later_factor(self, contract: Array) -> Array:
         """`R(c)`: how much the later frames' plans stretch the route, contract `c` each
@@ -241,8 +317,8 @@ class TaskModel:
         return np.asarray(self.task.value(completion), dtype=np.float64)
 
     def cost(self, state: FrameState, contract: Array, quality: Array) -> Array:
-        _, path = self._parts(state, contract, quality)
-        return np.asarray(self.task.energy(state.speed) * path, dtype=np.float64)
+        _, energy = self._parts(state, contract, quality)
+        return np.asarray(energy, dtype=np.float64)
 
     def utility(self, state: FrameState, contract: float, quality: float) -> float:
         """Value minus cost of the rest of the task for one contract and plan quality."""
@@ -259,13 +335,17 @@ class TaskModel:
         """The progress a frame is expected to make before one has been seen: the distance
         on the prior map (every cell free) that a straight line from `position` toward the
         goal covers before it leaves the sensor's window (where a frame's segment ends),
-        e.g. `2 r` along the diagonal with 4-connected movement, `r` along an axis."""
+        e.g. `2 r` along the diagonal with 4-connected movement, `r` along an axis, times
+        `progress` (what a first frame made of that on the training worlds: a plan is no
+        straight line, `calibration`)."""
         (x, y), (gx, gy) = position, self.task.world.goal
         scale = min(1.0, self.task.radius / max(abs(gx - x), abs(gy - y), 1))
         dx, dy = abs(gx - x) * scale, abs(gy - y) * scale
         if self.task.world.movement == 8:  # octile
-            return max(1.0, max(dx, dy) + (math.sqrt(2.0) - 1.0) * min(dx, dy))
-        return max(1.0, dx + dy)
+            straight = max(dx, dy) + (math.sqrt(2.0) - 1.0) * min(dx, dy)
+        else:
+            straight = dx + dy
+        return max(1.0, straight * self.progress)
 
     def last_speed(self, now: float, cells: float) -> float:
         """The speed of the grid of highest utility for a last segment of `cells` cells to the

@@ -1,0 +1,221 @@
+"""The frame program's profile in the task: what a frame's contract buys the robot, measured on
+the task's own worlds.
+
+The compiled `navigate` profile says what the planner's plan is worth on a whole 128 x 128 map
+sensed at once (its measured profile: plan quality = optimal length / executed length on the
+true map). In the task the robot senses only a window around itself, the rest of its map is
+the prior or what it saw before, it walks only the first segment of each plan and plans again:
+the plans' qualities at a contract are not the ones the compiled profile predicts (on 64 x 64
+worlds it expects a route 1.006 times the shortest from 600 ticks on; the task walks 1.08
+times it), and a frame covers less than the straight line to the window's edge that the model
+assumed before any frame was seen (about 24 cells, not 32, with a radius of 16).
+
+`measure` runs the task under a fixed contract on training worlds (seeds from 1000, apart from
+the benchmark's and the tests') for each contract of a grid, and records per world the route's
+quality, optimal length / route length, and the progress of the first frame against the
+model's straight-line estimate. `TaskCalibration.profile` is the profile the monitor plans with
+(the distribution of route quality per contract: its `E[1 / q]` is how much the frames stretch
+the route, `TaskModel.later_factor`), `progress` scales `TaskModel.first_step`. The shipped
+calibrations are `profiles/task-<size>.json` (radius a quarter of the side); re-measure one
+with
+
+    .venv/bin/python -m anytime_navigation.task.calibration --size 64 --worlds 60
+
+(about a minute at 64 x 64, four at 128 x 128 on one core). Speeds do not enter: the route a
+frame walks and its progress do not depend on how fast the robot walks it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from attrs import field, frozen
+
+from anytime.plugin import ConditionalPerformanceProfile
+from anytime.plugin.compose import DeadlineValue
+
+from ..resources import data_file
+from ..world import random_world
+
+__all__ = ["CONTRACTS", "FIRST_SEED", "TaskCalibration", "measure", "shipped"]
+
+#: The contracts measured (ticks): every 100 up to 1000.
+CONTRACTS = tuple(float(t) for t in range(100, 1001, 100))
+
+#: The training worlds' first seed (the benchmark uses 0-29, the tests small seeds).
+FIRST_SEED = 1000
+
+#: The quality bins of the calibration's profile: every 0.01 from 0.5 (the routes of the task
+#: are within twice the shortest), so that `1 / q` at a bin's midpoint is within 1% of its
+#: samples'.
+BINS = np.concatenate([[0.0], np.linspace(0.5, 1.0, 51)])
+
+
+def _floats(values: Any) -> tuple[float, ...]:
+    return tuple(float(v) for v in values)
+
+
+def _rows(values: Any) -> tuple[tuple[float, ...], ...]:
+    return tuple(_floats(row) for row in values)
+
+
+@frozen
+class TaskCalibration:
+    """What the task's frames did under each fixed contract on the training worlds.
+
+    Attributes:
+        size, radius, movement: the worlds' side, the sensor's radius, the movement model.
+        contracts: the contracts measured (ticks), increasing.
+        quality: per contract, per world: optimal length / the route the robot walked.
+        progress: per world, the first frame's progress on the robot's map (the shortest
+            route to the goal before it minus after it) over `TaskModel.first_step` at the
+            start.
+        first_seed: the training worlds are seeds first_seed, first_seed + 1, ...
+    """
+
+    size: int
+    radius: int
+    movement: int
+    contracts: tuple[float, ...] = field(converter=_floats)
+    quality: tuple[tuple[float, ...], ...] = field(converter=_rows)
+    progress: tuple[float, ...] = field(converter=_floats)
+    first_seed: int = FIRST_SEED
+
+    @property
+    def worlds(self) -> int:
+        return len(self.progress)
+
+    @property
+    def progress_ratio(self) -> float:
+        """The mean first frame's progress over the straight-line estimate."""
+        return float(np.mean(self.progress))
+
+    def profile(self) -> ConditionalPerformanceProfile:
+        """The route quality's distribution per contract (time 0: no plan, quality 0), with
+        the exact means, for the monitor and `TaskModel`."""
+        q = np.asarray(self.quality, dtype=np.float64)  # (contracts, worlds)
+        k = np.clip(np.searchsorted(BINS, q, side="right") - 1, 0, BINS.size - 2)
+        counts = np.zeros((q.shape[0], BINS.size - 1))
+        np.add.at(counts, (np.arange(q.shape[0])[:, None], k), 1.0)
+        nothing = np.eye(1, BINS.size - 1)  # quality 0 before any planning
+        return ConditionalPerformanceProfile(
+            input_grids=(),
+            time=np.array([0.0, *self.contracts]),
+            bins=BINS,
+            probability=np.vstack([nothing, counts / q.shape[1]]),
+            mean=np.array([0.0, *q.mean(axis=1)]),
+            samples=np.full(q.shape[0] + 1, float(q.shape[1])),
+            std=np.array([0.0, *q.std(axis=1)]),
+            module="navigate-task",
+            kind="contract",
+        )
+
+    def as_json(self) -> dict[str, Any]:
+        return {
+            "size": self.size,
+            "radius": self.radius,
+            "movement": self.movement,
+            "first_seed": self.first_seed,
+            "contracts": list(self.contracts),
+            "quality": [list(row) for row in self.quality],
+            "progress": list(self.progress),
+        }
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> TaskCalibration:
+        return cls(
+            int(data["size"]),
+            int(data["radius"]),
+            int(data["movement"]),
+            data["contracts"],
+            data["quality"],
+            data["progress"],
+            int(data["first_seed"]),
+        )
+
+
+def _name(size: int) -> str:
+    return f"task-{size}.json"
+
+
+def shipped(size: int, radius: int, movement: int = 4) -> TaskCalibration | None:
+    """The shipped calibration for worlds of `size` with this sensor `radius` and movement,
+    or None (none measured there: the monitor plans with the compiled profile)."""
+    resource = data_file("profiles", _name(size))
+    if not resource.is_file():
+        return None
+    calibration = TaskCalibration.from_json(json.loads(resource.read_text(encoding="utf-8")))
+    if (calibration.radius, calibration.movement) != (radius, movement):
+        return None
+    return calibration
+
+
+def task_value(size: int) -> DeadlineValue:
+    """The benchmark's value of completion time for worlds of `size` (the defaults of
+    `NavigationTask` scaled with the side: 6000 ticks on a 128 map)."""
+    return DeadlineValue(1000.0, 6000.0 * size / 128, 0.25 * 128 / size)
+
+
+def measure(
+    size: int,
+    worlds: int,
+    *,
+    radius: int | None = None,
+    contracts: Sequence[float] = CONTRACTS,
+    first_seed: int = FIRST_SEED,
+    on_world: Callable[[int], object] | None = None,
+) -> TaskCalibration:
+    """Run the task under each fixed contract on `worlds` training worlds (no calibration in
+    the model: the one being measured must not depend on a previous one)."""
+    from .frame_program import navigation_program
+    from .frames import _belief_distance, run_task
+    from .model import NavigationTask, TaskModel
+
+    radius = radius or size // 4
+    compiled, trace = navigation_program()
+    quality = np.zeros((len(contracts), worlds))
+    progress = np.zeros(worlds)
+    for w in range(worlds):
+        seed = first_seed + w
+        world = random_world(size, seed=seed)
+        task = NavigationTask(world, radius=radius, value=task_value(size), seed=seed)
+        straight = TaskModel(task).first_step(world.start)
+        for i, contract in enumerate(contracts):
+            r = run_task(task, compiled, trace, policy="fixed", contract=contract, calibrated=False)
+            quality[i, w] = r.optimal_length / r.route_length
+            if i == 0:  # the first frame's progress does not depend on the contract much
+                first = r.records[0]
+                before = _belief_distance(first.known, first.position, world.goal, 4)
+                end = first.route[-1]
+                after = _belief_distance(first.known, end, world.goal, 4)
+                after = 0.0 if end == world.goal else after
+                progress[w] = max(1.0, before - after) / straight
+        if on_world is not None:
+            on_world(w + 1)
+    return TaskCalibration(size, radius, 4, contracts, quality, progress, first_seed)
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description="Measure the task's calibration for a size.")
+    parser.add_argument("--size", type=int, default=64)
+    parser.add_argument("--worlds", type=int, default=60)
+    parser.add_argument("--out", type=Path, help="default: the package's profiles/task-SIZE.json")
+    args = parser.parse_args(argv)
+    calibration = measure(args.size, args.worlds, on_world=lambda n: print(n, end=" ", flush=True))
+    print()
+    out = args.out or Path(str(data_file("profiles", _name(args.size))))
+    out.write_text(json.dumps(calibration.as_json()) + "\n", encoding="utf-8")
+    profile = calibration.profile()
+    assert profile.mean is not None
+    pairs = zip(calibration.contracts, profile.mean[1:], strict=True)
+    stretch = ", ".join(f"{c:g}: {1 / max(q, 1e-9):.3f}" for c, q in pairs)
+    print(f"wrote {out}: 1 / mean quality {stretch}; progress {calibration.progress_ratio:.3f}")
+
+
+if __name__ == "__main__":
+    main()
