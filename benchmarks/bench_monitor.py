@@ -1,10 +1,14 @@
 """The monitor against fixed contracts, the MIN/MAX policies and the stopping policy over
 seeded worlds.
 
-    .venv/bin/python benchmarks/bench_monitor.py [--worlds 30] [--size 128] [--quick]
+    .venv/bin/python benchmarks/bench_monitor.py [--worlds 30] [--sizes 64,128] [--quick]
 
-Per policy: mean utility, mean prediction error |U - predicted| / |predicted| and mean utility
-ratio U / clairvoyant bound (defined in `anytime_navigation.task.model`). Then, for the monitored
+Per world size (the benchmark's worlds are seeds 0 to worlds - 1; the monitor's calibration,
+`anytime_navigation.task.calibration`, was measured on seeds from 1000): per policy, mean
+utility, mean prediction error |U - predicted| / |predicted|, mean utility ratio U /
+clairvoyant bound (defined in `anytime_navigation.task.model`), and the monitored policy's
+utility less the policy's, world by world, with the standard error of that mean difference
+(positive: the monitor did better). Then, for the monitored
 policy, the worlds it predicts worst: what the robot walked and spent there, and the monitor's
 prediction of the whole task's utility frame by frame (`FrameRecord.predicted_utility`), which
 shows when it found out. For the `stopping` policy (the monitor's contract as an upper bound,
@@ -20,27 +24,34 @@ from __future__ import annotations
 
 import argparse
 import time
+from typing import Any
 
 import numpy as np
+from anytime_navigation.task.calibration import shipped, task_value
 from anytime_navigation.task.frame_program import navigation_program
 from anytime_navigation.task.frames import run_task
 from anytime_navigation.task.model import NavigationTask, TaskReport
 from anytime_navigation.world import random_world
 
-from anytime.runtime.monitor import DeadlineValue
-
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--worlds", type=int, default=30)
-    parser.add_argument("--size", type=int, default=128)
+    parser.add_argument("--sizes", default="128", help="world sides, comma-separated")
     parser.add_argument("--radius", type=int, help="sensor radius (default: a quarter of the side)")
-    parser.add_argument("--quick", action="store_true", help="64x64 worlds")
+    parser.add_argument("--quick", action="store_true", help="64x64 worlds only")
     parser.add_argument("--worst", type=int, default=5, help="worlds listed by prediction error")
     args = parser.parse_args()
-    size = 64 if args.quick else args.size
-    radius = args.radius or size // 4
+    sizes = [64] if args.quick else [int(s) for s in args.sizes.split(",")]
     compiled, trace = navigation_program(warn=print)
+    for i, size in enumerate(sizes):
+        if i:
+            print()
+        bench(compiled, trace, size, args.radius or size // 4, args.worlds, args.worst)
+
+
+def bench(compiled: Any, trace: Any, size: int, radius: int, worlds: int, worst: int) -> None:
+    """One world size: every policy on the same worlds."""
     # Every contract of the grid up to 1000 ticks (where the best fixed policies are), then a
     # few longer ones.
     grid = [float(t) for t in compiled.profile.time if t > 0]
@@ -54,10 +65,9 @@ def main() -> None:
     monitored: list[TaskReport] = []
     stopped: list[TaskReport] = []
     started = time.perf_counter()
-    for seed in range(args.worlds):
+    for seed in range(worlds):
         world = random_world(size, seed=seed)
-        value = DeadlineValue(1000.0, 6000.0 * size / 128, 0.25 * 128 / size)
-        task = NavigationTask(world, radius=radius, value=value, seed=seed)
+        task = NavigationTask(world, radius=radius, value=task_value(size), seed=seed)
         for policy, contract in policies:
             r = run_task(task, compiled, trace, policy=policy, contract=contract)
             rows.setdefault(r.policy, []).append((r.utility, r.prediction_error, r.utility_ratio))
@@ -65,17 +75,25 @@ def main() -> None:
                 monitored.append(r)
             if policy == "stopping":
                 stopped.append(r)
+    calibrated = "calibrated" if shipped(size, radius) else "not calibrated"
     print(
-        f"{args.worlds} worlds {size}x{size}, radius {radius}, "
+        f"{worlds} worlds {size}x{size}, radius {radius} ({calibrated}), "
         f"{time.perf_counter() - started:.0f} s"
     )
-    print(f"{'policy':<12}{'utility':>10}{'pred. error':>13}{'utility ratio':>15}")
+    print(
+        f"{'policy':<12}{'utility':>10}{'pred. error':>13}{'utility ratio':>15}"
+        f"{'monitored - it':>16}{'se':>6}"
+    )
+    mine = np.array([u for u, _, _ in rows["monitored"]])
     for name, values in rows.items():
         u, e, q = np.mean(np.array(values), axis=0)
-        print(f"{name:<12}{u:>10.1f}{100 * e:>12.1f}%{q:>15.3f}")
+        gain = mine - np.array([v[0] for v in values])
+        se = gain.std(ddof=1) / np.sqrt(gain.size) if gain.size > 1 else 0.0
+        paired = "" if name == "monitored" else f"{gain.mean():>16.1f}{se:>6.1f}"
+        print(f"{name:<12}{u:>10.1f}{100 * e:>12.1f}%{q:>15.3f}{paired}")
     if stopped:
         print_stops(stopped)
-    print_worst(monitored, args.worst)
+    print_worst(monitored, worst)
 
 
 def print_stops(reports: list[TaskReport]) -> None:
