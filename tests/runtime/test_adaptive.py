@@ -11,6 +11,7 @@ where its expected gain beats what its time on the run's clock is worth.
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Iterator
 
 import numpy as np
@@ -36,6 +37,7 @@ from anytime.compiler.allocators.reallocate import (
     CACHE_SIZE,
     QUANTUM,
     Replanner,
+    reallocate,
     replanner,
 )
 from anytime.compiler.evaluate import Evaluator
@@ -180,3 +182,28 @@ def test_a_search_is_worth_making_where_its_gain_beats_what_its_time_is_worth(
     assert not execution.worth(30.0, 1.0, 30.0)
     assert execution.worth(5.0, lost + 1e-6, 30.0)
     assert not execution.worth(5.0, lost, 30.0)
+
+
+@pytest.mark.parametrize("one_call", [True, False])
+@pytest.mark.parametrize("total", [20.0, 40.0])
+@pytest.mark.parametrize("level", LEVELS)
+def test_a_re_plan_is_the_compilers_search(
+    adaptive_program: CompiledProgram,
+    monkeypatch: pytest.MonkeyPatch,
+    one_call: bool,
+    total: float,
+    level: float,
+) -> None:
+    """Where it re-splits, a re-plan is what `reallocate` (the compiler's search on the
+    lattice) answers, whether every split is evaluated in one call or the search runs."""
+    if not one_call:
+        # The package's name `reallocate` is the function: the module is looked up.
+        module = importlib.import_module("anytime.compiler.allocators.reallocate")
+        monkeypatch.setattr(module, "ONE_CALL_ROWS", 0)
+    model, resolution = adaptive_program.model, adaptive_program.resolution
+    kept = adaptive_program.allocation_at([], total)
+    new = Replanner(model, resolution).plan([], kept, [1, 2], total, {0: level})
+    searched = reallocate(model, resolution, [], kept, [1, 2], total, {0: level})
+    assert new is not None
+    if not np.array_equal(new, kept):
+        np.testing.assert_allclose(new, searched)
