@@ -2,12 +2,13 @@
 
 Each misbehaviour comes after two results (qualities 0.1 and 0.2): raising, yielding what is
 not a Result, building a Result of quality NaN, looping or sleeping without ticking,
-`sys.exit`, `os._exit`, a segmentation fault, `abort()`, a SIGTERM to itself, forking a child
-that would outlive it, growing its memory under a limit, closing its standard output, mutating
-its arguments. Under `isolation="process"` on the work and the wall clock (interruptible and
-contract modules, and a contract made interruptible) every case ends with a record that keeps
-the best result sent (0.2, or the last for a module that goes on), the caller survives, and no
-process of the run is left. The profile builder (1 and 2 workers), the catalogue, and
+`sys.exit`, its own `KeyboardInterrupt` or another `BaseException`, `os._exit`, a segmentation
+fault, `abort()`, a SIGTERM to itself, forking a child that would outlive it, growing its memory
+under a limit, closing its standard output, mutating its arguments. Under
+`isolation="process"` on the work and the wall clock (interruptible and contract modules, and a
+contract made interruptible) every case ends with a record that keeps the best result sent
+(0.2, or the last for a module that goes on), the caller survives, and no process of the run is
+left. The profile builder (1 and 2 workers), the catalogue, and
 `anytime profile` and `anytime check` run one misbehaving trial among many: it fails alone, the
 rest are measured, the file is written, and the reason is reported. (A compiled program's
 isolated runs are in test_program.py; the time isolation takes to answer is measured by
@@ -64,6 +65,10 @@ def _session_processes() -> set[int]:
     }
 
 
+class Escape(BaseException):
+    """Neither an Exception, nor an exit, nor an interrupt."""
+
+
 def _misbehave(ctx: Context, how: str, args: list[Any]) -> None:
     """What the module does after its second result."""
     match how:
@@ -71,6 +76,10 @@ def _misbehave(ctx: Context, how: str, args: list[Any]) -> None:
             raise RuntimeError("broken")
         case "exit":
             sys.exit(3)
+        case "keyboard-interrupt":  # its own: no Ctrl-C was pressed
+            raise KeyboardInterrupt
+        case "base-exception":
+            raise Escape("out")
         case "os-exit":
             os._exit(3)
         case "segfault":
@@ -145,6 +154,8 @@ ISOLATED = {
         "ValueError: a Result's quality must be in [0, 1], got nan",
     ),
     "exit": (Status.FAILED, 0.2, "SystemExit: 3"),
+    "keyboard-interrupt": (Status.FAILED, 0.2, "KeyboardInterrupt"),
+    "base-exception": (Status.FAILED, 0.2, f"{Escape.__module__}.Escape: out"),
     "os-exit": (Status.CRASHED, 0.2, 3),
     "segfault": (Status.CRASHED, 0.2, -signal.SIGSEGV),
     "abort": (Status.CRASHED, 0.2, -signal.SIGABRT),
@@ -329,6 +340,9 @@ BUILDER_CASES = {
     "loop": "watchdog: no answer after 0.5 s of wall time",
     "raise": "RuntimeError: broken",
     "memory": "MemoryError",  # under the mode's limits, each trial's own (a process per run)
+    "exit": "SystemExit: 3",
+    "keyboard-interrupt": "KeyboardInterrupt",  # the module's own: a failed trial
+    "base-exception": f"{Escape.__module__}.Escape: out",
 }
 
 
