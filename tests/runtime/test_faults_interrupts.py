@@ -17,7 +17,7 @@ from conftest import Cli
 
 from anytime.measure.builder import build_profile, dask_executor, register_problems
 from anytime.modules import Context, Registry, Result, contract, interruptible
-from anytime.problems import Instance
+from anytime.problems import BuildError, Instance
 from anytime.profiles.io import load_profile
 from anytime.runtime import Budget, Hard, Isolated, Status, run
 from anytime.runtime.modes import SOFT, RunMode
@@ -251,3 +251,27 @@ def test_anytime_check_of_a_stuck_module_says_what_it_skipped(cli: Cli, raising:
     )
     assert (code, stderr) == (1, "anytime: error: module 'stuck' fails 1 of 6 checks: errors\n")
     assert "; the other 18 runs were skipped: a module whose run hits the watchdog" in stdout
+
+
+# --- a problem set that exits --------------------------------------------------------------------
+
+
+class ExitingProblems:
+    """A problem set whose `instance` calls sys.exit(): the plugin's fault, a BuildError."""
+
+    def instance(self, rng: np.random.Generator, qualities: tuple[float, ...]) -> Instance:
+        raise SystemExit(4)
+
+    def score(self, instance: Instance, value: Any) -> float:
+        return 0.5
+
+
+@pytest.mark.parametrize("mode", list(MODES))
+def test_a_problem_set_that_exits_is_a_build_error_naming_it(mode: str) -> None:
+    module = MODULES.get("raises-after-two")
+    assert module is not None
+    with pytest.raises(BuildError) as caught:
+        build_profile(module, ExitingProblems(), time=[1, 2], trials=2, mode=MODES[mode])
+    assert str(caught.value) == (
+        "ExitingProblems.instance failed (trial 0 at input qualities []): SystemExit: 4"
+    )
