@@ -149,3 +149,22 @@ def test_bad_input_never_shows_a_traceback(tmp_path: Path) -> None:
     assert done.stdout == ""
     assert "Traceback" not in done.stderr
     assert done.stderr.startswith(f"{path}:1:12: error: missing schema name after 'defschema'\n")
+
+
+def test_compile_shows_every_total_of_a_default_grid_and_says_when_it_thins(
+    cli: Cli, navigation_any: Path
+) -> None:
+    """Up to 25 totals the table shows them all; a longer grid is thinned and says so, and
+    --rows 0 shows every total."""
+    args = ["compile", str(navigation_any), "--schema", "navigate"]
+    code, out, _ = cli(*args, "--time-grid", "0:3000:250")
+    assert code == 0
+    rows = [line.split()[0] for line in out.splitlines()[2:] if line.split()[0].isdigit()]
+    assert rows == [str(t) for t in range(0, 3001, 250)]  # 13 totals: 1500 among them
+    assert "totals shown" not in out
+    code, out, _ = cli(*args, "--time-grid", "0:3000:100")
+    assert "  (25 of the 31 totals shown: --rows 0 shows every one, --json gives the whole" in out
+    code, out, _ = cli(*args, "--time-grid", "0:3000:100", "--rows", "0")
+    assert len([line for line in out.splitlines() if line.split()[0].isdigit()]) == 31
+    assert "totals shown" not in out
+    assert cli(*args, "--rows", "-1")[0] == 2

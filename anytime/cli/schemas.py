@@ -43,6 +43,7 @@ from anytime.compiler.explain import (
     explanation_to_dict,
     format_explanations,
 )
+from anytime.compiler.report import MAX_ROWS
 from anytime.dsl import SchemaFile, format_programs, graph_to_dot, load_schemas, program_to_json
 from anytime.library import AnytimeLibrary
 from anytime.vocabulary import UNITS
@@ -82,6 +83,14 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     compile_options(compile_)
     compile_.add_argument("-o", "--output", metavar="OUT.yaml", help="write the compiled profile")
     compile_.add_argument("--json", action="store_true", help="print the report as JSON")
+    compile_.add_argument(
+        "--rows",
+        type=row_count,
+        default=MAX_ROWS,
+        metavar="N",
+        help=f"the table shows N totals spread over the time grid, both ends included (default:"
+        f" {MAX_ROWS}; 0: every total)",
+    )
     compile_.add_argument(
         "--explain",
         nargs="?",
@@ -186,6 +195,17 @@ def memory_size(text: str) -> int:
         raise argparse.ArgumentTypeError(str(error).removeprefix("memory: ")) from None
 
 
+def row_count(text: str) -> int:
+    """The --rows option: a whole number >= 0."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {value}")
+    return value
+
+
 def totals(text: str) -> tuple[float, ...]:
     """An option type: T,T,... totals >= 0, at most `MAX_TIME_POINTS` of them."""
     parts = [part for part in text.split(",") if part.strip()]
@@ -265,7 +285,7 @@ def run_compile(args: argparse.Namespace) -> int:
                 report["explain"] = [explanation_to_dict(e) for e in explained[c.name]]
         print(json_text(reports[0] if len(reports) == 1 else {"schemas": reports}))
     else:
-        texts = [format_report(c) for c in wanted]
+        texts = [format_report(c, args.rows) for c in wanted]
         if args.explain is not None:
             texts = [
                 t + "\n" + format_explanations(c, explained[c.name])

@@ -8,7 +8,7 @@ import numpy as np
 
 from anytime.compiler.result import CompiledProgram
 
-MAX_ROWS = 12  # rows of the human table; the time grid is thinned to fit
+MAX_ROWS = 25  # rows of the human table by default; a longer time grid is thinned to fit
 
 
 def compiled_to_dict(compiled: CompiledProgram) -> dict[str, Any]:
@@ -39,14 +39,18 @@ def compiled_to_dict(compiled: CompiledProgram) -> dict[str, Any]:
     }
 
 
-def format_report(compiled: CompiledProgram) -> str:
-    """The compiled profile against the baselines, at the best input quality, as a table."""
+def format_report(compiled: CompiledProgram, rows: int = MAX_ROWS) -> str:
+    """The compiled profile against the baselines, at the best input quality, as a table of
+    at most `rows` totals spread over the time grid, both ends included (0: every total); a
+    thinned table says so."""
     profile = compiled.profile
     best = (-1,) * profile.n_inputs  # the highest grid quality of every input
     expected = compiled.expected[best]
     allocation = compiled.allocation[best]
     baselines = {name: value[best] for name, value in compiled.baselines.items()}
-    rows_at = np.unique(np.linspace(0, len(profile.time) - 1, MAX_ROWS).round().astype(int))
+    n = len(profile.time)
+    shown = n if rows <= 0 else min(rows, n)
+    rows_at = np.unique(np.linspace(0, n - 1, shown).round().astype(int))
     header = [f"T ({profile.time_unit})", "compiled", *baselines, "allocation"]
     header[-1] += " (" + ", ".join(compiled.modules) + ")" if compiled.modules else ""
     table = [header]
@@ -73,6 +77,11 @@ def format_report(compiled: CompiledProgram) -> str:
             for i, (cell, w) in enumerate(zip(row, widths, strict=True))
         ]
         lines.append("  " + "  ".join(cells).rstrip())
+    if len(rows_at) < n:
+        lines.append(
+            f"  ({len(rows_at)} of the {n} totals shown: --rows 0 shows every one, --json gives"
+            " the whole table)"
+        )
     gap = compiled.exhaustive_gap
     lines.append(
         "  gap to the exhaustive optimum: "
