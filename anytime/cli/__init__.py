@@ -27,6 +27,7 @@ from anytime.cli.common import (
     EXIT_INPUT,
     EXIT_OK,
     EXIT_USAGE,
+    UNLOADED_PLUGINS,
     InputError,
     UsageError,
 )
@@ -148,28 +149,31 @@ def _wants_plugins(argv: Sequence[str]) -> bool:
 def _installed_plugins() -> tuple[Plugin, ...]:
     """The installed plugins that import within `PLUGIN_SECONDS`, in a thread the command
     waits for: one still importing then is warned about by name and left to go on (a command
-    that reads the library imports it again and waits for it; `--no-plugins` does without).
+    that reads the library leaves it and those after it out, `UNLOADED_PLUGINS`).
     A plugin that fails to import is reported by the library that loads it (`open_library`)."""
-    loaded: list[Plugin] = []
-    current: list[str] = []
+    UNLOADED_PLUGINS.clear()
+    found = discover_plugins()
+    done: list[tuple[Plugin, ...]] = []  # what each entry point imported so far gave
 
     def load() -> None:
-        for entry_point in discover_plugins():
-            current[:] = [f"plugin '{entry_point.name}' ({entry_point.value})"]
-            loaded.extend(PluginSource([entry_point]).load().plugins)
-        current.clear()
+        for entry_point in found:
+            done.append(PluginSource([entry_point]).load().plugins)
 
     thread = threading.Thread(target=load, name="anytime:plugins", daemon=True)
     thread.start()
     thread.join(PLUGIN_SECONDS)
-    if thread.is_alive() and current:
-        print(
-            f"anytime: warning: {current[0]} did not finish importing in {PLUGIN_SECONDS:g} s:"
-            " the commands of it and of the plugins after it are not available (a command"
-            " that reads the library waits for it; --no-plugins runs without plugins)",
-            file=sys.stderr,
-        )
-    return tuple(loaded)
+    imported = list(done)  # the thread may go on: what had come by now
+    if thread.is_alive():
+        late = found[len(imported) :]
+        UNLOADED_PLUGINS.update(entry_point.name for entry_point in late)
+        if late:
+            print(
+                f"anytime: warning: plugin '{late[0].name}' ({late[0].value}) did not finish"
+                f" importing in {PLUGIN_SECONDS:g} s: it and the plugins after it are left out"
+                " (--no-plugins runs without plugins)",
+                file=sys.stderr,
+            )
+    return tuple(plugin for plugins in imported for plugin in plugins)
 
 
 def build_parser(plugins: bool = True) -> argparse.ArgumentParser:

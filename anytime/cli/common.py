@@ -16,7 +16,13 @@ from anytime.errors import InputError as InputError  # defined with the other er
 from anytime.errors import UsageError as UsageError
 from anytime.isolation import ISOLATIONS, WATCHDOG
 from anytime.launch import EXIT_INTERRUPTED as EXIT_INTERRUPTED  # re-exported
-from anytime.library import AnytimeLibrary
+from anytime.library import (
+    AnytimeLibrary,
+    PluginSource,
+    ProfileDirectory,
+    RegistrySource,
+    discover_plugins,
+)
 from anytime.runtime.modes import SOFT, Isolated, RunMode
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE = 0, 1, 2
@@ -302,9 +308,27 @@ def run_mode(args: argparse.Namespace) -> RunMode:
     return SOFT
 
 
+#: The installed plugins (entry-point names) that had not imported when the command line
+#: stopped waiting for them (see `anytime.cli.PLUGIN_SECONDS`): the library leaves them out.
+UNLOADED_PLUGINS: set[str] = set()
+
+
 def open_library(args: argparse.Namespace) -> AnytimeLibrary:
-    """The library the options describe; plugins that failed to load are warned about."""
-    library = AnytimeLibrary.default(profile_dirs=args.profiles, plugins=not args.no_plugins)
+    """The library the options describe; plugins that failed to load are warned about, and
+    those that had not imported in time (`UNLOADED_PLUGINS`, warned about then) are left out:
+    importing one again here would wait for it."""
+    if args.no_plugins or not UNLOADED_PLUGINS:
+        library = AnytimeLibrary.default(profile_dirs=args.profiles, plugins=not args.no_plugins)
+    else:
+        registered = RegistrySource()  # the process-wide registry, as `default` takes it
+        found = [ep for ep in discover_plugins() if ep.name not in UNLOADED_PLUGINS]
+        library = AnytimeLibrary(
+            [
+                PluginSource(found, registry=registered.registry),
+                registered,
+                *(ProfileDirectory(path) for path in args.profiles),
+            ]
+        )
     for problem in library.problems:
         print(f"anytime: warning: {problem}", file=sys.stderr)
     return library
