@@ -169,7 +169,7 @@ def test_library_show_many_times_and_no_input(cli: Cli, registry: Registry) -> N
     code, out, _ = cli("library", "show", "vision", "--profiles", "profiles")
     assert code == 0
     assert out.splitlines()[-3:] == [
-        "expected quality by time (ticks):",
+        "expected quality by time (ticks; 6 of 10 times, --times 0 shows every one):",
         "  time     0      20     40     50     70     90",
         "  quality  0.000  0.865  0.982  0.993  0.999  1.000",
     ]

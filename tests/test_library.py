@@ -605,8 +605,20 @@ def test_an_unreadable_profile_makes_the_step_raise_unless_one_is_declared(tmp_p
     [
         (None, STEPPED, "step:        7 ticks (measured)"),
         (7, STEPPED, "step:        7 ticks (declared; measured 7)"),
-        (3, STEPPED, "step:        3 ticks (declared; measured 7, larger than declared)"),
-        (1, STEPPED, "step:        1 tick (declared; measured 7, larger than declared)"),
+        (
+            3,
+            STEPPED,
+            "step:        3 ticks (declared; measured 7: its results came further"
+            " apart than declared, which is right only if it stops at ctx.expired in between, as"
+            " `anytime check` tests)",
+        ),
+        (
+            1,
+            STEPPED,
+            "step:        1 tick (declared; measured 7: its results came further"
+            " apart than declared, which is right only if it stops at ctx.expired in between, as"
+            " `anytime check` tests)",
+        ),
         (9, STEPPED, "step:        9 ticks (declared; measured 7)"),
         (2.5, FIND_PATH_PROFILE, "step:        2.5 ticks (declared)"),
         (2, None, "step:        2 (declared)"),
@@ -639,3 +651,17 @@ def test_library_show_says_nothing_of_an_unknown_step(
     code, out, _ = cli("library", "show", "find-path", "--no-plugins", "--json")
     data = json.loads(out)
     assert (data["step"], data["declared_step"], data["measured_step"]) == (None, None, None)
+
+
+def test_library_show_says_when_its_tables_leave_times_out(cli: Cli) -> None:
+    """Six times spread over the grid by default, said in the title; --times 0 shows all."""
+    code, out, _ = cli("library", "show", "find-path")
+    assert code == 0
+    title = next(line for line in out.splitlines() if line.startswith("expected quality"))
+    assert title.endswith("time in ticks; 6 of 21 times, --times 0 shows every one):")
+    code, out, _ = cli("library", "show", "find-path", "--times", "0")
+    title = next(line for line in out.splitlines() if line.startswith("expected quality"))
+    assert title.endswith("columns: time in ticks):")
+    header = next(line for line in out.splitlines() if line.startswith("  domain \\ time"))
+    assert header.split()[3:] == [f"{t}" for t in range(0, 2001, 100)]
+    assert cli("library", "show", "find-path", "--times", "x")[0] == 2
