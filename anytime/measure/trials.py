@@ -174,9 +174,11 @@ class Trial:
 
     def problem(self) -> tuple[Instance, tuple[Any, ...]]:
         rng = np.random.default_rng(self.seeds)
+        signals = interrupt_signals()
         try:
             instance = self.problems.instance(rng, self.qualities)
-        except _NOT_AN_INTERRUPT as exc:
+        except BaseException as exc:
+            _raise_interrupt(exc, signals)
             raise BuildError(
                 f"{_name(self.problems)}.instance failed ({self.where}): {_headline(exc)}"
             ) from exc
@@ -184,9 +186,11 @@ class Trial:
 
     def score(self, instance: Instance, value: Any) -> float:
         where = f"{_name(self.problems)}.score ({self.where})"
+        signals = interrupt_signals()
         try:
             quality = self.problems.score(instance, value)
-        except _NOT_AN_INTERRUPT as exc:
+        except BaseException as exc:
+            _raise_interrupt(exc, signals)
             raise BuildError(f"{where} failed: {_headline(exc)}") from exc
         try:
             q = float(quality)
@@ -197,9 +201,12 @@ class Trial:
         return q
 
 
-#: What a problem set's or a module's code may raise that is not a stop the user asked for
-#: (`SystemExit` included: a plugin's `sys.exit()` must not end the command).
-_NOT_AN_INTERRUPT = (Exception, SystemExit, GeneratorExit)
+def _raise_interrupt(exc: BaseException, signals: int) -> None:
+    """Raise `exc` again if it is the user's interrupt: a KeyboardInterrupt while a SIGINT or
+    SIGTERM reached this process (`signals` was the count before). Anything else a plugin's
+    code raises, its own KeyboardInterrupt and `sys.exit()` included, is its fault."""
+    if isinstance(exc, KeyboardInterrupt) and interrupt_signals() != signals:
+        raise exc
 
 
 def run_trial(

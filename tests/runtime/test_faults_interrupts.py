@@ -257,21 +257,28 @@ def test_anytime_check_of_a_stuck_module_says_what_it_skipped(cli: Cli, raising:
 
 
 class ExitingProblems:
-    """A problem set whose `instance` calls sys.exit(): the plugin's fault, a BuildError."""
+    """A problem set whose `instance` raises what is no Exception: the plugin's fault (its own
+    KeyboardInterrupt too: no Ctrl-C was pressed), a BuildError that names it."""
+
+    def __init__(self, raised: BaseException) -> None:
+        self.raised = raised
 
     def instance(self, rng: np.random.Generator, qualities: tuple[float, ...]) -> Instance:
-        raise SystemExit(4)
+        raise self.raised
 
     def score(self, instance: Instance, value: Any) -> float:
         return 0.5
 
 
 @pytest.mark.parametrize("mode", list(MODES))
-def test_a_problem_set_that_exits_is_a_build_error_naming_it(mode: str) -> None:
+@pytest.mark.parametrize("how", ["exit", "keyboard-interrupt"])
+def test_a_problem_set_that_exits_is_a_build_error_naming_it(how: str, mode: str) -> None:
     module = MODULES.get("raises-after-two")
     assert module is not None
+    problems = ExitingProblems(SystemExit(4) if how == "exit" else KeyboardInterrupt())
     with pytest.raises(BuildError) as caught:
-        build_profile(module, ExitingProblems(), time=[1, 2], trials=2, mode=MODES[mode])
+        build_profile(module, problems, time=[1, 2], trials=2, mode=MODES[mode])
+    raised = "SystemExit: 4" if how == "exit" else "KeyboardInterrupt"
     assert str(caught.value) == (
-        "ExitingProblems.instance failed (trial 0 at input qualities []): SystemExit: 4"
+        f"ExitingProblems.instance failed (trial 0 at input qualities []): {raised}"
     )
