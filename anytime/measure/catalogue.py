@@ -69,8 +69,8 @@ from anytime.isolation import counting_interrupts
 from anytime.library import AnytimeLibrary, LibraryEntry
 from anytime.measure.checks import (
     Check,
+    Run,
     Session,
-    _Run,
     check_deadline,
     check_errors,
     check_interruption,
@@ -317,7 +317,7 @@ def check_module(
 
 
 def _unless_none_ran(
-    name: str, runs: list[_Run], session: Session, check: Callable[[list[_Run]], Check]
+    name: str, runs: list[Run], session: Session, check: Callable[[list[Run]], Check]
 ) -> Check:
     """`check(runs)`, or a skipped check when the session skipped every one of its runs."""
     if not runs and session.stuck is not None:

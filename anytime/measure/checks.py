@@ -30,6 +30,7 @@ from anytime.runtime.observe import Observer
 
 __all__ = [
     "Check",
+    "Run",
     "Session",
     "check_deadline",
     "check_errors",
@@ -135,7 +136,10 @@ def _floating(value: Any) -> bool:
 
 
 @frozen(eq=False)
-class _Run:
+class Run:
+    """One catalogue run: its record, the results it kept, where and at what allocation it
+    ran, what its clock saw of its steps, and whether it was skipped (the module was stuck)."""
+
     record: RunRecord
     log: tuple[_Yield, ...]
     where: str
@@ -221,7 +225,7 @@ class Session:
         where: str,
         allocation: float,
         stop_at: float = math.inf,
-    ) -> _Run:
+    ) -> Run:
         trial = Trial(
             self.module,
             self.problems,
@@ -236,9 +240,9 @@ class Session:
         answers = _Answers(copies=stop_at < math.inf)
         budget = Budget(allocation, clock=clock, stop=stop)
         record = run_trial(self.module, args, budget, SOFT, answers)
-        return _Run(record, answers.log(record), where, allocation, clock.largest, clock.negative)
+        return Run(record, answers.log(record), where, allocation, clock.largest, clock.negative)
 
-    def deadline_runs(self) -> list[_Run]:
+    def deadline_runs(self) -> list[Run]:
         """Every instance at every allocation of the grid."""
         return self._runs(
             [
@@ -248,7 +252,7 @@ class Session:
             ]
         )
 
-    def interruption_runs(self) -> list[_Run]:
+    def interruption_runs(self) -> list[Run]:
         """Every instance, stopped at a random tick (interruptible) or given a random
         allocation (contract), up to the grid's largest time."""
         longest = float(self.grid.time[-1])
@@ -263,17 +267,17 @@ class Session:
                 specs.append((cell, i, q, label, math.inf, point))
         return self._runs(specs)
 
-    def _runs(self, specs: list[_Spec]) -> list[_Run]:
+    def _runs(self, specs: list[_Spec]) -> list[Run]:
         """The runs of `specs`, isolated in child processes unless the session says not: a
         run whose process dies or hangs is a run that crashed (or failed, on the watchdog).
         One process makes the runs in turn; with the mode's limits, each has its own."""
         mode = self.mode
 
-        def call(spec: _Spec) -> _Run:
+        def call(spec: _Spec) -> Run:
             return self._run(*spec)
 
         if not isinstance(mode, Isolated):
-            outcomes: Iterator[_Run | Lost] = (call(spec) for spec in specs)
+            outcomes: Iterator[Run | Lost] = (call(spec) for spec in specs)
         elif mode.limits is None:
             outcomes = calls(call, specs, watchdog=mode.watchdog)
         else:
@@ -297,15 +301,15 @@ class Session:
             self.done()
         return runs
 
-    def _skipped(self, spec: _Spec) -> _Run:
+    def _skipped(self, spec: _Spec) -> Run:
         """The run of `spec`, not made: an earlier run hit the watchdog."""
         *_, where, allocation, _ = spec
         record = RunRecord(
             self.module.name, Status.FAILED, None, 0.0, allocation, error="not run: stuck"
         )
-        return _Run(record, (), where, allocation, 0.0, False, skipped=True)
+        return Run(record, (), where, allocation, 0.0, False, skipped=True)
 
-    def _lost(self, spec: _Spec, lost: Lost) -> _Run:
+    def _lost(self, spec: _Spec, lost: Lost) -> Run:
         """The run of `spec` whose process did not come back."""
         *_, where, allocation, _ = spec
         hung = lost.exit_code is None
@@ -318,7 +322,7 @@ class Session:
             error=lost.reason,
             exit_code=lost.exit_code,
         )
-        return _Run(record, (), where, allocation, 0.0, False)
+        return Run(record, (), where, allocation, 0.0, False)
 
 
 # --- the checks --------------------------------------------------------------------------------
@@ -366,13 +370,13 @@ def _not_a_result(error: str) -> bool:
     return error.startswith(("yielded ", "returned ")) and error.endswith(", not a Result")
 
 
-def _first(bad: list[tuple[_Run, str]], total: int, what: str) -> str:
+def _first(bad: list[tuple[Run, str]], total: int, what: str) -> str:
     run_, problem = bad[0]
     return f"{problem} ({run_.where}); {len(bad)} of {total} runs {what}"
 
 
-def check_quality(runs: list[_Run]) -> Check:
-    bad: list[tuple[_Run, str]] = []
+def check_quality(runs: list[Run]) -> Check:
+    bad: list[tuple[Run, str]] = []
     for r in runs:
         error = r.record.error or ""
         if _not_a_result(error):
@@ -393,7 +397,7 @@ def check_quality(runs: list[_Run]) -> Check:
     )
 
 
-def skipped_note(runs: list[_Run]) -> str:
+def skipped_note(runs: list[Run]) -> str:
     """What a message says of the runs skipped after one hit the watchdog ("" if none)."""
     skipped = sum(r.skipped for r in runs)
     if not skipped:
@@ -404,7 +408,7 @@ def skipped_note(runs: list[_Run]) -> str:
     )
 
 
-def check_errors(runs: list[_Run]) -> Check:
+def check_errors(runs: list[Run]) -> Check:
     note = skipped_note(runs)
     runs = [r for r in runs if not r.skipped]
     bad = [
@@ -422,8 +426,8 @@ def check_errors(runs: list[_Run]) -> Check:
     return Check("errors", True, f"none of {len(runs)} runs raised")
 
 
-def check_deadline(module: AnytimeModule, runs: list[_Run]) -> Check:
-    bad: list[tuple[_Run, str]] = []
+def check_deadline(module: AnytimeModule, runs: list[Run]) -> Check:
+    bad: list[tuple[Run, str]] = []
     worst = 0.0
     for r in runs:
         record = r.record
@@ -465,15 +469,15 @@ def _ticks(n: float) -> str:
     return f"{n:g} tick{'' if n == 1 else 's'}"
 
 
-def _numbers(runs: list[_Run]) -> str:
+def _numbers(runs: list[Run]) -> str:
     return ", ".join(f"{a:g}" for a in sorted({r.allocation for r in runs}))
 
 
-def check_interruption(module: AnytimeModule, runs: list[_Run]) -> Check:
+def check_interruption(module: AnytimeModule, runs: list[Run]) -> Check:
     # A module that does not report its true quality answers with its latest result (the
     # executor cannot rank its results by what it says of them).
     latest = module.kind == "interruptible" and module.reports != "true"
-    bad: list[tuple[_Run, str]] = []
+    bad: list[tuple[Run, str]] = []
     for r in runs:
         result = r.record.result
         registered = list(r.log)
