@@ -3,6 +3,9 @@ mode, sending each result it keeps as it keeps it; the caller keeps the best of 
 at the deadline (or on the watchdog, or when the child dies) as hard mode does. An observer's
 `started` runs in the caller, its `registered` and `look` in the child (on its copy), its log
 (an observer's `log` attribute, if it has one) is sent to the caller's as it records.
+A `KeyboardInterrupt` in the child is the module's own (the child leads a process group of its
+own, which a terminal's Ctrl-C does not reach: the caller gets it, and ends the child): a failed
+run, as any other error the module raises.
 """
 
 from __future__ import annotations
