@@ -60,11 +60,15 @@ site: $(INSTALLED)
 $(INSTALLED): pyproject.toml domains/navigation/pyproject.toml domains/routing/pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 11))' || \
 		{ echo "anytime-compose needs Python >= 3.11 (set PYTHON=...)"; exit 1; }
+	@echo "Setting up $(VENV) (once): installing anytime-compose, its two plugins and the tools"
+	@echo "the tests use, from the package index; this takes a few minutes."
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev]' -e domains/navigation \
 		-e 'domains/routing[measure]'
+	@echo "Compiling the navigation planner's searches (numba, once; about 20 to 60 seconds)."
 	$(BIN)/python -c 'from anytime_navigation.planning.planner import compile_searches; compile_searches()'
+	@echo "$(VENV) is ready."
 	touch $@
 
 clean:

@@ -147,14 +147,14 @@ def cluster_stops(ctx: Context, demand: Result, sites: Sites) -> Iterator[Result
         rng = np.random.default_rng(restart)
         start: list[FloatArray] = []
         for _ in range(k):
-            if ctx.remaining < 1:
+            if ctx.expired or ctx.remaining < 1:
                 return
             ctx.tick()
             kmeans_plus_plus_step(points, weights, start, rng)
         centres = np.array(start)
         labels = np.full(len(points), -1, dtype=np.int64)
         for _ in range(MAX_ITERATIONS):
-            if ctx.remaining < 1:
+            if ctx.expired or ctx.remaining < 1:
                 return
             ctx.tick()
             moved, new = lloyd_step(points, weights, centres)
@@ -225,7 +225,7 @@ def plan_tours(ctx: Context, clusters: Result) -> Iterator[Result]:
     clustering: Clustering = clusters.value
     tours = []
     for k in range(len(clustering.centres)):
-        if ctx.remaining < 1:
+        if ctx.expired or ctx.remaining < 1:
             return
         ctx.tick()
         tour = _Tour(clustering, k)
@@ -249,14 +249,14 @@ def _improve(ctx: Context, tour: _Tour) -> bool | None:
     when none improves, a tick does the same for Or-opt. True when it moved, False when
     neither improves (the tour is done: no longer `active`), None when the time ran out
     first."""
-    if ctx.remaining < 1:
+    if ctx.expired or ctx.remaining < 1:
         return None
     ctx.tick()
     gain, i, j = best_two_opt(tour.dist, tour.order)
     if gain > EPS:
         tour.order = apply_two_opt(tour.order, i, j)
         return True
-    if ctx.remaining < 1:
+    if ctx.expired or ctx.remaining < 1:
         return None
     ctx.tick()
     gain, start, length, edge, reverse = best_or_opt(tour.dist, tour.order)
@@ -309,7 +309,7 @@ def plan_tour(ctx: Context, depot: Result) -> Iterator[Result]:
     over this one, times how close its clustering's optimal tours come to the reference
     delivery (`DepotInputs`), so that the mean over the depots stands for the route's."""
     item: Depot = depot.value
-    if ctx.remaining < 1:
+    if ctx.expired or ctx.remaining < 1:
         return
     ctx.tick()
     tour = _Tour(item.clustering, item.index)
@@ -361,11 +361,11 @@ def insert_tours(ctx: Context, clusters: Result) -> Iterator[Result]:
             first = int(rng.integers(1, n)) if n > 1 else 0
             order = [0, first] if n > 1 else [0]
             free = [v for v in range(1, n) if v != first]
-            if ctx.remaining < 1:
+            if ctx.expired or ctx.remaining < 1:
                 return
             ctx.tick()  # the first customer (and, once, the bound)
             while free:
-                if ctx.remaining < 1:
+                if ctx.expired or ctx.remaining < 1:
                     return
                 ctx.tick()
                 cheapest_insertion_step(shape.dist, order, free)
