@@ -369,7 +369,7 @@ def verdict(mean: dict[str, float], looks: Array) -> str:
     return "yes" if ahead > 0 else "no"
 
 
-# --- A: synthetic families with their exact Bayes optimum -----------------------------------
+# --- section 4: synthetic families with their exact Bayes optimum ---------------------------
 
 #: The synthetic grid: 32 times, one tick apart (T = 31).
 SYNTHETIC_TIME = np.arange(0.0, 32.0)
@@ -426,6 +426,8 @@ class Hypotheses:
 
 
 def hypotheses(family: str, view: str) -> Hypotheses:
+    """The family's hidden states and what the monitor sees of each: the true quality, the
+    quantised one, or the quantised one times 1 + beta (one block per bias beta)."""
     quality = 1.0 - np.exp(-np.outer(RATES, SYNTHETIC_TIME))  # (R, m)
     prior = FAMILIES[family]
     if view == "true":
