@@ -328,8 +328,17 @@ def die_with_parent(parent: int) -> None:
     """Have the kernel kill this process (forked by `parent`) when the thread that forked it
     ends (Linux): a parent killed outright (SIGKILL) cannot end its children, which would
     otherwise run on, orphaned. Isolated children and the local pool's workers
-    (`anytime.pool`) ask for it as they start; it exits at once if `parent` is already gone."""
+    (`anytime.pool`) ask for it as they start; it exits at once if `parent` is already gone.
+    Elsewhere a thread watches for the parent's end (this process is then adopted) and exits."""
     _die_with(parent)
+    if not sys.platform.startswith("linux"):
+        threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
+
+
+def _watch_parent(parent: int) -> None:
+    while os.getppid() == parent:
+        time.sleep(0.5)
+    os._exit(_SUPERVISOR_FAILED)
 
 
 def _die_with(parent: int) -> None:
