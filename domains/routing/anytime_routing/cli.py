@@ -55,16 +55,24 @@ def add_commands(commands: CommandGroup) -> None:
         "--customers",
         type=int_in_range(1, MAX_CUSTOMERS),
         default=CUSTOMERS,
+        metavar="N",
         help=f"customers ({CUSTOMERS})",
     )
     parser.add_argument(
-        "--depots", type=int_in_range(1, MAX_CUSTOMERS), default=DEPOTS, help=f"depots ({DEPOTS})"
+        "--depots",
+        type=int_in_range(1, MAX_CUSTOMERS),
+        default=DEPOTS,
+        metavar="N",
+        help=f"depots ({DEPOTS})",
     )
-    parser.add_argument("--seed", type=random_seed, default=0, help="the problem's seed (0)")
+    parser.add_argument(
+        "--seed", type=random_seed, default=0, metavar="S", help="the problem's seed (0)"
+    )
     parser.add_argument(
         "--budget",
         type=float_in_range(0.0, MAX_BUDGET),
         default=60.0,
+        metavar="TICKS",
         help="ticks of work, a multiple of the schemas' lattice, 2 ticks (60)",
     )
     parser.add_argument(

@@ -98,7 +98,13 @@ def add_command(commands: CommandGroup) -> None:
     navigate.add_argument(
         "--contract", type=positive_float, metavar="TICKS", help="contract time of --policy fixed"
     )
-    navigate.add_argument("--clock", choices=["work", "wall"], default="work")
+    navigate.add_argument(
+        "--clock",
+        choices=["work", "wall"],
+        default="work",
+        help="time in reported ticks of work (work: reproducible, the default) or in seconds of"
+        " the wall clock (wall)",
+    )
     navigate.add_argument(
         "--moving-obstacles",
         type=int_in_range(0, MAX_OBSTACLES),
