@@ -59,7 +59,7 @@ def test_the_benchmarks_sizes_are_calibrated(size):
     calibration = shipped(size, size // 4)
     assert calibration is not None
     assert (calibration.size, calibration.radius, calibration.movement) == (size, size // 4, 4)
-    assert calibration.worlds >= 60
+    assert calibration.worlds >= 150
     quality = np.asarray(calibration.quality)
     assert quality.shape == (len(calibration.contracts), calibration.worlds)
     assert np.all((quality > 0) & (quality <= 1))

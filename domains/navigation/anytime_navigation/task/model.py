@@ -26,23 +26,30 @@ calibrated rate). Quantities:
   more per cell;
 - utility `U = V(T) - E`.
 
+The profile the monitor plans with: where a calibration is shipped for the task's size and
+sensor radius (`calibration`: 64 x 64 and 128 x 128, radius a quarter of the side), the frame
+program's profile measured in the task (the route's quality per contract on training worlds),
+else the compiled program's (the planner's plan quality on a whole map sensed at once, which
+the task's windowed sensing and re-planning do not reach).
+
 Policies: `monitored` (the monitor's inter-frame rule: contract and speed of highest expected
-utility, see `TaskModel`), `fixed` (a given contract every frame; the speed as the monitor would
-choose for it), `min` and `max` (the smallest and largest contract of the grid, the papers'
-MIN/MAX baselines), and `stopping`: the monitor's contract and speed as `monitored`, the
-contract an upper bound only: within the frame the planner is run under an `OptimalStopping`
-policy (Hansen & Zilberstein 2001) over its dynamic profile (`find-path.dynamic.yaml`), whose
-utility of stopping `t` into the planner's run with plan quality `q` is the `TaskModel`'s value
-minus cost of the rest of the task with the frame's program ending at sensing time + `t`
-(`FromPlannerStart`), the robot moving meanwhile as in `TaskModel`; the frame's planning then
-lasts until the policy stops it.
+utility, see `TaskModel`; its contracts are the calibration's grid), `fixed` (a given contract
+every frame; the speed as the monitor would choose for it), `min` and `max` (the smallest and
+largest contract of the compiled program's grid, the papers' MIN/MAX baselines), and `stopping`:
+the monitor's contract and speed as `monitored`, the contract an upper bound only: within the
+frame the planner is run under an `OptimalStopping` policy (Hansen & Zilberstein 2001) over its
+dynamic profile (`find-path.dynamic.yaml`), whose utility of stopping `t` into the planner's run
+with plan quality `q` is the `TaskModel`'s value minus cost of the rest of the task with the
+frame's program ending at sensing time + `t` (`FromPlannerStart`), the robot moving meanwhile as
+in `TaskModel`; the frame's planning then lasts until the policy stops it.
 
 Two references:
 
 - `predicted_utility`: the expected utility of the whole task that the monitor computes when
   the task is presented, i.e. its first inter-frame decision: the highest over the contract
-  grid and the speed grid of E_q[V(T_hat) - E_hat], where the expectation is over the compiled
-  program's output-quality distribution at the contract, and `T_hat`, `E_hat` come from the
+  grid and the speed grid of E_q[V(T_hat) - E_hat], where the expectation is over the output
+  quality distribution at the contract of the profile the monitor plans with, and `T_hat`,
+  `E_hat` come from the
   environment model `TaskModel` with the remaining distance the shortest route on the prior map
   (nothing known: every cell free, i.e. the Manhattan distance for 4-connected movement).
 - `optimal_utility`: a clairvoyant bound on the same world: the true map known, no sensing or
