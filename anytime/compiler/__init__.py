@@ -16,11 +16,13 @@ from anytime.compiler.model import CompileError, CompileModel
 from anytime.compiler.outcomes import MESSAGES, Code, Note
 from anytime.compiler.report import compiled_to_dict, format_report
 from anytime.compiler.resolve import build_model
+from anytime.compiler.result import BeyondTableWarning
 from anytime.compiler.storage import load_compiled, save_compiled
 
 __all__ = [
     "ALLOCATORS",
     "MESSAGES",
+    "BeyondTableWarning",
     "Code",
     "CompileError",
     "CompileModel",
