@@ -147,3 +147,30 @@ def test_out_being_written_by_another_run_is_refused_before_the_run(
             " writing there; wait for it or choose another directory\n"
         )
         assert (out / "frame-000.png").read_bytes() == b"the other run's"
+
+
+def test_a_map_is_named_by_its_own_size(cli: Cli) -> None:
+    """The arena is 49 x 49: the summary says so (not the 64 x 64 grid it is planned on)."""
+    from anytime_navigation.resources import data_file
+
+    code, out, _ = cli("navigate", "--map", str(data_file("maps", "arena.map")), "--quiet")
+    assert code == 0
+    assert out.splitlines()[0] == "navigation task: 49x49 map arena.map, seed 0, policy monitored"
+
+
+def test_loading_the_searches_says_what_it_is_doing_when_it_takes_long(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import time
+
+    from anytime_navigation.cli import navigate as command
+
+    monkeypatch.setattr(command, "NOTICE_SECONDS", 0.01)
+    monkeypatch.setattr(command, "compile_searches", lambda: time.sleep(0.5))
+    command._ready_searches(say=True)
+    assert capsys.readouterr().err == (
+        "anytime: loading the planner's compiled searches (the first run after an install"
+        " compiles them: about 20 to 60 seconds, once)\n"
+    )
+    command._ready_searches(say=False)
+    assert capsys.readouterr().err == ""

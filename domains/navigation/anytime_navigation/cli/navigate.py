@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import threading
 from contextlib import ExitStack
 from pathlib import Path
 
@@ -28,6 +29,7 @@ from anytime.plugin.figures import require_matplotlib
 
 from ..movingai import MapError, load_map
 from ..obstacles.moving import MovingObstacle, random_obstacles
+from ..planning.planner import compile_searches
 from ..task.frame_program import navigation_program
 from ..task.frames import NO_DYNAMIC_PROFILE, run_task
 from ..task.model import POLICIES, NavigationTask, TaskReport
@@ -61,7 +63,8 @@ def add_command(commands: CommandGroup) -> None:
         run=run_navigate,
         help="run a navigation task frame by frame under the monitor (or a fixed policy)",
         description="Run a navigation task: the robot senses a window around itself, plans with "
-        "the compiled program schemas/navigation.any (navigate), and moves frame by frame to the "
+        "the compiled schema 'navigate' (the plugin's packaged schemas/navigation.any), and moves"
+        " frame by frame to the "
         "goal; the monitor chooses each frame's contract time and the speed. Prints frames, "
         "completion time, energy, value and utility, against the utility predicted at the start "
         "and a clairvoyant bound.",
@@ -111,7 +114,8 @@ def add_command(commands: CommandGroup) -> None:
         default=0,
         metavar="K",
         help="K moving obstacles (from the seed); the robot decides how to overcome each one "
-        "with the compiled schema schemas/obstacles.any (overcome-obstacle)",
+        "with the compiled schema 'overcome-obstacle' (the plugin's packaged"
+        " schemas/obstacles.any)",
     )
     navigate.add_argument(
         "--profiles",
@@ -137,11 +141,38 @@ def add_command(commands: CommandGroup) -> None:
     navigate.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
-def _world(args: argparse.Namespace) -> World:
+#: How long the planner's searches may take to load before `navigate` says what it is doing.
+NOTICE_SECONDS = 3.0
+
+
+def _ready_searches(say: bool) -> None:
+    """Load (or, the first time after an install, compile) the planner's searches before the
+    run, saying so when it takes long: otherwise the first frame seems to hang."""
+    done = threading.Event()
+
+    def notice() -> None:
+        if not done.wait(NOTICE_SECONDS):
+            print(
+                "anytime: loading the planner's compiled searches (the first run after an install"
+                " compiles them: about 20 to 60 seconds, once)",
+                file=sys.stderr,
+                flush=True,
+            )
+
+    if say:
+        threading.Thread(target=notice, daemon=True).start()
+    try:
+        compile_searches()
+    finally:
+        done.set()
+
+
+def _world(args: argparse.Namespace) -> tuple[World, str]:
+    """The task's world, and how the summary names it."""
     if args.map is None:
         if args.start is not None or args.goal is not None:
             raise UsageError("--start and --goal need --map")
-        return random_world(args.size, seed=args.seed)
+        return random_world(args.size, seed=args.seed), f"{args.size}x{args.size} world"
     try:
         blocked, width, height = load_map(args.map)
     except MapError as error:
@@ -163,7 +194,7 @@ def _world(args: argparse.Namespace) -> World:
         raise InputError(
             f"the goal {goal[0]},{goal[1]} cannot be reached from the start {start[0]},{start[1]}"
         )
-    return World(blocked, start, goal)
+    return World(blocked, start, goal), f"{width}x{height} map {Path(args.map).name}"
 
 
 def run_navigate(args: argparse.Namespace) -> int:
@@ -171,7 +202,7 @@ def run_navigate(args: argparse.Namespace) -> int:
         raise UsageError("--policy fixed needs --contract TICKS")
     if args.out is not None:
         require_matplotlib()  # the figures need the plot extra: say so before the run, not after
-    world = _world(args)
+    world, described = _world(args)
     side = world.blocked.shape[0]
     deadline = args.deadline if args.deadline is not None else 6000.0 * side / 128
     task = NavigationTask(
@@ -193,6 +224,7 @@ def run_navigate(args: argparse.Namespace) -> int:
         except ValueError as error:
             raise InputError(f"--moving-obstacles: {error}") from None
     bars = False if args.quiet else None  # progress on a terminal's stderr, unless --quiet
+    _ready_searches(say=not args.quiet)
 
     def run(policy: str, contract: float | None = None) -> TaskReport:
         with ProgressBar(None, label=f"navigate ({policy})", unit="frames", enabled=bars) as bar:
@@ -225,7 +257,7 @@ def run_navigate(args: argparse.Namespace) -> int:
             result["comparison"] = {name: other.as_json() for name, other in comparison.items()}
         print(json_text(result, indent=None))
     else:
-        print(_summary(report, comparison), end="")
+        print(_summary(report, comparison, described), end="")
         if written:
             pngs = [w for w in written if w.endswith(".png")]
             print(
@@ -255,10 +287,10 @@ def _outputs(report: TaskReport, task: NavigationTask, out: Path, bars: bool | N
     return written
 
 
-def _summary(report: TaskReport, comparison: dict[str, TaskReport]) -> str:
+def _summary(report: TaskReport, comparison: dict[str, TaskReport], described: str) -> str:
     r = report
     lines = [
-        f"navigation task: {r.size}x{r.size} world, seed {r.seed}, policy {r.policy}",
+        f"navigation task: {described}, seed {r.seed}, policy {r.policy}",
         f"  frames           {r.frames}",
         f"  completion time  {r.completion_time:.0f} ticks",
         f"  route length     {r.route_length:.1f} (optimal {r.optimal_length:.1f})",
