@@ -40,8 +40,24 @@ def test_no_command_is_a_usage_error(cli: Cli) -> None:
         ),
         (["parse", "a.any", "--bogus"], "anytime: error: unrecognized arguments: --bogus\n"),
         (["nope"], "anytime: error: argument COMMAND: invalid choice: 'nope' (choose from "),
-    ],
-    ids=["missing-file", "json-and-dot", "unknown-option", "unknown-command"],
+        (
+            ["compil"],
+            "anytime: error: argument COMMAND: invalid choice: 'compil'; did you mean 'compile'?\n",
+        ),
+        (
+            ["compile", "a.any", "--allocator", "dpp"],
+            "anytime compile: error: argument"
+            " --allocator: invalid choice: 'dpp'; did you mean 'dp'?\n",
+        ),
+    ],  # fmt: skip
+    ids=[
+        "missing-file",
+        "json-and-dot",
+        "unknown-option",
+        "unknown-command",
+        "mistyped-command",
+        "mistyped-choice",
+    ],  # fmt: skip
 )
 def test_usage_errors_exit_2_with_one_line(cli: Cli, argv: list[str], message: str) -> None:
     code, out, err = cli(*argv)

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import sys
 import threading
 from collections.abc import Callable, Sequence
@@ -34,6 +35,7 @@ from anytime.cli.common import (
 from anytime.errors import AnytimeError, SchemaError
 from anytime.launch import interrupted, sigterm_interrupts
 from anytime.library import Plugin, PluginSource, discover_plugins
+from anytime.text import did_you_mean
 
 __all__ = ["InputError", "UsageError", "build_parser", "describe", "main"]
 
@@ -127,7 +129,21 @@ class _Parser(argparse.ArgumentParser):
     exit status 2 (`anytime CMD --help` has the usage)."""
 
     def error(self, message: str) -> NoReturn:
+        # A mistyped command or choice: name the nearest one (argparse 3.11 lists them all).
+        wrong = _INVALID_CHOICE.match(message)
+        if wrong is not None:
+            choices = re.findall(r"'([^']*)'", wrong["choices"])
+            hint = did_you_mean(wrong["given"], choices)
+            if hint:
+                message = f"{wrong['argument']}: invalid choice: '{wrong['given']}'{hint}"
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
+
+
+#: argparse's message for a value that is not one of the choices.
+_INVALID_CHOICE = re.compile(
+    r"^(?P<argument>argument [^:]+): invalid choice: '(?P<given>[^']*)' \(choose from"
+    r" (?P<choices>.*)\)$"
+)
 
 
 #: Seconds the command waits for the installed plugins to import (to add their commands) before
