@@ -261,12 +261,14 @@ def measure_problem(
     configs: dict[str, dict[str, Any]] = CONFIGS,
     budget: float = EXECUTION_BUDGET,
     every_plan: bool = False,
+    executed: bool = True,
 ) -> tuple[Baseline, dict[str, AtpRun]]:
     """The compiled A*'s and the pure-Python A*'s best times, and each ATP configuration's run,
     interleaved; executing a plan is given up after `budget` times the pure-Python A*'s time
     (the budget the benchmark gave before the compiled A* was its reference). `every_plan`:
     execute every plan registered, to count the falls of the executed quality (else the first
-    and the last only)."""
+    and the last only). `executed` False: no plan executed (times only; the qualities are
+    NaN)."""
     compiled_best = python_best = math.inf
     found = None
     best: dict[str, list[float]] = {name: [math.inf, math.inf] for name in configs}
@@ -317,6 +319,19 @@ def measure_problem(
         return routes[key]
 
     for name, (ctx, registered) in outcome.items():
+        if not executed:
+            runs[name] = AtpRun(
+                seconds=best[name][0],
+                first_seconds=best[name][1],
+                expansions=int(ctx.ticks),
+                refinements=len(registered) - 1,
+                first_quality=None,
+                final_quality=math.nan,
+                first_execution=None,
+                falls=0,
+                unknown_steps=0,
+            )
+            continue
         first_route, final_route = route(registered[0]), route(registered[-1])
         assert final_route is not None, "a fully refined plan is followed without search"
         falls = unknown = 0
@@ -387,6 +402,7 @@ def measure_suite(
     configs: dict[str, dict[str, Any]] = CONFIGS,
     budget: float = EXECUTION_BUDGET,
     every_plan: bool = False,
+    executed: bool = True,
 ) -> Measured:
     described: dict[int, tuple[GridAstar, Pyramid, Components]] = {}
     measured = Measured([], [], [], {name: [] for name in configs})
@@ -406,6 +422,7 @@ def measure_suite(
             configs,
             budget,
             every_plan,
+            executed,
         )
         measured.astar_times.append(baseline.seconds)
         measured.astar_expansions.append(baseline.expansions)
@@ -783,7 +800,7 @@ def bench_kinds(
             True,
             0.0,
         )
-        shorts = measure_suite(short, repeats, default, budget)
+        shorts = measure_suite(short, repeats, default, budget, executed=False)  # times only
         random_ratio = sum(r.seconds for r in shorts.runs["one segment"]) / sum(shorts.astar_times)
         falls = sum(r.falls for r in runs)
         steps = sum(r.refinements for r in runs)
