@@ -360,7 +360,7 @@ def test_a_problem_set_that_does_not_pickle() -> None:
 
 def test_assert_module_passes_raises_with_the_report() -> None:
     with pytest.raises(AssertionError) as raised:
-        assert_module_passes(overrun, Counting(), trials=3)
+        assert_module_passes(overrun, Counting(), trials=5)
     text = str(raised.value)
     assert text.startswith("module 'catalogue-overrun' (interruptible): 1 of 6 checks failed")
     assert "\n  FAIL  deadline      used 1001 ticks" in text
@@ -419,11 +419,11 @@ def only_these_modules(monkeypatch: pytest.MonkeyPatch) -> None:
 
 
 def test_check_a_passing_module(cli: Cli) -> None:
-    code, out, err = cli("check", "Catalogue-Good", "--trials", "4", "--no-plugins")
+    code, out, err = cli("check", "Catalogue-Good", "--trials", "5", "--no-plugins")
     assert (code, err) == (0, "")
     lines = out.splitlines()
     assert lines[0] == (
-        "module 'catalogue-good' (interruptible): all 6 checks passed (48 runs, 4 trials per"
+        "module 'catalogue-good' (interruptible): all 6 checks passed (60 runs, 5 trials per"
         " cell, seed 0)"
     )
     assert [line.split()[:2] for line in lines[1:]] == [["pass", name] for name in CHECKS]
@@ -441,9 +441,15 @@ def test_check_json(cli: Cli) -> None:
     assert code == 1
     report = json.loads(out)
     assert report["module"] == "catalogue-bare" and report["passed"] is False
+    statuses = {"quality": "fail", "profile": "skip"}  # 3 trials cannot judge a profile
     assert {c["name"]: c["status"] for c in report["checks"]} == {
-        name: "fail" if name == "quality" else "pass" for name in CHECKS
+        name: statuses.get(name, "pass") for name in CHECKS
     }
+    (profile,) = [c for c in report["checks"] if c["name"] == "profile"]
+    assert profile["message"] == (
+        "skipped: judging a profile needs at least 5 trials per cell, got 3 (one shows no"
+        " spread, and with two any gap is within the bound)"
+    )
 
 
 def test_check_a_module_without_a_problem_set(cli: Cli, monkeypatch: pytest.MonkeyPatch) -> None:

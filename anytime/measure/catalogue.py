@@ -68,6 +68,7 @@ from anytime.errors import AnytimeError, ProfileError
 from anytime.isolation import counting_interrupts
 from anytime.library import AnytimeLibrary, LibraryEntry
 from anytime.measure.checks import (
+    MIN_PROFILE_TRIALS,
     Check,
     Run,
     Session,
@@ -297,6 +298,14 @@ def check_module(
     )
     if session.stuck is not None:  # measuring its profile would wait the watchdog per trial
         verdict = Check("profile", True, f"skipped: the module is stuck ({session.stuck})", True)
+    elif declared is not None and trials < MIN_PROFILE_TRIALS:
+        verdict = Check(
+            "profile",
+            True,
+            f"skipped: judging a profile needs at least {MIN_PROFILE_TRIALS} trials per cell,"
+            f" got {trials} (one shows no spread, and with two any gap is within the bound)",
+            True,
+        )
     elif declared is not None:
         verdict = check_profile(
             module,

@@ -508,6 +508,11 @@ def check_interruption(module: AnytimeModule, runs: list[Run]) -> Check:
     )
 
 
+#: The fewest trials per cell `check_profile` judges a declared profile on: with one the spread
+#: is unknown (a bound of zero width), with two the t quantile is so wide anything passes.
+MIN_PROFILE_TRIALS = 5
+
+
 def check_profile(
     module: AnytimeModule,
     problems: ProblemSet,
