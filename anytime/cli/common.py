@@ -169,11 +169,18 @@ def quality_list(text: str) -> tuple[float, ...]:
 
 def check_lattice(grid: Sequence[float], resolution: float | None) -> None:
     """A usage error when the allocations' lattice (the multiples of the resolution up to the
-    largest total) would have more than `MAX_LATTICE_POINTS` points."""
+    largest total) would have more than `MAX_LATTICE_POINTS` points, or none but 0 (a
+    resolution larger than the largest total)."""
     if not grid:
         return
     steps = [b - a for a, b in zip(grid, grid[1:], strict=False) if b > a]
     dt = resolution if resolution is not None else (min(steps) if steps else grid[0] or 1.0)
+    if resolution is not None and resolution > max(grid) > 0:
+        # no allocation but zero fits under the largest total: every module would get nothing
+        raise UsageError(
+            f"--resolution {resolution:g}: larger than the largest total of the time grid,"
+            f" {max(grid):g}, so every allocation would be 0; give at most {max(grid):g}"
+        )
     points = max(grid) / dt + 1
     if points > MAX_LATTICE_POINTS:
         many = f"{points:,.0f}" if points < 1e15 else f"{points:.2g}"

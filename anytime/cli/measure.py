@@ -155,7 +155,7 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     calibrate_.add_argument(
         "--to",
         choices=["seconds", "ticks"],
-        default="seconds",
+        default=None,  # None: not given, so that --to without --profile can be refused
         help="the unit to convert the profile's time axis to (seconds)",
     )
     calibrate_.add_argument(
@@ -360,6 +360,9 @@ def _runnable(args: argparse.Namespace) -> tuple[AnytimeModule, AnytimeLibrary]:
 def run_calibrate(args: argparse.Namespace) -> int:
     if (args.profile is None) != (args.output is None):
         args.usage_error("--profile FILE and -o OUT go together")
+    if args.to is not None and args.profile is None:
+        args.usage_error(f"--to {args.to}: --to converts a --profile FILE, and none was given")
+    args.to = args.to or "seconds"
     refuse_overwriting_inputs(args.output, args.profile)
     module, library = _runnable(args)
     profile = None
