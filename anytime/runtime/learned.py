@@ -16,10 +16,11 @@ nearest neighbours as the regression), backward over the grid:
 
 Actions at a look: stop; go on and look at the next grid time; and, with a monitoring cost c per
 look, stop at a later grid time without looking again. Before the run: look from the first grid
-time on, or stop at a grid time without looking (the fixed policy). A run that ends by itself
-(`QualityTraces.finished`) ends its trace there with its answer then, and a run without an answer
-yet is not looked at (the executor waits for one), so runs that converge, stall or start late
-are in the training as they happen.
+time on, or stop at a grid time without looking (the fixed policy), whichever the training runs
+say is worth more, so that it is never worse than the fixed stop by more than sampling error.
+A run that ends by itself (`QualityTraces.finished`) ends its trace there with its answer then,
+and a run without an answer yet is not looked at (the executor waits for one), so runs that
+converge, stall or start late are in the training as they happen.
 
 `expected_utility` is not a model's number: it is the mean of the training runs' leave-one-out
 realised utilities (looks paid), an estimate of what the policy realises on fresh runs from the
@@ -247,10 +248,10 @@ class HistoryStopping:
         return HistoryTable(last, neighbours, follow, start, realised)
 
     def _start(self, follow: Array, last: int) -> tuple[int, int]:
-        """Before the run: look from the start, or (with a monitoring cost) stop at the grid
-        time of best mean utility without looking."""
-        if self.monitoring_cost == 0:
-            return LOOK, 0
+        """Before the run: look from the start, or stop at the grid time of best mean utility
+        without looking (the fixed policy), whichever the training runs say is worth more:
+        looking only pays where what it shows is worth more than a fixed stop (and its looks'
+        cost), which the leave-one-out estimate of the learned rule has to show."""
         stop = np.minimum(np.arange(last + 1)[None, :], self._end[:, None])
         blind = self._utility[np.arange(len(follow))[:, None], stop].mean(axis=0)
         best = int(np.argmax(blind))
