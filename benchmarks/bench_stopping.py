@@ -222,6 +222,17 @@ def make(
     return policy
 
 
+def lead(got: dict[str, Array], name: str, best: Array) -> str:
+    """A policy's least lead over fixed and myopic, with the largest paired standard error, as
+    fractions of the mean clairvoyant utility ('-': not measured)."""
+    if name not in got:
+        return "-"
+    others = ("fixed", "myopic")
+    ahead = min((got[name] - got[o]).mean() / best.mean() for o in others)
+    se = max(paired_se(got[name], got[o], best) for o in others)
+    return f"{ahead:+.4f} ({se:.4f})"
+
+
 def ratio(utilities: Array, best: Array) -> str:
     return f"{utilities.mean() / best.mean():.3f}"
 
@@ -268,22 +279,13 @@ def free_looks(
         learned = history_policy(train, utility, 0.0, case.input_quality) if history else None
         if learned is not None:
             got["history"] = realised(learned, test, utility, 0.0)[0]
-        others = ("fixed", "myopic")
-
-        def lead(name: str) -> str:
-            if name not in got:
-                return "-"
-            ahead = min((got[name] - got[o]).mean() / best.mean() for o in others)
-            se = max(paired_se(got[name], got[o], best) for o in others)
-            return f"{ahead:+.4f} ({se:.4f})"
-
         rows.append(
             [
                 f"{label}, q^{power} - {rate:g} t/T",
                 *(ratio(got[name], best) for name in got),
                 *(["-"] if "history" not in got else []),
-                lead("optimal"),
-                lead("history"),
+                lead(got, "optimal", best),
+                lead(got, "history", best),
             ]
         )
     return rows

@@ -98,7 +98,8 @@ BENCHMARKS = [
         ["--quick-synthetic", "--history"],
         "Runtime: when to stop",
         "Stopping policies (fixed, myopic, projected, optimal by backward induction over the"
-        " dynamic profile, history learned on the training traces' histories) on held-out traces of the ATP, 2-opt tours, k-means clustering and"
+        " dynamic profile, history learned on the training traces' histories) on held-out"
+        " traces of the ATP, 2-opt tours, k-means clustering and"
         " a test plugin's local search that stalls (it registers only when it improves), as a"
         " fraction of the clairvoyant utility of each trace, with the monitor seeing what"
         " the module reports and, for comparison, its true quality (targets: optimal >= 0.98,"
