@@ -120,8 +120,8 @@ GOOD_MAP = "type octile\nheight 2\nwidth 3\nmap\n..@\n...\n"
         ),
         (
             "type octile\nheight 1\nwidth 16385\nmap\n" + "." * 16385 + "\n",
-            "3: a 16385x1 map is padded to 32768x32768 cells, more than the 8192x8192 the"
-            " planner takes",
+            "3: a 16385x1 map is padded to 32768x32768 cells, more than the limit of"
+            " 1,048,576 cells (1024x1024) the planner takes",
         ),
     ],
     ids=[
