@@ -53,6 +53,7 @@ import secrets
 import time as _time
 from collections.abc import Iterator, Mapping, Sequence
 from concurrent.futures import Executor
+from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 from typing import Any, Literal
 
@@ -249,6 +250,10 @@ def _request_executor(request: ProfileRequest) -> Iterator[Executor | None]:
             yield executor
 
 
+#: Seconds given to connecting to a Dask scheduler before it is reported unreachable.
+DASK_CONNECT_SECONDS = 5.0
+
+
 @contextmanager
 def dask_executor(address: Any) -> Iterator[Executor]:
     """The `concurrent.futures` executor of a Dask distributed cluster, closed on exit.
@@ -264,7 +269,8 @@ def dask_executor(address: Any) -> Iterator[Executor]:
             " extra: pip install 'anytime-compose[dask]'"
         ) from exc
     try:
-        client = distributed.Client(address)
+        # Dask's own connect timeout (30 s) made a wrong address take 34 s to be reported.
+        client = distributed.Client(address, timeout=DASK_CONNECT_SECONDS)
     except (OSError, TimeoutError, ValueError) as exc:
         raise BuildError(f"cannot connect to the Dask scheduler at {address}: {exc}") from exc
     try:
@@ -522,4 +528,10 @@ def _run(chunks: list[Chunk], executor: Executor | None, workers: int) -> Iterat
     if executor is None and workers == 1:
         yield from measure_chunks(chunks)
         return
-    yield from spread(measure_chunk, chunks, executor=executor, workers=workers)
+    try:
+        yield from spread(measure_chunk, chunks, executor=executor, workers=workers)
+    except BrokenProcessPool:  # a trial ended its worker: the trials measured are lost with it
+        raise BuildError(
+            "a worker process died: a trial ended the process it ran in (trials not isolated"
+            " take their worker with them; isolated, it is a failed trial); no profile was made"
+        ) from None
