@@ -95,6 +95,11 @@ class Limits:
     cpu: float | None = field(default=None, validator=_limit("cpu"))
 
 
+class Unsent(Exception):
+    """A child's message did not pickle; sent in its place (and raised in the child), so that
+    its end is reported so (`Child.unsent`), without a traceback on the caller's stderr."""
+
+
 class Channel:
     """The child's end of the pipe: `send` one picklable message at a time."""
 
@@ -102,7 +107,14 @@ class Channel:
         self._fd = fd
 
     def send(self, message: Any) -> None:
-        data = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
+        try:
+            data = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
+        except Exception as exc:  # the caller is told why instead (`Child.unsent`)
+            unsent = Unsent(
+                f"what its process answered does not pickle: {type(exc).__name__}: {exc}"
+            )
+            self.send(unsent)
+            raise unsent from exc
         view = memoryview(_HEADER.pack(len(data)) + data)
         while view:
             view = view[os.write(self._fd, view) :]
@@ -139,6 +151,7 @@ class Child:
         self._buffer = bytearray()
         self._reaped = False
         self._pidfd: int | None = None
+        self.unsent: str | None = None  # why a message of the child's did not pickle
         with suppress(AttributeError, OSError):
             self._pidfd = os.pidfd_open(pid)
 
@@ -246,8 +259,12 @@ class Child:
             (size,) = _HEADER.unpack_from(buffer)
             if len(buffer) < _HEADER.size + size:
                 break
-            messages.append(pickle.loads(buffer[_HEADER.size : _HEADER.size + size]))
+            message = pickle.loads(buffer[_HEADER.size : _HEADER.size + size])
             del buffer[: _HEADER.size + size]
+            if isinstance(message, Unsent):
+                self.unsent = str(message)
+            else:
+                messages.append(message)
         return messages
 
 
@@ -311,12 +328,12 @@ def _run_child(
         # Not the caller's counting handler: no Ctrl-C of the user's reaches a group of its
         # own, so every KeyboardInterrupt here is its code's (see `counting_interrupts`).
         signal.signal(signal.SIGINT, signal.default_int_handler)
-        _die_with(parent)
-        _adopt_orphans()
+        _die_with(parent, adopt=True)
         _apply(limits)
         target(Channel(write))
-    except (BrokenPipeError, KeyboardInterrupt):  # the caller stopped listening, or
-        code = _SUPERVISOR_FAILED  # a Ctrl-C reached it before it left the caller's group
+    except (BrokenPipeError, KeyboardInterrupt, Unsent):  # the caller stopped listening, or
+        code = _SUPERVISOR_FAILED  # a Ctrl-C reached it before it left the caller's group, or
+        # a message that did not pickle, which the caller reports (its traceback is noise)
     except BaseException:
         code = _SUPERVISOR_FAILED
         with suppress(BaseException):
@@ -325,13 +342,13 @@ def _run_child(
         for stream in (sys.stdout, sys.stderr):
             with suppress(BaseException):
                 stream.flush()
-        with suppress(BaseException):
-            if _has_children():
-                end_escaped(os.getpid())
+        with suppress(BaseException):  # waitid fails (ECHILD) if it started no process:
+            os.waitid(os.P_ALL, 0, os.WEXITED | os.WNOHANG | os.WNOWAIT)  # no /proc scan then
+            end_escaped(os.getpid())
         os._exit(code)
 
 
-_PR_SET_PDEATHSIG = 1
+_PR_SET_PDEATHSIG, _PR_SET_CHILD_SUBREAPER = 1, 36
 
 
 def die_with_parent(parent: int) -> None:
@@ -351,7 +368,7 @@ def _watch_parent(parent: int) -> None:
     os._exit(_SUPERVISOR_FAILED)
 
 
-def _die_with(parent: int) -> None:
+def _die_with(parent: int, adopt: bool = False) -> None:
     """Have the kernel kill this child when the thread that forked it ends (Linux): a caller
     killed outright (SIGKILL, or a worker process its own parent terminates) cannot end its
     child, which would otherwise run on in a process group of its own."""
@@ -362,27 +379,10 @@ def _die_with(parent: int) -> None:
     with suppress(OSError, AttributeError):
         libc = ctypes.CDLL(None, use_errno=True)
         libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+        if adopt:  # its orphaned descendants become its, not init's (see `end_escaped`)
+            libc.prctl(_PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0)
     if os.getppid() != parent:  # it went before the request was made
         os._exit(_SUPERVISOR_FAILED)
-
-
-_PR_SET_CHILD_SUBREAPER = 36
-
-
-def _adopt_orphans() -> None:
-    """(Linux.) Its orphaned descendants are re-parented to this child, not init."""
-    with suppress(OSError, AttributeError):
-        import ctypes
-
-        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0)
-
-
-def _has_children() -> bool:
-    try:  # without /proc scans: most runs start no process
-        os.waitid(os.P_ALL, 0, os.WEXITED | os.WNOHANG | os.WNOWAIT)
-    except ChildProcessError:
-        return False
-    return True
 
 
 def _descendants(pid: int) -> dict[int, ProcessInfo]:
@@ -564,7 +564,7 @@ def _answers(
         if messages:
             continue
         if gone:
-            yield Lost(died(process.exit_code), process.exit_code)
+            yield Lost(process.unsent or died(process.exit_code), process.exit_code)
             return index + 1
         if time.monotonic() - since >= watchdog:
             yield Lost(f"watchdog: no answer after {watchdog:g} s of wall time")

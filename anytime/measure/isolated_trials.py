@@ -163,7 +163,7 @@ def isolated_outcomes(chunk: Chunk, flats: Sequence[int], mode: Isolated) -> Ite
                 if messages:
                     continue
                 if gone:
-                    lost = died(process.exit_code)
+                    lost = process.unsent or died(process.exit_code)
                 elif _time.monotonic() - since >= watchdog:
                     lost = f"watchdog: no answer after {watchdog:g} s of wall time"
         finally:

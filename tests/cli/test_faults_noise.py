@@ -1,7 +1,9 @@
-"""Issue 37, item 10: failures a user can cause are one line, not noise. A module that ends its
-process in trials that are not isolated, with --workers 2, is a one-line error saying that no
-profile was made (not "internal error ... a bug"); an unreachable --scheduler is reported after
-a short connect timeout (`DASK_CONNECT_SECONDS`), not Dask's 30 s."""
+"""Issue 37, item 10: failures a user can cause are one line, not noise. `check` of a module
+whose results do not pickle says so in its verdict, with no child's traceback on stderr; a
+module that ends its process in trials that are not isolated, with --workers 2, is a one-line
+error saying that no profile was made (not "internal error ... a bug"); an unreachable
+--scheduler is reported after a short connect timeout (`DASK_CONNECT_SECONDS`), not Dask's
+30 s."""
 
 from __future__ import annotations
 
@@ -14,6 +16,7 @@ import numpy as np
 import pytest
 from conftest import Cli
 
+from anytime.cli import main
 from anytime.measure.builder import register_problems
 from anytime.modules import Context, Registry, Result, interruptible
 from anytime.problems import Instance
@@ -26,6 +29,12 @@ def ends_its_process(ctx: Context, how: str) -> Iterator[Result]:
     ctx.tick(1)
     yield Result(0.5, 0.5)
     os._exit(3)
+
+
+@interruptible("unpicklable", registry=MODULES, inputs=())
+def unpicklable(ctx: Context, how: str) -> Iterator[Result]:
+    ctx.tick(1)
+    yield Result(lambda: 0, 0.5)
 
 
 class Exits:
@@ -44,7 +53,25 @@ def ends(monkeypatch: pytest.MonkeyPatch) -> str:
     for module in MODULES:
         fresh.add(module)
     register_problems("ends-its-process", Exits(), time=[1, 2, 3])
+    register_problems("unpicklable", Exits(), time=[1, 2, 3])
     return "ends-its-process"
+
+
+def test_check_of_a_module_whose_results_do_not_pickle_prints_no_traceback(
+    ends: str, capfd: pytest.CaptureFixture[str]
+) -> None:
+    # capfd, not the cli fixture: the children write to the file descriptor, not sys.stderr
+    code = main(["check", "unpicklable", "--trials", "5", "--quiet", "--no-plugins"])
+    stdout, stderr = capfd.readouterr()
+    assert (code, stderr) == (
+        1,
+        "anytime: error: module 'unpicklable' fails 1 of 6 checks: errors\n",
+    )
+    assert (
+        "  FAIL  errors        what its process answered does not pickle: AttributeError: Can't"
+        " pickle local object 'unpicklable.<locals>.<lambda>' (allocation 1, trial 0); 18 of 20"
+        " runs failed\n"
+    ) in stdout
 
 
 def test_a_worker_ended_by_a_trial_not_isolated_is_one_line(
