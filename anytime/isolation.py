@@ -95,7 +95,7 @@ class Limits:
     cpu: float | None = field(default=None, validator=_limit("cpu"))
 
 
-class Unsent(Exception):
+class Unsent(IsolationError):
     """A child's message did not pickle; sent in its place (and raised in the child), so that
     its end is reported so (`Child.unsent`), without a traceback on the caller's stderr."""
 

@@ -24,11 +24,19 @@ import os
 import signal
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from typing import Any, TypeVar
 
+from anytime.errors import AnytimeError
 from anytime.isolation import die_with_parent
 
-__all__ = ["spread"]
+__all__ = ["WorkerDied", "spread"]
+
+
+class WorkerDied(AnytimeError):
+    """A local worker process died while it ran a task (a task that ends its process takes its
+    worker with it): the pool is broken, and the tasks that had not come back are lost."""
+
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -90,6 +98,11 @@ def spread(
         futures = [pool.submit(function, task) for task in tasks]
         for future in as_completed(futures):
             yield future.result()
+    except BrokenProcessPool:  # a user's failure (a task's crash), not a bug: one line
+        raise WorkerDied(
+            "a worker process died: a task ended the process it ran in; the tasks that had not"
+            " finished are lost"
+        ) from None
     except (KeyboardInterrupt, GeneratorExit):
         if own is not None:  # stop the running tasks now rather than wait for them
             processes = list((own._processes or {}).values())

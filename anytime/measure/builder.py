@@ -53,7 +53,6 @@ import secrets
 import time as _time
 from collections.abc import Iterator, Mapping, Sequence
 from concurrent.futures import Executor
-from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 from typing import Any, Literal
 
@@ -67,7 +66,7 @@ from anytime.measure.chunks import measure_chunk, measure_chunks
 from anytime.measure.progress import ProgressBar
 from anytime.measure.trials import CLOCKS, Chunk, ClockName, Done
 from anytime.modules import AnytimeModule
-from anytime.pool import spread
+from anytime.pool import WorkerDied, spread
 from anytime.problems import (
     BuildError,
     Grid,
@@ -530,7 +529,7 @@ def _run(chunks: list[Chunk], executor: Executor | None, workers: int) -> Iterat
         return
     try:
         yield from spread(measure_chunk, chunks, executor=executor, workers=workers)
-    except BrokenProcessPool:  # a trial ended its worker: the trials measured are lost with it
+    except WorkerDied:  # a trial ended its worker: the trials measured are lost with it
         raise BuildError(
             "a worker process died: a trial ended the process it ran in (trials not isolated"
             " take their worker with them; isolated, it is a failed trial); no profile was made"
