@@ -156,7 +156,7 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "--to",
         choices=["seconds", "ticks"],
         default=None,  # None: not given, so that --to without --profile can be refused
-        help="the unit to convert the profile's time axis to (seconds)",
+        help="the unit to convert --profile's time axis to (seconds; only with --profile)",
     )
     calibrate_.add_argument(
         "-o", "--output", metavar="OUT", help="where to write the converted profile"

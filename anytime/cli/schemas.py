@@ -136,8 +136,8 @@ def compile_options(
         "--resolution",
         type=positive_float,
         metavar="DT",
-        help=f"allocations are multiples of DT (default: {resolution_text}; at most"
-        f" {MAX_LATTICE_POINTS:,} multiples up to the largest total)",
+        help=f"allocations are multiples of DT (default: {resolution_text}; at most the"
+        f" largest total, with at most {MAX_LATTICE_POINTS:,} multiples up to it)",
     )
     parser.add_argument(
         "--input-quality",
