@@ -193,6 +193,9 @@ class Child:
         after `grace` seconds; reap the child. Safe to call more than once."""
         if self._reaped:
             return
+        exiting = time.monotonic() + 0.02  # one that has answered ends its escaped itself
+        while not self._exited() and time.monotonic() < exiting:  # (no /proc scan, 3 ms)
+            self._wait_exit(max(0.0, exiting - time.monotonic()) if self._pidfd else 0.001)
         if not self._exited():  # its orphans are re-parented to it only while it lives
             with suppress(OSError):
                 os.kill(self.pid, signal.SIGSTOP)  # so that it starts none meanwhile
@@ -400,11 +403,9 @@ def _descendants(pid: int) -> dict[int, ProcessInfo]:
 
 
 def end_escaped(pid: int) -> None:
-    """Kill the live descendants of `pid` (a `Child`) that left its process group (setsid,
-    setpgid), which the group's signals would not reach. Each is stopped when found and the
-    tree is walked again until it shows none new (one forked meanwhile is in the next walk);
-    those outside the group are then killed, the rest continued (the group is ended as a
-    group). Orphans are found while `pid` lives: they are re-parented to it (a subreaper)."""
+    """Kill the live descendants of `pid` (a `Child`, their subreaper while it lives) outside
+    its process group (setsid), which the group's signals miss. All are stopped, walk by walk
+    until none is new (one forked meanwhile is in the next); then those killed, the rest go on."""
     stopped: set[int] = set()
     for _ in range(100):  # a fork bomb's new processes are stopped walk by walk
         found = _descendants(pid).values()
