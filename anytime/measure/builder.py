@@ -534,3 +534,12 @@ def _run(chunks: list[Chunk], executor: Executor | None, workers: int) -> Iterat
             "a worker process died: a trial ended the process it ran in (trials not isolated"
             " take their worker with them; isolated, it is a failed trial); no profile was made"
         ) from None
+    except ImportError as error:  # raised where an executor's worker unpickled a chunk
+        if executor is None:
+            raise
+        module = chunks[0].module.name if chunks else "the module"
+        raise BuildError(
+            f"the executor's workers cannot import what the trials of '{module}' need"
+            f" ({type(error).__name__}: {error}): install its package where the workers run"
+            " (a module defined in a script or notebook does not travel); no profile was made"
+        ) from None
