@@ -240,6 +240,8 @@ def drive(
         return failure(exc)
     except KeyboardInterrupt as exc:
         return interrupted(exc)
+    except BaseException as exc:  # any other the module raised: a failed run
+        return failure(exc)
     if watcher is not None and watcher.error is not None:
         return watcher.failure(watcher.error)
     if value is None:  # a contract's way of saying it has no result
@@ -282,6 +284,8 @@ def _interruptible(
         return failure(exc)
     except KeyboardInterrupt as exc:
         return interrupted(exc)
+    except BaseException as exc:  # any other the module raised: a failed run
+        return failure(exc)
     # Read once: this loop runs once per registered result and should cost little. In soft
     # mode the best result is kept in locals and handed to the slot when the run ends; in hard
     # mode every result is published at once, for the caller to take at the deadline.
@@ -310,6 +314,8 @@ def _interruptible(
                 return failure(exc)
             except KeyboardInterrupt as exc:
                 return interrupted(exc)
+            except BaseException as exc:  # any other the module raised: a failed run
+                return failure(exc)
             if stop.is_set():
                 return Outcome(Status.INTERRUPTED)
             elapsed = clock.now() - start

@@ -42,6 +42,21 @@ def ticks(ctx: Context, work: float) -> Iterator[Result]:
     yield from _after_one_result(ctx, work)
 
 
+class Escape(BaseException):
+    """A BaseException of the module's own (neither an Exception nor SystemExit)."""
+
+
+@interruptible("escapes", registry=MODULES)
+def escapes(ctx: Context) -> Iterator[Result]:
+    yield from _after_one_result(ctx, Escape("out"))
+
+
+@contract("contract-escapes", registry=MODULES)
+def contract_escapes(ctx: Context) -> Result:
+    ctx.tick(1)
+    raise Escape("out")
+
+
 @contract("contract-exits", registry=MODULES)
 def contract_exits(ctx: Context) -> Result:
     ctx.tick(1)
@@ -79,6 +94,21 @@ def test_sys_exit_in_a_module_is_a_failed_run_with_its_best_result(hard: bool, c
     assert record.traceback is not None and "SystemExit: 3" in record.traceback
     record = _run("contract-exits", hard, clock)
     assert (record.status, record.result, record.error) == (Status.FAILED, None, "SystemExit: bye")
+
+
+@pytest.mark.parametrize(("hard", "clock"), MODES)
+def test_any_other_base_exception_is_a_failed_run_with_its_best_result(
+    hard: bool, clock: type
+) -> None:
+    """Neither the caller's Ctrl-C nor an exit: the module's own failure, its best result kept,
+    the caller untouched."""
+    record = _run("escapes", hard, clock)
+    error = f"{__name__}.Escape: out"
+    assert (record.status, record.result, record.error) == (
+        Status.FAILED, Result("first", 0.4), error,
+    )  # fmt: skip
+    record = _run("contract-escapes", hard, clock)
+    assert (record.status, record.result, record.error) == (Status.FAILED, None, error)
 
 
 @pytest.mark.parametrize(("hard", "clock"), MODES)
