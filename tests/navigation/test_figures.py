@@ -124,3 +124,48 @@ def test_plot_refinement_needs_results(tmp_path: Path) -> None:
         plot_refinement(blocked, [Result(None, 0.0)], tmp_path / "x.png", stages=0)
     with pytest.raises(ValueError, match="result 0 is not a plan"):
         plot_refinement(blocked, [Result(None, 0.0)], tmp_path / "x.png")
+
+
+def test_a_frame_picture_has_one_key_for_what_both_views_draw(tmp_path: Path) -> None:
+    """Every encoding of a frame's picture is in its key (plan levels, the abstract plan, the
+    route, start, goal, sensor window, robot, moving obstacles), and the frame is numbered the
+    same way everywhere (its title says 'frame 2 of N', no view says 'frame 1')."""
+    from anytime_navigation.obstacles.moving import random_obstacles
+    from anytime_navigation.task.frame_figures import write_frames
+    from anytime_navigation.task.frame_program import navigation_program
+    from anytime_navigation.task.frames import run_task
+    from anytime_navigation.task.model import NavigationTask
+    from anytime_navigation.world import random_world
+    from matplotlib.figure import Figure
+
+    from anytime.runtime.monitor import DeadlineValue
+
+    task = NavigationTask(random_world(32, seed=0), radius=8, value=DeadlineValue(1000, 1500, 1))
+    compiled, trace = navigation_program()
+    obstacles = random_obstacles(task.world, 2, seed=0)
+    report = run_task(task, compiled, trace, obstacles=obstacles)
+    seen: list[tuple[str, list[str], list[str]]] = []
+    original = Figure.savefig
+
+    def keep(figure: Figure, *args: object, **kwargs: object) -> None:
+        labels = [t.get_text() for legend in figure.legends for t in legend.get_texts()]
+        titles = [ax.get_title() for ax in figure.axes]
+        seen.append((figure.get_suptitle(), labels, titles))
+        original(figure, *args, **kwargs)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(Figure, "savefig", keep)
+        write_frames(report, task, tmp_path)
+    title, labels, titles = seen[1]
+    assert title.startswith(f"monitored policy: frame 2 of {report.frames} (")
+    assert not any("frame 1" in t for t in titles)
+    assert {
+        "abstract plan",
+        "executed route",
+        "start",
+        "goal",
+        "sensor window",
+        "robot now",
+    } <= set(labels)
+    assert any(label.startswith("plan at level 0") for label in labels)
+    assert any(label.startswith("moving obstacle") for label in labels)

@@ -58,6 +58,32 @@ def _draw_obstacles(axes: Any, frame: Any) -> None:
         )
 
 
+def _key(planned: list[Any], walked: list[Any], frame: Any) -> list[Any]:
+    """One key for both views: what `draw_plan` drew in each (once per label), the sensor
+    window, the robot, and, where there are any, the moving obstacles and the alternatives
+    chosen to overcome them."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    handles: dict[str, Any] = {}
+    for handle in [*planned, *walked]:
+        handles.setdefault(handle.get_label(), handle)
+    window = Patch(fill=False, edgecolor="tab:orange", lw=2, label="sensor window")
+    handles["sensor window"] = window
+    handles["robot"] = Line2D(
+        [], [], marker="o", color="tab:red", mec="black", ls="none", label="robot now"
+    )
+    if frame.obstacles:
+        handles["obstacle"] = Line2D(
+            [], [], marker="s", color=OBSTACLE_COLOUR, ls="none",
+            label="moving obstacle (arrow: 60 ticks of its motion)",
+        )  # fmt: skip
+    for name, _ in frame.choices:
+        colour = CHOICE_COLOURS.get(name, "magenta")
+        handles[name] = Line2D([], [], color=colour, lw=2.5, label=name)
+    return list(handles.values())
+
+
 def write_frames(
     report: TaskReport,
     task: NavigationTask,
@@ -82,22 +108,22 @@ def write_frames(
     truth = np.asarray(task.world.blocked, dtype=bool)
     written: list[str] = []
     for frame in report.records:
-        figure = new_figure(11, 5.8)
+        figure = new_figure(11, 6.6)
         left, right = figure.subplots(1, 2)
-        draw_plan(left, frame.known, frame.plan, legend=False)
+        planned = draw_plan(left, frame.known, frame.plan, legend=False)
         x0, y0, x1, y1 = frame.window
         left.add_patch(
             Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, ec="tab:orange", lw=2, zorder=5)
         )
         left.set_title(
-            f"planning frame {frame.index}: contract {frame.contract:.0f}, "
+            f"planning: contract {frame.contract:.0f}, "
             f"frame {frame.frame_time:.0f} ticks\n"
             f"plan quality {frame.plan_quality:.2f} (expected {frame.expected_quality:.2f}); "
             f"sensing {frame.sensing_time:.0f} ticks, quality {frame.sensing_quality:.3f}",
             fontsize=9,
         )
         upto = [c for f in report.records[: frame.index + 1] for c in f.route]
-        draw_plan(right, truth, None, route=upto, goal=task.world.goal, legend=False)
+        walked = draw_plan(right, truth, None, route=upto, goal=task.world.goal, legend=False)
         here = frame.route[-1]
         right.plot(here[0] + 0.5, here[1] + 0.5, "o", color="tab:red", mec="black", zorder=6)
         _draw_obstacles(right, frame)
@@ -114,10 +140,16 @@ def write_frames(
             fontsize=9,
         )
         figure.suptitle(
-            f"{report.policy}: frame {frame.index + 1} of {report.frames}; left: the robot's map,"
-            " sensor window (orange) and plan (squares by level); right: the true map, the route"
-            " so far and the robot (red)",
+            f"{report.policy} policy: frame {frame.index + 1} of {report.frames} (left: the"
+            " robot's map as it plans; right: the true map as it executes)",
             fontsize=10,
+        )
+        figure.legend(
+            handles=_key(planned, walked, frame),
+            loc="outside lower center",
+            ncol=4,
+            fontsize=8,
+            frameon=False,
         )
         path = out / f"frame-{frame.index:03d}.png"
         save_figure(figure, path)
