@@ -4,8 +4,10 @@ profile, read when first needed, with its dynamic profile and its steps."""
 from __future__ import annotations
 
 import inspect
+import warnings
 from pathlib import Path
 
+import numpy as np
 from attrs import field, frozen
 
 from anytime.errors import AnytimeError, ProfileError
@@ -146,6 +148,15 @@ class LibraryEntry:
             raise ProfileError(
                 f"{path}: inputs: expected the module's inputs {list(self.inputs)}, got {given}"
             )
+        stale = _other_build(dynamic, self.profile)
+        if stale:  # measured apart: it describes some other run of the module than the profile
+            warnings.warn(
+                f"{path}: not from the build that measured {self.profile_file} (they differ"
+                f" in their {stale}); measure both again with `anytime profile {self.name}"
+                " --dynamic`",
+                StaleProfileWarning,
+                stacklevel=2,
+            )
         return dynamic
 
     @property
@@ -224,3 +235,25 @@ def _arity(module: AnytimeModule) -> int | None:
         if parameter.name in module.parameters and parameter.default is not parameter.empty:
             return None
     return module.arity
+
+
+class StaleProfileWarning(UserWarning):
+    """A dynamic profile that is not from the build that measured the profile beside it."""
+
+
+def _other_build(dynamic: DynamicProfile, profile: ConditionalPerformanceProfile | None) -> str:
+    """What tells a dynamic profile from another build than the profile's ('' if nothing
+    does): `anytime profile --dynamic` writes both from one build, on one grid; a profile
+    measured again on another grid leaves the old dynamic profile beside it. (File times cannot
+    tell: a checkout or a wheel sets them as it likes; the number of trials may differ on
+    purpose.)"""
+    if profile is None:
+        return ""
+    differ = []
+    if not np.array_equal(dynamic.time, profile.time):
+        differ.append("time grid")
+    if len(dynamic.input_grids) != len(profile.input_grids) or not all(
+        np.array_equal(a, b) for a, b in zip(dynamic.input_grids, profile.input_grids, strict=False)
+    ):
+        differ.append("input-quality grids")
+    return " and ".join(differ)

@@ -349,3 +349,33 @@ def test_library_list_shows_plugin_modules(cli: Cli, toy_plugins: list[Any]) -> 
         "toy-count   interruptible  data    2 input grid pts x 4 times x 4 bins, ticks"
         "  plugin 'toy' (toy_anytime_plugin)",
     ]
+
+
+def test_a_dynamic_profile_from_another_build_is_said_not_used_silently(
+    cli: Cli, registry: Registry
+) -> None:
+    """A profile measured again on another grid leaves the old dynamic profile beside it: the
+    library warns (one line on the command line), naming both files and what differs."""
+    import numpy as np
+
+    from anytime.profiles import DynamicProfile, QualityTraces, save_dynamic_profile
+
+    save_profile(
+        tabulate(Exponential(0.1), time=range(0, 100, 10), module="vision"),
+        "profiles/vision.yaml",
+    )
+    time = np.arange(0.0, 50.0, 10.0)  # the old build's grid
+    quality = np.minimum(np.cumsum(np.full((20, len(time)), 0.2), axis=1), 1.0)
+    traces = QualityTraces(
+        module="vision", time=time, quality=quality, scored=np.ones(quality.shape, bool)
+    )
+    save_dynamic_profile(
+        DynamicProfile.from_traces(traces, states=3), "profiles/vision.dynamic.yaml"
+    )
+    code, out, err = cli("library", "show", "vision", "--profiles", "profiles")
+    assert code == 0 and "dynamic profile:" in out
+    assert err == (
+        "anytime: warning: profiles/vision.dynamic.yaml: not from the build that measured"
+        " profiles/vision.yaml (they differ in their time grid); measure both again with"
+        " `anytime profile vision --dynamic`\n"
+    )

@@ -99,9 +99,11 @@ def _exception_classes() -> list[type[BaseException]]:
 #: planner's deadline, caught where it is raised), the evaluator finding a DAG's joint outcomes
 #: too many to enumerate (caught in `Evaluator.evaluate`, which samples them instead), and the
 #: KeyboardInterrupts of a user's stop (SIGTERM to the command; an interrupted run carrying its
-#: record to the caller); and a warning (a compiled program asked beyond its table).
+#: record to the caller); and warnings (a compiled program asked beyond its table, a dynamic
+#: profile from another build than its profile).
 SIGNALS = {
     "anytime.compiler.result.BeyondTableWarning",
+    "anytime.entries.StaleProfileWarning",
     "anytime_navigation.planning.search.SearchLimit",
     "anytime.compiler.evaluate._Sample",
     "anytime.launch.Terminated",

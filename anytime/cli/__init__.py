@@ -19,8 +19,9 @@ import os
 import re
 import sys
 import threading
+import warnings
 from collections.abc import Callable, Sequence
-from typing import NoReturn
+from typing import NoReturn, TextIO
 
 from anytime import __version__
 from anytime.cli import library, measure, plot, schemas, verify
@@ -50,8 +51,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     atomically, so it leaves no half-written output. Usage errors (argparse's and `UsageError`)
     exit 2.
     """
-    with sigterm_interrupts():
+    with sigterm_interrupts(), warnings.catch_warnings():
+        warnings.showwarning = _warning_line
         return _main(argv)
+
+
+def _warning_line(
+    message: Warning | str,
+    category: type[Warning],
+    filename: str,
+    lineno: int,
+    file: TextIO | None = None,
+    line: str | None = None,
+) -> None:
+    """A warning as one line, as the commands' own warnings are (no file, line or source)."""
+    print(f"anytime: warning: {message}", file=sys.stderr)
 
 
 def _main(argv: Sequence[str] | None) -> int:
