@@ -70,6 +70,7 @@ sys.path.insert(0, str(ROOT / "tests" / "plugins" / "estimation_plugin"))  # the
 sys.path.insert(0, str(ROOT / "tests" / "compiler"))  # the shared-map profiles
 
 import anytime_estimation as estimation  # noqa: E402
+from bench_promises import fresh_tanks  # noqa: E402
 from test_shared_results import TOTALS, joined, planner, sensed_map  # noqa: E402
 
 SEED_BASE = 30_000  # instances apart from the profiles' and the promise benchmark's
@@ -82,21 +83,7 @@ def tanks(compiled: CompiledProgram, j: int, i: int) -> tuple[list[Any], Callabl
     """A fresh tank (two for two-tank-side; labelled, readable or not, for
     labelled-tank-side), scored against its true side."""
     rng = np.random.default_rng([SEED_BASE, len(compiled.name), j, i])
-
-    def tank(labelled: bool = False) -> estimation.Tank:
-        volume = float(rng.uniform(*estimation.VOLUMES))
-        seed = int(rng.integers(2**32))
-        if not labelled:
-            return estimation.Tank(volume, seed)
-        readable = bool(rng.random() < estimation.READABLE)
-        return estimation.Tank(volume, seed, label=volume, label_readable=readable)
-
-    if compiled.name == "two-tank-side":
-        made = [tank(), tank()]
-        truth = (made[0].volume + made[1].volume) ** (1 / 3)
-    else:
-        made = [tank(labelled=compiled.name == "labelled-tank-side")]
-        truth = made[0].volume ** (1 / 3)
+    made, truth = fresh_tanks(compiled.name, rng)
     return made, lambda value: estimation.quality(value, truth)
 
 

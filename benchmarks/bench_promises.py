@@ -83,12 +83,9 @@ def survey_trial(
     return quality(value, math.sqrt(area)), record.time_used, value is None
 
 
-def estimation_trial(
-    compiled: CompiledProgram, j: int, i: int, total: float
-) -> tuple[float, float, bool]:
-    """A fresh tank (two for two-tank-side; labelled for labelled-tank-side, whose best-of the
-    compiler expects with both preconditions holding), scored against its true side."""
-    rng = np.random.default_rng([SEED_BASE, len(compiled.name), j, i])
+def fresh_tanks(schema: str, rng: np.random.Generator) -> tuple[list[estimation.Tank], float]:
+    """The test plugin's inputs for one run of `schema` (two tanks for two-tank-side; one
+    labelled, readable or not, for labelled-tank-side; else one) and the true side."""
 
     def tank(labelled: bool = False) -> estimation.Tank:
         volume = float(rng.uniform(*estimation.VOLUMES))
@@ -98,12 +95,20 @@ def estimation_trial(
         readable = bool(rng.random() < estimation.READABLE)
         return estimation.Tank(volume, seed, label=volume, label_readable=readable)
 
-    if compiled.name == "two-tank-side":
+    if schema == "two-tank-side":
         tanks = [tank(), tank()]
-        truth = (tanks[0].volume + tanks[1].volume) ** (1 / 3)
-    else:
-        tanks = [tank(labelled=compiled.name == "labelled-tank-side")]
-        truth = tanks[0].volume ** (1 / 3)
+        return tanks, (tanks[0].volume + tanks[1].volume) ** (1 / 3)
+    one = tank(labelled=schema == "labelled-tank-side")
+    return [one], one.volume ** (1 / 3)
+
+
+def estimation_trial(
+    compiled: CompiledProgram, j: int, i: int, total: float
+) -> tuple[float, float, bool]:
+    """A fresh tank (two for two-tank-side; labelled for labelled-tank-side, whose best-of the
+    compiler expects with both preconditions holding), scored against its true side."""
+    rng = np.random.default_rng([SEED_BASE, len(compiled.name), j, i])
+    tanks, truth = fresh_tanks(compiled.name, rng)
     record = run_program(compiled, tanks, Budget(total, clock=WorkClock()))
     value = record.result.value if record.result is not None else None
     return estimation.quality(value, truth), record.time_used, value is None

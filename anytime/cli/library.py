@@ -14,6 +14,7 @@ from anytime.cli.common import (
     format_table,
     json_text,
     library_options,
+    non_negative_int,
     open_library,
 )
 from anytime.errors import ProfileError
@@ -54,7 +55,7 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     show.add_argument("--json", action="store_true", help="print JSON")
     show.add_argument(
         "--times",
-        type=time_columns,
+        type=non_negative_int,
         default=SHOWN_TIMES,
         metavar="N",
         help=f"the tables show N times spread over the profile's grid, both ends included"
@@ -309,17 +310,6 @@ def _axis_names(profile: ConditionalPerformanceProfile) -> list[str]:
 
 #: At most this many time columns in `library show`.
 SHOWN_TIMES = 6
-
-
-def time_columns(text: str) -> int:
-    """The --times option: a whole number >= 0."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {value}")
-    return value
 
 
 def _thinned(shown: int, of: int) -> str:

@@ -15,6 +15,7 @@ from anytime.cli.common import (
     check_lattice,
     json_text,
     library_options,
+    non_negative_int,
     open_library,
     positive_float,
     quality_list,
@@ -85,7 +86,7 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     compile_.add_argument("--json", action="store_true", help="print the report as JSON")
     compile_.add_argument(
         "--rows",
-        type=row_count,
+        type=non_negative_int,
         default=MAX_ROWS,
         metavar="N",
         help=f"the table shows N totals spread over the time grid, both ends included (default:"
@@ -193,17 +194,6 @@ def memory_size(text: str) -> int:
         return memory_bytes(text)
     except CompileError as error:
         raise argparse.ArgumentTypeError(str(error).removeprefix("memory: ")) from None
-
-
-def row_count(text: str) -> int:
-    """The --rows option: a whole number >= 0."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {value}")
-    return value
 
 
 def totals(text: str) -> tuple[float, ...]:
