@@ -37,6 +37,14 @@ PACKAGES = [
         " declaration. A plugin imports nothing else of the framework.",
     ),
     (
+        "anytime.plugin.solvers",
+        "plugin-solvers.md",
+        "anytime.plugin.solvers",
+        "External solvers as anytime modules (an opt-in submodule of the plugin API): a solver"
+        " that runs for a limit of its own work and resumes, or one that calls back on each"
+        " improvement.",
+    ),
+    (
         "anytime.runtime",
         "runtime.md",
         "anytime.runtime",

@@ -23,7 +23,10 @@ the framework is internal and may change between releases:
 - `anytime.plugin.figures`: figures (`new_figure`, `save_figure`, `require_matplotlib`);
 - `anytime.plugin.compose`: what a plugin that composes and runs programs of its own needs
   beyond `anytime` (deadlines from critical events, the monitor and its models, the event log,
-  the compiler's default time grid, analytic profiles).
+  the compiler's default time grid, analytic profiles);
+- `anytime.plugin.solvers`: external solvers as anytime modules (`resume` for a solver that
+  runs for a limit of its own work and resumes, `Resumable`; `on_improvement` for one that calls
+  back on each improvement, `Report`).
 
 Importing this package imports none of those submodules, nor the command line, nor (until
 `critical_event` or `CriticalEvent` is first used) the runtime.
