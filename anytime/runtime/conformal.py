@@ -28,17 +28,24 @@ improvement, then the same windows at any, at last every trace that reached the 
 guarantee then holds for the pooled condition, not the exact state, which is what
 `Decision.reason` says (how many traces the bound rests on, and where they were). The held-out
 tests measure the coverage.
+
+That promise is on average over draws of the calibration traces. With `delta`, the rank k is the
+least with P(Binomial(n, 1 - alpha) >= k) <= delta (training-conditional conformal, Vovk 2012):
+then, with probability 1 - delta over the calibration traces, each bound covers a fresh run's
+gain with probability at least 1 - alpha.
 """
 
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 from attrs import field, frozen
 from numpy.typing import NDArray
+from scipy.stats import binom
 
 from anytime.profiles.dynamic import Observed, QualityTraces, quantile_bins
 from anytime.profiles.profile import Array
@@ -99,6 +106,11 @@ class ConformalStopping:
         stride: look at every `stride`-th grid time (and at the last one within the allocation).
         input_quality: for traces over input-quality cells, the input qualities to calibrate
             at (the nearest grid cell).
+        delta: make each bound hold for the calibration traces at hand, not only on average
+            over draws of them: with probability at least 1 - delta over the calibration
+            traces, a bound's own miss rate is at most alpha (training-conditional, or PAC,
+            conformal; its rank is a binomial quantile, so it needs more traces and stops
+            later). None (default): the marginal guarantee.
     """
 
     name = "conformal"
@@ -115,6 +127,7 @@ class ConformalStopping:
         min_traces: int = DEFAULT_MIN_TRACES,
         stride: int = 1,
         input_quality: Sequence[float] = (),
+        delta: float | None = None,
     ) -> None:
         if not isinstance(calibration, QualityTraces):
             raise PolicyError(
@@ -125,6 +138,9 @@ class ConformalStopping:
         self.alpha = _number(self.name, "alpha", alpha)
         if not 0 < self.alpha < 1:
             raise PolicyError(f"{self.name}: alpha must be in (0, 1), got {alpha!r}")
+        self.delta = None if delta is None else _number(self.name, "delta", delta)
+        if self.delta is not None and not 0 < self.delta < 1:
+            raise PolicyError(f"{self.name}: delta must be in (0, 1) or None, got {delta!r}")
         if not (isinstance(stride, int) and stride >= 1):
             raise PolicyError(f"{self.name}: stride must be an integer >= 1, got {stride!r}")
         if not (isinstance(min_traces, int) and min_traces >= 1):
@@ -152,6 +168,8 @@ class ConformalStopping:
             raise PolicyError(
                 f"{self.name}: stalled must be increasing times > 0, got {list(stalled)!r}"
             )
+        self._times, self._edges = self.time.tolist(), self.bins.tolist()
+        self._stall_edges = self.stalled.tolist()
         self._tables: dict[int, ConformalTable] = {}
         self.allocation = math.inf
         self.last = len(self.time) - 1
@@ -170,20 +188,22 @@ class ConformalStopping:
         return Decision.later(self.time[0], self.time[self.last], self._schedule())
 
     def observe(self, time: float, quality: float | None) -> Decision:
+        # Scalar lookups on lists (bisect): a look is a few microseconds, not a numpy call's tens.
         q = 0.0 if quality is None or self.observed == "none" else float(quality)
-        j = int(
-            np.clip(np.searchsorted(self.time, time * (1 + 1e-12), side="right") - 1, 0, self.last)
-        )
+        j = min(max(bisect_right(self._times, time * (1 + 1e-12)) - 1, 0), self.last)
         if q > self._best:
-            self._best, self._improved = q, float(self.time[j])
+            self._best, self._improved = q, self._times[j]
         if j >= self.last:
             return Decision.now("the last grid time within the allocation")
         table = self.table(self.allocation)
-        b, s = self._state(np.array([q]), np.array([float(self.time[j]) - self._improved]))
-        bound = float(table.bound[j, b[0], s[0]])
-        n, level = int(table.traces[j, b[0], s[0]]), int(table.level[j, b[0], s[0]])
+        b = min(max(bisect_right(self._edges, q) - 1, 0), len(self._edges) - 2)
+        s = bisect_right(self._stall_edges, self._times[j] - self._improved + 1e-9)
+        bound = float(table.bound[j, b, s])
+        n, level = int(table.traces[j, b, s]), int(table.level[j, b, s])
         where = self._where(level)
         risk = f"{1 - self.alpha:.3g}"
+        if self.delta is not None:
+            risk += f" (with probability {1 - self.delta:.3g} over calibrations)"
         if bound < self.epsilon:
             return Decision.now(
                 f"gain bound {bound:.4g} < {self.epsilon:g} at {risk}, on {n} traces ({where})"
@@ -287,11 +307,23 @@ class ConformalStopping:
         stall = np.where(chosen < k_bins, np.arange(s_bins)[None, :], s_bins)
         picked = edges[:, hi[width, bins], stall] - edges[:, lo[width, bins], stall]
         count = picked[-1]
-        rank = np.ceil((count + 1) * (1 - self.alpha) - 1e-9).astype(np.intp)
+        rank = self._rank(count)
         finite = (rank <= count) & (count > 0)
         position = (picked >= np.maximum(rank, 1)[None]).argmax(axis=0) - 1
         bound = np.where(finite, sorted_gain[np.clip(position, 0, n - 1)], np.inf)
         return bound, count, chosen
+
+    def _rank(self, count: NDArray[np.intp]) -> NDArray[np.intp]:
+        """The rank of each bound among its `count` scores (> count: no bound)."""
+        if self.delta is None:  # the conformal quantile: marginal coverage 1 - alpha
+            rank = np.ceil((count + 1) * (1 - self.alpha) - 1e-9)
+        else:
+            # The k-th smallest of n scores covers a fresh one with probability C ~ Beta(k,
+            # n - k + 1), and P(C < 1 - alpha) = P(Binomial(n, 1 - alpha) >= k): the least k
+            # where that is at most delta.
+            rank = binom.ppf(1 - self.delta, count, 1 - self.alpha) + 1
+        ranks: NDArray[np.intp] = np.asarray(rank).astype(np.intp)
+        return ranks
 
     # --- helpers ---------------------------------------------------------------------------
 
