@@ -17,7 +17,18 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import minimize, rosen
 
-from anytime import Budget, Hard, Result, Soft, Status, WorkClock, interruptible, run
+from anytime import (
+    Budget,
+    Hard,
+    Isolated,
+    Result,
+    Soft,
+    Status,
+    WallClock,
+    WorkClock,
+    interruptible,
+    run,
+)
 from anytime.plugin import Context
 from anytime.plugin.solvers import Report, Resumable, on_improvement, resume
 
@@ -344,18 +355,21 @@ def test_check_stops_a_solver_that_stops_only_when_its_callback_raises() -> None
     assert log == ["raised at 3"] and ctx.ticks == 4
 
 
-def test_a_solver_that_ignores_the_answer_to_stop_is_stopped_at_its_next_callback() -> None:
-    calls = 0
+def test_a_solver_told_to_stop_that_calls_back_again_is_answered_at_once() -> None:
+    answers: list[bool] = []
 
     def deaf(report: Report) -> None:
-        nonlocal calls
-        for i in range(100):
-            calls += 1
-            report(Result(i, i / 100))  # its answer ignored
+        for i in range(10):
+            answers.append(report(Result(i, i / 100)))  # its answer ignored
 
     ctx = Context(allocation=2)
-    assert drain(on_improvement(ctx, deaf)) == [0, 0.01]
-    assert calls == 3 and ctx.ticks == 2  # the third callback raised, and was not counted
+    assert drain(on_improvement(ctx, deaf)) == [0, 0.01]  # nothing after the stop
+    assert answers == [False] + [True] * 9
+    assert ctx.ticks == 10  # its callbacks after the stop, counted when it returned
+    closed = on_improvement(Context(), deaf)
+    next(closed)
+    closed.close()  # answered to stop, it runs to its end: the close waits for it
+    assert answers[10:] == [True] * 10 and solver_threads() == []
 
 
 def test_a_stop_wrapped_by_the_solver_or_a_stop_iteration_after_a_stop_is_a_stop() -> None:
@@ -430,8 +444,8 @@ def climb_and_fail(ctx: Context) -> Iterator[Result]:
     yield from on_improvement(ctx, solve)
 
 
-@pytest.mark.parametrize("mode", [Soft(), Hard()], ids=["soft", "hard"])
-def test_on_improvement_as_a_module_run_under_an_allocation(mode: Soft | Hard) -> None:
+@pytest.mark.parametrize("mode", [Soft(), Hard(), Isolated()], ids=["soft", "hard", "isolated"])
+def test_on_improvement_as_a_module_run_under_an_allocation(mode: Soft | Hard | Isolated) -> None:
     record = run(climb, [100], budget=10, mode=mode)
     assert (record.status, record.quality, record.time_used) == (Status.INTERRUPTED, 0.1, 10)
     done = run(climb, [100], budget=1000, mode=mode)
@@ -535,3 +549,17 @@ def test_an_error_in_the_objective_is_the_modules_failure() -> None:
     record = run(failing)
     assert record.status is Status.FAILED
     assert record.error == "test_solvers.SolverError: the model is undefined there"
+
+
+def test_on_a_wall_clock_the_slices_are_whole_steps_until_the_time_is_up() -> None:
+    class Slow(Scripted):
+        def advance(self, limit: float) -> float:
+            time.sleep(0.01)
+            return super().advance(limit)
+
+    solver = Slow([(100, i / 100) for i in range(100)])
+    ctx = Context(allocation=0.05, clock=WallClock())
+    assert len(drain(resume(ctx, solver, step=100))) == len(solver.limits)
+    assert set(solver.limits) == {100}
+    assert 1 <= len(solver.limits) <= 6  # each takes 10 ms or more; it stops past 50 ms
+    assert ctx.ticks == 100 * len(solver.limits)

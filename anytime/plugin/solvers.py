@@ -87,9 +87,12 @@ def resume(ctx: Context, solver: Resumable, *, step: float) -> Generator[Result,
 
     - What a slice spent is ticked as the solver reports it, even when that is more than its
       limit (it is the truth): the run then overshoots its allocation by that excess, and a
-      result found in that slice is registered late (the runtime decides what is late). Between
-      slices nothing runs, so `ctx.stop` set from another thread stops the solver before its
-      next slice; a module's step is at most `step` plus the solver's largest excess.
+      result found in that slice is registered late (the runtime decides what is late). Each
+      slice is limited to what remains and the module stops as soon as its context expires, so
+      a run goes past its allocation by at most the solver's largest excess over a limit: that
+      is the module's `step` to declare (0 for a solver that keeps to its limits), whatever
+      `step` the slices are. Between slices nothing runs, so `ctx.stop` set from another
+      thread stops the solver before its next slice.
     - `best()` is asked after every slice (the one that spent 0 too: a solver may finish with
       its best). It is yielded only when it is a new object of strictly higher quality than the
       last one yielded: the runtime keeps the module's last registered result as its answer, so
@@ -97,6 +100,9 @@ def resume(ctx: Context, solver: Resumable, *, step: float) -> Generator[Result,
     - A slice that spends 0 ends the module (the solver is finished); with an infinite
       allocation the solver runs until then. A solver whose unit is whole (checks, nodes) and is
       given a limit below one unit should spend one unit (an excess, ticked), not 0.
+    - On a wall clock (`ctx.clock.unit` is "seconds") the solver's units are not the clock's:
+      every slice is `step` units, the ticks move no clock, and the module stops at the first
+      slice that ends past its allocation in seconds.
 
     Raises:
         ValueError: `step` is not a finite number > 0, or `advance` returned something other
@@ -111,9 +117,10 @@ def resume(ctx: Context, solver: Resumable, *, step: float) -> Generator[Result,
     ):
         raise ValueError(f"resume: step: expected a finite number of units > 0, got {step!r}")
     name = type(solver).__name__
+    work_clock = ctx.clock.unit == "ticks"  # the solver's units are the clock's
     best: Result | None = None
     while not ctx.expired:
-        limit = min(float(step), ctx.remaining)
+        limit = min(float(step), ctx.remaining) if work_clock else float(step)
         spent = _work(solver.advance(limit), f"{name}.advance({limit:g})")
         ctx.tick(spent)
         found = _candidate(solver.best(), f"{name}.best()")
@@ -146,8 +153,14 @@ class Report:
 
     For a solver that stops only when its callback raises, call `report.check(result)`
     instead: it raises an exception of the adapter's own (which `on_improvement` catches)
-    where `report(result)` would answer True. A solver told to stop that calls back again
-    gets that exception too.
+    where `report(result)` would answer True.
+
+    Once told to stop, a solver that calls back again is answered True again at once (its
+    stop may take effect later: CP-SAT's `stop_search` is asynchronous), and `check` raises
+    again; the callback is never made to raise otherwise, since an exception raised into a
+    compiled solver's callback may end more than the search. A solver that ignores the answer
+    runs to its end (its further callbacks counted as work when it returns): the module waits
+    for it, so stop it as it provides.
     """
 
     def __init__(self) -> None:
@@ -157,6 +170,7 @@ class Report:
         self._module_thread: int | None = None
         self._told_to_stop = False
         self._ended = False
+        self._late = 0  # reports answered at once, after the answer to stop
 
     def __call__(self, result: Result | None = None) -> bool:
         """Report the solver's work so far and, if any, a result; whether to stop now."""
@@ -165,8 +179,9 @@ class Report:
                 "report(...) is for the solver's callback, while on_improvement runs `solve`"
             )
         with self._lock:
-            if self._told_to_stop or self._ended:
-                raise _Stopped  # it was told to stop, and goes on
+            if self._told_to_stop or self._ended:  # told to stop, it goes on for now
+                self._late += 1
+                return True
             self._to_module.put((_REPORT, result))
             stop = self._to_solver.get()  # the module's thread runs meanwhile, not this one
             self._told_to_stop = stop
@@ -238,7 +253,9 @@ def on_improvement(
         work: the solver's work so far, in its own unit (for example the objective's
             evaluations, counted by a wrapped objective): each report, and the solver's end,
             ticks ctx with its growth since the last. Default: each report is one unit (an
-            iteration, or a solution found).
+            iteration, or a solution found). The work is ticked at the callbacks, so a run
+            goes past its allocation by at most the work between two callbacks (from the
+            start to the first, from the last to the solver's return): the module's `step`.
 
     Why a thread: the runtime keeps only what a module's generator yields, when it yields
     (and in hard mode the tick that crosses the deadline ends the run there), so a result
@@ -271,8 +288,8 @@ def on_improvement(
         while True:
             kind, payload = report._to_module.get()
             waiting, ended = kind == _REPORT, kind != _REPORT
-            if work is None:
-                units = 1.0 if kind == _REPORT else 0.0
+            if work is None:  # one unit a report (the late ones counted at the end)
+                units = 1.0 if kind == _REPORT else float(report._late)
             else:
                 total = _work(work(), "on_improvement: work()")
                 if total < counted:
