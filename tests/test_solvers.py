@@ -19,8 +19,10 @@ from scipy.optimize import minimize, rosen
 
 from anytime import (
     Budget,
+    Decision,
     Hard,
     Isolated,
+    Observer,
     Result,
     Soft,
     Status,
@@ -40,6 +42,10 @@ def solver_threads() -> list[threading.Thread]:
 @pytest.fixture(autouse=True)
 def no_solver_thread_outlives_its_test() -> Iterator[None]:
     yield
+    # A hard run answers at its deadline and leaves its module to notice: the module's thread
+    # (and the solver's, which it stops and awaits) ends a moment later.
+    for thread in solver_threads():
+        thread.join(5)
     assert solver_threads() == []
 
 
@@ -451,6 +457,37 @@ def test_on_improvement_as_a_module_run_under_an_allocation(mode: Soft | Hard | 
     done = run(climb, [100], budget=1000, mode=mode)
     assert (done.status, done.quality, done.time_used) == (Status.COMPLETED, 1.0, 100)
     assert done.registered == 100
+
+
+class StopsAtHalf(Observer):
+    """Looks at every tick (from the module's thread: the context's clock is where looks are
+    taken) and stops the run once its answer is of quality 0.5."""
+
+    def __init__(self) -> None:
+        self.looks: list[float] = []
+        self.threads: set[int] = set()
+
+    def started(self, module: Any, args: Any, allocation: float) -> Decision:
+        return Decision.later(1, math.inf, "look at every tick")
+
+    def look(self, elapsed: float, best: Result | None) -> Decision:
+        self.looks.append(elapsed)
+        self.threads.add(threading.get_ident())
+        if best is not None and best.quality >= 0.5:
+            return Decision.now("good enough")
+        return Decision.later(elapsed + 1, math.inf, "look at the next tick")
+
+
+@pytest.mark.parametrize("mode", [Soft(), Hard()], ids=["soft", "hard"])
+def test_an_observer_that_stops_the_run_stops_the_solver(mode: Soft | Hard) -> None:
+    observer = StopsAtHalf()
+    record = run(climb, [10], budget=100, mode=mode, observer=observer)
+    assert record.status is Status.STOPPED and record.quality == 0.5
+    assert observer.looks == [1, 2, 3, 4, 5] and record.time_used == 5
+    # Looks are taken on the module's thread (this one in soft mode, the worker in hard mode),
+    # never on the solver's.
+    assert len(observer.threads) == 1
+    assert (observer.threads == {threading.get_ident()}) == isinstance(mode, Soft)
 
 
 def test_an_error_of_the_solver_is_the_modules_failure() -> None:

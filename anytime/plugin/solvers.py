@@ -105,8 +105,8 @@ def resume(ctx: Context, solver: Resumable, *, step: float) -> Generator[Result,
       slice that ends past its allocation in seconds.
 
     Raises:
-        ValueError: `step` is not a finite number > 0, or `advance` returned something other
-            than a finite number >= 0.
+        ValueError: `step` is not a finite number > 0 (when the generator starts), or
+            `advance` returned something other than a finite number >= 0.
         TypeError: `best()` returned something other than a `Result` or None.
     """
     if not (
