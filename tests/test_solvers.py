@@ -394,6 +394,17 @@ def test_a_stop_wrapped_by_the_solver_or_a_stop_iteration_after_a_stop_is_a_stop
     assert drain(on_improvement(Context(allocation=1), stop_iteration)) == [0.5]
 
 
+def test_a_stop_iteration_before_any_stop_is_an_error_that_says_so() -> None:
+    def early(report: Report) -> None:
+        report(Result(1, 0.5))
+        raise StopIteration
+
+    generator = on_improvement(Context(), early)
+    assert next(generator) == Result(1, 0.5)
+    with pytest.raises(RuntimeError, match="let a StopIteration through before it was told"):
+        next(generator)
+
+
 class SolverError(Exception):
     pass
 

@@ -133,8 +133,8 @@ def resume(ctx: Context, solver: Resumable, *, step: float) -> Generator[Result,
 
 
 class _Stopped(Exception):
-    """Raised in the solver's thread to stop a solver that stops only when its callback raises
-    (or that ignored an answer to stop); `on_improvement` catches it."""
+    """Raised by `Report.check` in the solver's thread, to stop a solver that stops only when
+    its callback raises; `on_improvement` catches it."""
 
 
 _REPORT, _RETURNED, _RAISED = "report", "returned", "raised"
@@ -301,6 +301,10 @@ def on_improvement(
             if kind == _RAISED:
                 if report._stopped_by_us(payload):
                     return
+                if isinstance(payload, StopIteration):  # a generator may not raise it as is
+                    raise RuntimeError(
+                        "the solver let a StopIteration through before it was told to stop"
+                    ) from payload
                 raise payload
             if kind == _REPORT:
                 found = _candidate(payload, "report(...)")
