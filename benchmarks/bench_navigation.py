@@ -122,6 +122,17 @@ CONFIGS: dict[str, dict[str, Any]] = {
     "segments of 8 moves": {"segment_moves": 8},
 }
 
+#: The per-kind table's ATP configurations, each a row per map beside the default, measured in
+#: the same run (issue 36 item 2: every new option of `atp` is kept only if this shows it pays):
+#: name -> keyword arguments of `atp`. `top` needs the abstraction built up to that level: each
+#: configuration's build is timed apart.
+KIND_CONFIGS: dict[str, dict[str, Any]] = {
+    "default": {},
+    "door_rings=2": {"door_rings": 2},
+    "top=4": {"top": 4},
+    "top=4, direct=4": {"top": 4, "direct": 4},
+}
+
 #: The papers' result when run to completion, and the issue's target on 512 x 512 maps.
 PAPERS = (0.93, 0.27)
 TARGET = (0.95, 0.15)
@@ -198,11 +209,18 @@ def timed(measure: Callable[[], Any]) -> tuple[float, Any]:
     return best_of(1, measure)
 
 
-def abstraction(blocked: BoolGrid, movement: int) -> tuple[Pyramid, Components]:
+def abstraction(
+    blocked: BoolGrid, movement: int, top: int | None = None
+) -> tuple[Pyramid, Components]:
     """The ATP's description of a map, built once per map: the obstacleness pyramid and the
-    connectivity-aware abstraction up to the default first-plan level."""
+    connectivity-aware abstraction up to the first-plan level `top` (default: the planner's)."""
     pyramid = Pyramid.build(blocked)
-    return pyramid, Components.build(blocked, movement, top=min(DEFAULT_TOP, pyramid.top))
+    return pyramid, Components.build(blocked, movement, top=first_level(top, pyramid))
+
+
+def first_level(top: int | None, pyramid: Pyramid) -> int:
+    """The level of the first plan `atp` makes with `top=top` on the pyramid's map."""
+    return min(DEFAULT_TOP, pyramid.top) if top is None else top
 
 
 def corner_suite(size: int, movement: int, worlds: int, repeats: int) -> Suite:
@@ -255,7 +273,7 @@ def measure_problem(
     problem: Problem,
     astar: GridAstar,
     pyramid: Pyramid,
-    components: Components,
+    components: dict[int, Components],
     movement: int,
     repeats: int,
     configs: dict[str, dict[str, Any]] = CONFIGS,
@@ -264,11 +282,11 @@ def measure_problem(
     executed: bool = True,
 ) -> tuple[Baseline, dict[str, AtpRun]]:
     """The compiled A*'s and the pure-Python A*'s best times, and each ATP configuration's run,
-    interleaved; executing a plan is given up after `budget` times the pure-Python A*'s time
-    (the budget the benchmark gave before the compiled A* was its reference). `every_plan`:
-    execute every plan registered, to count the falls of the executed quality (else the first
-    and the last only). `executed` False: no plan executed (times only; the qualities are
-    NaN)."""
+    interleaved (`components` by the level of the configuration's first plan); executing a plan
+    is given up after `budget` times the pure-Python A*'s time (the budget the benchmark gave
+    before the compiled A* was its reference). `every_plan`: execute every plan registered, to
+    count the falls of the executed quality (else the first and the last only). `executed`
+    False: no plan executed (times only; the qualities are NaN)."""
     compiled_best = python_best = math.inf
     found = None
     best: dict[str, list[float]] = {name: [math.inf, math.inf] for name in configs}
@@ -293,7 +311,7 @@ def measure_problem(
                     problem.goal,
                     pyramid,
                     movement=movement,
-                    components=components,
+                    components=components[first_level(options.get("top"), pyramid)],
                     **options,
                 )
                 return run_atp(ctx, plans)
@@ -404,13 +422,16 @@ def measure_suite(
     every_plan: bool = False,
     executed: bool = True,
 ) -> Measured:
-    described: dict[int, tuple[GridAstar, Pyramid, Components]] = {}
+    described: dict[int, tuple[GridAstar, Pyramid, dict[int, Components]]] = {}
     measured = Measured([], [], [], {name: [] for name in configs})
     for problem in suite.problems:
         key = id(problem.blocked)
         if key not in described:  # the compiled A*'s grid, like the abstraction, once per map
             astar = GridAstar(problem.blocked, movement=suite.movement, weight=0.0)
-            described[key] = (astar, *abstraction(problem.blocked, suite.movement))
+            pyramid = Pyramid.build(problem.blocked)
+            tops = {first_level(options.get("top"), pyramid) for options in configs.values()}
+            built = {top: abstraction(problem.blocked, suite.movement, top)[1] for top in tops}
+            described[key] = (astar, pyramid, built)
         astar, pyramid, components = described[key]
         baseline, runs = measure_problem(
             problem,
@@ -776,22 +797,25 @@ def random_problems(scenarios: list[Scenario], count: int) -> list[Scenario]:
 
 
 def bench_kinds(
-    count: int, repeats: int, budget: float, kinds: tuple[tuple[str, Path], ...] = KINDS
+    count: int,
+    repeats: int,
+    budget: float,
+    kinds: tuple[tuple[str, Path], ...] = KINDS,
+    configs: dict[str, dict[str, Any]] = KIND_CONFIGS,
 ) -> str:
-    """The default ATP against the compiled A* on the `count` longest problems of each map of
-    `KINDS` (every plan registered executed, to count the falls of the anytime curve) and on
-    `count` random ones, with the pure-Python A* and the peers' A*s per query where they are
-    installed; executing a plan is given up after `budget` times the pure-Python A*'s time."""
+    """The ATP's `configs` (the default first) against the compiled A* on the `count` longest
+    problems of each map of `KINDS` (every plan registered executed, to count the falls of the
+    anytime curve) and on `count` random ones, with the pure-Python A* and the peers' A*s per
+    query where they are installed (in the default's row); executing a plan is given up after
+    `budget` times the pure-Python A*'s time."""
     peer = pathfinding_finder()
-    default = {"one segment": CONFIGS["one segment"]}
+    quality_mean, quality_min, time_target = KIND_TARGET
+    first_quality, first_time = FIRST_TARGET
     rows = []
     for kind, path in kinds:
         suite = movingai_suite(path, count, repeats)
-        measured = measure_suite(suite, repeats, default, budget, every_plan=True)
-        runs = measured.runs["one segment"]
-        summary = summarise(measured.astar_times, measured.astar_expansions, runs)
+        measured = measure_suite(suite, repeats, configs, budget, every_plan=True)
         astar_total = sum(measured.astar_times)
-        with_abstraction = (sum(r.seconds for r in runs) + suite.abstraction_seconds) / astar_total
         blocked, width, height, scenarios = load_problems(path)
         short = Suite(
             suite.name,
@@ -800,12 +824,7 @@ def bench_kinds(
             True,
             0.0,
         )
-        shorts = measure_suite(short, repeats, default, budget, executed=False)  # times only
-        random_ratio = sum(r.seconds for r in shorts.runs["one segment"]) / sum(shorts.astar_times)
-        falls = sum(r.falls for r in runs)
-        steps = sum(r.refinements for r in runs)
-        unknown = sum(r.unknown_steps for r in runs)
-        fell = f"{falls}/{steps}" + (f" ({unknown} over)" if unknown else "")
+        shorts = measure_suite(short, repeats, configs, budget, executed=False)  # times only
         python = sum(measured.python_times) / astar_total
         peer_ratio = "-"
         if peer is not None:
@@ -815,42 +834,54 @@ def bench_kinds(
         for make, problems in ((networkx_query, NETWORKX_PROBLEMS), (tcod_query, count)):
             raced = race_peer(make, blocked, longest(scenarios, problems), repeats)
             others.append("-" if raced is None else f"{raced[0]:.2f} ({raced[1]}/{problems})")
-        quality_mean, quality_min, time_target = KIND_TARGET
-        first_quality, first_time = FIRST_TARGET
-        met = (
-            summary.final_mean >= quality_mean
-            and summary.final_min >= quality_min
-            and with_abstraction <= time_target
-            and summary.first_mean is not None
-            and summary.first_mean >= first_quality
-            and summary.first_time <= first_time
-            and summary.expansions <= EXPANSIONS_TARGET
-            and random_ratio <= 1.0
-            and falls == 0
-        )
-        rows.append(
-            [
-                path.stem,
-                kind,
-                str(len(runs)),
-                summary.first_quality,
-                f"{summary.first_time:.1%}",
-                f"{summary.final_mean:.3f} ({summary.final_min:.3f})",
-                f"{summary.time_mean:.1%}",
-                f"{summary.time_totals:.1%}",
-                f"{with_abstraction:.1%}",
-                f"{summary.expansions:.1%}",
-                fell,
-                f"{random_ratio:.1%}",
-                f"{python:.2f}",
-                peer_ratio,
-                *others,
-                "yes" if met else "NO",
-            ]
-        )
+        pyramid = Pyramid.build(blocked)
+        builds: dict[int, float] = {}
+        for index, (name, options) in enumerate(configs.items()):
+            top = first_level(options.get("top"), pyramid)
+            if top not in builds:  # the abstraction up to the first plan's level, once per map
+                builds[top] = best_of(repeats, partial(abstraction, blocked, 8, top))[0]
+            runs = measured.runs[name]
+            summary = summarise(measured.astar_times, measured.astar_expansions, runs)
+            with_abstraction = (sum(r.seconds for r in runs) + builds[top]) / astar_total
+            random_ratio = sum(r.seconds for r in shorts.runs[name]) / sum(shorts.astar_times)
+            falls = sum(r.falls for r in runs)
+            steps = sum(r.refinements for r in runs)
+            unknown = sum(r.unknown_steps for r in runs)
+            fell = f"{falls}/{steps}" + (f" ({unknown} over)" if unknown else "")
+            met = (
+                summary.final_mean >= quality_mean
+                and summary.final_min >= quality_min
+                and with_abstraction <= time_target
+                and summary.first_mean is not None
+                and summary.first_mean >= first_quality
+                and summary.first_time <= first_time
+                and summary.expansions <= EXPANSIONS_TARGET
+                and random_ratio <= 1.0
+                and falls == 0
+            )
+            rows.append(
+                [
+                    path.stem if index == 0 else "",
+                    kind if index == 0 else "",
+                    name,
+                    str(len(runs)),
+                    summary.first_quality,
+                    f"{summary.first_time:.1%}",
+                    f"{summary.final_mean:.3f} ({summary.final_min:.3f})",
+                    f"{summary.time_mean:.1%}",
+                    f"{summary.time_totals:.1%}",
+                    f"{with_abstraction:.1%}",
+                    f"{summary.expansions:.1%}",
+                    fell,
+                    f"{random_ratio:.1%}",
+                    *([f"{python:.2f}", peer_ratio, *others] if index == 0 else [""] * 4),
+                    "yes" if met else "NO",
+                ]
+            )
     header = [
         "map",
         "kind",
+        "ATP",
         "problems",
         "first q",
         "first plan time / A*",
@@ -877,16 +908,23 @@ def bench_kinds(
     if peer is None:
         peers = f"pathfinding: '-', {NO_PATHFINDING};\n {peers}"
     note = (
-        f"(A*: the compiled A*; the default ATP, the first plan one segment; the {count} problems\n"
-        " of the longest buckets per map, octile without corner cutting, optimal lengths from\n"
-        f" A*; A* and the ATP interleaved, each the best of {repeats} run(s); columns as in the\n"
-        f" first table, but an execution is given up after {budget:g}x the pure-Python A*'s time;\n"
-        " with abstraction: (total ATP time + building the abstraction once) / total A* time;\n"
+        f"(A*: the compiled A*; ATP: the default (the first plan one segment {DEFAULT_TOP} levels\n"
+        " up, searched again through the doors) and, below it, atp's options\n"
+        " (issue 36 item 2), each measured in the same run: door_rings=R: the door search keeps\n"
+        " to the first plan's nodes and those R edges from them; top=L: the first plan L levels\n"
+        " up, the abstraction built up to L; direct=D: a first plan of at most D nodes is\n"
+        " followed by one base search through its cells and its neighbours' instead of the\n"
+        f" refinements; the {count} problems of the longest buckets per map, octile without\n"
+        " corner cutting, optimal lengths from A*; A* and the ATP interleaved, each the best of\n"
+        f" {repeats} run(s); columns as in the first table, but an execution is given up after\n"
+        f" {budget:g}x the pure-Python A*'s time;\n"
+        " with abstraction: (total ATP time + building its abstraction once) / total A* time;\n"
         " falls: steps from a registered plan to the next whose executed quality falls / all\n"
         " such steps ('k over': steps not judged, an execution over budget);\n"
         f" {count} random: total ATP time / total A* time on {count} problems drawn at random\n"
         " from the file (seeded), mostly short;\n"
-        " pure-Python A* / A*: its total time / the compiled A*'s on the longest problems\n"
+        " pure-Python A* / A* and the peers (in the default's row): its total time / the compiled\n"
+        " A*'s on the longest problems\n"
         " (the same search: the same paths and expansions);\n"
         " pathfinding / A*: its total query time / the compiled A*'s on the same problems, as in\n"
         f" the second table;\n {peers};\n"

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from anytime_navigation.movingai import load_map
+from anytime_navigation.movingai import Scenario, load_map, load_problems
 from anytime_navigation.planning.abstraction import Pyramid, project
 from anytime_navigation.planning.components import Components
 from anytime_navigation.planning.planner import (
@@ -348,3 +348,154 @@ def test_with_follow_the_executed_quality_never_falls_from_one_plan_to_the_next(
     assert optimal is not None
     qualities = [plan_quality(length, optimal) for length in lengths]
     assert all(b >= a for a, b in zip(qualities, qualities[1:], strict=False))
+
+
+def _shipped(name: str) -> tuple[np.ndarray, list[Scenario]]:
+    """A shipped MovingAI map and its problems."""
+    blocked, _, _, scenarios = load_problems(Path(str(data_file("maps"))) / f"{name}.map")
+    return blocked, scenarios
+
+
+def _record(results: list[Result], ctx: Context) -> tuple[object, ...]:
+    """What a run registers: each plan's segments (level, cells, nodes) and quality, and the
+    work it reported."""
+    plans = tuple(
+        (r.quality, tuple((s.level, s.cells, s.nodes) for s in r.value.parts)) for r in results
+    )
+    return plans, ctx.ticks
+
+
+def _fingerprint() -> str:
+    """A digest of what the planner registers, and the ticks it reports, on fixed problems:
+    random worlds of both movements with the options of the navigation task and of the
+    benchmark, and the longest problems of a shipped MovingAI map."""
+    import hashlib
+
+    records = []
+    for seed in range(3):
+        for movement in (4, 8):
+            world = random_world(128, seed=seed, movement=movement)
+            pyramid = Pyramid.build(world.blocked)
+            for options in ({}, {"doors": False}, {"segment_moves": 8}, {"top": 4}):
+                ctx = Context()
+                results = list(
+                    atp(ctx, world.start, world.goal, pyramid, movement=movement, **options)
+                )
+                records.append(_record(results, ctx))
+    blocked, scenarios = _shipped("8room_000")
+    pyramid = Pyramid.build(blocked)
+    components = Components.build(blocked, 8, top=DEFAULT_TOP)
+    for scenario in sorted(scenarios, key=lambda s: -s.optimal)[:3]:
+        ctx = Context()
+        results = list(
+            atp(ctx, scenario.start, scenario.goal, pyramid, movement=8, components=components)
+        )
+        records.append(_record(results, ctx))
+    return hashlib.sha256(repr(records).encode()).hexdigest()
+
+
+def test_speedups_leave_the_plans_and_ticks_unchanged() -> None:
+    """Issue 36: the planner made faster without changing what it registers or reports (the
+    navigation task's profiles and monitor were measured on these): the digest of its plans,
+    qualities and ticks on fixed problems, as the planner of commit 5437123 made them."""
+    assert _fingerprint() == FINGERPRINT
+
+
+FINGERPRINT = "24af41e18998ff36b78aa29d39633ec567784c614aa334d6ef31a9509d2c6f29"
+
+
+@pytest.mark.parametrize("movement", MOVEMENTS)
+def test_door_rings_keep_the_door_route_near_the_first_plan(movement: int) -> None:
+    """With `door_rings`, the door search keeps to the first plan's nodes and their neighbours
+    up to that many edges away; with rings reaching every node it is the default search."""
+    blocked = load_map(Path(str(data_file("maps"))) / "8room_000.map")[0]
+    pyramid = Pyramid.build(blocked)
+    components = Components.build(blocked, movement, top=3)
+    start, goal = (4, 4), (500, 500)
+    runs = {}
+    for rings in (None, 0, 1, 10**6):
+        ctx = Context()
+        results = list(
+            atp(
+                ctx,
+                start,
+                goal,
+                pyramid,
+                movement=movement,
+                components=components,
+                door_rings=rings,
+            )
+        )
+        runs[rings] = (results, ctx)
+        route = results[-1].value.base_route()
+        assert route is not None and route[0] == start and route[-1] == goal
+        assert not any(blocked[y, x] for x, y in route)
+    default, every = runs[None], runs[10**6]
+    assert _record(*default) == _record(*every)
+    first = default[0][0].value.segments[0].nodes
+    near = components.neighbourhood(3, first, 1)
+    bounded = components.route(3, start, goal, bound=first, rings=1)
+    assert all(near[n] for n in bounded.nodes)
+    assert not all(near[n] for n in components.route(3, start, goal, bound=first).nodes)
+    # The door route's first refinement: through its nodes' children and their neighbours'.
+    second = runs[1][0][1].value.segments
+    around = components.neighbourhood(3, first, 2)
+    assert all(around[components.levels[2].parent[n]] for s in second for n in s.nodes)
+    assert runs[1][1].ticks < default[1].ticks  # less work
+
+
+def test_direct_answers_a_short_problem_with_one_base_route() -> None:
+    """With `direct`, a first plan of few nodes is followed by one search through its cells
+    and its neighbours': one result, a free base route from start to goal, in fewer ticks
+    than the refinements; a longer problem is planned as without it."""
+    blocked, scenarios = _shipped("random512-10-0")
+    pyramid = Pyramid.build(blocked)
+    components = Components.build(blocked, 8, top=3)
+    short = next(s for s in scenarios if 20 <= s.optimal <= 30)
+    default, ctx = list(atp(Context(), short.start, short.goal, pyramid, movement=8)), Context()
+    results = list(
+        atp(ctx, short.start, short.goal, pyramid, movement=8, components=components, direct=6)
+    )
+    assert len(results) == 1 < len(default)
+    plan = results[0].value
+    assert results[0].quality == 1.0 and not plan.refinable and plan.head == plan.tail == ()
+    route = plan.base_route()
+    assert route is not None and route[0] == short.start and route[-1] == short.goal
+    assert not any(blocked[y, x] for x, y in route)
+    assert all(_neighbours(a, b, 8) for a, b in zip(route, route[1:], strict=False))
+    length = execute(plan, blocked, movement=8).length
+    assert short.optimal - 1e-4 <= length <= short.optimal / 0.95
+    full = Context()
+    list(atp(full, short.start, short.goal, pyramid, movement=8, components=components))
+    assert ctx.ticks < full.ticks
+    long = max(scenarios, key=lambda s: s.optimal)
+    ctx, other = Context(), Context()
+    with_direct = list(
+        atp(ctx, long.start, long.goal, pyramid, movement=8, components=components, direct=6)
+    )
+    without = list(atp(other, long.start, long.goal, pyramid, movement=8, components=components))
+    assert _record(with_direct, ctx) == _record(without, other)
+
+
+def test_direct_never_works_past_the_deadline() -> None:
+    blocked, scenarios = _shipped("random512-10-0")
+    pyramid = Pyramid.build(blocked)
+    short = next(s for s in scenarios if 20 <= s.optimal <= 30)
+    full = Context()
+    list(atp(full, short.start, short.goal, pyramid, movement=8, direct=6))
+    first = Context()
+    next(atp(first, short.start, short.goal, pyramid, movement=8))
+    # Enough for the first plan, not for the direct search: the first plan is registered.
+    allocation = (first.ticks + full.ticks) / 2
+    ctx = Context(allocation=allocation)
+    results = list(atp(ctx, short.start, short.goal, pyramid, movement=8, direct=6))
+    assert len(results) == 1 and results[0].value.segments[0].level == DEFAULT_TOP
+    assert ctx.elapsed <= allocation
+
+
+def test_bad_options_are_named() -> None:
+    world = random_world(64, seed=1)
+    pyramid = Pyramid.build(world.blocked)
+    for name in ("door_rings", "direct"):
+        with pytest.raises(ValueError, match=f"{name} must be >= 0 or None, got -1"):
+            next(atp(Context(), world.start, world.goal, pyramid, **{name: -1}))

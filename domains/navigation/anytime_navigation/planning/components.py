@@ -273,12 +273,14 @@ class Components:
         goal: Position,
         *,
         bound: Sequence[int] | None = None,
+        rings: int | None = None,
         limit: float = math.inf,
     ) -> NodePath:
         """The cheapest path of nodes at `level` > 0 from the start's node to the goal's (they
         must be connected) through the level's doors (`doors`: built with the hierarchy for
         its top level, here for another); `bound`, a path of nodes between them, bounds the
-        search by its cost through its doors.
+        search by its cost through its doors. With `rings` (and `bound`), the route keeps to
+        `bound`'s nodes and those up to `rings` edges from them (`neighbourhood`).
 
         Raises:
             SearchLimit: its work is more than `limit`.
@@ -289,8 +291,20 @@ class Components:
             doors = Doors.build(
                 level, self.grids[level], here.block, here.first, here.neighbour, self.movement
             )
-        nodes, cost, expansions = doors.route(start, goal, bound=bound, limit=limit)
+        within = None
+        if rings is not None and bound is not None:
+            within = self.neighbourhood(level, bound, rings)
+        nodes, cost, expansions = doors.route(start, goal, bound=bound, within=within, limit=limit)
         return NodePath(level, nodes, cost, expansions)
+
+    def neighbourhood(self, level: int, nodes: Sequence[int], rings: int) -> NDArray[np.bool_]:
+        """Which nodes of `level` are among `nodes` or up to `rings` edges from one of them,
+        one entry per node."""
+        at = self.levels[level]
+        near: NDArray[np.bool_] = compiled().neighbourhood(
+            at.first, at.neighbour, np.asarray(nodes, dtype=np.int64), rings, len(at)
+        )
+        return near
 
     def path(self, level: int, source: int, target: int, *, limit: float = math.inf) -> NodePath:
         """A cheapest path of neighbouring nodes at `level` between two nodes over the whole
@@ -305,7 +319,7 @@ class Components:
             raise AssertionError(f"no path at level {level} between nodes {source} and {target}")
         return found
 
-    def widened(self, level: int, nodes: Sequence[int], rings: int) -> IntArray:
+    def widened(self, level: int, nodes: Sequence[int] | IntArray, rings: int) -> IntArray:
         """The children (at `level` - 1) of `nodes` (at `level`) and of every node up to
         `rings` edges from them, each once, in node order: the corridor a refinement searches."""
         at = self.levels[level]

@@ -250,13 +250,16 @@ def door_search(
     goal_x: float,
     goal_y: float,
     cut: float,
+    within: NDArray[np.bool_],
 ) -> tuple[IntArray, float, int]:
     """A* over the directed doors of a level (`doors.Doors`: state j is followed by
     `after[after_first[j]:after_first[j + 1]]`, each `length` + `crossing` away) from the states
     `leaving` the start's node (each `to_first` from the start) to a state whose head is node
     `target`, ending with the straight way from its door to the goal (`goal_x`, `goal_y`). The
     heuristic is `Doors`' (the distance to the goal plus a crossing per block still to cross:
-    consistent), and no state whose cost plus heuristic is above `cut` is searched.
+    consistent), and no state whose cost plus heuristic is above `cut` is searched. `within`, when
+    not empty, is the level's nodes a route may enter (one entry per node): a state into any other
+    is never reached.
 
     Returns (the route's states, first to last; empty when none is found under `cut`), its cost,
     and the states an A* expands: those whose cost plus heuristic is below the route's, and the
@@ -272,8 +275,11 @@ def door_search(
     keys = np.empty(capacity, dtype=np.float64)
     items = np.empty(capacity, dtype=np.int64)
     size = 0
+    bounded = len(within) > 0
     for i in range(len(leaving)):
         j = leaving[i]
+        if bounded and not within[head[j]]:
+            continue
         h = _door_heuristic(point, head_block, j, goal_x, goal_y, gbx, gby, movement, crossing)
         if to_first[i] < g[j] and to_first[i] + h <= cut:
             g[j], f_of[j] = to_first[i], to_first[i] + h
@@ -292,6 +298,8 @@ def door_search(
         count += 1
         for e in range(after_first[u], after_first[u + 1]):
             v = after[e]
+            if bounded and not within[head[v]]:
+                continue
             cost = g[u] + length[e] + crossing
             if cost < g[v] and not closed[v]:
                 h = _door_heuristic(
@@ -377,6 +385,35 @@ def widened_children(
             children[k] = child[c]
             k += 1
     return children
+
+
+@_compiled
+def neighbourhood(
+    first: IntArray, neighbour: IntArray, route: IntArray, rings: int, count: int
+) -> NDArray[np.bool_]:
+    """Which of a level's `count` nodes are `route`'s or up to `rings` edges from one of them
+    (the level's compressed rows `first`, `neighbour`)."""
+    near = np.zeros(count, dtype=np.bool_)
+    frontier = np.empty(count, dtype=np.int64)
+    n = 0
+    for node in route:
+        if not near[node]:
+            near[node] = True
+            frontier[n] = node
+            n += 1
+    begin = 0
+    for _ in range(rings):
+        end = n
+        for i in range(begin, end):
+            u = frontier[i]
+            for e in range(first[u], first[u + 1]):
+                v = neighbour[e]
+                if not near[v]:
+                    near[v] = True
+                    frontier[n] = v
+                    n += 1
+        begin = end
+    return near
 
 
 @_compiled

@@ -121,12 +121,14 @@ class Doors:
         goal: Position,
         *,
         bound: Sequence[int] | None = None,
+        within: NDArray[np.bool_] | None = None,
         limit: float = math.inf,
     ) -> tuple[tuple[int, ...], float, int]:
         """The cheapest route of nodes from the start's node to the goal's (they must be
         connected): (the nodes, its cost, the states an A* search for it expands). `bound`, a
         route of nodes between them, cuts the search at its cost (`cost_of`): what is dearer
-        is not searched.
+        is not searched. `within`, one entry per node of the level, confines the route to the
+        nodes it marks (they must hold a route: `bound`'s, say).
 
         Raises:
             SearchLimit: that work is more than `limit`.
@@ -158,6 +160,7 @@ class Doors:
             gx + 0.5,
             gy + 0.5,
             cut,
+            np.zeros(0, dtype=np.bool_) if within is None else within,
         )
         if not len(states):
             raise AssertionError(f"no route from node {source} to node {target}")

@@ -257,6 +257,8 @@ def atp(
     components: Components | None = None,
     doors: bool = True,
     follow: Callable[[MultiPath], float] | None = None,
+    door_rings: int | None = None,
+    direct: int | None = None,
 ) -> Iterator[Result]:
     """The anytime abstract planner: yields `Result(MultiPath, quality_estimate)` after the first
     plan and after every refinement (with `follow`, each that is followed no worse than the last
@@ -308,6 +310,15 @@ def atp(
             better is kept; the planner goes on refining from the new plan either way), so the
             quality executed never falls from one registered plan to the next; it is called
             once per plan, and its time is the planner's.
+        door_rings: the search through the doors keeps to the first plan's nodes and those up
+            to this many edges from them (None, the default: the whole level, bounded by the
+            first plan's cost alone). Issue 36: the door search is a fifth to a quarter of the
+            planner's time on MovingAI maps, most of it spent away from the first plan.
+        direct: when the first plan has at most this many nodes (a short problem), search the
+            base cells of its nodes and of their neighbours at once (A* over that corridor,
+            compiled) and register that route alone, fully refined (None, the default: never).
+            A short problem is then one search instead of a refinement per level, each with
+            its fixed cost.
 
     REFINE re-plans the chosen level-k segment one level lower, through the children of its
     nodes only (they are connected: see `components`), so the search is local and always finds
@@ -335,26 +346,38 @@ def atp(
     for name, position in (("start", start), ("goal", goal)):
         if pyramid.obstacleness(position, 0) >= 1.0:
             raise ValueError(f"{name} {position} is a blocked cell")
-    blocked = pyramid.levels[0] >= 1.0
     if components is None:
-        components = Components.build(blocked, movement, top=top)
+        components = Components.build(pyramid.levels[0] >= 1.0, movement, top=top)
     elif components.movement != movement or components.top < top:
         raise ValueError(
             f"the components are for movement {components.movement} up to level"
             f" {components.top}; planning needs movement {movement} up to level {top}"
         )
-    elif components.cell.shape != blocked.shape:
+    elif components.cell.shape != pyramid.levels[0].shape:
         raise ValueError(
-            f"the components are of a {components.cell.shape} map, the pyramid's is {blocked.shape}"
+            f"the components are of a {components.cell.shape} map, the pyramid's is"
+            f" {pyramid.levels[0].shape}"
         )
     if not components.connected(start, goal):
+        blocked = pyramid.levels[0] >= 1.0
         components = Components.build(_opened(blocked, start, goal, movement), movement, top=top)
-    planner = _Planner(components, pyramid, start, goal, ctx)
+    for name, option in (("door_rings", door_rings), ("direct", direct)):
+        if option is not None and option < 0:
+            raise ValueError(f"{name} must be >= 0 or None, got {option}")
+    planner = _Planner(components, pyramid, start, goal, ctx, door_rings=door_rings)
     try:
         found = planner.first(top)
     except SearchLimit as stopped:  # the deadline came before the first plan
         ctx.tick(stopped.expansions)
         return
+    if direct is not None and top > 0 and len(found.nodes) <= direct:
+        try:
+            route = planner.direct(top, found.nodes)
+        except SearchLimit as stopped:  # the deadline came first: register the first plan
+            ctx.tick(stopped.expansions)
+        else:
+            yield Result(MultiPath(start, goal, (), (route,), (), components), 1.0)
+            return
     worst = _Worst(pyramid.top)
 
     def begin(path: NodePath) -> tuple[list[Segment], MultiPath]:
@@ -502,9 +525,12 @@ class _Planner:
         start: Position,
         goal: Position,
         ctx: Context,
+        *,
+        door_rings: int | None = None,
     ) -> None:
         self.components, self.pyramid = components, pyramid
         self.start, self.goal, self.ctx = start, goal, ctx
+        self.door_rings = door_rings
 
     def first(self, level: int) -> NodePath:
         """The first plan: a path of nodes at `level` from the start's node to the goal's, the
@@ -522,11 +548,32 @@ class _Planner:
         self.ctx.tick(found.expansions)
         return found
 
+    def direct(self, level: int, nodes: tuple[int, ...]) -> Segment:
+        """The base route through the cells of `nodes` (at `level`) and of their neighbours:
+        one segment at level 0."""
+        c = self.components
+        allowed = c.widened(level, nodes, 1)
+        for k in range(level - 1, 0, -1):  # down to the cells, every child
+            allowed = c.widened(k, allowed, 0)
+        found = c.corridor(
+            0, allowed, [c.node(self.start, 0)], [c.node(self.goal, 0)], limit=self.ctx.remaining
+        )
+        if found is None:
+            raise AssertionError("no base route through the children of a path")
+        self.ctx.tick(found.expansions)
+        ((segment, _),) = self.segments(0, found.nodes, [(0, len(found.nodes) - 1)])
+        return segment
+
     def through_doors(self, level: int, path: NodePath) -> NodePath | None:
         """The cheapest route at `level` through the doors between nodes, when it is cheaper
         there than `path` (None: `path` is as cheap)."""
         found = self.components.route(
-            level, self.start, self.goal, bound=path.nodes, limit=self.ctx.remaining
+            level,
+            self.start,
+            self.goal,
+            bound=path.nodes,
+            rings=self.door_rings,
+            limit=self.ctx.remaining,
         )
         self.ctx.tick(found.expansions)
         return None if found.nodes == path.nodes else found
