@@ -19,6 +19,7 @@ import anytime
         "anytime.plugin.cli",
         "anytime.plugin.figures",
         "anytime.plugin.compose",
+        "anytime.plugin.solvers",
     ],
 )
 def test_every_name_in_all_resolves(module: str) -> None:

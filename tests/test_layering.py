@@ -19,7 +19,12 @@ ROOT = Path(__file__).resolve().parent.parent
 FRAMEWORK = ROOT / "anytime"
 
 #: The opt-in submodules of the plugin API, public as `anytime.plugin` is.
-PLUGIN_SUBMODULES = ("anytime.plugin.cli", "anytime.plugin.figures", "anytime.plugin.compose")
+PLUGIN_SUBMODULES = (
+    "anytime.plugin.cli",
+    "anytime.plugin.figures",
+    "anytime.plugin.compose",
+    "anytime.plugin.solvers",
+)
 
 #: Top-level packages that are domains (plugins), never imported by the framework.
 DOMAINS = ("anytime_navigation", "anytime_survey", "domains")

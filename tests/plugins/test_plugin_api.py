@@ -19,7 +19,12 @@ from anytime import AnytimeLibrary
 from anytime.library import Plugin, PluginSource
 
 #: The opt-in submodules of `anytime.plugin`.
-SUBMODULES = ("anytime.plugin.cli", "anytime.plugin.figures", "anytime.plugin.compose")
+SUBMODULES = (
+    "anytime.plugin.cli",
+    "anytime.plugin.figures",
+    "anytime.plugin.compose",
+    "anytime.plugin.solvers",
+)
 PUBLIC = {"anytime", "anytime.plugin", *SUBMODULES}
 PLUGINS = {
     "navigation": Path(anytime_navigation.__file__).parent,
