@@ -311,3 +311,22 @@ def test_a_widened_corridor_is_the_children_of_the_nodes_a_few_edges_from_the_ro
     expected = [int(x) for node in sorted(reached) for x in c.levels[level].children(node)]
     assert c.widened(level, route, rings).tolist() == expected
     assert (c._scratch[level] == -1).all()  # left as found, for the next search
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.integers(0, 2**31), st.integers(1, 50), st.integers(0, 300), st.booleans())
+def test_the_counting_sorts_are_numpys_sorts(seed: int, count: int, n: int, unique: bool) -> None:
+    """The build's edges ordered in one counting pass (`corridor_search.counting_order`,
+    `sorted_pairs`) as numpy's sorts ordered them."""
+    from anytime_navigation.planning.search import compiled
+
+    rng = np.random.default_rng(seed)
+    low, high = rng.integers(0, count, n), rng.integers(0, count, n)
+    order = compiled().counting_order(high, count)
+    assert np.array_equal(order, np.argsort(high, kind="stable"))
+    bits = count.bit_length()
+    keys = np.sort(low << bits | high)
+    if unique:
+        keys = np.unique(keys)
+    a, b = compiled().sorted_pairs(low, high, count, unique)
+    assert np.array_equal(a, keys >> bits) and np.array_equal(b, keys & ((1 << bits) - 1))

@@ -568,17 +568,18 @@ def _quads(free: BoolGrid, movement: int) -> tuple[IntArray, int, Edges, IntArra
         for cx, cy, p in corners:
             legal &= label(cx, cy, p) >= 0
         joined[direction] |= legal << np.maximum(2 * tail_label + head_label, 0).astype(np.uint8)
-    bits = count.bit_length()
     offsets = np.append(offset, 0)
-    keys = []
+    tails, heads = [], []
     for (dx, dy), pairs in zip(_FORWARD, joined, strict=True):
         bit_rows = np.unpackbits(pairs.reshape(-1, 1), axis=1, count=4, bitorder="little")
         found = np.flatnonzero(bit_rows.view(bool))
         at, pair = found >> 2, found & 3
-        head_first = offsets[beside(dx, dy)[at]]
-        keys.append((offset[at] + (pair >> 1)) << bits | head_first + (pair & 1))
-    edges = np.sort(np.concatenate(keys), kind="stable")  # four sorted runs: merged
-    return grid.reshape(side, side), count, (edges >> bits, edges & ((1 << bits) - 1)), cells[here]
+        tails.append(offset[at] + (pair >> 1))
+        heads.append(offsets[beside(dx, dy)[at]] + (pair & 1))
+    edges: Edges = compiled().sorted_pairs(
+        np.concatenate(tails), np.concatenate(heads), count, False
+    )
+    return grid.reshape(side, side), count, edges, cells[here]
 
 
 def _components(
@@ -615,10 +616,10 @@ def _lifted(edges: Edges, parent: IntArray, count: int) -> Edges:
     each."""
     a, b = parent[edges[0]], parent[edges[1]]
     between = a != b
-    bits = count.bit_length()
-    keys = np.sort(np.minimum(a, b)[between] << bits | np.maximum(a, b)[between])
-    keys = keys[np.concatenate(([True], keys[1:] != keys[:-1]))] if len(keys) else keys
-    return keys >> bits, keys & ((1 << bits) - 1)
+    lifted: Edges = compiled().sorted_pairs(
+        np.minimum(a, b)[between], np.maximum(a, b)[between], count, True
+    )
+    return lifted
 
 
 def _grouped(
@@ -626,13 +627,12 @@ def _grouped(
 ) -> tuple[IntArray, IntArray]:
     """The children of each of `count` nodes, ascending, as compressed rows (first, child);
     `children` the child column when known."""
-    n = len(parent)
     first = np.zeros(count + 1, dtype=np.int64)
     np.cumsum(np.bincount(parent, minlength=count), out=first[1:])
     if children is not None:
         return first, children
-    bits = n.bit_length()
-    return first, np.sort(parent << bits | np.arange(n)) & ((1 << bits) - 1)
+    by_parent: IntArray = compiled().counting_order(parent, count)
+    return first, by_parent
 
 
 def _compressed(
@@ -649,9 +649,8 @@ def _compressed(
     first = np.zeros(count + 1, dtype=np.int64)
     np.cumsum(ups + downs, out=first[1:])
     step = move_distance(np.abs(x[low] - x[high]), np.abs(y[low] - y[high]), movement)
-    bits = n.bit_length()
     # The edges by their high end, then their low one (the index follows the low end).
-    back = np.sort(high << bits | np.arange(n)) & ((1 << bits) - 1)
+    back = compiled().counting_order(high, count)
     neighbour = np.zeros(2 * n, dtype=np.int64)
     cost = np.zeros(2 * n, dtype=np.float64)
     upward = np.arange(n) + (np.cumsum(downs) - downs)[low]  # first[low] + rank among ups

@@ -417,6 +417,40 @@ def neighbourhood(
 
 
 @_compiled
+def counting_order(keys: IntArray, count: int) -> IntArray:
+    """The indices of `keys` (each in [0, count)) ordered by key, equal keys by index: what a
+    stable sort by key gives, in one counting pass (the abstraction's build sorts its edges so,
+    `components`)."""
+    start = np.zeros(count + 1, dtype=np.int64)
+    for key in keys:
+        start[key + 1] += 1
+    for i in range(count):
+        start[i + 1] += start[i]
+    order = np.empty(len(keys), dtype=np.int64)
+    for i in range(len(keys)):
+        order[start[keys[i]]] = i
+        start[keys[i]] += 1
+    return order
+
+
+@_compiled
+def sorted_pairs(
+    low: IntArray, high: IntArray, count: int, unique: bool
+) -> tuple[IntArray, IntArray]:
+    """The pairs (low[i], high[i]), each entry in [0, count), in ascending order (by low, then
+    high), once each when `unique`."""
+    order = counting_order(high, count)
+    order = order[counting_order(low[order], count)]
+    a, b = low[order], high[order]
+    if not unique or len(a) == 0:
+        return a, b
+    keep = np.ones(len(a), dtype=np.bool_)
+    for i in range(1, len(a)):
+        keep[i] = a[i] != a[i - 1] or b[i] != b[i - 1]
+    return a[keep], b[keep]
+
+
+@_compiled
 def _before(f: FloatArray, h: FloatArray, c: IntArray, i: int, j: int) -> bool:
     """Whether heap entry i comes before entry j: keys (f, -g, counter), as `heapq` orders the
     tuples of the pure-Python A* (`search.find_path_to_box`), so both pop in the same order."""
