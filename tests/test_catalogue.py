@@ -442,10 +442,10 @@ def test_check_json(cli: Cli) -> None:
     report = json.loads(out)
     assert report["module"] == "catalogue-bare" and report["passed"] is False
     statuses = {"quality": "fail", "profile": "skip"}  # 3 trials cannot judge a profile
-    assert {c["name"]: c["status"] for c in report["checks"]} == {
+    assert {c["check"]: c["status"] for c in report["checks"]} == {
         name: statuses.get(name, "pass") for name in CHECKS
     }
-    (profile,) = [c for c in report["checks"] if c["name"] == "profile"]
+    (profile,) = [c for c in report["checks"] if c["check"] == "profile"]
     assert profile["message"] == (
         "skipped: judging a profile needs at least 5 trials per cell, got 3 (one shows no"
         " spread, and with two any gap is within the bound)"

@@ -84,7 +84,7 @@ def test_parse_json_field_by_field(cli: Cli, navigation_any: Path) -> None:
     assert code == 0
     data = json.loads(out)
     assert list(data) == ["schemas"]
-    schemas = {s["name"]: s for s in data["schemas"]}
+    schemas = {s["schema"]: s for s in data["schemas"]}
     assert list(schemas) == [
         "navigate",
         "navigate-nested",
@@ -92,7 +92,7 @@ def test_parse_json_field_by_field(cli: Cli, navigation_any: Path) -> None:
         "sense-plan-act",
     ]
     nested = schemas["navigate-nested"]
-    assert nested["inputs"] == ["start", "goal", "sensor"]
+    assert nested["parameters"] == ["start", "goal", "sensor"]
     assert nested["doc"] is None
     assert nested["steps"] == [
         {

@@ -79,23 +79,23 @@ def test_library_list_json(cli: Cli, registry: Registry) -> None:
     code, out, err = cli("library", "list", "--json", "--profiles", "profiles")
     assert (code, err) == (0, "")
     rows = json.loads(out)
-    assert [row["name"] for row in rows] == [
+    assert [row["module"] for row in rows] == [
         "find-path",
         "get-domain-description",
         "merge",
         "plan-route",
     ]
     assert rows[0] == {
-        "name": "find-path",
+        "module": "find-path",
         "kind": "interruptible",
         "inputs": ["domain"],
         "arity": None,
         "origin": "profile file profiles/find-path.yaml",
         "profile": {
-            "summary": "2 input grid pts x 4 times x 4 bins, ticks",
+            "description": "2 input grid pts x 4 times x 4 bins, ticks",
             "file": "profiles/find-path.yaml",
             "input_grid_points": [2],
-            "times": 4,
+            "time_points": 4,
             "bins": 4,
             "time_unit": "ticks",
             "measured": False,
@@ -181,9 +181,12 @@ def test_library_show_json(cli: Cli, registry: Registry) -> None:
     data = json.loads(out)
     assert data["parameters"] == []
     assert data["profile"]["input_grids"] == [[0.5, 1.0]]
-    assert data["profile"]["time"] == [0.0, 100.0, 200.0, 400.0]
+    assert data["profile"]["time_grid"] == [0.0, 100.0, 200.0, 400.0]
     assert data["profile"]["quality_bins"] == [0.0, 0.25, 0.5, 0.75, 1.0]
-    assert data["profile"]["expected"] == [[0.0, 0.125, 0.25, 0.5], [0.0, 0.25, 0.5, 1.0]]
+    assert data["profile"]["expected_quality_table"] == [
+        [0.0, 0.125, 0.25, 0.5],
+        [0.0, 0.25, 0.5, 1.0],
+    ]
 
 
 def test_library_show_an_unknown_name(cli: Cli, registry: Registry) -> None:
@@ -237,7 +240,7 @@ def test_library_list_reports_an_unreadable_profile_and_lists_the_rest(
     code, out, err = cli("library", "list", "--json")
     assert code == 1
     row = json.loads(out)[1]
-    assert (row["name"], row["profile"]) == ("sense", None)
+    assert (row["module"], row["profile"]) == ("sense", None)
     assert row["profile_error"] == problem  # the error itself, without the command's prefix
     assert err == f"anytime: error: {problem}\n"
 

@@ -525,18 +525,18 @@ def test_an_installed_plugin_package_is_discovered(tmp_path: Path) -> None:
         "anytime: warning: plugin 'broken' (toy_anytime_plugin.broken): ModuleNotFoundError: "
         "No module named 'nope_not_installed'\n"
     )
-    rows = {row["name"]: row for row in json.loads(done.stdout)}
+    rows = {row["module"]: row for row in json.loads(done.stdout)}
     assert rows["toy-count"] == {
-        "name": "toy-count",
+        "module": "toy-count",
         "kind": "interruptible",
         "inputs": ["data"],
         "arity": 2,
         "origin": "plugin 'toy' (toy_anytime_plugin)",
         "profile": {
-            "summary": "2 input grid pts x 4 times x 4 bins, ticks",
+            "description": "2 input grid pts x 4 times x 4 bins, ticks",
             "file": None,
             "input_grid_points": [2],
-            "times": 4,
+            "time_points": 4,
             "bins": 4,
             "time_unit": "ticks",
             "measured": False,

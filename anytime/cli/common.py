@@ -359,6 +359,23 @@ def json_text(data: Any, *, indent: int | None = 2) -> str:
     return json.dumps(_finite(data), indent=indent, allow_nan=False)
 
 
+def allocation_json(modules: Sequence[str], shares: Sequence[float]) -> dict[str, float]:
+    """An allocation as `--json` prints it everywhere: `{module: time}`, in the program's
+    order. A module called more than once gets its occurrence as a suffix (`find-path#1`,
+    `find-path#2`), so no share is lost to a repeated key."""
+    if len(modules) != len(shares):
+        raise ValueError(f"{len(modules)} modules but {len(shares)} shares")
+    repeated = {name for name in modules if modules.count(name) > 1}
+    seen: dict[str, int] = {}
+    data: dict[str, float] = {}
+    for name, share in zip(modules, shares, strict=True):
+        if name in repeated:
+            seen[name] = seen.get(name, 0) + 1
+            name = f"{name}#{seen[name]}"
+        data[name] = float(share)
+    return data
+
+
 def _finite(data: Any) -> Any:
     if isinstance(data, float):
         return data if math.isfinite(data) else None

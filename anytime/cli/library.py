@@ -88,9 +88,9 @@ def run_library_list(args: argparse.Namespace) -> int:
             if row["profile_error"] is not None:
                 summary = "unreadable (error below)"
             else:
-                summary = row["profile"]["summary"] if row["profile"] else "no profile"
+                summary = row["profile"]["description"] if row["profile"] else "no profile"
             inputs = ", ".join(row["inputs"]) or "-"
-            table.append([row["name"], row["kind"], inputs, summary, row["origin"]])
+            table.append([row["module"], row["kind"], inputs, summary, row["origin"]])
         print(format_table(table), end="")
     from anytime.cli import describe  # the one place errors become messages (cli/__init__)
 
@@ -171,8 +171,11 @@ def _dynamic_lines(entry: LibraryEntry, dynamic: DynamicProfile, times: int) -> 
         [f"time ({unit})", _numbers(dynamic.time)],
         ["samples", f"{dynamic.samples} trials per cell"],
     ]
-    if facts["input_qualities"]:
-        cell = ", ".join(f"{name}={q:g}" for name, q in facts["input_qualities"].items())
+    if facts["input_quality"]:
+        names = list(dynamic.inputs) or [f"#{i + 1}" for i in range(len(facts["input_quality"]))]
+        cell = ", ".join(
+            f"{name}={q:g}" for name, q in zip(names, facts["input_quality"], strict=True)
+        )
         fields.append(["shown at", f"{cell} (the highest input qualities)"])
     agreement = facts["estimate_in_true_bin"]
     if agreement is not None:
@@ -210,17 +213,16 @@ def _dynamic_facts(entry: LibraryEntry, dynamic: DynamicProfile) -> dict[str, An
     if here.observation is not None and here.observed == "estimate":
         right = np.diagonal(here.observation, axis1=-2, axis2=-1)  # (m, K)
         agreement = round(float(np.mean(np.sum(here.occupancy * right, axis=-1))), 12)
-    names = list(dynamic.inputs) or [f"#{i + 1}" for i in range(len(top))]
     file = entry.profile_file
     return {
         "file": None if file is None else str(dynamic_profile_path(file)),
         "observed": dynamic.observed,
         "states": dynamic.n_states,
         "quality_bins": dynamic.bins.tolist(),
-        "time": dynamic.time.tolist(),
+        "time_grid": dynamic.time.tolist(),
         "time_unit": dynamic.time_unit,
         "samples": dynamic.samples,
-        "input_qualities": dict(zip(names, top, strict=True)),
+        "input_quality": top,
         "expected_gain": [[None if np.isnan(g) else float(g) for g in row] for row in gain],
         "estimate_in_true_bin": agreement,
     }
@@ -263,7 +265,7 @@ def profile_summary(profile: ConditionalPerformanceProfile) -> str:
 def _entry_json(
     entry: LibraryEntry, profile: ConditionalPerformanceProfile | None, full: bool = False
 ) -> dict[str, Any]:
-    data: dict[str, Any] = {"name": entry.name, "kind": entry.kind, "inputs": list(entry.inputs)}
+    data: dict[str, Any] = {"module": entry.name, "kind": entry.kind, "inputs": list(entry.inputs)}
     if full:
         data["parameters"] = list(entry.parameters)
         measured = None if profile is None else profile.step
@@ -278,19 +280,19 @@ def _entry_json(
         return data
     file = entry.profile_file
     summary: dict[str, Any] = {
-        "summary": profile_summary(profile),
+        "description": profile_summary(profile),
         "file": None if file is None else str(file),
         "input_grid_points": [len(grid) for grid in profile.input_grids],
-        "times": len(profile.time),
+        "time_points": len(profile.time),
         "bins": profile.n_bins,
         "time_unit": profile.time_unit,
         "measured": profile.samples is not None,
     }
     if full:
         summary["input_grids"] = [grid.tolist() for grid in profile.input_grids]
-        summary["time"] = profile.time.tolist()
+        summary["time_grid"] = profile.time.tolist()
         summary["quality_bins"] = profile.bins.tolist()
-        summary["expected"] = _expected_cells(profile).tolist()
+        summary["expected_quality_table"] = _expected_cells(profile).tolist()
     data["profile"] = summary
     return data
 

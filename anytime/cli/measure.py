@@ -6,6 +6,7 @@ import argparse
 import math
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from anytime.cli.common import (
     EXIT_OK,
@@ -36,7 +37,7 @@ from anytime.measure.builder import (
     ProfileRequest,
     profile_module,
 )
-from anytime.measure.calibrate import calibrate, convert_profile
+from anytime.measure.calibrate import Calibration, calibrate, convert_profile
 from anytime.measure.catalogue import check_module
 from anytime.measure.progress import timed_progress
 from anytime.measure.upstream import Round, UpstreamError, measure_upstream
@@ -315,6 +316,7 @@ def _run_upstream(args: argparse.Namespace) -> int:
             for r in measured.rounds
         ]
         summary = {"module": module.name, "file": str(output), "schema": name}
+        summary |= {"trials": args.trials, "seed": args.seed}
         print(json_text(summary | {"rounds": rounds, "converged": measured.converged}))
     else:
         last = measured.rounds[-1]
@@ -389,12 +391,23 @@ def run_calibrate(args: argparse.Namespace) -> int:
         converted = convert_profile(profile, calibration.ticks_per_second, to=args.to)
         _save(Path(args.output), lambda path: save_profile(converted, path))
     if args.json:
-        print(json_text(calibration.to_dict() | {"file": args.output}))
+        print(json_text(calibrate_json(calibration) | {"seed": args.seed, "file": args.output}))
     else:
         print(calibration.summary())
         if profile is not None:
             print(f"wrote {args.output} (time in {args.to})")
     return EXIT_OK
+
+
+def calibrate_json(calibration: Calibration) -> dict[str, Any]:
+    """`Calibration.to_dict` with every rate named as one (`min` and `max` are baselines in
+    `compile --json`)."""
+    renamed = {
+        "interval": "ticks_per_second_interval",
+        "min": "min_ticks_per_second",
+        "max": "max_ticks_per_second",
+    }
+    return {renamed.get(key, key): value for key, value in calibration.to_dict().items()}
 
 
 def run_check(args: argparse.Namespace) -> int:
@@ -419,7 +432,10 @@ def run_check(args: argparse.Namespace) -> int:
         mode=run_mode(args),
     )
     if args.json:
-        print(json_text(report.to_dict()))
+        data = report.to_dict()
+        # a check's name is `check`, as a module's is `module` (docs/cli.md, "JSON output")
+        data["checks"] = [{"check": c.pop("name")} | c for c in data["checks"]]
+        print(json_text(data))
     else:
         print(report.format())
     if report.passed:

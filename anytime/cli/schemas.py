@@ -6,12 +6,16 @@ from __future__ import annotations
 import argparse
 import math
 from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
 
 from anytime.cli.common import (
     EXIT_OK,
     MAX_LATTICE_POINTS,
     MAX_TIME_POINTS,
     InputError,
+    allocation_json,
     check_lattice,
     json_text,
     library_options,
@@ -27,7 +31,6 @@ from anytime.compiler import (
     CompiledProgram,
     CompileError,
     compile_file,
-    compiled_to_dict,
     format_report,
     save_compiled,
 )
@@ -41,11 +44,17 @@ from anytime.compiler.compile import (
 from anytime.compiler.explain import (
     Explanation,
     explain,
-    explanation_to_dict,
     format_explanations,
 )
 from anytime.compiler.report import MAX_ROWS
-from anytime.dsl import SchemaFile, format_programs, graph_to_dot, load_schemas, program_to_json
+from anytime.dsl import (
+    Program,
+    SchemaFile,
+    format_programs,
+    graph_to_dot,
+    load_schemas,
+    program_to_json,
+)
 from anytime.library import AnytimeLibrary
 from anytime.vocabulary import UNITS
 
@@ -230,7 +239,7 @@ def run_parse(args: argparse.Namespace) -> int:
         check_schema_name(schemas, args.schema)
         programs = (schemas[args.schema],)
     if args.json:
-        print(json_text({"schemas": [program_to_json(p) for p in programs]}))
+        print(json_text({"schemas": [parse_json(p) for p in programs]}))
     elif args.dot:
         print(graph_to_dot(p.graph for p in programs), end="")
     else:
@@ -269,10 +278,9 @@ def run_compile(args: argparse.Namespace) -> int:
             raise InputError(f"cannot write '{args.output}': {error.strerror}") from None
     explained = {c.name: explain_totals(c, args.explain, args.file) for c in wanted}
     if args.json:
-        reports = [compiled_to_dict(c) for c in wanted]
-        if args.explain is not None:
-            for report, c in zip(reports, wanted, strict=True):
-                report["explain"] = [explanation_to_dict(e) for e in explained[c.name]]
+        reports = [
+            compile_json(c, None if args.explain is None else explained[c.name]) for c in wanted
+        ]
         print(json_text(reports[0] if len(reports) == 1 else {"schemas": reports}))
     else:
         texts = [format_report(c, args.rows) for c in wanted]
@@ -285,6 +293,99 @@ def run_compile(args: argparse.Namespace) -> int:
         if args.output is not None:
             print(f"wrote {args.output}")
     return EXIT_OK
+
+
+def parse_json(program: Program) -> dict[str, Any]:
+    """A program as `parse --json` prints it: `program_to_json` with the names every command
+    uses (`schema` for its name, `parameters` for all its inputs, as `library show` has them)."""
+    data = program_to_json(program)
+    renamed = {"name": "schema", "inputs": "parameters"}
+    return {renamed.get(key, key): value for key, value in data.items()}
+
+
+def compile_json(
+    compiled: CompiledProgram, explanations: Sequence[Explanation] | None = None
+) -> dict[str, Any]:
+    """The report as `compile --json` prints it (docs/cli.md, "JSON output"): the table as
+    one row per input quality and budget (`budgets`), each with its allocation as
+    `{module: time}`; `explain` only when asked for."""
+    profile = compiled.profile
+    grids = [grid.tolist() for grid in profile.input_grids]
+    expected = compiled.expected
+    error = compiled.standard_error
+    rows = []
+    for cell in np.ndindex(*(len(grid) for grid in grids)):
+        for j, budget in enumerate(profile.time.tolist()):
+            at = (*cell, j)
+            rows.append(
+                {
+                    "budget": budget,
+                    "input_quality": [grid[i] for grid, i in zip(grids, cell, strict=True)],
+                    "expected_quality": float(expected[at]),
+                    "expected_quality_se": 0.0 if error is None else float(error[at]),
+                    "allocation": allocation_json(
+                        compiled.modules, compiled.allocation[at].tolist()
+                    ),
+                    "baselines": {
+                        name: float(value[at]) for name, value in compiled.baselines.items()
+                    },
+                }
+            )
+    report: dict[str, Any] = {
+        "schema": compiled.name,
+        "allocator": compiled.allocator,
+        "modules": list(allocation_json(compiled.modules, [0.0] * len(compiled.modules))),
+        "inputs": list(compiled.model.quality_inputs),
+        "time_unit": profile.time_unit,
+        "time_grid": profile.time.tolist(),
+        "input_grids": grids,
+        "budgets": rows,
+        "exhaustive_gap": compiled.exhaustive_gap,
+        "exact": compiled.exact,
+        "dp_obstacle": None if compiled.dp_obstacle is None else compiled.dp_obstacle.message,
+        "approximations": [note.message for note in compiled.approximations],
+        "kept_smaller": list(compiled.kept_smaller),
+        "method_note": compiled.note,
+        "warnings": [warning.message for warning in compiled.warnings],
+    }
+    if explanations is not None:
+        report["explain"] = [explain_json(e) for e in explanations]
+    return report
+
+
+def explain_json(explanation: Explanation) -> dict[str, Any]:
+    """One explanation as `compile --explain --json` prints it: its split as an allocation,
+    each module's margins keyed as the allocation is."""
+    names = [m.module for m in explanation.modules]
+    allocation = allocation_json(names, [m.share for m in explanation.modules])
+    # `Move` names a module, not its call: a module called more than once keeps its bare name
+    keys = {name: key for name, key in zip(names, allocation, strict=True) if name == key}
+    move = explanation.best_move
+    return {
+        "budget": explanation.total,
+        "input_quality": list(explanation.input_quality),
+        "unit": explanation.unit,
+        "expected_quality": explanation.expected,
+        "unused": explanation.unused,
+        "allocation": allocation,
+        "margins": [
+            {
+                "module": key,
+                "gain": m.gain,
+                "loss": m.loss,
+                "at_ceiling": m.at_ceiling,
+                "note": m.note,
+            }
+            for key, m in zip(allocation, explanation.modules, strict=True)
+        ],
+        "best_move": None
+        if move is None
+        else {
+            "from": keys.get(move.source, move.source),
+            "to": keys.get(move.target, move.target),
+            "change": move.change,
+        },
+    }
 
 
 def explain_totals(

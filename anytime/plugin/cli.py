@@ -5,9 +5,11 @@ A plugin adds subcommands with `Plugin(add_commands=...)`, a function that recei
 the exit status (`EXIT_OK`, ...); an `AnytimeError` it raises (`InputError` for what it checks
 itself, `InputError(message, where=FILE)` to name a file) is printed as one line with exit
 status 1, a `UsageError` with status 2. Option types check a number when argparse parses it;
-`format_table` and `json_text` print as the framework's own commands do; output files are
-written whole or not at all (`atomic_path`, `write_atomic`, `owned_directory`); input files are
-read with a size limit (`read_input`).
+`format_table` and `json_text` print as the framework's own commands do, and `allocation_json`
+gives an allocation as every `--json` does, `{module: time}` (the keys the commands share are
+listed in docs/cli.md, "JSON output"); output files are written whole or not at all
+(`atomic_path`, `write_atomic`, `owned_directory`); input files are read with a size limit
+(`read_input`).
 
 This module imports the command line (`anytime.cli`); `anytime.plugin` does not import it.
 """
@@ -19,6 +21,7 @@ from anytime.cli.common import (
     EXIT_INTERRUPTED,
     EXIT_OK,
     EXIT_USAGE,
+    allocation_json,
     float_in_range,
     format_table,
     int_in_range,
@@ -51,6 +54,7 @@ __all__ = [
     # output
     "format_table",
     "json_text",
+    "allocation_json",
     "ProgressBar",
     # files
     "atomic_path",

@@ -119,10 +119,10 @@ def test_library_show_json_carries_the_dynamic_profile(cli: Cli, tmp_path: Path)
         "observed": "estimate",
         "states": 2,
         "quality_bins": [0.0, 0.5, 1.0],
-        "time": [0.0, 1.0, 2.0],
+        "time_grid": [0.0, 1.0, 2.0],
         "time_unit": "ticks",
         "samples": 2,
-        "input_qualities": {},
+        "input_quality": [],
         "expected_gain": [[0.4, None], [0.35, None]],
         "estimate_in_true_bin": round(2 / 3, 12),
     }

@@ -84,14 +84,15 @@ def test_explain_in_the_json(cli: Cli, files: tuple[Path, Path]) -> None:
     code, out, err = compile_p(cli, files, "--explain", "20", "--json")
     assert (code, err) == (0, "")
     (explained,) = json.loads(out)["explain"]
-    assert explained["total"] == 20
+    assert explained["budget"] == 20
     assert explained["input_quality"] == [1]
     assert explained["unit"] == 10
     assert explained["expected_quality"] == pytest.approx(0.24872, abs=5e-6)
-    assert [m["module"] for m in explained["modules"]] == ["sense", "plan"]
-    sense = explained["modules"][0]
-    assert list(sense) == ["module", "share", "gain", "loss", "at_ceiling", "note"]
-    assert (sense["share"], sense["at_ceiling"], sense["note"]) == (10, False, "")
+    assert explained["allocation"] == {"sense": 10, "plan": 10}
+    assert [m["module"] for m in explained["margins"]] == ["sense", "plan"]
+    sense = explained["margins"][0]
+    assert list(sense) == ["module", "gain", "loss", "at_ceiling", "note"]
+    assert (sense["at_ceiling"], sense["note"]) == (False, "")
     assert sense["gain"] == pytest.approx(0.09150, abs=5e-6)
     assert explained["best_move"]["from"] == "sense"
     assert explained["best_move"]["to"] == "plan"

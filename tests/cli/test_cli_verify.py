@@ -62,10 +62,10 @@ def test_json_and_workers(cli: Cli, lab_any: str) -> None:
     assert code == 1
     one = json.loads(out)
     assert list(one) == [
-        "schema", "time_unit", "problems", "scored", "runs", "seed", "passed", "tolerance",
-        "sigmas", "budgets", "seconds",
+        "schema", "time_unit", "problem_set", "scored", "runs_per_budget", "seed", "passed",
+        "min_tolerance", "sigmas", "budgets", "seconds",
     ]  # fmt: skip
-    assert (one["schema"], one["passed"], [b["total"] for b in one["budgets"]]) == (
+    assert (one["schema"], one["passed"], [b["budget"] for b in one["budgets"]]) == (
         "low",
         False,
         [2.0, 8.0],
@@ -83,7 +83,7 @@ def test_the_compile_options_override_the_problem_sets(cli: Cli, lab_any: str) -
         "verify", lab_any, "--schema", "fair", "--runs", "20", "--time-grid", "0:8:4", "--json"
     )
     assert code == 0
-    assert [b["total"] for b in json.loads(out)["budgets"]] == [0.0, 4.0, 8.0]
+    assert [b["budget"] for b in json.loads(out)["budgets"]] == [0.0, 4.0, 8.0]
     code, out, _ = cli(
         "verify", lab_any, "--schema", "fair", "--runs", "20", "--time-unit", "seconds"
     )

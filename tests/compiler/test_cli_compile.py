@@ -107,17 +107,14 @@ def test_json_report_fields_and_shapes(cli: Cli, setup: tuple[Path, Path]) -> No
         "allocator",
         "modules",
         "inputs",
-        "time",
         "time_unit",
-        "input_quality",
-        "expected_quality",
-        "allocation",
-        "baselines",
+        "time_grid",
+        "input_grids",
+        "budgets",
         "exhaustive_gap",
         "exact",
         "dp_obstacle",
         "approximations",
-        "standard_error",
         "kept_smaller",
         "method_note",
         "warnings",
@@ -126,17 +123,25 @@ def test_json_report_fields_and_shapes(cli: Cli, setup: tuple[Path, Path]) -> No
     assert report["allocator"] == "dp"
     assert report["modules"] == ["sense", "plan"]
     assert report["inputs"] == ["x"]
-    assert report["time"] == [0, 10, 20, 30, 40]
+    assert report["time_grid"] == [0, 10, 20, 30, 40]
     assert report["time_unit"] == "ticks"
-    assert report["input_quality"] == [0, 0.5, 1]
-    expected = np.array(report["expected_quality"])
-    allocation = np.array(report["allocation"])
-    assert expected.shape == (3, 5)  # input quality x time
-    assert allocation.shape == (3, 5, 2)  # input quality x time x module
-    assert set(report["baselines"]) == {"equal", "min", "max"}
-    for baseline in report["baselines"].values():
-        assert np.array(baseline).shape == (3, 5)
-        assert (expected >= np.array(baseline) - 1e-12).all()
+    assert report["input_grids"] == [[0, 0.5, 1]]
+    rows = report["budgets"]  # one per input quality and budget, input quality outermost
+    assert [(row["input_quality"], row["budget"]) for row in rows] == [
+        ([q], t) for q in (0, 0.5, 1) for t in (0, 10, 20, 30, 40)
+    ]
+    assert list(rows[0]) == [
+        "budget", "input_quality", "expected_quality", "expected_quality_se", "allocation",
+        "baselines",
+    ]  # fmt: skip
+    expected = np.array([row["expected_quality"] for row in rows]).reshape(3, 5)
+    assert all(list(row["allocation"]) == ["sense", "plan"] for row in rows)
+    allocation = np.array([list(row["allocation"].values()) for row in rows]).reshape(3, 5, 2)
+    assert all(set(row["baselines"]) == {"equal", "min", "max"} for row in rows)
+    assert all(row["expected_quality_se"] == 0 for row in rows)
+    for name in ("equal", "min", "max"):
+        baseline = np.array([row["baselines"][name] for row in rows]).reshape(3, 5)
+        assert (expected >= baseline - 1e-12).all()
     assert report["exhaustive_gap"] == 0
     assert report["warnings"] == []
     assert report["method_note"] == "dp: local compilation, exact for this tree of monotone modules"
@@ -195,7 +200,10 @@ def test_output_file_is_a_loadable_compiled_profile(
     np.testing.assert_array_equal(profile.time, [0, 10, 20, 30, 40])
     assert profile.mean is not None
     code, out, _ = compile_p(cli, setup, "--time-grid", "0:40:10", "--json")
-    np.testing.assert_array_equal(profile.mean, json.loads(out)["expected_quality"])
+    rows = json.loads(out)["budgets"]
+    np.testing.assert_array_equal(
+        profile.mean, np.reshape([row["expected_quality"] for row in rows], profile.mean.shape)
+    )
 
 
 def test_output_file_with_json_prints_only_json(
@@ -211,10 +219,10 @@ def test_output_file_with_json_prints_only_json(
 def test_time_grid_option(cli: Cli, setup: tuple[Path, Path]) -> None:
     code, out, err = compile_p(cli, setup, "--time-grid", "0:40:10", "--json")
     assert (code, err) == (0, "")
-    assert json.loads(out)["time"] == [0, 10, 20, 30, 40]
+    assert json.loads(out)["time_grid"] == [0, 10, 20, 30, 40]
     code, out, err = compile_p(cli, setup, "--time-grid", "10:30:10", "--json")
     assert (code, err) == (0, "")
-    assert json.loads(out)["time"] == [10, 20, 30]
+    assert json.loads(out)["time_grid"] == [10, 20, 30]
 
 
 @pytest.mark.parametrize(
@@ -300,13 +308,14 @@ def test_the_shipped_navigation_schema_compiles_exactly(
     assert report["allocator"] == "exhaustive"
     assert report["exhaustive_gap"] == 0
     # The vision module's profile has no input axis, so no program input's quality conditions
-    # the output: the tables have no input-quality axis (see report.compiled_to_dict).
-    assert (report["inputs"], report["input_quality"]) == ([], [])
-    expected = np.array(report["expected_quality"])
-    assert expected.shape == (len(report["time"]),)
-    assert np.array(report["allocation"]).shape == (len(report["time"]), 2)
-    for baseline in report["baselines"].values():
-        assert (expected >= np.array(baseline) - 1e-12).all()
+    # the output: the table has one row per budget, none per input quality.
+    assert (report["inputs"], report["input_grids"]) == ([], [])
+    rows = report["budgets"]
+    assert [row["budget"] for row in rows] == report["time_grid"]
+    for row in rows:
+        assert row["input_quality"] == []
+        assert list(row["allocation"]) == ["get-domain-description", "find-path"]
+        assert all(row["expected_quality"] >= b - 1e-12 for b in row["baselines"].values())
 
 
 def test_strict_refuses_a_table_that_leans_on_a_clamped_profile(

@@ -30,11 +30,13 @@ def test_json_end_to_end():
     assert done.returncode == 0, done.stderr
     result = json.loads(done.stdout)
     assert set(result) == {
-        "seed", "size", "frames", "completion_time", "energy", "value", "utility",
-        "predicted_utility", "prediction_error", "optimal_utility", "utility_ratio",
-        "route_length", "optimal_length", "policy",
+        "seed", "size", "policy", "time_unit", "frames", "completion_time", "route_length",
+        "optimal_length", "energy", "value", "expected_utility", "realised_utility",
+        "prediction_error", "optimal_utility", "utility_ratio", "moving_obstacles", "decisions",
+        "collisions", "evasions",
     }  # fmt: skip
-    assert math.isclose(result["utility"], result["value"] - result["energy"])
+    assert math.isclose(result["realised_utility"], result["value"] - result["energy"])
+    assert result["moving_obstacles"] == result["decisions"] == 0
     assert result["frames"] > 1 and result["size"] == 32
     assert result["route_length"] >= result["optimal_length"]
 

@@ -18,8 +18,8 @@ ARENA = str(MAPS / "arena.map")
 KEYS = {
     "start",
     "goal",
-    "length",
-    "optimal",
+    "route_length",
+    "optimal_length",
     "expansions",
     "seconds",
     "first_quality",
@@ -43,13 +43,13 @@ def test_astar_lengths_are_the_scen_optimal_lengths(cli: Cli) -> None:
     for problem, scenario in zip(result["problems"], scenarios, strict=True):
         assert set(problem) == KEYS
         assert (tuple(problem["start"]), tuple(problem["goal"])) == (scenario.start, scenario.goal)
-        assert problem["optimal"] == scenario.optimal
+        assert problem["optimal_length"] == scenario.optimal
         # The old-style arena file prints 6 significant digits: 11.8284 for 11.828427...
-        assert math.isclose(problem["length"], scenario.optimal, rel_tol=1e-5)
+        assert math.isclose(problem["route_length"], scenario.optimal, rel_tol=1e-5)
         assert problem["first_quality"] == problem["final_quality"] == 1.0
         assert problem["expansions"] >= 0 and problem["seconds"] >= 0
     summary = result["summary"]
-    assert summary["problems"] == 160
+    assert summary["problem_count"] == 160
     assert summary["planner"] == "astar" and summary["movement"] == 8
     assert summary["optimal_from"] == "scen"
     assert summary["mean_length_ratio"] == 1.0
@@ -66,8 +66,9 @@ def test_atp_quality_is_optimal_over_executed_length(cli: Cli) -> None:
         assert set(problem) == KEYS
         assert 0.0 < problem["first_quality"] <= 1.0
         assert 0.0 < problem["final_quality"] <= 1.0
-        assert problem["length"] >= problem["optimal"] * (1 - 1e-5)
-        quality = min(1.0, problem["optimal"] / problem["length"]) if problem["length"] else 1.0
+        assert problem["route_length"] >= problem["optimal_length"] * (1 - 1e-5)
+        length, optimal = problem["route_length"], problem["optimal_length"]
+        quality = min(1.0, optimal / length) if length else 1.0
         assert problem["final_quality"] == pytest.approx(quality, abs=1e-5)
     summary = result["summary"]
     assert summary["planner"] == "atp"
@@ -84,8 +85,8 @@ def test_one_explicit_problem(cli: Cli) -> None:
         assert (problem["start"], problem["goal"]) == ([1, 11], [45, 40])
         assert result["summary"]["optimal_from"] == "astar"
     # Without a .scen file the optimal length is A*'s.
-    assert astar["problems"][0]["optimal"] == astar["problems"][0]["length"]
-    assert atp["problems"][0]["optimal"] == astar["problems"][0]["length"]
+    assert astar["problems"][0]["optimal_length"] == astar["problems"][0]["route_length"]
+    assert atp["problems"][0]["optimal_length"] == astar["problems"][0]["route_length"]
     assert 0.0 < atp["problems"][0]["final_quality"] <= 1.0
 
 
@@ -94,8 +95,8 @@ def test_four_connected_optimal_lengths_come_from_astar(cli: Cli) -> None:
     assert result["summary"]["optimal_from"] == "astar"
     assert result["summary"]["movement"] == 4
     for problem in result["problems"]:
-        assert problem["length"] == problem["optimal"]
-        assert problem["length"] == int(problem["length"])  # straight steps only
+        assert problem["route_length"] == problem["optimal_length"]
+        assert problem["route_length"] == int(problem["route_length"])  # straight steps only
 
 
 def test_table_and_summary_line(cli: Cli) -> None:
@@ -132,7 +133,7 @@ SUMMARY = {
     "planner",
     "movement",
     "optimal_from",
-    "problems",
+    "problem_count",
     "mean_length_ratio",
     "expansions",
     "seconds",

@@ -342,7 +342,7 @@ def test_deliver_json_has_exactly_its_keys(cli: Cli) -> None:
     assert code == 0, err
     run = json.loads(out)
     assert list(run) == [
-        "schema", "budget", "allocation", "expected_quality", "realised_quality",
+        "schema", "budget", "time_unit", "allocation", "expected_quality", "realised_quality",
         "time_used", "status", "customers", "depots", "seed",
     ]  # fmt: skip
     assert run["time_used"] <= run["budget"] == 40

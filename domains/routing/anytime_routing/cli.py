@@ -10,6 +10,7 @@ from anytime.plugin.cli import (
     EXIT_OK,
     CommandGroup,
     InputError,
+    allocation_json,
     float_in_range,
     format_table,
     int_in_range,
@@ -104,11 +105,11 @@ def run_deliver(args: argparse.Namespace) -> int:
     run = deliver(program, world, args.budget, adaptive=args.adaptive)
     j = list(program.profile.time).index(args.budget)
     expected = float(program.expected[j])
-    allocation = dict(zip(program.modules, run.record.allocations, strict=True))
+    allocation = allocation_json(program.modules, run.record.allocations)
     if args.out is not None:
         written = _figures(args, program, world, run)
     if args.json:
-        print(json_text(_json(args, expected, allocation, run), indent=None))
+        print(json_text(_json(args, expected, allocation, run)))
         return EXIT_OK
     print(_text(args, expected, allocation, run), end="")
     if args.out is not None:
@@ -122,6 +123,7 @@ def _json(
     return {
         "schema": args.schema,
         "budget": args.budget,
+        "time_unit": "ticks",
         "allocation": allocation,
         "expected_quality": round(expected, 6),
         "realised_quality": None if run.quality is None else round(run.quality, 6),

@@ -8,6 +8,7 @@ import sys
 import threading
 from contextlib import ExitStack
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -252,10 +253,12 @@ def run_navigate(args: argparse.Namespace) -> int:
         if out is not None:
             written = _outputs(report, task, out.fresh(), bars)
     if args.json:
-        result = report.as_json()
+        result = navigate_json(report)
         if comparison:
-            result["comparison"] = {name: other.as_json() for name, other in comparison.items()}
-        print(json_text(result, indent=None))
+            result["comparison"] = {
+                name: navigate_json(other) for name, other in comparison.items()
+            }
+        print(json_text(result))
     else:
         print(_summary(report, comparison, described), end="")
         if written:
@@ -265,6 +268,32 @@ def run_navigate(args: argparse.Namespace) -> int:
                 f"{Path(args.out)}"
             )
     return EXIT_OK
+
+
+#: `TaskReport.as_json`'s keys as `navigate --json` names them: what the monitor expected
+#: before the run beside what the run realised, as `deliver --json` and `verify --json` have
+#: them (docs/cli.md, "JSON output").
+JSON_NAMES = {"predicted_utility": "expected_utility", "utility": "realised_utility"}
+
+#: What a run without moving obstacles has of their counts (`as_json` leaves them out).
+NO_OBSTACLES = {"moving_obstacles": 0, "decisions": 0, "collisions": 0, "evasions": 0}
+
+
+def navigate_json(report: TaskReport) -> dict[str, Any]:
+    """A run as `navigate --json` prints it: every key always there, times in ticks (the wall
+    clock reads in tick-equivalents)."""
+    data = NO_OBSTACLES | {JSON_NAMES.get(k, k): v for k, v in report.as_json().items()}
+    data["time_unit"] = "ticks"
+    first = {key: data.pop(key) for key in JSON_ORDER if key in data}
+    return first | data  # a key `as_json` gains goes last
+
+
+#: The order of `navigate --json`'s keys.
+JSON_ORDER = (
+    "seed size policy time_unit frames completion_time route_length optimal_length energy"
+    " value expected_utility realised_utility prediction_error optimal_utility utility_ratio"
+    " moving_obstacles decisions collisions evasions"
+).split()
 
 
 #: What `navigate --out DIR` writes, and so deletes there before a run writes anew.

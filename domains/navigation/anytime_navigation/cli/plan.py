@@ -313,7 +313,7 @@ def _summary(
         "planner": planner,
         "movement": movement,
         "optimal_from": reference,
-        "problems": n,
+        "problem_count": n,
         "mean_length_ratio": sum(_length_ratio(s) for s in solutions) / n,
         "expansions": sum(s.expansions for s in solutions),
         "seconds": sum(s.seconds for s in solutions),
@@ -326,8 +326,8 @@ def _solution_json(solution: Solution) -> dict[str, Any]:
     return {
         "start": list(solution.start),
         "goal": list(solution.goal),
-        "length": solution.length,
-        "optimal": solution.optimal,
+        "route_length": solution.length,
+        "optimal_length": solution.optimal,
         "expansions": solution.expansions,
         "seconds": solution.seconds,
         "first_quality": solution.first_quality,
@@ -355,9 +355,10 @@ def _format(solutions: list[Solution], summary: dict[str, Any]) -> str:
         )
     source = "the .scen file" if summary["optimal_from"] == "scen" else "A*"
     what = "abstraction" if summary["planner"] == "atp" else "padded grid"
-    problems = "problem" if summary["problems"] == 1 else "problems"
+    count = summary["problem_count"]
+    problems = "problem" if count == 1 else "problems"
     line = (
-        f"{summary['problems']} {problems}, {summary['planner']}, {summary['movement']}-connected"
+        f"{count} {problems}, {summary['planner']}, {summary['movement']}-connected"
         f" (optimal lengths from {source}): mean length / optimal"
         f" {summary['mean_length_ratio']:.4f}, {summary['expansions']} expansions,"
         f" {summary['seconds']:.3f} s planning, mean quality first"
