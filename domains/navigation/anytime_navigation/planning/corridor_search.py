@@ -451,6 +451,47 @@ def sorted_pairs(
 
 
 @_compiled
+def door_points(
+    grid: IntArray, movement: int, ordered: IntArray, order: IntArray, count: int, states: int
+) -> FloatArray:
+    """The doors' points (`doors.Doors`), in one pass over the grid: for each legal base move
+    between two nodes of a level (`grid`: each cell's node, -1 where blocked), its midpoint
+    added to the state from the lower node to the higher (`ordered`: tail * count + head of
+    the states, ascending, `order` their states), then each such state's mean. (The midpoints
+    are multiples of 1/2, so their sums are exact in any order.)"""
+    sums = np.zeros((states, 2))
+    moves = np.zeros(states)
+    height, width = grid.shape
+    forward = 4 if movement == 8 else 2
+    for y in range(height):
+        for x in range(width):
+            a = grid[y, x]
+            if a < 0:
+                continue
+            for m in range(forward):  # (1, 0), (0, 1), (1, 1), (-1, 1)
+                dx = 1 if m == 0 or m == 2 else (-1 if m == 3 else 0)
+                dy = 0 if m == 0 else 1
+                tx, ty = x + dx, y + dy
+                if tx < 0 or tx >= width or ty >= height:
+                    continue
+                b = grid[ty, tx]
+                if b < 0 or b == a:
+                    continue
+                if dx != 0 and dy != 0 and (grid[y, tx] < 0 or grid[ty, x] < 0):
+                    continue  # no corner cutting: both orthogonal neighbours free
+                key = min(a, b) * count + max(a, b)
+                state = order[np.searchsorted(ordered, key)]
+                sums[state, 0] += x + 0.5 + dx / 2
+                sums[state, 1] += y + 0.5 + dy / 2
+                moves[state] += 1.0
+    for j in range(states):
+        if moves[j] > 0.0:
+            sums[j, 0] /= moves[j]
+            sums[j, 1] /= moves[j]
+    return sums
+
+
+@_compiled
 def _before(f: FloatArray, h: FloatArray, c: IntArray, i: int, j: int) -> bool:
     """Whether heap entry i comes before entry j: keys (f, -g, counter), as `heapq` orders the
     tuples of the pure-Python A* (`search.find_path_to_box`), so both pop in the same order."""

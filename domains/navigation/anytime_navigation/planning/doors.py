@@ -94,7 +94,7 @@ class Doors:
         keys = tail * count + head
         order = np.argsort(keys, kind="stable")
         reverse = order[np.searchsorted(keys[order], head * count + tail)]
-        point = _door_points(grid, movement, keys, order, count, states)
+        point = compiled().door_points(grid, movement, keys[order], order, count, states)
         downward = tail > head
         point[downward] = point[reverse[downward]]  # the same door both ways
         # Each state followed by the states leaving its head but the one back.
@@ -187,43 +187,3 @@ class Doors:
         return move_distance(
             np.abs(points[:, 0] - (gx + 0.5)), np.abs(points[:, 1] - (gy + 0.5)), self.movement
         )
-
-
-def _door_points(
-    grid: IntArray, movement: int, keys: IntArray, order: IntArray, count: int, states: int
-) -> FloatArray:
-    """The door of each state from its lower node to its higher one: the mean midpoint of the
-    legal base moves between the two (`keys` = tail * count + head of each state, `order`
-    their ascending order); the other states' are left 0."""
-    ordered = keys[order]
-    sums = np.zeros((states, 2))
-    moves = np.zeros(states)
-    # Within the free cells' bounding box (a map padded to a power of two has blocked margins).
-    rows, columns = np.flatnonzero((grid >= 0).any(axis=1)), np.flatnonzero((grid >= 0).any(axis=0))
-    if len(rows) == 0:
-        return sums
-    top, left = int(rows[0]), int(columns[0])
-    grid = grid[top : rows[-1] + 1, left : columns[-1] + 1]
-    height, width = grid.shape
-    free = grid >= 0
-    for dx, dy in _FORWARD_MOVES[movement]:
-        # The moves from (x, y) to (x + dx, y + dy) inside the grid, as slices of it.
-        xs = slice(max(0, -dx), width - max(0, dx))
-        ys = slice(0, height - dy)
-        to_xs = slice(max(0, dx), width - max(0, -dx))
-        to_ys = slice(dy, height)
-        legal = free[ys, xs] & free[to_ys, to_xs]
-        if dx and dy:  # no corner cutting: both orthogonal neighbours free
-            legal &= free[ys, to_xs] & free[to_ys, xs]
-        a, b = grid[ys, xs], grid[to_ys, to_xs]
-        legal &= a != b
-        y, x = np.nonzero(legal)
-        u, v = a[y, x], b[y, x]
-        x0 = x + max(0, -dx) + left
-        y = y + top
-        # Each move to the state from its lower node to its higher one, once.
-        where = order[np.searchsorted(ordered, np.minimum(u, v) * count + np.maximum(u, v))]
-        sums[:, 0] += np.bincount(where, weights=x0 + 0.5 + dx / 2, minlength=states)
-        sums[:, 1] += np.bincount(where, weights=y + 0.5 + dy / 2, minlength=states)
-        moves += np.bincount(where, minlength=states)
-    return sums / np.maximum(moves, 1)[:, None]
