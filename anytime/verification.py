@@ -491,31 +491,33 @@ def _check(
 
 
 def verification_to_dict(verification: Verification) -> dict[str, Any]:
-    """The verification as JSON-ready data (`anytime verify --json`)."""
+    """The verification as JSON-ready data, as `anytime verify --json` prints it (docs/cli.md,
+    "JSON output"): one row per budget, with the names `compile --json` and `deliver --json`
+    give the same things."""
     return {
         "schema": verification.schema,
         "time_unit": verification.time_unit,
-        "problems": verification.problems,
+        "problem_set": verification.problems,
         "scored": verification.scored,
-        "runs": verification.runs,
+        "runs_per_budget": verification.runs,
         "seed": verification.seed,
         "passed": verification.passed,
-        "tolerance": verification.tolerance,
+        "min_tolerance": verification.tolerance,
         "sigmas": verification.sigmas,
         "budgets": [
             {
-                "total": check.total,
-                "promised": check.promised,
-                "realised": check.realised,
+                "budget": check.total,
+                "expected_quality": check.promised,
+                "realised_quality": check.realised,
                 "se": check.se,
-                "se_runs": check.se_runs,
-                "se_promise": check.se_promise,
+                "realised_quality_se": check.se_runs,
+                "expected_quality_se": check.se_promise,
                 "z": check.z,
                 "tolerance": check.tolerance,
                 "runs": check.runs,
-                "over_budget": check.over_budget,
+                "overruns": check.over_budget,
                 "no_result": check.no_result,
-                "failed": check.failed,
+                "failures": check.failed,
                 "passed": check.passed,
             }
             for check in verification.budgets

@@ -150,12 +150,13 @@ def test_the_tables_own_standard_error_widens_the_tolerance(
 def test_the_result_as_data(fair: Verification) -> None:
     data = verification_to_dict(fair)
     assert list(data) == [
-        "schema", "time_unit", "problems", "scored", "runs", "seed", "passed", "tolerance",
-        "sigmas", "budgets", "seconds",
+        "schema", "time_unit", "problem_set", "scored", "runs_per_budget", "seed", "passed",
+        "min_tolerance", "sigmas", "budgets", "seconds",
     ]  # fmt: skip
     assert list(data["budgets"][1]) == [
-        "total", "promised", "realised", "se", "se_runs", "se_promise", "z", "tolerance",
-        "runs", "over_budget", "no_result", "failed", "passed",
+        "budget", "expected_quality", "realised_quality", "se", "realised_quality_se",
+        "expected_quality_se", "z", "tolerance", "runs", "overruns", "no_result", "failures",
+        "passed",
     ]  # fmt: skip
     assert data["passed"] is True and len(data["budgets"]) == len(lab.TOTALS)
     assert isinstance(fair.budgets[0], BudgetCheck)

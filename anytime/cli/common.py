@@ -12,6 +12,7 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from anytime.compiler.report import allocation_json as allocation_json  # re-exported
 from anytime.errors import InputError as InputError  # defined with the other errors: re-exported
 from anytime.errors import UsageError as UsageError
 from anytime.isolation import ISOLATIONS, WATCHDOG
@@ -357,23 +358,6 @@ def json_text(data: Any, *, indent: int | None = 2) -> str:
     not finite is written as null. Values must be plain (numpy scalars are a bug where they are
     made, and raise TypeError here)."""
     return json.dumps(_finite(data), indent=indent, allow_nan=False)
-
-
-def allocation_json(modules: Sequence[str], shares: Sequence[float]) -> dict[str, float]:
-    """An allocation as `--json` prints it everywhere: `{module: time}`, in the program's
-    order. A module called more than once gets its occurrence as a suffix (`find-path#1`,
-    `find-path#2`), so no share is lost to a repeated key."""
-    if len(modules) != len(shares):
-        raise ValueError(f"{len(modules)} modules but {len(shares)} shares")
-    repeated = {name for name in modules if modules.count(name) > 1}
-    seen: dict[str, int] = {}
-    data: dict[str, float] = {}
-    for name, share in zip(modules, shares, strict=True):
-        if name in repeated:
-            seen[name] = seen.get(name, 0) + 1
-            name = f"{name}#{seen[name]}"
-        data[name] = float(share)
-    return data
 
 
 def _finite(data: Any) -> Any:

@@ -8,8 +8,6 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
-import numpy as np
-
 from anytime.cli.common import (
     EXIT_OK,
     MAX_LATTICE_POINTS,
@@ -46,7 +44,7 @@ from anytime.compiler.explain import (
     explain,
     format_explanations,
 )
-from anytime.compiler.report import MAX_ROWS
+from anytime.compiler.report import MAX_ROWS, compiled_to_dict
 from anytime.dsl import (
     Program,
     SchemaFile,
@@ -306,48 +304,9 @@ def parse_json(program: Program) -> dict[str, Any]:
 def compile_json(
     compiled: CompiledProgram, explanations: Sequence[Explanation] | None = None
 ) -> dict[str, Any]:
-    """The report as `compile --json` prints it (docs/cli.md, "JSON output"): the table as
-    one row per input quality and budget (`budgets`), each with its allocation as
-    `{module: time}`; `explain` only when asked for."""
-    profile = compiled.profile
-    grids = [grid.tolist() for grid in profile.input_grids]
-    expected = compiled.expected
-    error = compiled.standard_error
-    rows = []
-    for cell in np.ndindex(*(len(grid) for grid in grids)):
-        for j, budget in enumerate(profile.time.tolist()):
-            at = (*cell, j)
-            rows.append(
-                {
-                    "budget": budget,
-                    "input_quality": [grid[i] for grid, i in zip(grids, cell, strict=True)],
-                    "expected_quality": float(expected[at]),
-                    "expected_quality_se": 0.0 if error is None else float(error[at]),
-                    "allocation": allocation_json(
-                        compiled.modules, compiled.allocation[at].tolist()
-                    ),
-                    "baselines": {
-                        name: float(value[at]) for name, value in compiled.baselines.items()
-                    },
-                }
-            )
-    report: dict[str, Any] = {
-        "schema": compiled.name,
-        "allocator": compiled.allocator,
-        "modules": list(allocation_json(compiled.modules, [0.0] * len(compiled.modules))),
-        "inputs": list(compiled.model.quality_inputs),
-        "time_unit": profile.time_unit,
-        "time_grid": profile.time.tolist(),
-        "input_grids": grids,
-        "budgets": rows,
-        "exhaustive_gap": compiled.exhaustive_gap,
-        "exact": compiled.exact,
-        "dp_obstacle": None if compiled.dp_obstacle is None else compiled.dp_obstacle.message,
-        "approximations": [note.message for note in compiled.approximations],
-        "kept_smaller": list(compiled.kept_smaller),
-        "method_note": compiled.note,
-        "warnings": [warning.message for warning in compiled.warnings],
-    }
+    """The report as `compile --json` prints it: `compiled_to_dict`, with `explain` only when
+    asked for."""
+    report = compiled_to_dict(compiled)
     if explanations is not None:
         report["explain"] = [explain_json(e) for e in explanations]
     return report

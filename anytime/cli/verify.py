@@ -6,7 +6,6 @@ import argparse
 from collections.abc import Iterator
 from concurrent.futures import Executor
 from contextlib import contextmanager
-from typing import Any
 
 from anytime.cli.common import (
     EXIT_INPUT,
@@ -31,8 +30,8 @@ from anytime.measure.builder import dask_executor
 from anytime.verification import (
     SIGMAS,
     TOLERANCE,
-    Verification,
     format_verification,
+    verification_to_dict,
     verify,
 )
 
@@ -116,45 +115,10 @@ def run_verify(args: argparse.Namespace) -> int:
             progress=False if args.quiet else None,
         )
     if args.json:
-        print(json_text(verify_json(result)))
+        print(json_text(verification_to_dict(result)))
     else:
         print(format_verification(result), end="")
     return EXIT_OK if result.passed else EXIT_INPUT
-
-
-def verify_json(verification: Verification) -> dict[str, Any]:
-    """The verification as `verify --json` prints it (docs/cli.md, "JSON output"): one row per
-    budget, with the names `compile --json` and `deliver --json` give the same things."""
-    return {
-        "schema": verification.schema,
-        "time_unit": verification.time_unit,
-        "problem_set": verification.problems,
-        "scored": verification.scored,
-        "runs_per_budget": verification.runs,
-        "seed": verification.seed,
-        "passed": verification.passed,
-        "min_tolerance": verification.tolerance,
-        "sigmas": verification.sigmas,
-        "budgets": [
-            {
-                "budget": check.total,
-                "expected_quality": check.promised,
-                "realised_quality": check.realised,
-                "se": check.se,
-                "realised_quality_se": check.se_runs,
-                "expected_quality_se": check.se_promise,
-                "z": check.z,
-                "tolerance": check.tolerance,
-                "runs": check.runs,
-                "overruns": check.over_budget,
-                "no_result": check.no_result,
-                "failures": check.failed,
-                "passed": check.passed,
-            }
-            for check in verification.budgets
-        ],
-        "seconds": round(verification.seconds, 3),
-    }
 
 
 @contextmanager

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -11,32 +12,67 @@ from anytime.compiler.result import CompiledProgram
 MAX_ROWS = 25  # rows of the human table by default; a longer time grid is thinned to fit
 
 
+def allocation_json(modules: Sequence[str], shares: Sequence[float]) -> dict[str, float]:
+    """An allocation as `--json` prints it everywhere: `{module: time}`, in the program's
+    order. A module called more than once gets its occurrence as a suffix (`find-path#1`,
+    `find-path#2`), so no share is lost to a repeated key."""
+    if len(modules) != len(shares):
+        raise ValueError(f"{len(modules)} modules but {len(shares)} shares")
+    repeated = {name for name in modules if modules.count(name) > 1}
+    seen: dict[str, int] = {}
+    data: dict[str, float] = {}
+    for name, share in zip(modules, shares, strict=True):
+        if name in repeated:
+            seen[name] = seen.get(name, 0) + 1
+            name = f"{name}#{seen[name]}"
+        data[name] = float(share)
+    return data
+
+
 def compiled_to_dict(compiled: CompiledProgram) -> dict[str, Any]:
-    """The report as JSON-ready data. Tables are shaped (input quality..., time[, module]): one
-    input-quality axis per quality-carrying program input (none when no input carries one)."""
+    """The report as JSON-ready data, as `anytime compile --json` prints it (docs/cli.md, "JSON
+    output"): the table as one row per input quality and budget (`budgets`), each with its
+    allocation as `{module: time}`."""
     profile = compiled.profile
-    return {
+    grids = [grid.tolist() for grid in profile.input_grids]
+    expected = compiled.expected
+    error = compiled.standard_error
+    rows = []
+    for cell in np.ndindex(*(len(grid) for grid in grids)):
+        for j, budget in enumerate(profile.time.tolist()):
+            at = (*cell, j)
+            rows.append(
+                {
+                    "budget": budget,
+                    "input_quality": [grid[i] for grid, i in zip(grids, cell, strict=True)],
+                    "expected_quality": float(expected[at]),
+                    "expected_quality_se": 0.0 if error is None else float(error[at]),
+                    "allocation": allocation_json(
+                        compiled.modules, compiled.allocation[at].tolist()
+                    ),
+                    "baselines": {
+                        name: float(value[at]) for name, value in compiled.baselines.items()
+                    },
+                }
+            )
+    report: dict[str, Any] = {
         "schema": compiled.name,
         "allocator": compiled.allocator,
-        "modules": list(compiled.modules),
+        "modules": list(allocation_json(compiled.modules, [0.0] * len(compiled.modules))),
         "inputs": list(compiled.model.quality_inputs),
-        "time": profile.time.tolist(),
         "time_unit": profile.time_unit,
-        "input_quality": profile.input_grids[0].tolist() if profile.input_grids else [],
-        "expected_quality": compiled.expected.tolist(),
-        "allocation": compiled.allocation.tolist(),
-        "baselines": {name: value.tolist() for name, value in compiled.baselines.items()},
+        "time_grid": profile.time.tolist(),
+        "input_grids": grids,
+        "budgets": rows,
         "exhaustive_gap": compiled.exhaustive_gap,
         "exact": compiled.exact,
         "dp_obstacle": None if compiled.dp_obstacle is None else compiled.dp_obstacle.message,
         "approximations": [note.message for note in compiled.approximations],
-        "standard_error": (
-            None if compiled.standard_error is None else compiled.standard_error.tolist()
-        ),
         "kept_smaller": list(compiled.kept_smaller),
         "method_note": compiled.note,
         "warnings": [warning.message for warning in compiled.warnings],
     }
+    return report
 
 
 def format_report(compiled: CompiledProgram, rows: int = MAX_ROWS) -> str:
