@@ -10,6 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import anytime_motion
 import anytime_navigation
 import anytime_routing
 import pytest
@@ -29,6 +30,7 @@ PUBLIC = {"anytime", "anytime.plugin", *SUBMODULES}
 PLUGINS = {
     "navigation": Path(anytime_navigation.__file__).parent,
     "routing": Path(anytime_routing.__file__).parent,
+    "motion": Path(anytime_motion.__file__).parent,
     # The test plugin, read where it lives (its tests install it as a user would).
     "estimation": Path(__file__).parent / "estimation_plugin" / "anytime_estimation",
 }
