@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 
+import attrs
 import numpy as np
 import pytest
 from anytime_navigation.task.calibration import (
@@ -150,3 +151,120 @@ def test_the_speeds_mix_is_no_worse_than_any_one_speed(remaining, step, now, qua
         completion = now + 400.0 + (frames - 1) * max(400.0, e) + (x - frames + 1) * e
         single = float(model.task.value(completion)) - float(model.task.energy(v)) * path
         assert best >= single - 1e-6
+
+
+# --- the first frame apart from the later ones ---------------------------------------------------
+
+
+def first_frame_calibration() -> TaskCalibration:
+    quality = [[0.8, 0.9, 1.0, 1.0], [0.95, 1.0, 1.0, 1.0]]
+    walked = [[20, 24, 30, 22], [22, 22, 25, 22]]
+    left = [[0.75, 0.7, 0.68, 0.72], [0.65, 0.66, 0.62, 0.65]]
+    stretch = [[1.2, 1.1, 1.0, 1.3], [1.05, 1.0, 1.1, 1.0]]
+    return TaskCalibration(
+        32, 8, 4, [100, 300], quality, [0.5, 0.7, 0.6, 0.8], 1000, walked, left, stretch
+    )
+
+
+def test_the_first_frame_reads_back_as_written():
+    calibration = first_frame_calibration()
+    assert TaskCalibration.from_json(calibration.as_json()) == calibration
+    first = calibration.first_frame()
+    assert first is not None
+    assert first.walked.shape == first.left.shape == first.stretch.shape == (2, 4)
+    assert small_calibration().first_frame() is None  # measured without it
+    assert "first_walked" not in small_calibration().as_json()
+
+
+@pytest.mark.parametrize("size", [64, 128])
+def test_the_benchmarks_sizes_have_their_first_frame(size):
+    calibration = shipped(size, size // 4)
+    first = calibration.first_frame()
+    assert first is not None
+    assert first.walked.shape == (len(calibration.contracts), calibration.worlds)
+    prior = 2.0 * (size - 1)  # the start's distance on the prior map: nothing known
+    assert np.all(first.walked >= prior * (1 - first.left) - 1e-9)  # progress is walked
+    assert np.all(first.left > 0)
+    assert np.all(first.stretch >= 1.0 - 1e-9)  # the rest is at least its shortest route
+
+
+def test_measuring_gives_the_first_frame(program):
+    calibration = measure(16, 2, contracts=[200.0, 400.0])
+    first = calibration.first_frame()
+    assert first is not None and first.walked.shape == (2, 2)
+    assert np.all(first.walked >= 1) and np.all((first.left > 0) & (first.left < 1))
+
+
+def first_model(later=None, value=None) -> TaskModel:
+    calibration = first_frame_calibration()
+    task = NavigationTask(random_world(32, seed=0), radius=8, value=value or task_value(32))
+    return TaskModel(
+        task,
+        calibration.profile(),
+        progress=calibration.progress_ratio,
+        route_quality=True,
+        later=later,
+        first=calibration.first_frame(),
+    )
+
+
+def test_the_first_frames_route_is_its_own_and_the_later_frames_stretch():
+    # Without a deadline the robot walks at the slowest speed: the energy is the route's.
+    model = first_model(value=DeadlineValue(1000.0, 0.0, 0.0))
+    state = FrameState(0.0, 62.0, 0.05, 20.0, waiting=True)
+    decision = model.first_choice(state, np.array([100.0, 300.0]))
+    first = model.first
+    route = first.walked + 62.0 * first.left * first.stretch  # later at the same contract
+    cost = float(model.task.energy(0.05)) * route.mean(axis=1)
+    assert decision.contract == 300.0 and decision.grid.tolist() == [100.0, 300.0]
+    assert decision.expected_cost == pytest.approx(cost[1])
+    assert decision.utility_curve.tolist() == pytest.approx((1000.0 - cost).tolist())
+    assert decision.expected_utility == pytest.approx(1000.0 - cost[1])
+
+
+def test_a_first_contract_that_buys_nothing_is_not_waited_for():
+    model = first_model()
+    first = model.first
+    same = attrs.evolve(
+        first,
+        walked=np.repeat(first.walked[:1], 2, axis=0),
+        left=np.repeat(first.left[:1], 2, axis=0),
+        stretch=np.repeat(first.stretch[:1], 2, axis=0),
+    )
+    model = attrs.evolve(model, first=same, later=(100.0,))
+    state = FrameState(0.0, 62.0, 0.05, 20.0, waiting=True)
+    decision = model.first_choice(state, np.array([100.0, 300.0]))
+    assert decision.contract == 100.0
+    assert decision.utility_curve[0] >= decision.utility_curve[1]
+
+
+def test_the_first_choice_is_only_the_first_frames():
+    model = first_model(later=(100.0, 300.0))
+    waiting = FrameState(0.0, 62.0, 0.05, 20.0, waiting=True)
+    walking = FrameState(400.0, 40.0, 0.05, 20.0, waiting=False, current=20.0)
+    assert model.first_choice(walking, np.array([100.0, 300.0])) is None
+    assert model.first_choice(waiting, np.array([100.0, 200.0])) is None  # 200 not measured
+    assert attrs.evolve(model, first=None).first_choice(waiting, np.array([100.0])) is None
+    assert attrs.evolve(model, later=(500.0,)).first_choice(waiting, np.array([100.0])) is None
+
+
+def test_a_calibrated_tasks_first_frame_is_the_first_choice(program):
+    compiled, trace = program
+    world = random_world(64, seed=5)
+    task = NavigationTask(world, radius=16, value=task_value(64), seed=5)
+    report = run_task(task, compiled, trace)
+    calibration = shipped(64, 16)
+    model = TaskModel(
+        task,
+        calibration.profile(),
+        progress=calibration.progress_ratio,
+        route_quality=True,
+        later=calibration.contracts,
+        first=calibration.first_frame(),
+    )
+    prior = float(2 * (64 - 1))  # nothing known: the Manhattan distance
+    state = FrameState(0.0, prior, 0.05, model.first_step(world.start), waiting=True)
+    decision = model.first_choice(state, np.asarray(calibration.contracts))
+    assert report.records[0].contract == decision.contract
+    assert report.predicted_utility == pytest.approx(decision.expected_utility)
+    assert report.records[0].expected_completion == pytest.approx(decision.expected_completion)

@@ -11,16 +11,23 @@ times it), and a frame covers less than the straight line to the window's edge t
 assumed before any frame was seen (about 25 cells, not 32, with a radius of 16).
 
 `measure` runs the task under a fixed contract on training worlds (seeds from 1000, apart from
-the benchmark's and the tests') for each contract of a grid, and records per world the route's
-quality, optimal length / route length, and the progress of the first frame against the
-model's straight-line estimate. Every contract runs on the same worlds, so the differences
-between contracts are measured pairwise: at 128 x 128, 1000 ticks (400 of them sensing) walk
-routes 0.022 shorter per cell of the shortest than 400 ticks, with a standard error of 0.007
-over 150 worlds. `TaskCalibration.profile` is the profile the monitor plans with
+the benchmark's, 0 to 99, and the tests') for each contract of a grid, and records per world the
+route's quality, optimal length / route length, the progress of the first frame against the
+model's straight-line estimate, and the first frame apart from the later ones: the cells it
+walked, the distance it left, and how much the later frames stretched the rest of the route. The
+first frame is another decision than the later ones: the robot waits for its plan (a later
+frame's planning overlaps the walk of the segment before it), and it is made with nothing sensed
+before; under a contract of 100 ticks the first plan is made on the prior map alone, which costs
+that frame a few cells, while the later frames at 100 ticks never sense and stretch the rest of
+the route by a fifth. A whole route's quality at 100 ticks charges the first frame with the
+later frames' wandering; `TaskModel.first_choice` takes the first frame's own cost and the later
+frames' at the contracts they will get. Every contract runs on the same worlds, so the
+differences between contracts are measured pairwise: at 128 x 128, 1000 ticks (400 of them
+sensing) walk routes 0.022 shorter per cell of the shortest than 400 ticks, with a standard
+error of 0.007 over 150 worlds. `TaskCalibration.profile` is the profile the monitor plans with
 (the distribution of route quality per contract: its `E[1 / q]` is how much the frames stretch
 the route, `TaskModel.later_factor`), `progress` scales `TaskModel.first_step`. The shipped
-calibrations are `profiles/task-<size>.json` (radius a quarter of the side); re-measure one
-with
+calibrations are `profiles/task-<size>.json` (radius a quarter of the side); re-measure one with
 
     .venv/bin/python -m anytime_navigation.task.calibration --size 64 --worlds 150
 
@@ -45,6 +52,7 @@ from anytime.plugin.compose import DeadlineValue
 
 from ..resources import data_file
 from ..world import random_world
+from .model import FirstFrame
 
 __all__ = ["CONTRACTS", "FIRST_SEED", "TaskCalibration", "measure", "shipped"]
 
@@ -54,10 +62,11 @@ CONTRACTS = tuple(float(t) for t in range(100, 1001, 100))
 #: The training worlds' first seed (the benchmark uses 0-29, the tests small seeds).
 FIRST_SEED = 1000
 
-#: The quality bins of the calibration's profile: every 0.01 from 0.5 (the routes of the task
-#: are within twice the shortest), so that `1 / q` at a bin's midpoint is within 1% of its
-#: samples'.
-BINS = np.concatenate([[0.0], np.linspace(0.5, 1.0, 51)])
+#: The quality bins of the calibration's profile: every 0.01 from 0.5, so that `1 / q` at a
+#: bin's midpoint is within 1% of its samples', and a few below for the rare routes on which the
+#: robot wandered (up to 50 times the shortest on a training world): the monitor counts them
+#: (`TaskModel` without a floor), they weigh on the mean utility more than their share.
+BINS = np.concatenate([[0.0, 0.025, 0.05, 0.1, 0.2, 0.3, 0.4], np.linspace(0.5, 1.0, 51)])
 
 
 def _floats(values: Any) -> tuple[float, ...]:
@@ -66,6 +75,10 @@ def _floats(values: Any) -> tuple[float, ...]:
 
 def _rows(values: Any) -> tuple[tuple[float, ...], ...]:
     return tuple(_floats(row) for row in values)
+
+
+def _maybe_rows(values: Any) -> tuple[tuple[float, ...], ...] | None:
+    return None if values is None else _rows(values)
 
 
 @frozen
@@ -83,6 +96,13 @@ class TaskCalibration:
             ticks on at 64 x 64, but a plan on the prior map, every cell free, with no time
             to sense, turns once and leaves the window after about r cells).
         first_seed: the training worlds are seeds first_seed, first_seed + 1, ...
+        first_walked, first_left, later_stretch: per contract, per world, the first frame
+            apart from the later ones (the robot waits for its plan, which is made with
+            nothing sensed before): the cells the first frame walked, the distance left after
+            it on the robot's map as a fraction of the distance at the start (on the prior
+            map), and how much the later frames stretched the rest of the route (the cells
+            walked after the first frame over that distance left). None in a calibration
+            measured without them.
     """
 
     size: int
@@ -92,6 +112,9 @@ class TaskCalibration:
     quality: tuple[tuple[float, ...], ...] = field(converter=_rows)
     progress: tuple[float, ...] = field(converter=_floats)
     first_seed: int = FIRST_SEED
+    first_walked: tuple[tuple[float, ...], ...] | None = field(default=None, converter=_maybe_rows)
+    first_left: tuple[tuple[float, ...], ...] | None = field(default=None, converter=_maybe_rows)
+    later_stretch: tuple[tuple[float, ...], ...] | None = field(default=None, converter=_maybe_rows)
 
     @property
     def worlds(self) -> int:
@@ -122,8 +145,19 @@ class TaskCalibration:
             kind="contract",
         )
 
+    def first_frame(self) -> FirstFrame | None:
+        """The first frame's samples for `TaskModel` (None: not measured)."""
+        if self.first_walked is None or self.first_left is None or self.later_stretch is None:
+            return None
+        return FirstFrame(
+            np.asarray(self.contracts),
+            np.asarray(self.first_walked),
+            np.asarray(self.first_left),
+            np.asarray(self.later_stretch),
+        )
+
     def as_json(self) -> dict[str, Any]:
-        return {
+        data: dict[str, Any] = {
             "size": self.size,
             "radius": self.radius,
             "movement": self.movement,
@@ -132,6 +166,11 @@ class TaskCalibration:
             "quality": [list(row) for row in self.quality],
             "progress": list(self.progress),
         }
+        for key in ("first_walked", "first_left", "later_stretch"):
+            rows = getattr(self, key)
+            if rows is not None:
+                data[key] = [list(row) for row in rows]
+        return data
 
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> TaskCalibration:
@@ -143,6 +182,9 @@ class TaskCalibration:
             data["quality"],
             data["progress"],
             int(data["first_seed"]),
+            data.get("first_walked"),
+            data.get("first_left"),
+            data.get("later_stretch"),
         )
 
 
@@ -179,28 +221,48 @@ def measure(
 ) -> TaskCalibration:
     """Run the task under each fixed contract on `worlds` training worlds (no calibration in
     the model: the one being measured must not depend on a previous one)."""
+    from .execution import route_length
     from .frame_program import navigation_program
-    from .frames import _TaskRun
+    from .frames import _belief_distance, _TaskRun, _touch
     from .model import NavigationTask, TaskModel
 
     radius = radius or size // 4
     compiled, trace = navigation_program()
-    quality = np.zeros((len(contracts), worlds))
+    shape = (len(contracts), worlds)
+    quality, walked, left, stretch = (np.zeros(shape) for _ in range(4))
     progress = np.zeros(worlds)
     for w in range(worlds):
         seed = first_seed + w
         world = random_world(size, seed=seed)
         task = NavigationTask(world, radius=radius, value=task_value(size), seed=seed)
         straight = TaskModel(task).first_step(world.start)
+        prior = _belief_distance(
+            np.zeros_like(world.blocked, dtype=bool), world.start, world.goal, world.movement
+        )
         for i, contract in enumerate(contracts):
             run = _TaskRun(task, compiled, trace, "fixed", contract, "work", (), None, False)
             r = run.run(200)
             quality[i, w] = r.optimal_length / r.route_length
-            if i == len(contracts) // 2:  # the first frame's progress, as `learn` has it
+            # The first frame, and the rest of the route after it, on the robot's map as
+            # `learn` has it after the frame.
+            first = r.records[0]
+            end = first.route[-1]
+            known = _touch(first.known, run.truth, first.route)
+            after = (
+                0.0
+                if end == world.goal
+                else _belief_distance(known, end, world.goal, world.movement)
+            )
+            walked[i, w] = route_length(first.route)
+            left[i, w] = after / prior
+            stretch[i, w] = (r.route_length - walked[i, w]) / after if after > 0 else 1.0
+            if i == len(contracts) // 2:
                 progress[w] = run.progress[0] / straight
         if on_world is not None:
             on_world(w + 1)
-    return TaskCalibration(size, radius, 4, contracts, quality, progress, first_seed)
+    return TaskCalibration(
+        size, radius, 4, contracts, quality, progress, first_seed, walked, left, stretch
+    )
 
 
 def main(argv: Sequence[str] | None = None) -> None:

@@ -27,6 +27,7 @@ from .frame_program import PlanTrace
 from .model import (
     MIN_QUALITY,
     POLICIES,
+    FirstDecision,
     FrameRecord,
     FrameState,
     FromPlannerStart,
@@ -240,10 +241,13 @@ class _TaskRun:
         self.model = TaskModel(
             task,
             planning,
+            # A route's quality as measured in the task is what the robot walked: no floor.
+            floor=0.5 if calibration is None else MIN_QUALITY,
             progress=1.0 if calibration is None else calibration.progress_ratio,
             route_quality=calibration is not None,
             # the monitor chooses every frame's contract; the baselines keep theirs
             later=self.contracts if policy in ("monitored", "stopping") else None,
+            first=None if calibration is None else calibration.first_frame(),
         )
         self.calibration = calibration
         if policy == "stopping" and trace.dynamic is None:
@@ -317,7 +321,7 @@ class _TaskRun:
                 current or 0.0,
                 self.detour(),
             )
-            decision = self.chooser.choose_contract(state, now=now)
+            decision = self.choose(state, now)
             if best is None or decision.expected_utility > best[0].expected_utility + 1e-12:
                 best = (decision, state)
         assert best is not None
@@ -338,6 +342,19 @@ class _TaskRun:
         )
         self.predictions.append(decision.expected_utility - spent)
         return decision, state
+
+    def choose(self, state: FrameState, now: float) -> Any:
+        """The contract of highest expected utility in `state`: the first frame's from the
+        first frames measured in the task where they were (`TaskModel.first_choice`), else
+        the monitor's over the profile it plans with."""
+        first = self.model.first_choice(state, self.contracts)
+        return first if first is not None else self.chooser.choose_contract(state, now=now)
+
+    def expected_completion(self, state: FrameState, decision: Any) -> float:
+        """When the monitor expected the task to end when it made `decision` in `state`."""
+        if isinstance(decision, FirstDecision):
+            return decision.expected_completion
+        return self.model.expected_completion(state, decision.contract, decision.expected_quality)
 
     def stopper(self, state: FrameState, quality: float, began: float) -> StoppingPolicy:
         """The planner's stopping policy in the frame the monitor chose `state` for, given a
@@ -612,9 +629,7 @@ class _TaskRun:
                     speed=done.speed,
                     route=tuple(segment),
                     energy=energy,
-                    expected_completion=self.model.expected_completion(
-                        state, decision.contract, decision.expected_quality
-                    ),
+                    expected_completion=self.expected_completion(state, decision),
                     expected_value=decision.expected_value,
                     adjustments=tuple(done.adjustments),
                     obstacles=()

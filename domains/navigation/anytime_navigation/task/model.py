@@ -33,15 +33,17 @@ else the compiled program's (the planner's plan quality on a whole map sensed at
 the task's windowed sensing and re-planning do not reach).
 
 Policies: `monitored` (the monitor's inter-frame rule: contract and speed of highest expected
-utility, see `TaskModel`; its contracts are the calibration's grid), `fixed` (a given contract
-every frame; the speed as the monitor would choose for it), `min` and `max` (the smallest and
-largest contract of the compiled program's grid, the papers' MIN/MAX baselines), and `stopping`:
-the monitor's contract and speed as `monitored`, the contract an upper bound only: within the
-frame the planner is run under an `OptimalStopping` policy (Hansen & Zilberstein 2001) over its
-dynamic profile (`find-path.dynamic.yaml`), whose utility of stopping `t` into the planner's run
-with plan quality `q` is the `TaskModel`'s value minus cost of the rest of the task with the
-frame's program ending at sensing time + `t` (`FromPlannerStart`), the robot moving meanwhile as
-in `TaskModel`; the frame's planning then lasts until the policy stops it.
+utility, see `TaskModel`; its contracts are the calibration's grid; the first frame's, for which
+the robot waits, from the first frames measured in the task, `TaskModel.first_choice`), `fixed`
+(a given contract every frame; the speed as the monitor would choose for it), `min` and `max`
+(the smallest and largest contract of the compiled program's grid, the papers' MIN/MAX
+baselines), and `stopping`: the monitor's contract and speed as `monitored`, the contract an
+upper bound only: within the frame the planner is run under an `OptimalStopping` policy (Hansen
+& Zilberstein 2001) over its dynamic profile (`find-path.dynamic.yaml`), whose utility of
+stopping `t` into the planner's run with plan quality `q` is the `TaskModel`'s value minus cost
+of the rest of the task with the frame's program ending at sensing time + `t`
+(`FromPlannerStart`), the robot moving meanwhile as in `TaskModel`; the frame's planning then
+lasts until the policy stops it.
 
 Two references:
 
@@ -52,6 +54,9 @@ Two references:
   `E_hat` come from the
   environment model `TaskModel` with the remaining distance the shortest route on the prior map
   (nothing known: every cell free, i.e. the Manhattan distance for 4-connected movement).
+  Where the calibration measured the first frame apart (`TaskModel.first_choice`), the
+  expectation is over the training worlds instead: the first frame's route and the later
+  frames' stretch of the rest, world by world.
 - `optimal_utility`: a clairvoyant bound on the same world: the true map known, no sensing or
   planning time, a shortest route `L*`, at the best constant speed of the grid:
   `max_v V(L* / v) - energy_per_cell(v) * L*`.
@@ -78,6 +83,8 @@ from ..world import BoolGrid, Position, World
 __all__ = [
     "POLICIES",
     "EnergyModel",
+    "FirstDecision",
+    "FirstFrame",
     "FromPlannerStart",
     "FrameRecord",
     "FrameState",
@@ -183,6 +190,46 @@ def _contracts(value: Any) -> tuple[float, ...] | None:
 
 
 @frozen
+class FirstFrame:
+    """The first frame apart from the later ones, measured on training worlds
+    (`calibration`): per contract of `contracts` (rows) and per world (columns), the cells the
+    first frame walked, the distance left after it on the robot's map as a fraction of the
+    distance at the start, and how much the later frames, at that contract each, stretched the
+    rest of the route (the cells walked after the first frame over that distance left). Every
+    contract ran on the same worlds, so a column is one world: a world whose later frames
+    wander at one contract wanders at the others."""
+
+    contracts: Array
+    walked: Array
+    left: Array
+    stretch: Array
+
+    def rows(self, contracts: Array) -> np.ndarray[Any, np.dtype[np.intp]] | None:
+        """The row of each of `contracts` (None: one of them was not measured)."""
+        c = np.asarray(contracts, dtype=np.float64).reshape(-1)
+        rows = np.searchsorted(self.contracts, c)
+        rows = np.clip(rows, 0, self.contracts.size - 1)
+        if not np.allclose(self.contracts[rows], c):
+            return None
+        return rows
+
+
+@frozen
+class FirstDecision:
+    """The first frame's contract (`TaskModel.first_choice`), with what the monitor expects of
+    the whole task at it (over the training worlds) and the curves over the grid."""
+
+    contract: float
+    expected_quality: float
+    expected_value: float
+    expected_cost: float
+    expected_utility: float
+    expected_completion: float
+    grid: Array
+    utility_curve: Array
+
+
+@frozen
 class TaskModel:
     """The monitor's value and cost models for navigation.
 
@@ -232,6 +279,7 @@ class TaskModel:
     progress: float = 1.0
     route_quality: bool = False
     later: tuple[float, ...] | None = field(default=None, converter=_contracts)
+    first: FirstFrame | None = None
     _cache: dict[Any, tuple[Array, Array]] = field(init=False, eq=False, repr=False, factory=dict)
     _later: Array = field(
         init=False,
@@ -261,7 +309,6 @@ class TaskModel:
         d = state.remaining * state.detour
         # Frames are counted in progress on the robot's map, which the detour does not stretch.
         x = max(1.0, state.remaining / max(state.step, 1.0))
-        frames = math.ceil(x)
         this = min(d, max(state.step, 1.0) * state.detour)
         if self.route_quality:
             # This plan's frame at contract c, the later ones at the contract c_L chosen when
@@ -275,15 +322,32 @@ class TaskModel:
             path = (this / q + (d - this) * stretch)[..., None]
             c_later = c[..., None]
         path, c_later, c = np.broadcast_arrays(path, c_later, c[..., None])
+        completion, energy = self._timed(state, path, c, c_later, x)
+        utility = np.asarray(self.task.value(completion), dtype=np.float64) - energy
+        shape = utility.shape[:-2]
+        best = np.argmax(utility.reshape(*shape, -1), axis=-1)[..., None]  # ties: the slowest
+        return (
+            np.take_along_axis(completion.reshape(*shape, -1), best, axis=-1)[..., 0],
+            np.take_along_axis(energy.reshape(*shape, -1), best, axis=-1)[..., 0],
+        )
+
+    def _timed(
+        self, state: FrameState, path: Array, c: Array, c_later: Array, x: Array | float
+    ) -> tuple[Array, Array]:
+        """The completion time and energy of a route of `path` cells making `x` frames'
+        progress, this frame's plan at contract `c` and the later ones at `c_later` (arrays
+        of one shape), at each mix of speeds of the grid (a last axis)."""
         # The robot chooses each frame's speed when the frame starts, knowing more of its
         # route: the plan's own frames go at the best mix of speeds of the grid for that route.
         pace, spend = self._mixes
-        per_frame = path[..., None] / x * pace
+        x = np.asarray(x, dtype=np.float64)
+        frames = np.ceil(x)[..., None]
+        per_frame = path[..., None] / x[..., None] * pace
         if state.waiting:
             wait = c
         else:
             wait = np.maximum(c - state.elapsed, state.current / state.speed)
-        last = (x - frames + 1) * per_frame
+        last = (x[..., None] - frames + 1) * per_frame
         completion = (
             state.now
             + wait[..., None]
@@ -291,12 +355,70 @@ class TaskModel:
             + last
         )
         energy = self.task.energy(state.speed) * state.current + spend * path[..., None]
-        utility = np.asarray(self.task.value(completion), dtype=np.float64) - energy
-        shape = utility.shape[:-2]
-        best = np.argmax(utility.reshape(*shape, -1), axis=-1)[..., None]  # ties: the slowest
-        return (
-            np.take_along_axis(completion.reshape(*shape, -1), best, axis=-1)[..., 0],
-            np.take_along_axis(energy.reshape(*shape, -1), best, axis=-1)[..., 0],
+        return completion, energy
+
+    def first_choice(self, state: FrameState, grid: Array) -> FirstDecision | None:
+        """The first frame's contract of highest expected utility over `grid` (the robot waits
+        for this plan), from the first frame measured on the training worlds (`first`): at
+        contract `c` in world `w` the route is `W[c, w] + d F[c, w] S[c_L, w]` (`W` the first
+        frame's cells walked, `F` the fraction of the distance `d` left after it, `S` the later
+        frames' stretch at their contract `c_L`), `1 + d F / step` frames' progress, and
+        its utility, at the later contract and mix of speeds of highest utility in that world
+        (as `value` does per quality), averaged over the worlds. None without `first`, when
+        the state is not the first frame's, or when a contract of `grid` or of `later` was not
+        measured: the caller falls back on the monitor over the profile."""
+        first = self.first
+        if first is None or not state.waiting:
+            return None
+        c = np.asarray(grid, dtype=np.float64).reshape(-1)
+        rows = first.rows(c)
+        later_rows = first.rows(np.asarray(self.later)) if self.later is not None else rows
+        if rows is None or later_rows is None:
+            return None
+        d = state.remaining * state.detour
+        walked = first.walked[rows]  # (G, W)
+        left = d * first.left[rows]
+        if self.later is None:  # the later frames keep this frame's contract
+            stretch = first.stretch[rows][..., None]  # (G, W, 1)
+            c_later = c[:, None, None]
+        else:
+            stretch = first.stretch[later_rows].T[None, :, :]  # (1, W, L)
+            c_later = np.asarray(self.later)[None, None, :]
+        path = walked[..., None] + left[..., None] * np.maximum(stretch, 1.0)
+        x = 1.0 + left / max(state.step, 1.0)
+        path, c_later, c_this, x = np.broadcast_arrays(
+            path, c_later, c[:, None, None], x[..., None]
+        )
+        completion, energy = self._timed(state, path, c_this, c_later, x)  # (G, W, L, M)
+        value = np.asarray(self.task.value(completion), dtype=np.float64)
+        utility = value - energy
+        # Each world's frames at the mix of speeds best for its route (the robot chooses a
+        # frame's speed when the frame comes, knowing its route better), the later contract
+        # best over the worlds (chosen now, for a world the robot does not know yet).
+        mix = np.argmax(utility, axis=-1)[..., None]  # ties: the slowest
+
+        def at_mix(a: Array) -> Array:
+            at = np.take_along_axis(a, mix, axis=-1)[..., 0]
+            return np.asarray(at.mean(axis=1), dtype=np.float64)  # (G, L)
+
+        by_later = at_mix(utility)
+        later = np.argmax(by_later, axis=-1)  # ties: the shortest
+        u_curve = by_later[np.arange(c.size), later]
+        top = u_curve.max()
+        i = int(np.argmax(u_curve >= top - 1e-9 * max(1.0, abs(top))))
+        j = int(later[i])
+        # The quality the monitor expects: the distance over the expected route, as the
+        # calibration measures a route's quality.
+        route = float(path[i, :, j].mean())
+        return FirstDecision(
+            contract=float(c[i]),
+            expected_quality=min(1.0, d / route) if route > 0 else 1.0,
+            expected_value=float(at_mix(value)[i, j]),
+            expected_cost=float(at_mix(energy)[i, j]),
+            expected_utility=float(u_curve[i]),
+            expected_completion=float(at_mix(completion)[i, j]),
+            grid=c,
+            utility_curve=u_curve,
         )
 
     @property
