@@ -19,8 +19,8 @@ demo: $(INSTALLED)
 test: lint typecheck pytest
 
 lint: $(INSTALLED)
-	$(BIN)/ruff check anytime domains/navigation domains/routing tests benchmarks docs conftest.py .ci
-	$(BIN)/ruff format --check anytime domains/navigation domains/routing tests benchmarks docs conftest.py .ci
+	$(BIN)/ruff check anytime domains/navigation domains/routing domains/motion tests benchmarks docs conftest.py .ci
+	$(BIN)/ruff format --check anytime domains/navigation domains/routing domains/motion tests benchmarks docs conftest.py .ci
 
 typecheck: $(INSTALLED)
 	$(BIN)/mypy
@@ -57,15 +57,16 @@ docs: $(INSTALLED)
 site: $(INSTALLED)
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet
 
-$(INSTALLED): pyproject.toml domains/navigation/pyproject.toml domains/routing/pyproject.toml
+$(INSTALLED): pyproject.toml domains/navigation/pyproject.toml domains/routing/pyproject.toml \
+		domains/motion/pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 11))' || \
 		{ echo "anytime-compose needs Python >= 3.11 (set PYTHON=...)"; exit 1; }
-	@echo "Setting up $(VENV) (once): installing anytime-compose, its two plugins and the tools"
+	@echo "Setting up $(VENV) (once): installing anytime-compose, its three plugins and the tools"
 	@echo "the tests use, from the package index; this takes a few minutes."
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev]' -e domains/navigation \
-		-e 'domains/routing[measure]'
+		-e 'domains/routing[measure]' -e domains/motion
 	@echo "Compiling the navigation planner's searches (numba, once; about 20 to 60 seconds)."
 	$(BIN)/python -c 'from anytime_navigation.planning.planner import compile_searches; compile_searches()'
 	@echo "$(VENV) is ready."

@@ -42,6 +42,18 @@ EXPECTED = {
         ],
         "anytime-compose",
     ),
+    "anytime_motion": (
+        "anytime_motion",
+        [
+            "anytime_motion/py.typed",
+            "anytime_motion/schemas/motion.any",
+            *(
+                f"anytime_motion/profiles/{m}.yaml"
+                for m in ("sense-obstacles", "rrt-star", "bit-star", "shorten-path")
+            ),
+        ],
+        "anytime-compose",
+    ),
 }
 
 

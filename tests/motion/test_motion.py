@@ -202,10 +202,10 @@ def test_motion_json_has_exactly_its_keys(cli: Cli) -> None:
     assert code == 0, err
     got = json.loads(out)
     assert list(got) == KEYS
-    assert list(got["allocation"]) == ["sense-obstacles", "rrt-star", "shorten-path"]
+    assert list(got["allocation"]) == ["sense-obstacles", "bit-star", "shorten-path"]
     assert sum(got["allocation"].values()) <= 2000
     assert list(got["baselines"]) == ["even", "planner"]
-    assert got["baselines"]["planner"]["allocation"]["rrt-star"] == 2000
+    assert got["baselines"]["planner"]["allocation"]["bit-star"] == 2000
     assert 0 <= got["realised_quality"] <= 1 and 0 < got["expected_quality"] <= 1
 
 
