@@ -37,7 +37,7 @@ __all__ = ["add_commands", "run_motion"]
 
 MAX_OBSTACLES = 40
 MAX_BUDGET = 100_000.0
-DEFAULT_BUDGET = 3000.0
+DEFAULT_BUDGET = 4000.0
 
 
 def add_commands(commands: CommandGroup) -> None:
