@@ -174,6 +174,20 @@ BENCHMARKS = [
         " (target: within 5% at convergence). `--quick` uses 100 problems per budget.",
     ),
     (
+        "bench_motion.py",
+        ["--quick"],
+        "Motion: compiled against MoveIt's even split, on OMPL",
+        "The motion plugin's chain (move: sense, BIT*, shorten) and DAG (move-best: a best-of"
+        " of RRT* and BIT* on one sensed map) at every budget of the compiled table, on fresh"
+        " problems: the compiled expectation against the realised quality of the compiled"
+        " split, MoveIt's even split, all of the time to the planners and the best single fixed"
+        " split (targets: the compiled split at least 10% above the even split where the split"
+        " matters, never below it by more than a standard error; within max(0.01, 2 se) of its"
+        " expectation; no run over its budget); RRT*'s and BIT*'s quality over their validity"
+        " checks; profile measuring time on 1 and 2 workers. `--quick` uses 30 problems per"
+        " budget.",
+    ),
+    (
         "bench_choices.py",
         [],
         "Choices: splitting the time of a best-of",
