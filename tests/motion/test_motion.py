@@ -192,7 +192,7 @@ def test_the_plugin_declares_a_problem_set_for_every_anytime_module() -> None:
 
 KEYS = [
     "schema", "budget", "time_unit", "allocation", "expected_quality", "realised_quality",
-    "time_used", "status", "path_cost", "reference_cost", "baselines", "obstacles", "dimension",
+    "time_used", "status", "path_cost", "reference_cost", "comparison", "obstacles", "dimension",
     "seed",
 ]  # fmt: skip
 
@@ -204,8 +204,8 @@ def test_motion_json_has_exactly_its_keys(cli: Cli) -> None:
     assert list(got) == KEYS
     assert list(got["allocation"]) == ["sense-obstacles", "bit-star", "shorten-path"]
     assert sum(got["allocation"].values()) <= 2000
-    assert list(got["baselines"]) == ["even", "planner"]
-    assert got["baselines"]["planner"]["allocation"]["bit-star"] == 2000
+    assert list(got["comparison"]) == ["even", "planner"]
+    assert got["comparison"]["planner"]["allocation"]["bit-star"] == 2000
     assert 0 <= got["realised_quality"] <= 1 and 0 < got["expected_quality"] <= 1
 
 
@@ -234,3 +234,15 @@ def test_motion_says_what_is_wrong(cli: Cli, args: list[str], status: int, messa
 def test_motion_usage_errors_exit_2(cli: Cli, args: list[str], fragment: str) -> None:
     code, _, err = cli("motion", *args)
     assert code == 2 and fragment in err and "Traceback" not in err
+
+
+def test_shortening_without_a_deadline_stops_when_interrupted() -> None:
+    _, truth, query = _problem()
+    path = Path(np.array([query.start, [0.5, 0.02], query.goal]), truth.value)
+    ctx = Context()  # an infinite allocation
+    steps = shorten_path.function(ctx, Result(path, 0.5), query)
+    assert next(steps).value is path
+    for _ in steps:
+        if ctx.elapsed > 300:
+            ctx.stop.set()
+    assert ctx.elapsed < 1000

@@ -124,7 +124,7 @@ def _json(args: argparse.Namespace, expected: float, runs: dict[str, Motion]) ->
         "status": run.record.status.value,
         "path_cost": None if run.path is None else round(run.path.cost, 6),
         "reference_cost": round(run.reference_cost, 6),
-        "baselines": {
+        "comparison": {
             split: {
                 "allocation": allocation_json(
                     list(other.allocation), list(other.allocation.values())

@@ -135,7 +135,8 @@ def shorten_path(ctx: Context, path: Result, query: Query) -> Iterator[Result]:
     cutter = Shortcutter(given, query.straight, query.seed)
     last = None
     while not ctx.expired and ctx.remaining >= 1:
-        spent = cutter.advance(min(SLICE, math.floor(ctx.remaining)))
+        left = ctx.remaining
+        spent = cutter.advance(SLICE if left >= SLICE else math.floor(left))
         ctx.tick(spent)
         found = cutter.best()
         if found is not None and found is not last:
