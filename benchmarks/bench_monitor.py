@@ -255,6 +255,24 @@ def print_worst(reports: list[Outcome], n: int) -> None:
         f"(shortest routes: {shortest}; the predictions of every frame, averaged over each"
         f" world's frames: mean error {100 * running:.1f}%)"
     )
+    print_residuals(reports)
+
+
+def print_residuals(reports: list[Outcome], first: int = 8) -> None:
+    """The bias of the monitor's prediction by the frame it was made at: the mean of realised
+    less predicted over predicted, with its standard error, for the first frames (a model
+    that is calibrated is unbiased at every frame, not only on average)."""
+    cells = []
+    for i in range(first):
+        r = np.array(
+            [(o.utility - o.frames[i]) / abs(o.frames[i]) for o in reports if len(o.frames) > i]
+        )
+        if r.size < 2:
+            break
+        se = r.std(ddof=1) / np.sqrt(r.size)
+        cells.append(f"{i}: {100 * r.mean():+.1f} +- {100 * se:.1f}% ({r.size})")
+    print("monitored, (realised - predicted) / predicted by the frame of the prediction:")
+    print(" " + ", ".join(cells[:4]) + (",\n " + ", ".join(cells[4:]) if cells[4:] else ""))
 
 
 if __name__ == "__main__":

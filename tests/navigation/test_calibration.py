@@ -268,3 +268,20 @@ def test_a_calibrated_tasks_first_frame_is_the_first_choice(program):
     assert report.records[0].contract == decision.contract
     assert report.predicted_utility == pytest.approx(decision.expected_utility)
     assert report.records[0].expected_completion == pytest.approx(decision.expected_completion)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("size", [64, 128])
+def test_the_prediction_is_calibrated_on_held_out_worlds(program, size):
+    # Worlds apart from the calibration's (seeds from 1000) and the benchmark's (0 to 99): the
+    # prediction made when the task is presented is the mean of what the robot realises within
+    # 2% (on 100 of them: 852.6 against 856.6 at 64, 720.2 against 719.0 at 128).
+    compiled, trace = program
+    predicted, realised = [], []
+    for seed in range(2000, 2040):
+        world = random_world(size, seed=seed)
+        task = NavigationTask(world, radius=size // 4, value=task_value(size), seed=seed)
+        report = run_task(task, compiled, trace)
+        predicted.append(report.predicted_utility)
+        realised.append(report.utility)
+    assert abs(np.mean(realised) - np.mean(predicted)) <= 0.02 * abs(np.mean(predicted))
