@@ -27,7 +27,7 @@ PLUGIN_SUBMODULES = (
 )
 
 #: Top-level packages that are domains (plugins), never imported by the framework.
-DOMAINS = ("anytime_navigation", "anytime_survey", "domains")
+DOMAINS = ("anytime_navigation", "anytime_motion", "anytime_survey", "domains")
 
 
 def imports(path: Path, root: Path) -> list[tuple[int, str]]:

@@ -31,6 +31,7 @@ from anytime_motion.modules import (
 )
 from anytime_motion.planners import OmplPlanner, Shortcutter
 from anytime_motion.plugin import PLUGIN
+from anytime_motion.program import SCHEMAS, compiled_program, draw_problem, move
 
 from anytime import Budget, Result, run
 from anytime.plugin import Context, Instance, WorkClock
@@ -246,3 +247,26 @@ def test_shortening_without_a_deadline_stops_when_interrupted() -> None:
         if ctx.elapsed > 300:
             ctx.stop.set()
     assert ctx.elapsed < 1000
+
+
+# --- the compiled promise (slow: `anytime verify` checks the same) ---------------------------
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("schema", SCHEMAS)
+def test_the_compiled_promise_holds_on_fresh_problems(schema: str) -> None:
+    """At every total of the compiled table, on 100 fresh problems: the realised mean within
+    max(0.015, 3 se) of the expectation but at one total, and no run over its total."""
+    program = compiled_program(schema)
+    rng = np.random.default_rng([20_261_205, 1, SCHEMAS.index(schema)])
+    problems = [draw_problem(rng) for _ in range(100)]
+    outside, overruns = [], []
+    for j, total in enumerate(program.profile.time):
+        runs = [move(program, p, float(total)) for p in problems]
+        quality = np.array([r.quality for r in runs])
+        se = float(quality.std(ddof=1) / np.sqrt(len(quality)))
+        if abs(quality.mean() - program.expected[j]) > max(0.015, 3 * se):
+            outside.append(f"T={total:g}: {quality.mean():.3f} against {program.expected[j]:.3f}")
+        if max(r.record.time_used for r in runs) > total:
+            overruns.append(f"T={total:g}")
+    assert len(outside) <= 1 and overruns == [], (outside, overruns)
