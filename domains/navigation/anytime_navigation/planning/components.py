@@ -645,16 +645,6 @@ def _compressed(
     count, n = len(x), len(low)
     if n == 0:  # none (at level 0 a node's neighbours are the moves from its cell)
         return np.zeros(count + 1, dtype=np.int64), low, np.zeros(0, dtype=np.float64)
-    ups, downs = np.bincount(low, minlength=count), np.bincount(high, minlength=count)
-    first = np.zeros(count + 1, dtype=np.int64)
-    np.cumsum(ups + downs, out=first[1:])
     step = move_distance(np.abs(x[low] - x[high]), np.abs(y[low] - y[high]), movement)
-    # The edges by their high end, then their low one (the index follows the low end).
-    back = compiled().counting_order(high, count)
-    neighbour = np.zeros(2 * n, dtype=np.int64)
-    cost = np.zeros(2 * n, dtype=np.float64)
-    upward = np.arange(n) + (np.cumsum(downs) - downs)[low]  # first[low] + rank among ups
-    downward = np.arange(n) + np.cumsum(ups)[high[back]]  # first + ups + rank among downs
-    neighbour[upward], neighbour[downward] = high, low[back]
-    cost[upward], cost[downward] = step, step[back]
-    return first, neighbour, cost
+    rows: tuple[IntArray, IntArray, FloatArray] = compiled().compressed_rows(low, high, step, count)
+    return rows

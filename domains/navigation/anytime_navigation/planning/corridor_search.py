@@ -451,6 +451,34 @@ def sorted_pairs(
 
 
 @_compiled
+def compressed_rows(
+    low: IntArray, high: IntArray, step: FloatArray, count: int
+) -> tuple[IntArray, IntArray, FloatArray]:
+    """A level's edges (low < high, sorted by low, then high; edge i costing `step[i]`) as
+    compressed rows over its `count` nodes (first, neighbour, cost): a node's row holds its
+    higher neighbours, then its lower ones, each ascending."""
+    n = len(low)
+    first = np.zeros(count + 1, dtype=np.int64)
+    for i in range(n):
+        first[low[i] + 1] += 1
+        first[high[i] + 1] += 1
+    for u in range(count):
+        first[u + 1] += first[u]
+    slot = first[:-1].copy()
+    neighbour = np.zeros(2 * n, dtype=np.int64)
+    cost = np.zeros(2 * n, dtype=np.float64)
+    for i in range(n):  # each node's higher neighbours, ascending: the edges' order
+        u = low[i]
+        neighbour[slot[u]], cost[slot[u]] = high[i], step[i]
+        slot[u] += 1
+    for i in range(n):  # then its lower ones, ascending likewise
+        v = high[i]
+        neighbour[slot[v]], cost[slot[v]] = low[i], step[i]
+        slot[v] += 1
+    return first, neighbour, cost
+
+
+@_compiled
 def door_points(
     grid: IntArray, movement: int, ordered: IntArray, order: IntArray, count: int, states: int
 ) -> FloatArray:
