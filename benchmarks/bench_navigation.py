@@ -23,16 +23,19 @@ ATP's abstraction.
    orthogonal neighbours are free: the MovingAI rule) on the same MovingAI problems: query
    time, and whether each finds the `.scen` optimal length. An optional dependency: skipped,
    with a line saying so, when it is not installed.
-3. Per map kind (issues 17 and 36): the default ATP against A* on the longest problems of 14
-   MovingAI maps, the shipped three and eleven more in benchmarks/data/movingai/ (random with
-   20% of cells blocked, rooms of 16, 32 and 64, mazes of corridor widths 2, 4 and 8, two street
-   maps, a Baldur's Gate II and a Dragon Age map): first plan quality and time, final quality
-   mean (min), time and expansions as fractions of A*'s, the time with the abstraction's one-off
-   build added, the falls of the anytime curve (every plan registered executed), the time on 16
-   random (mostly short) problems, the pure-Python A*'s and the peers' query times against the
-   compiled A*'s (`pathfinding`, networkx and tcod, where installed: the `bench` extra), and
-   issue 36's targets. Optimal lengths are A*'s: the old-style `.scen` files round theirs to 5
-   digits (all agree with A*'s to that).
+3. Per map kind (issues 17 and 36): the default ATP, and beside it each option of `atp` that
+   issue 36 asks to measure (`KIND_CONFIGS`: the door search kept near the first plan, the first
+   plan a level higher, a direct search for short problems; each with its own abstraction's
+   build), against A* on the longest problems of 14 MovingAI maps, the shipped three and eleven
+   more in benchmarks/data/movingai/ (random with 20% of cells blocked, rooms of 16, 32 and 64,
+   mazes of corridor widths 2, 4 and 8, two street maps, a Baldur's Gate II and a Dragon Age
+   map): first plan quality and time, final quality mean (min), time and expansions as fractions
+   of A*'s, the time with the abstraction's one-off build added, the falls of the anytime curve
+   (every plan registered executed), the time on 16 random (mostly short) problems, the
+   pure-Python A*'s and the peers' query times against the compiled A*'s (`pathfinding`,
+   networkx and tcod, where installed: the `bench` extra), and issue 36's targets. Optimal
+   lengths are A*'s: the old-style `.scen` files round theirs to 5 digits (all agree with A*'s
+   to that).
 4. The compiled A*'s lengths against the `.scen` optimal lengths of the 14 maps: every problem
    in a full run, 200 per map spread over the file with --quick.
 
