@@ -99,7 +99,8 @@ def _exception_classes() -> list[type[BaseException]]:
 #: planner's deadline, caught where it is raised), the evaluator finding a DAG's joint outcomes
 #: too many to enumerate (caught in `Evaluator.evaluate`, which samples them instead), and the
 #: KeyboardInterrupts of a user's stop (SIGTERM to the command; an interrupted run carrying its
-#: record to the caller); and warnings (a compiled program asked beyond its table, a dynamic
+#: record to the caller), the stop `Report.check` raises into an external solver's callback (caught
+#: by `on_improvement`); and warnings (a compiled program asked beyond its table, a dynamic
 #: profile from another build than its profile).
 SIGNALS = {
     "anytime.compiler.result.BeyondTableWarning",
@@ -108,6 +109,7 @@ SIGNALS = {
     "anytime.compiler.evaluate._Sample",
     "anytime.launch.Terminated",
     "anytime.runtime.records.RunInterrupted",
+    "anytime.plugin.solvers._Stopped",
 }
 
 
