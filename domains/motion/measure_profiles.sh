@@ -6,7 +6,7 @@
 # seeded from each problem's seed, drawn from the framework's seed stream).
 #
 # The trial counts are small on purpose (minutes, not hours, on one core): 200 problems for
-# the sensor, 100 per input cell for the planners and the shortcutting (see README.md).
+# the sensor, 100 per input cell for the planners, 60 for the shortcutting (see README.md).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 anytime="${ANYTIME:-anytime}"
@@ -20,4 +20,4 @@ measure() {  # MODULE TRIALS [OPTION...]
 measure sense-obstacles "${SENSE_TRIALS:-200}" --quiet
 measure rrt-star "${PLANNER_TRIALS:-100}" --quiet
 measure bit-star "${PLANNER_TRIALS:-100}" --quiet
-measure shorten-path "${SHORTEN_TRIALS:-100}" --quiet
+measure shorten-path "${SHORTEN_TRIALS:-60}" --quiet
