@@ -252,11 +252,18 @@ def test_shortening_without_a_deadline_stops_when_interrupted() -> None:
 # --- the compiled promise (slow: `anytime verify` checks the same) ---------------------------
 
 
+#: The compiled expectation's own error, which the runs' standard error does not see: the
+#: planners' profiles have 100 trials a cell of qualities mostly 0 (a collision) or near 1,
+#: a standard error of 0.03-0.045 a cell where collisions are common.
+PROFILE_ERROR = 0.03
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("schema", SCHEMAS)
 def test_the_compiled_promise_holds_on_fresh_problems(schema: str) -> None:
     """At every total of the compiled table, on 100 fresh problems: the realised mean within
-    max(0.015, 3 se) of the expectation but at one total, and no run over its total."""
+    max(0.015, 3 se) of the expectation (se counting PROFILE_ERROR too) but at one total, and
+    no run over its total."""
     program = compiled_program(schema)
     rng = np.random.default_rng([20_261_205, 1, SCHEMAS.index(schema)])
     problems = [draw_problem(rng) for _ in range(100)]
@@ -264,7 +271,7 @@ def test_the_compiled_promise_holds_on_fresh_problems(schema: str) -> None:
     for j, total in enumerate(program.profile.time):
         runs = [move(program, p, float(total)) for p in problems]
         quality = np.array([r.quality for r in runs])
-        se = float(quality.std(ddof=1) / np.sqrt(len(quality)))
+        se = float(np.hypot(quality.std(ddof=1) / np.sqrt(len(quality)), PROFILE_ERROR))
         if abs(quality.mean() - program.expected[j]) > max(0.015, 3 * se):
             outside.append(f"T={total:g}: {quality.mean():.3f} against {program.expected[j]:.3f}")
         if max(r.record.time_used for r in runs) > total:
