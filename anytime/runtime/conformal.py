@@ -45,7 +45,6 @@ from typing import Any
 import numpy as np
 from attrs import field, frozen
 from numpy.typing import NDArray
-from scipy.stats import binom
 
 from anytime.profiles.dynamic import Observed, QualityTraces, quantile_bins
 from anytime.profiles.profile import Array
@@ -321,6 +320,8 @@ class ConformalStopping:
             # The k-th smallest of n scores covers a fresh one with probability C ~ Beta(k,
             # n - k + 1), and P(C < 1 - alpha) = P(Binomial(n, 1 - alpha) >= k): the least k
             # where that is at most delta.
+            from scipy.stats import binom  # here: scipy.stats takes half a second to import
+
             rank = binom.ppf(1 - self.delta, count, 1 - self.alpha) + 1
         ranks: NDArray[np.intp] = np.asarray(rank).astype(np.intp)
         return ranks
