@@ -66,6 +66,7 @@ COMMANDS: dict[str, list[str]] = {
         "plan", "--map", str(MAPS / "arena.map"), "--limit", "2", "--planner", "atp",
     ],
     "deliver": ["deliver", "--budget", "40"],
+    "motion": ["motion", "--budget", "2000"],
 }  # fmt: skip
 
 #: The things several commands report, each under one key of one type: (concept, key, type as
@@ -78,14 +79,15 @@ CONCEPTS: list[tuple[str, str, str, list[str]]] = [
     ]),
     ("a schema's name", "schema", "str", [
         "parse: schemas[]", "compile:", "compile of several schemas: schemas[]", "verify:",
-        "deliver:",
+        "deliver:", "motion:",
     ]),
     ("the total time given to a program", "budget", "number", [
         "compile: budgets[]", "compile --explain: explain[]", "verify: budgets[]", "deliver:",
+        "motion:",
     ]),
     ("a row per budget", "budgets", "[object]", ["compile:", "verify:"]),
     ("the unit of the output's times", "time_unit", "str", [
-        "compile:", "verify:", "navigate:", "deliver:", "library show: profile",
+        "compile:", "verify:", "navigate:", "deliver:", "motion:", "library show: profile",
         "library show: dynamic_profile",
     ]),
     ("the times of a table", "time_grid", "[number]", [
@@ -102,16 +104,18 @@ CONCEPTS: list[tuple[str, str, str, list[str]]] = [
     ]),
     ("every input", "parameters", "[str]", ["parse: schemas[]", "library show:"]),
     ("an allocation, {module: time}", "allocation", "{str: number}", [
-        "compile: budgets[]", "compile --explain: explain[]", "deliver:",
+        "compile: budgets[]", "compile --explain: explain[]", "deliver:", "motion:",
+        "motion: comparison.even", "motion: comparison.planner",
     ]),
     ("what the compiled program expects", "expected_quality", "number", [
         "compile: budgets[]", "compile --explain: explain[]", "verify: budgets[]", "deliver:",
+        "motion:",
     ]),
     ("its standard error", "expected_quality_se", "number", [
         "compile: budgets[]", "verify: budgets[]",
     ]),
     ("what the run achieved", "realised_quality", "number or null", [
-        "verify: budgets[]", "deliver:",
+        "verify: budgets[]", "deliver:", "motion:", "motion: comparison.even",
     ]),
     ("runs made", "runs", "int", [
         "profile:", "check:", "calibrate:", "verify: budgets[]",
@@ -120,7 +124,7 @@ CONCEPTS: list[tuple[str, str, str, list[str]]] = [
     ("runs in which a module failed", "failures", "int", ["profile:", "verify: budgets[]"]),
     ("runs over their time", "overruns", "int", ["profile:", "verify: budgets[]"]),
     ("the root seed", "seed", "int", [
-        "profile:", "check:", "calibrate:", "verify:", "navigate:", "deliver:",
+        "profile:", "check:", "calibrate:", "verify:", "navigate:", "deliver:", "motion:",
     ]),
     ("wall-clock seconds", "seconds", "number", [
         "profile:", "calibrate:", "verify:", "plan: problems[]", "plan: summary",
