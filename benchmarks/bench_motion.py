@@ -13,8 +13,8 @@ holds, and its planners' quality over time.
    max(0.01, 2 se) at every budget; no run over its budget.
 2. Each planner's true quality over its validity checks, on the true obstacles' map (coverage
    1) and on maps sensed with 500 rays, from the same problems.
-3. The time to measure a profile with `anytime profile`'s builder, 1 and 2 worker processes,
-   and whether the two give the same profile.
+3. The time to measure a profile with `anytime profile`'s builder, 1 and 2 worker processes
+   and a local Dask cluster of 2 workers, and whether the three give the same profile.
 
     .venv/bin/python benchmarks/bench_motion.py [--quick] [--problems N]
 """
@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import time
 
 import numpy as np
 from anytime_motion.domain import OccupancyMap, Sensor, path_quality
@@ -37,10 +36,10 @@ from anytime_motion.program import (
     fixed_split,
     move,
 )
+from profile_timing import profile_times as timing_table
 from tables import machine, table
 
-from anytime import AnytimeLibrary, Budget, run_program
-from anytime.measure.builder import ProfileRequest, profile_module
+from anytime import Budget, run_program
 from anytime.plugin import WorkClock
 
 SEED = 20_261_205  # fresh problems, apart from the profile builder's seeds and the tests'
@@ -183,32 +182,7 @@ TIMING_TRIALS = {"sense-obstacles": 40, "rrt-star": 4, "shorten-path": 2}
 
 
 def profile_times() -> None:
-    library = AnytimeLibrary.default()
-    rows = []
-    for name, trials in TIMING_TRIALS.items():
-        entry = library.get(name)
-        assert entry is not None and entry.module is not None
-        seconds, tables = [], []
-        for workers in (1, 2):
-            request = ProfileRequest(trials=trials, workers=workers, quiet=True)
-            started = time.perf_counter()
-            build = profile_module(entry.module, request, measurement=PROBLEM_SETS[name])
-            seconds.append(time.perf_counter() - started)
-            tables.append(build.profile.probability)
-        same = np.array_equal(tables[0], tables[1])
-        cells = "x".join(str(n) for n in build.profile.cell_shape)
-        rows.append(
-            [
-                name,
-                f"{trials} x {cells}",
-                *(f"{s:.1f}" for s in seconds),
-                f"{seconds[0] / seconds[1]:.2f}",
-                "yes" if same else "NO",
-            ]
-        )
-    print("**Measuring the profiles** (seconds; Dask not measured):\n")
-    header = ["module", "trials x cells", "1 worker (s)", "2 workers (s)", "speed-up", "same"]
-    print(table(header, rows))
+    print(timing_table(TIMING_TRIALS, PROBLEM_SETS))
     print()
 
 

@@ -33,10 +33,10 @@ from anytime_routing.program import (
     deliver,
     fresh_problems,
 )
+from profile_timing import profile_times as timing_table
 from tables import machine, table
 
-from anytime import AnytimeLibrary, Context, Result
-from anytime.measure.builder import ProfileRequest, profile_module
+from anytime import Context, Result
 
 DATA = Path(__file__).resolve().parent / "data" / "tsplib"
 #: (instance, optimal length): TSPLIB's published optima (data/tsplib/README.md).
@@ -81,51 +81,7 @@ TIMING_TRIALS = {"estimate-demand": 40, "cluster-stops": 8, "plan-tours": 3, "in
 
 
 def profile_times() -> None:
-    from dask.distributed import LocalCluster
-
-    library = AnytimeLibrary.default()
-    rows = []
-    with LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
-    ) as cluster:
-        for name, trials in TIMING_TRIALS.items():
-            entry = library.get(name)
-            assert entry is not None and entry.module is not None
-            module = entry.module
-            requests = [
-                ProfileRequest(trials=trials, workers=1, quiet=True),
-                ProfileRequest(trials=trials, workers=2, quiet=True),
-                ProfileRequest(trials=trials, scheduler=cluster.scheduler_address, quiet=True),
-            ]
-            seconds, tables = [], []
-            for request in requests:
-                started = time.perf_counter()
-                build = profile_module(module, request, measurement=PROBLEM_SETS[name])
-                seconds.append(time.perf_counter() - started)
-                tables.append(build.profile.probability)
-            same = all(np.array_equal(tables[0], t) for t in tables[1:])
-            cells = "x".join(str(n) for n in build.profile.cell_shape)
-            rows.append(
-                [
-                    name,
-                    f"{trials} x {cells}",
-                    *(f"{s:.1f}" for s in seconds),
-                    *(f"{seconds[0] / s:.2f}" for s in seconds[1:]),
-                    "yes" if same else "NO",
-                ]
-            )
-    print("**Measuring the profiles** (seconds, and speed-up over 1 worker):\n")
-    header = [
-        "module",
-        "trials x cells",
-        "1 worker (s)",
-        "2 workers (s)",
-        "Dask, 2 workers (s)",
-        "2 workers",
-        "Dask",
-        "same profile",
-    ]
-    print(table(header, rows))
+    print(timing_table(TIMING_TRIALS, PROBLEM_SETS))
     print()
 
 

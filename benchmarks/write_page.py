@@ -184,8 +184,8 @@ BENCHMARKS = [
         " split (targets: the compiled split at least 10% above the even split where the split"
         " matters, never below it by more than a standard error; within max(0.01, 2 se) of its"
         " expectation; no run over its budget); RRT*'s and BIT*'s quality over their validity"
-        " checks; profile measuring time on 1 and 2 workers. `--quick` uses 30 problems per"
-        " budget.",
+        " checks; profile measuring time on 1 and 2 workers and on a local Dask cluster of 2."
+        " `--quick` uses 30 problems per budget.",
     ),
     (
         "bench_choices.py",
