@@ -29,25 +29,23 @@ from anytime.runtime.modes import SOFT, Isolated, RunMode
 EXIT_OK, EXIT_INPUT, EXIT_USAGE = 0, 1, 2
 
 
-def positive_int(text: str) -> int:
+def _whole_at_least(text: str, least: int) -> int:
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a number >= 1, got {value}")
+    if value < least:
+        raise argparse.ArgumentTypeError(f"expected a number >= {least}, got {value}")
     return value
+
+
+def positive_int(text: str) -> int:
+    return _whole_at_least(text, 1)
 
 
 def non_negative_int(text: str) -> int:
     """A whole number >= 0 (a count where 0 means 'all' or 'none')."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {value}")
-    return value
+    return _whole_at_least(text, 0)
 
 
 def positive_float(text: str) -> float:
