@@ -313,6 +313,48 @@ def test_a_widened_corridor_is_the_children_of_the_nodes_a_few_edges_from_the_ro
     assert (c._scratch[level] == -1).all()  # left as found, for the next search
 
 
+@settings(max_examples=40, deadline=None)
+@given(maps, st.sampled_from([4, 8]), st.sampled_from([1, 2, 3]), st.integers(0, 3), st.data())
+def test_a_refinement_in_one_call_is_its_steps_one_by_one(
+    blocked: np.ndarray, movement: int, level: int, rings: int, data: st.DataObject
+) -> None:
+    """`Components.refinement` (one compiled call) finds what `widened` then `corridor` find,
+    with ends fixed or flexible (any child, each at its extra distance from a point)."""
+    c = Components.build(blocked, movement, top=level)
+    pair = draw_free_pair(blocked, data)
+    if pair is None or not c.connected(*pair):
+        return
+    start, goal = pair
+    route = c.path(level, c.node(start, level), c.node(goal, level)).nodes
+    lower = level - 1
+    ends = []
+    for position, node in ((start, route[0]), (goal, route[-1])):
+        if data.draw(st.booleans()):
+            ends.append(((c.node(position, lower), -1, 0.0, 0.0), [c.node(position, lower)], None))
+        else:
+            x, y = data.draw(st.floats(0, 64)), data.draw(st.floats(0, 64))
+            children = c.levels[level].children(node)
+            centres = c.levels[lower].centre[children]
+            d = np.hypot(centres[:, 0] - x, centres[:, 1] - y)
+            ends.append(((-1, node, x, y), children, (d - d.min()).tolist()))
+    (source, sources, source_costs), (target, targets, target_costs) = ends
+    allowed = c.widened(level, route, rings)
+    reference = c.corridor(
+        lower, allowed, sources, targets, source_costs=source_costs, target_costs=target_costs
+    )
+    assert reference is not None  # the children of a path hold a path
+    path, cost, expansions = c.refinement(level, route, rings, source, target)
+    assert (tuple(path.tolist()), cost, expansions) == (
+        reference.nodes,
+        reference.cost,
+        reference.expansions,
+    )
+    if expansions:
+        with pytest.raises(SearchLimit):
+            c.refinement(level, route, rings, source, target, limit=expansions - 1)
+    assert all((scratch == -1).all() for scratch in c._scratch)  # left as found
+
+
 @settings(max_examples=50, deadline=None)
 @given(st.integers(0, 2**31), st.integers(1, 50), st.integers(0, 300), st.booleans())
 def test_the_counting_sorts_are_numpys_sorts(seed: int, count: int, n: int, unique: bool) -> None:

@@ -329,6 +329,42 @@ class Components:
         )  # fmt: skip
         return children
 
+    def refinement(
+        self,
+        level: int,
+        route: Sequence[int],
+        rings: int,
+        source: tuple[int, int, float, float],
+        target: tuple[int, int, float, float],
+        *,
+        limit: float = math.inf,
+    ) -> tuple[IntArray, float, int]:
+        """A refinement's search in one compiled call: `corridor` at `level` - 1 through
+        `widened(level, route, rings)`, from `source` to `target`, each (node, -1, 0, 0) for a
+        fixed end one level down, or (-1, node, x, y) for any child of a node of `route`'s
+        level, each costing how much farther its centre is from (x, y) than the nearest
+        child's. Returns the path's nodes (empty when none), its cost and its expansions.
+
+        Raises:
+            SearchLimit: its expansions are more than `limit`.
+        """
+        up, at = self.levels[level], self.levels[level - 1]
+        none = np.zeros(0, dtype=np.int64)
+        path, best, expansions = compiled().refinement(
+            up.first, up.neighbour, up.first_child, up.child, self._scratch[level],
+            np.asarray(route, dtype=np.int64), rings,
+            at.first if at.k else none,
+            at.neighbour if at.k else none,
+            at.cost if at.k else np.zeros(0),
+            at.padded if at.padded is not None else none,
+            at.grid.shape[1] + 2 if at.grid is not None else 0,
+            at.block, at.centre, self.movement, self._scratch[level - 1],
+            *source, *target,
+        )  # fmt: skip
+        if expansions > limit:
+            raise SearchLimit(int(limit))
+        return path, best, expansions
+
     def corridor(
         self,
         level: int,

@@ -388,6 +388,78 @@ def widened_children(
 
 
 @_compiled
+def refinement(
+    up_first: IntArray,
+    up_neighbour: IntArray,
+    first_child: IntArray,
+    child: IntArray,
+    mark: IntArray,
+    route: IntArray,
+    rings: int,
+    first: IntArray,
+    neighbour: IntArray,
+    cost: FloatArray,
+    padded: IntArray,
+    wide: int,
+    block: IntArray,
+    centre: FloatArray,
+    movement: int,
+    local: IntArray,
+    source: int,
+    source_node: int,
+    source_x: float,
+    source_y: float,
+    target: int,
+    target_node: int,
+    target_x: float,
+    target_y: float,
+) -> tuple[IntArray, float, int]:
+    """One refinement's search in one call (the planner's `_Planner.refine`, its steps as they
+    were made in Python): the corridor is the children of `route` (one level up: its compressed
+    rows `up_first`, `up_neighbour`, its children `first_child`, `child`, scratch `mark`) and
+    of the nodes up to `rings` edges from them (`widened_children`); an end is node `source`
+    (`target`) when it is >= 0, else any child of `source_node` (`target_node`), each costing
+    how much farther its centre is from (`source_x`, `source_y`) than the nearest child's;
+    then `search` one level down (its rows, or at level 0 `padded` and `wide`; `local` its
+    scratch). Returns what `search` returns."""
+    allowed = widened_children(up_first, up_neighbour, first_child, child, route, rings, mark)
+    sources, source_costs = _ends(
+        first_child, child, centre, source, source_node, source_x, source_y
+    )
+    targets, target_costs = _ends(
+        first_child, child, centre, target, target_node, target_x, target_y
+    )
+    return search(
+        allowed, local, first, neighbour, cost, padded, wide, block, centre, movement,
+        sources, source_costs, targets, target_costs,
+    )  # fmt: skip
+
+
+@_compiled
+def _ends(
+    first_child: IntArray,
+    child: IntArray,
+    centre: FloatArray,
+    fixed: int,
+    node: int,
+    x: float,
+    y: float,
+) -> tuple[IntArray, FloatArray]:
+    """A refined segment's end: the node `fixed` (>= 0) at no cost, or the children of `node`,
+    each at its centre's distance from (x, y) less the nearest one's (the planner's
+    `_approach`)."""
+    if fixed >= 0:
+        ends = np.empty(1, dtype=np.int64)
+        ends[0] = fixed
+        return ends, np.zeros(1)
+    ends = child[first_child[node] : first_child[node + 1]].copy()
+    d = np.empty(len(ends))
+    for i in range(len(ends)):
+        d[i] = math.hypot(centre[ends[i], 0] - x, centre[ends[i], 1] - y)
+    return ends, d - d.min()
+
+
+@_compiled
 def neighbourhood(
     first: IntArray, neighbour: IntArray, route: IntArray, rings: int, count: int
 ) -> NDArray[np.bool_]:
