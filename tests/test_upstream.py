@@ -15,7 +15,7 @@ import verify_modules as lab
 
 from anytime.compiler import compile_file
 from anytime.library import AnytimeLibrary, LibraryError, Plugin, PluginSource
-from anytime.measure.upstream import UpstreamError, measure_upstream
+from anytime.measure.upstream import PROBES, UpstreamError, measure_upstream
 from anytime.problems import ProgramProblems
 from anytime.verification import verify
 
@@ -48,14 +48,17 @@ def test_verify_catches_the_wrong_promise_and_upstream_measuring_fixes_it(
     library: AnytimeLibrary,
 ) -> None:
     """Before: the promise fails wherever polish runs (11 of 13 budgets). Measured on
-    guess-low's own estimates, two rounds reach the fixed point and the promise holds at 12 or
+    guess-low's own estimates, the first round moves the table far and the later ones by no
+    more than the measurement's noise (a cell the probes rarely reach is measured on a small
+    pool of inputs, reused): the fixed point within 3 rounds, and the promise holds at 12 or
     more of the 13 budgets; the cells the program never feeds (quality 0.3) keep their profile."""
     before = checked(library)
     assert sum(before) == 2, before
     measured = measure_upstream("polish", lab.schemas(), "low", library, trials=60, rounds=3)
-    assert measured.converged and len(measured.rounds) == 2
-    first, second = measured.rounds
-    assert first.change > 0.1 and second.change <= 0.005
+    assert measured.converged and len(measured.rounds) <= 3
+    first, *later = measured.rounds
+    assert first.change > 0.1
+    assert all(r.change <= max(measured.tolerance, r.noise) for r in later)
     assert (first.reached, first.cells) == (6, 8)
     after = checked(library.with_profile("polish", measured.profile))
     assert sum(after) >= 12, after
@@ -63,6 +66,68 @@ def test_verify_catches_the_wrong_promise_and_upstream_measuring_fixes_it(
     assert old is not None
     np.testing.assert_array_equal(measured.profile.probability[0], old.probability[0])
     assert not np.array_equal(measured.profile.probability[-2], old.probability[-2])
+
+
+class Counting:
+    """A program problem set that counts the problems drawn: one a program run."""
+
+    def __init__(self, problems: Any) -> None:
+        self.problems, self.drawn = problems, 0
+
+    def instance(self, rng: np.random.Generator) -> Any:
+        self.drawn += 1
+        return self.problems.instance(rng)
+
+    def __getattr__(self, name: str) -> Any:  # score, and score_step where it has one
+        return getattr(self.problems, name)
+
+
+def test_trials_take_their_inputs_from_the_probes_pools(library: AnytimeLibrary) -> None:
+    """The probes' inputs are pooled by cell and the trials take from the pools: one round
+    runs the program PROBES times, and a few more for the trials of the cells whose pools are
+    thin but not rare (each trial drew at least one program run before: PROBES + 6 x 40 at
+    least). A cell's samples are the pool's effective count, fewer than its trials where the
+    pool is small; an unreached cell keeps its profile's."""
+    low = library.program_problems("low")
+    counting = Counting(low.problems)
+    problems = ProgramProblems.of(counting, time_grid=low.time_grid, resolution=low.resolution)
+    measured = measure_upstream(
+        "polish", lab.schemas(), "low", library, trials=40, rounds=1, problems=problems
+    )
+    (round_,) = measured.rounds
+    assert round_.reached == 6
+    assert PROBES <= counting.drawn < PROBES + 6 * 40
+    samples = measured.profile.samples
+    assert samples is not None
+    old = library["polish"].profile
+    assert old is not None and old.samples is not None
+    np.testing.assert_array_equal(samples[0], old.samples[0])  # quality 0.3: not reached
+    pooled = samples[1:-1, 0]
+    assert np.all((pooled > 0) & (pooled < 40)), pooled
+    assert np.all(samples[1:-1] == samples[1:-1, :1])  # the same at every time
+
+
+def test_the_same_seed_gives_the_same_profile_on_any_workers() -> None:
+    """Pools are drawn in the parent from the seed, and each trial chooses (and draws fresh
+    inputs) with its own stream: one worker and two measure the same profile. (The lab's
+    modules as they are importable, so that they travel to the workers; their profiles are
+    given to the library.)"""
+    importable = (lab.guess, lab.guess_low, lab.polish)
+    plugin = Plugin("lab", importable, program_problems=lab.plugin().program_problems)
+    library = AnytimeLibrary([PluginSource([_EntryPoint("lab", plugin)])])  # type: ignore[list-item]
+    for measured in lab.modules()[: len(importable)]:
+        assert measured.profile_source is not None
+        library = library.with_profile(measured.name, measured.profile_source)  # type: ignore[arg-type]
+    profiles = [
+        measure_upstream(
+            "polish", lab.schemas(), "low", library, trials=20, rounds=2, workers=workers
+        ).profile
+        for workers in (1, 2)
+    ]
+    one, two = profiles
+    for table in ("probability", "mean_table", "std", "samples", "bin_mean", "no_result_table"):
+        np.testing.assert_array_equal(getattr(one, table), getattr(two, table), err_msg=table)
+    assert one.step == two.step
 
 
 def test_a_module_without_quality_inputs_is_measured_on_the_programs_problems(
@@ -128,7 +193,7 @@ def test_the_command_measures_round_by_round(cli: Cli, lab_any: str) -> None:
     assert (code, err) == (0, "")
     assert out.splitlines() == [
         "polish on schema low: 1 rounds, not converged: the last round moved the table by"
-        " 0.1464, more than 0.005: give more --rounds",
+        " 0.1487, more than 0.005: give more --rounds",
         "wrote polish.yaml",
     ]
     assert Path("polish.yaml").exists()

@@ -7,22 +7,43 @@ on which side; a clustering's, not whether its demand was a prior), the inputs a
 the module at a quality are not the ones the problem set made, and the compiled promise is off
 by the difference (`anytime verify` measures by how much).
 
-`measure_upstream` measures the module on what its program feeds it instead. Each trial of the
-profile builder asks for an input of given qualities (a cell of the module's input grid); the
-trial draws a problem from the schema's program-level problem set and one of the compiled
-table's totals, runs the program up to the module's call (`anytime.runtime.run_until`, the
-compiled allocation for that problem and total) and keeps the input when the quality of each
-quality-carrying argument is within `TOLERANCE` of the way from the cell's to the next grid
-point, else draws again. After `MAX_DRAWS` draws the trial is made by the module's own problem
-set where it declares one (an input of the cell's own quality), else it keeps the closest
-input drawn in the cell (a quality lands in the cell of its nearest grid point), so that a
-program whose inputs take a few qualities only still measures the cells around them. A cell
-the program does not reach (none of `PROBES` draws of its inputs, made first, lands in it) is
-measured on the module's own problem set, as before, where it declares one, else keeps its
-current profile's measurement (the program never asks for it). An argument's quality is its
-true quality where the problem set scores intermediate results (`score_step(instance, module,
-value)`), else the quality the result reports. The module's result is scored by the problem
-set: by `score` where the module's call is the program's output, else by `score_step`.
+`measure_upstream` measures the module on what its program feeds it instead. First, in the
+calling process, `PROBES` program runs (`probe_pools`): each draws a problem from the schema's
+program-level problem set and one of the compiled table's totals, and runs the program up to
+the module's call (`anytime.runtime.run_until`, the compiled allocation for that problem and
+total). An input lands in the cell of the module's input grid of its qualities' nearest grid
+points, and is accepted there when the quality of each quality-carrying argument is within
+`TOLERANCE` of the way from the cell's to the next grid point; a cell's pool is the inputs
+accepted in it (where none was, every input that landed in it), and its acceptance rate the
+accepted ones per program run. The cells the probes land in are the ones the program reaches.
+
+Each trial of the profile builder asks for an input of a cell and chooses it with its own
+random stream (so the same seed gives the same profile on any number of workers): from the
+cell's pool, uniformly. Where the pool is thin (fewer accepted inputs than the cell has
+trials) and the cell is not rare (the probes accepted an input in it at least once in
+`FRESH_DRAWS` runs), a trial draws a fresh one instead with probability 1 - pool / trials:
+up to 3 / rate program runs (at most `MAX_DRAWS`), the pool's if none is accepted. A rarer
+cell spends no program runs on its trials: they take from its pool. A cell with no accepted
+input is measured on the module's own problem set where it declares one (an input of the
+cell's own quality), else on the inputs that landed in it (so that a program whose inputs
+take a few qualities only still measures the cells around them). A cell the program does not
+reach is measured on the module's own problem set, as before, where it declares one, else
+keeps its current profile's measurement (the program never asks for it). An argument's
+quality is its true quality where the problem set scores intermediate results
+(`score_step(instance, module, value)`), else the quality the result reports. The module's
+result is scored by the problem set: by `score` where the module's call is the program's
+output, else by `score_step`.
+
+Reused inputs are not independent samples. t trials choosing among a pool of n inputs, which
+is itself a sample of the program's, measure a cell's expected quality with the variance of
+n t / (n + t - 1) independent trials (between n / 2 and n for t >= n; about t for n >> t), and
+the measured profile says so: a pooled cell's `samples` is that effective count (a lower
+bound where some trials drew fresh inputs), so its standard error, the compiled table's
+(`CompiledProgram.standard_error`) and `anytime verify`'s allowance are what the pool can
+tell, not what the trial count suggests. A module whose result depends on its own random
+stream (not only its input) gets more from its trials than that; the count is for the
+worst case, a module that does the same on the same input. A cell whose pool is small is
+measured coarsely, and measuring with more trials does not help it: more probes would.
 
 The allocations depend on the profile and the profile on the allocations, so the measurement
 is iterated: compile, measure on the compiled program's inputs, compile again with the new
@@ -32,7 +53,9 @@ a second round usually changes little).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+import copy
+import math
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import attrs
@@ -56,22 +79,30 @@ from anytime.runtime.program import run_until
 from anytime.vocabulary import PROFILE_KINDS
 
 __all__ = [
+    "FRESH_DRAWS",
     "MAX_DRAWS",
     "PROBES",
     "TOLERANCE",
+    "Pool",
+    "Pools",
     "Round",
     "UpstreamError",
     "UpstreamMeasurement",
     "measure_upstream",
+    "probe_pools",
 ]
 
 #: An input is kept for a cell when each of its qualities is within this share of the way
 #: from the cell's to the nearest other grid point (0.025 on a grid of step 0.1).
 TOLERANCE = 0.25
-#: Problems drawn for one trial before the closest input drawn in its cell is kept instead.
+#: The most program runs a trial draws for a fresh input of its cell.
 MAX_DRAWS = 200
-#: Inputs drawn first to find the cells the program reaches.
+#: Program runs drawn first, in the parent, whose inputs are the cells' pools.
 PROBES = 1000
+#: A trial draws fresh inputs (where its cell's pool is thin) only in a cell where the probes
+#: found one in at most this many program runs on average; in a rarer cell it takes from the
+#: pool.
+FRESH_DRAWS = 20
 
 
 class UpstreamError(AnytimeError, ValueError):
@@ -104,10 +135,34 @@ class _Own:
 _Drawn = tuple[Instance, list[Any], tuple[float, ...]]
 
 
+@frozen
+class Pool:
+    """What the probes found in one cell of the module's input grid: `inputs`, the ones within
+    `TOLERANCE` of it (`accepted` of them), or where none was, every input that landed in it;
+    `rate`, the accepted ones per program run of the probes."""
+
+    inputs: tuple[_Drawn, ...]
+    accepted: int
+    rate: float
+
+
+@frozen
+class Pools:
+    """The probes' inputs, cell by cell (the cells the program reaches), how many program runs
+    they took, and the first call they met (a stand-in for the cells the program does not
+    reach; None: it never called the module)."""
+
+    cells: Mapping[tuple[float, ...], Pool]
+    runs: int
+    stand_in: _Drawn | None
+
+
 class UpstreamProblems:
     """A module's problem set made of what a compiled program feeds it (see the module's
-    docstring): `reached` are the cells the program's inputs land in; `fallback`, where the
-    module has a problem set of its own, makes the others."""
+    docstring): `pools` are the probes' inputs in the cells the program reaches, which a trial
+    takes from (drawing fresh ones where a cell's pool is thin, fewer than `trials`, and the
+    cell is not rare); `fallback`, where the module has a problem set of its own, makes the
+    others."""
 
     def __init__(
         self,
@@ -116,20 +171,26 @@ class UpstreamProblems:
         problems: ProgramProblems,
         grids: Sequence[ArrayLike],
         fallback: ProblemSet | None,
-        reached: frozenset[tuple[float, ...]] = frozenset(),
+        pools: Pools | None = None,
+        trials: int = 1,
     ) -> None:
         self.compiled, self.node, self.problems = compiled, node, problems
         self.grids = [np.asarray(g, dtype=np.float64) for g in grids]
-        self.fallback, self.reached = fallback, reached
+        self.fallback = fallback
+        self.pools = pools if pools is not None else Pools({}, 0, None)
+        self.trials = trials
         module = _module(node)
         self.name = module.name
         self.positions = [module.parameters.index(name) for name in module.inputs]
         self.sources = _producers(compiled, node)
         self.is_output = _output(compiled) == node.index
 
-    def draw(
-        self, rng: np.random.Generator
-    ) -> tuple[Instance, list[Any], tuple[float, ...]] | None:
+    @property
+    def reached(self) -> frozenset[tuple[float, ...]]:
+        """The cells the probes' inputs landed in."""
+        return frozenset(self.pools.cells)
+
+    def draw(self, rng: np.random.Generator) -> _Drawn | None:
         """One program problem and total, run up to the module's call: the problem, the call's
         arguments and the qualities of its quality-carrying ones (None: the call is not
         made)."""
@@ -146,44 +207,52 @@ class UpstreamProblems:
         """The cell of the input grid qualities land in: each axis's nearest grid point."""
         return tuple(_nearest(g, q) for g, q in zip(self.grids, qualities, strict=True))
 
+    def _accepts(self, qualities: tuple[float, ...], cell: tuple[float, ...]) -> bool:
+        """Whether an input of these qualities is kept for `cell`: each within `TOLERANCE` of
+        the way to the cell's nearest other grid point (any input, for a module without
+        quality-carrying inputs)."""
+        return all(
+            abs(q - c) <= _width(g, c) for g, q, c in zip(self.grids, qualities, cell, strict=True)
+        )
+
     def instance(self, rng: np.random.Generator, input_qualities: tuple[float, ...]) -> Instance:
         cell = tuple(float(q) for q in input_qualities)
-        if cell not in self.reached and self.fallback is not None:
-            own = self.fallback.instance(rng, input_qualities)
-            return Instance(own.args, _Own(own.reference))
-        widths = [_width(g, c) for g, c in zip(self.grids, cell, strict=True)]
-        stand_in, closest, nearest = None, None, np.inf
-        for _ in range(MAX_DRAWS):
-            drawn = self.draw(rng)
-            if drawn is None:
-                continue
-            problem, args, qualities = drawn
-            stand_in = (problem, args)
-            if cell not in self.reached:  # its result is not kept: any input will do
-                break
-            if self._cell(qualities) != cell:
-                continue
-            distance = max(
-                (abs(q - c) / w for q, c, w in zip(qualities, cell, widths, strict=True)),
-                default=0.0,  # a module without quality-carrying inputs: any call will do
-            )
-            if distance <= 1:
+        pool = self.pools.cells.get(cell)
+        if pool is None:  # the program does not reach the cell
+            if self.fallback is not None:
+                return self._own(rng, input_qualities)
+            if self.pools.stand_in is None:
+                raise UpstreamError(
+                    f"'{self.name}': schema '{self.compiled.name}' did not call it in"
+                    f" {self.pools.runs} runs of its problems"
+                )
+            problem, args, _ = _copied(self.pools.stand_in)  # its result is not kept
+            return Instance(self._given(args, cell), _StandIn(problem))
+        thin = pool.accepted < self.trials
+        if thin and pool.rate * FRESH_DRAWS >= 1 and rng.random() >= pool.accepted / self.trials:
+            drawn = self._fresh(rng, cell, min(MAX_DRAWS, math.ceil(3 / pool.rate)))
+            if drawn is not None:
+                problem, args, _ = drawn
                 return Instance(self._given(args, cell), _FromProgram(problem))
-            if distance < nearest:
-                closest, nearest = (problem, args), distance
-        if self.fallback is not None:  # an input of the cell's own quality beats a far one
-            own = self.fallback.instance(rng, input_qualities)
-            return Instance(own.args, _Own(own.reference))
-        if closest is not None:
-            problem, args = closest
-            return Instance(self._given(args, cell), _FromProgram(problem))
-        if stand_in is None:
-            raise UpstreamError(
-                f"'{self.name}': schema '{self.compiled.name}' did not call it in {MAX_DRAWS}"
-                " runs of its problems"
-            )
-        problem, args = stand_in
-        return Instance(self._given(args, cell), _StandIn(problem))
+        if pool.accepted == 0 and self.fallback is not None:  # its own quality beats a far one
+            return self._own(rng, input_qualities)
+        problem, args, _ = _copied(pool.inputs[int(rng.integers(len(pool.inputs)))])
+        return Instance(self._given(args, cell), _FromProgram(problem))
+
+    def _fresh(
+        self, rng: np.random.Generator, cell: tuple[float, ...], draws: int
+    ) -> _Drawn | None:
+        """The first of up to `draws` program runs whose input is kept for `cell`, or None."""
+        for _ in range(draws):
+            drawn = self.draw(rng)
+            if drawn is not None and self._cell(drawn[2]) == cell and self._accepts(drawn[2], cell):
+                return drawn
+        return None
+
+    def _own(self, rng: np.random.Generator, input_qualities: tuple[float, ...]) -> Instance:
+        assert self.fallback is not None
+        own = self.fallback.instance(rng, input_qualities)
+        return Instance(own.args, _Own(own.reference))
 
     def score(self, instance: Instance, value: Any) -> float:
         reference = instance.reference
@@ -214,19 +283,69 @@ class UpstreamProblems:
             return float(score_step(problem, source, value))
         return float(argument.quality) if isinstance(argument, Result) else 1.0
 
+    def effective_samples(self) -> Array:
+        """The effective sample count of each cell of the input grid (see the module's
+        docstring): `trials` where the trials are independent (a cell measured on the module's
+        own problem set), n t / (n + t - 1) for a pool of n inputs and t trials (a lower bound
+        where some trials drew fresh inputs)."""
+        t = self.trials
+        mesh = np.meshgrid(*self.grids, indexing="ij")
+        points = np.stack([m.reshape(-1) for m in mesh], axis=-1) if mesh else np.zeros((1, 0))
+        sizes = np.array(
+            [
+                _pooled(self.pools.cells.get(tuple(float(q) for q in p)), self.fallback)
+                for p in points
+            ],
+            dtype=np.float64,
+        )
+        pooled = sizes * t / np.maximum(sizes + t - 1, 1)
+        effective = np.where(sizes > 0, np.floor(pooled * 100) / 100, float(t))
+        return effective.reshape(tuple(len(g) for g in self.grids))
+
+
+def _pooled(pool: Pool | None, fallback: ProblemSet | None) -> int:
+    """How many inputs a cell's trials take from: its pool's, 0 where they are independent
+    (not reached, or nothing accepted and the module's own problem set makes them)."""
+    if pool is None or (pool.accepted == 0 and fallback is not None):
+        return 0
+    return len(pool.inputs)
+
+
+def _copied(drawn: _Drawn) -> _Drawn:
+    """A copy of a pooled input, so that a module that changes its arguments changes no other
+    trial's (trials in one process share the pool)."""
+    return copy.deepcopy(drawn)
+
+
+def probe_pools(upstream: UpstreamProblems, seed: int, probes: int = PROBES) -> Pools:
+    """`probes` runs of the program's problems (from `seed`), their inputs pooled by the cell
+    of the module's input grid they land in (see `Pool`)."""
+    rng = np.random.default_rng([seed, 1])
+    landed: dict[tuple[float, ...], list[_Drawn]] = {}
+    accepted: dict[tuple[float, ...], list[_Drawn]] = {}
+    first = None
+    for _ in range(probes):
+        drawn = upstream.draw(rng)
+        if drawn is None:
+            continue
+        first = drawn if first is None else first
+        cell = upstream._cell(drawn[2])
+        landed.setdefault(cell, []).append(drawn)
+        if upstream._accepts(drawn[2], cell):
+            accepted.setdefault(cell, []).append(drawn)
+    cells = {}
+    for cell, inputs in landed.items():
+        kept = accepted.get(cell, [])
+        cells[cell] = Pool(tuple(kept or inputs), len(kept), len(kept) / probes)
+    return Pools(cells, probes, first)
+
 
 def reached_cells(
     upstream: UpstreamProblems, seed: int, probes: int = PROBES
 ) -> frozenset[tuple[float, ...]]:
     """The cells of the module's input grid that `probes` runs of the program's problems feed
     it inputs in."""
-    rng = np.random.default_rng([seed, 1])
-    cells = set()
-    for _ in range(probes):
-        drawn = upstream.draw(rng)
-        if drawn is not None:
-            cells.add(upstream._cell(drawn[2]))
-    return frozenset(cells)
+    return frozenset(probe_pools(upstream, seed, probes).cells)
 
 
 def _keep_unreached(
@@ -388,8 +507,9 @@ def measure_upstream(
     done: list[Round] = []
     for index in range(rounds):
         probe = UpstreamProblems(compiled, node, problems, grids, fallback)
-        reached = reached_cells(probe, seed + index)
-        upstream = UpstreamProblems(compiled, node, problems, grids, fallback, reached)
+        pools = probe_pools(probe, seed + index)
+        upstream = UpstreamProblems(compiled, node, problems, grids, fallback, pools, trials)
+        reached = upstream.reached
         build = build_profile(
             module,
             upstream,
@@ -402,14 +522,19 @@ def measure_upstream(
             progress=progress,
             mode=mode,
         )
-        profile = attrs.evolve(build.profile, module=module.name)
+        effective = upstream.effective_samples()[..., None]  # (inputs..., 1): every time
+        measured = build.profile
+        assert measured.samples is not None
+        samples = np.broadcast_to(effective, measured.samples.shape).copy()
+        measured = attrs.evolve(measured, module=module.name, samples=samples)
+        profile = measured
         if fallback is None and current is not None:
             profile = _keep_unreached(profile, current, reached)
         library = library.with_profile(entry.name, profile)
         current = profile
         again = compiled_with(library)
         change = float(np.max(np.abs(again.expected - compiled.expected)))
-        noise = _noise(build.profile)
+        noise = _noise(measured)
         cells = int(np.prod(profile.cell_shape[:-1]))
         done.append(Round(profile, change, len(reached), cells, noise))
         if on_round is not None:
