@@ -496,6 +496,6 @@ def test_direct_never_works_past_the_deadline() -> None:
 def test_bad_options_are_named() -> None:
     world = random_world(64, seed=1)
     pyramid = Pyramid.build(world.blocked)
-    for name in ("door_rings", "direct"):
+    for name in ("door_rings", "direct", "direct_width"):
         with pytest.raises(ValueError, match=f"{name} must be >= 0 or None, got -1"):
             next(atp(Context(), world.start, world.goal, pyramid, **{name: -1}))

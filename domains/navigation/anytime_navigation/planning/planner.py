@@ -274,6 +274,7 @@ def atp(
     follow: Callable[[MultiPath], float] | None = None,
     door_rings: int | None = None,
     direct: int | None = None,
+    direct_width: float | None = None,
 ) -> Iterator[Result]:
     """The anytime abstract planner: yields `Result(MultiPath, quality_estimate)` after the first
     plan and after every refinement (with `follow`, each that is followed no worse than the last
@@ -334,6 +335,15 @@ def atp(
             compiled) and register that route alone, fully refined (None, the default: never).
             A short problem is then one search instead of a refinement per level, each with
             its fixed cost.
+        direct_width: when the base cells of the first plan's nodes and of their neighbours
+            are at most this many per unit of the first plan's length (a narrow corridor: the
+            abstraction says a search through it costs little more than the route's own
+            cells), register the first plan, then search those cells at once (`direct`'s
+            search) and register that route, fully refined, instead of refining level by
+            level (None, the default: never). Issue 36: on MovingAI's mazes the corridor is
+            4-16 cells per unit of length (widths 1-8), on brc202d 20, on every other map of
+            the benchmark 28 or more (blocks of 16 x 16, the 16 longest and 16 random
+            problems).
 
     REFINE re-plans the chosen level-k segment one level lower, through the children of its
     nodes only (they are connected: see `components`), so the search is local and always finds
@@ -376,7 +386,11 @@ def atp(
     if not components.connected(start, goal):
         blocked = pyramid.levels[0] >= 1.0
         components = Components.build(_opened(blocked, start, goal, movement), movement, top=top)
-    for name, option in (("door_rings", door_rings), ("direct", direct)):
+    for name, option in (
+        ("door_rings", door_rings),
+        ("direct", direct),
+        ("direct_width", direct_width),
+    ):
         if option is not None and option < 0:
             raise ValueError(f"{name} must be >= 0 or None, got {option}")
     planner = _Planner(components, pyramid, start, goal, ctx, door_rings=door_rings)
@@ -422,6 +436,16 @@ def atp(
     segments, plan = begin(found)
     if better(plan):  # the first plan: always (nothing is registered before it)
         yield Result(plan, worst.quality())
+    if direct_width is not None and top > 0 and planner.width(top, found) <= direct_width:
+        try:
+            route = planner.direct(top, found.nodes)
+        except SearchLimit as stopped:  # the deadline came first: keep the first plan
+            ctx.tick(stopped.expansions)
+            return
+        plan = MultiPath(start, goal, (), (route,), (), components)
+        if better(plan):
+            yield Result(plan, 1.0)
+        return
     if doors and top > 0:
         try:
             rerouted = planner.through_doors(top, found)
@@ -578,6 +602,14 @@ class _Planner:
         self.ctx.tick(found.expansions)
         ((segment, _),) = self.segments(0, found.nodes, [(0, len(found.nodes) - 1)])
         return segment
+
+    def width(self, level: int, path: NodePath) -> float:
+        """The base cells of the nodes of `path` (at `level`) and of their neighbours per unit
+        of its length (its cost, from centre to centre): what `direct` would search, for each
+        cell of the route."""
+        c = self.components
+        near = c.neighbourhood(level, path.nodes, 1)
+        return float(c.levels[level].size[near].sum()) / max(path.cost, 1.0)
 
     def through_doors(self, level: int, path: NodePath) -> NodePath | None:
         """The cheapest route at `level` through the doors between nodes, when it is cheaper
