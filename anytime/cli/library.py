@@ -167,10 +167,20 @@ def _dynamic_lines(entry: LibraryEntry, dynamic: DynamicProfile, times: int) -> 
     unit = dynamic.time_unit
     fields = [
         ["observed", _OBSERVED[dynamic.observed]],
-        ["states", f"{dynamic.n_states} quality bins: {_numbers(dynamic.bins, '.3g')}"],
+        ["states", f"{dynamic.n_bins} quality bins: {_numbers(dynamic.bins, '.3g')}"],
         [f"time ({unit})", _numbers(dynamic.time)],
         ["samples", f"{dynamic.samples} trials per cell"],
     ]
+    if dynamic.entered is not None:  # each bin split by when the run entered it
+        since = [f"{dynamic.time[int(e)]:g}" for e in dynamic.entered[:-1]]
+        fields.insert(
+            2,
+            [
+                "entered",
+                f"each bin in {dynamic.classes} classes of the time the run entered it, from"
+                f" {', '.join(since)} ({dynamic.n_states} states)",
+            ],
+        )
     if facts["input_quality"]:
         names = list(dynamic.inputs) or [f"#{i + 1}" for i in range(len(facts["input_quality"]))]
         cell = ", ".join(
@@ -189,7 +199,10 @@ def _dynamic_lines(entry: LibraryEntry, dynamic: DynamicProfile, times: int) -> 
     edges = dynamic.bins
     rows = [["state \\ from time", *(f"{dynamic.time[j]:g}" for j in steps)]]
     for k in states:
-        label = f"[{edges[k]:.3g}, {edges[k + 1]:.3g}{']' if k == dynamic.n_states - 1 else ')'}"
+        b = k // dynamic.classes
+        label = f"[{edges[b]:.3g}, {edges[b + 1]:.3g}{']' if b == dynamic.n_bins - 1 else ')'}"
+        if dynamic.entered is not None:
+            label += f" since {dynamic.time[int(dynamic.entered[k % dynamic.classes])]:g}"
         rows.append([label, *("-" if np.isnan(g) else f"{g:+.3f}" for g in gain[steps, k])])
     title = (
         f"  expected gain in true quality of the next step (rows: state; columns: time in {unit}"
@@ -211,7 +224,8 @@ def _dynamic_facts(entry: LibraryEntry, dynamic: DynamicProfile) -> dict[str, An
     gain = np.where(occupied, np.round(here.expected_gain(), 12), np.nan)
     agreement = None
     if here.observation is not None and here.observed == "estimate":
-        right = np.diagonal(here.observation, axis1=-2, axis2=-1)  # (m, K)
+        states = np.arange(here.n_states)
+        right = here.observation[:, states, states // here.classes]  # (m, K): in its own bin
         agreement = round(float(np.mean(np.sum(here.occupancy * right, axis=-1))), 12)
     file = entry.profile_file
     return {
@@ -219,6 +233,7 @@ def _dynamic_facts(entry: LibraryEntry, dynamic: DynamicProfile) -> dict[str, An
         "observed": dynamic.observed,
         "states": dynamic.n_states,
         "quality_bins": dynamic.bins.tolist(),
+        "entered": None if dynamic.entered is None else [int(e) for e in dynamic.entered],
         "time_grid": dynamic.time.tolist(),
         "time_unit": dynamic.time_unit,
         "samples": dynamic.samples,

@@ -103,6 +103,14 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
         " with --dynamic)",
     )
     profile.add_argument(
+        "--entered",
+        type=int_in_range(1, MAX_STATES),
+        metavar="C",
+        help="classes of the time a run entered its quality state (1, none: the state is the"
+        f" quality bin alone; at most {MAX_STATES}; with --dynamic): a state that remembers how"
+        " fast the run got there, for a module that reports a level or an estimate",
+    )
+    profile.add_argument(
         "--traces",
         metavar="FILE",
         help="also write every trial's quality at every time to FILE (as NAME.traces.yaml, a"
@@ -214,6 +222,8 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
 def run_profile(args: argparse.Namespace) -> int:
     if args.states is not None and not args.dynamic:
         args.usage_error("--states K goes with --dynamic")
+    if args.entered is not None and not args.dynamic:
+        args.usage_error("--entered C goes with --dynamic")
     if args.upstream is None and args.schema is not None:
         args.usage_error("--schema NAME goes with --upstream SCHEMA_FILE")
     if args.upstream is not None:
@@ -254,7 +264,9 @@ def run_profile(args: argparse.Namespace) -> int:
     if args.dynamic:
         assert traces is not None  # asked for with the dynamic profile
         written["dynamic_file"] = dynamic_profile_path(output)
-        dynamic = DynamicProfile.from_traces(traces, states=args.states or DEFAULT_STATES)
+        dynamic = DynamicProfile.from_traces(
+            traces, states=args.states or DEFAULT_STATES, entered=args.entered
+        )
         _save(written["dynamic_file"], lambda path: save_dynamic_profile(dynamic, path))
     if args.traces is not None:
         assert traces is not None

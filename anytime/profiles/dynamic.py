@@ -33,9 +33,21 @@ Tables (cells are the input-quality grid, as in a static profile; m grid times, 
   qualities the trials had, not at bin midpoints.
 
 Transitions over more than one step are products of one-step ones (the Markov assumption of the
-dynamic profile); `transition_over` computes them. Bins default to quantiles of the observed
-qualities (`quantile_bins`), so that a module whose quality lives in [0.9, 1] still gets K
-states that tell runs apart.
+dynamic profile); `transition_over` computes them.
+
+The binned report alone is often not a Markov state: a run's quality level says where it is, not
+how fast it got there, and two runs at one level can be of kinds that go on very differently
+(a quantised estimate that has sat at a level for long belongs to a slow run). With `entered`,
+the state is the pair (bin, class of the grid time the run entered that bin): the time of the
+last change of what the monitor sees, binned on `entered`'s edges (grid indices, geometric by
+default: `entry_edges`), which is what a quantised or biased report says of the run's rate, and
+what a stalled run looks like. States are numbered bin-major (state = bin * classes + class);
+`observation` is then always given (P(true bin | state), a state no longer being a bin), and
+`quality_mean` is per state and true bin (runs of one bin differ by class: the fast ones are
+higher in it). A policy tracks the class from its looks.
+
+Bins default to quantiles of the observed qualities (`quantile_bins`), so that a module whose
+quality lives in [0.9, 1] still gets K states that tell runs apart.
 """
 
 from __future__ import annotations
@@ -238,6 +250,27 @@ def quantile_bins(qualities: ArrayLike, states: int = DEFAULT_STATES) -> Array:
     return np.concatenate(([0.0], edges, [1.0]))
 
 
+def entry_edges(times: int, classes: int) -> NDArray[np.intp]:
+    """Edges over grid indices 0..`times` of at most `classes` classes of entry time, geometric
+    (the rate a run's entry time says of it is relative: entering at 2 or 3 differ as much as
+    at 20 or 30): the first classes are single grid indices."""
+    if classes < 1 or times < 1:
+        raise ProfileError(f"entry_edges: expected times and classes >= 1, got {times}, {classes}")
+    inner = np.round(np.geomspace(1, times, classes)).astype(np.intp)
+    edges: NDArray[np.intp] = np.unique(np.concatenate(([0], inner[:-1], [times])))
+    return edges
+
+
+def entry_index(state: NDArray[np.intp]) -> NDArray[np.intp]:
+    """`(..., m)` states at each grid time -> the grid index at which each run entered the state
+    it is in at each time (the last change)."""
+    m = state.shape[-1]
+    changed = np.ones(state.shape, dtype=bool)
+    changed[..., 1:] = state[..., 1:] != state[..., :-1]
+    entered: NDArray[np.intp] = np.maximum.accumulate(np.where(changed, np.arange(m), 0), axis=-1)
+    return entered
+
+
 def _bin_of(quality: Array, bins: Array) -> NDArray[np.intp]:
     """The bin holding each quality, as `point_mass` places it (1.0 in the last bin)."""
     index: NDArray[np.intp] = np.clip(
@@ -270,11 +303,14 @@ class DynamicProfile:
         bins: K+1 edges of the states' quality bins (the same bins for true quality).
         occupancy: `(*cells, m, K)` P(state at each time).
         transition: `(*cells, m - 1, K, K)` P(state at time j + 1 | state at time j).
-        quality_mean: `(*cells, m, K)` mean true quality of each true-quality bin at each time.
+        quality_mean: `(*cells, m, B)` mean true quality of each true-quality bin at each time;
+            with `entered`, `(*cells, m, K, B)`: of the runs in each state and true bin.
         observation: `(*cells, m, K, K)` P(true quality bin | state) at each time, or None when
             the state is the true quality.
         observed: what the state is: the module's "true" quality, its "estimate", or "none".
         samples: the trials behind each cell.
+        entered: edges over grid indices of the classes of the time a run entered its bin (the
+            state is then (bin, class), see the module docstring), or None: the bin alone.
         input_grids, inputs, time_unit: as in a static profile.
     """
 
@@ -290,13 +326,29 @@ class DynamicProfile:
     input_grids: tuple[Array, ...] = arrays_field(default=())
     inputs: tuple[str, ...] = field(default=(), converter=axis_names)
     time_unit: Unit = "ticks"
+    entered: Array | None = optional_array_field()
 
     def __attrs_post_init__(self) -> None:
         _validate_dynamic(self)
 
     @property
-    def n_states(self) -> int:
+    def n_bins(self) -> int:
         return len(self.bins) - 1
+
+    @property
+    def classes(self) -> int:
+        """Classes of entry time per bin (1: the state is the bin)."""
+        return 1 if self.entered is None else len(self.entered) - 1
+
+    @property
+    def n_states(self) -> int:
+        return self.n_bins * self.classes
+
+    def entry_class(self, index: int) -> int:
+        """The class of entering a bin at grid index `index`."""
+        if self.entered is None:
+            return 0
+        return int(np.searchsorted(self.entered, index, side="right")) - 1
 
     @property
     def cell_shape(self) -> tuple[int, ...]:
@@ -304,10 +356,15 @@ class DynamicProfile:
 
     @classmethod
     def from_traces(
-        cls, traces: QualityTraces, bins: ArrayLike | None = None, states: int = DEFAULT_STATES
+        cls,
+        traces: QualityTraces,
+        bins: ArrayLike | None = None,
+        states: int = DEFAULT_STATES,
+        entered: int | ArrayLike | None = None,
     ) -> DynamicProfile:
         """The dynamic profile of recorded traces, on `bins` (default: `states` quantile bins
-        of what the monitor observes)."""
+        of what the monitor observes); with `entered` (a number of classes, or their edges over
+        grid indices), the state is (bin, class of the time the run entered it)."""
         observed = traces.observed
         if bins is not None:
             edges = np.asarray(bins, dtype=np.float64)
@@ -315,9 +372,21 @@ class DynamicProfile:
             edges = np.array([0.0, 1.0])  # the monitor sees nothing: one state
         else:
             edges = quantile_bins(observed, states)
-        k = len(edges) - 1
+        m = len(traces.time)
+        if entered is None or np.ndim(entered) == 0 and int(entered) == 1:  # type: ignore[arg-type]
+            classes_edges = None
+        elif np.ndim(entered) == 0:
+            classes_edges = entry_edges(m, int(entered)).astype(np.float64)  # type: ignore[arg-type]
+        else:
+            classes_edges = np.asarray(entered, dtype=np.float64)
+        kb = len(edges) - 1
         state = _bin_of(observed, edges)  # (*cells, N, m)
         true = _bin_of(traces.quality, edges)
+        if classes_edges is not None:
+            classes = len(classes_edges) - 1
+            since = np.searchsorted(classes_edges, entry_index(state), side="right") - 1
+            state = state * classes + np.clip(since, 0, classes - 1)
+        k = kb * (1 if classes_edges is None else len(classes_edges) - 1)
         n = traces.trials
         occupancy = _counts(state, k) / n
         # Pair counts of consecutive states: (*cells, m - 1, K, K), summed over trials.
@@ -325,14 +394,23 @@ class DynamicProfile:
         pairs = _counts(pair, k * k).reshape((*pair.shape[:-2], pair.shape[-1], k, k))
         seen = pairs.sum(axis=-1, keepdims=True)
         transition = np.where(seen > 0, pairs / np.maximum(seen, 1), np.eye(k))
-        true_counts = _counts(true, k)  # (*cells, m, K)
-        sums = _counts(true, k, weights=traces.quality)
+        true_counts = _counts(true, kb)  # (*cells, m, K)
+        sums = _counts(true, kb, weights=traces.quality)
         midpoints = (edges[:-1] + edges[1:]) / 2
         quality_mean = np.where(true_counts > 0, sums / np.maximum(true_counts, 1), midpoints)
+        if classes_edges is not None:  # per state and true bin: runs of one bin differ by class
+            pair_counts = _counts(state * kb + true, k * kb)
+            pair_sums = _counts(state * kb + true, k * kb, weights=traces.quality)
+            shape = (*occupancy.shape, kb)
+            quality_mean = np.where(
+                pair_counts.reshape(shape) > 0,
+                pair_sums.reshape(shape) / np.maximum(pair_counts.reshape(shape), 1),
+                quality_mean[..., None, :],
+            )
         quality_mean = np.clip(quality_mean, np.r_[0.0, edges[1:-1]], np.r_[edges[1:-1], 1.0])
         observation = None
-        if traces.reports != "true":
-            joint = _counts(state * k + true, k * k).reshape((*true_counts.shape, k))
+        if traces.reports != "true" or classes_edges is not None:
+            joint = _counts(state * kb + true, k * kb).reshape((*occupancy.shape, kb))
             given = joint.sum(axis=-1, keepdims=True)
             marginal = true_counts[..., None, :] / n
             observation = np.where(given > 0, joint / np.maximum(given, 1), marginal)
@@ -349,6 +427,7 @@ class DynamicProfile:
             input_grids=traces.input_grids,
             inputs=traces.inputs,
             time_unit=traces.time_unit,
+            entered=classes_edges,
         )
 
     def at(self, input_qualities: Sequence[float] = ()) -> DynamicProfile:
@@ -381,6 +460,7 @@ class DynamicProfile:
             observed=self.observed,
             samples=self.samples,
             time_unit=self.time_unit,
+            entered=self.entered,
         )
 
     def transition_over(self, start: int, end: int) -> Array:
@@ -399,7 +479,7 @@ class DynamicProfile:
     def expected_quality(self) -> Array:
         """E[true quality | state k at time j], `(*cells, m, K)`."""
         probability, quality = self.true_quality()
-        expected: Array = np.einsum("...kb,...b->...k", probability, quality)
+        expected: Array = np.einsum("...kb,...kb->...k", probability, quality)
         return expected
 
     def expected_gain(self) -> Array:
@@ -413,13 +493,27 @@ class DynamicProfile:
 
     def true_quality(self) -> tuple[Array, Array]:
         """What each state at each time says of the true quality: `(P, q)` with P `(*cells, m,
-        K, K)` = P(true bin b | state k, time j) and q `(*cells, m, K)` the mean true quality of
-        bin b at time j, so E[f(true quality) | state k, time j] = sum_b P[..., j, k, b] f(q[...,
-        j, b])."""
+        K, B)` = P(true bin b | state k, time j) and q `(*cells, m, K, B)` the mean true quality
+        of bin b at time j (of the runs in state k, where the profile says), so E[f(true
+        quality) | state k, time j] = sum_b P[..., j, k, b] f(q[..., j, k, b])."""
+        shape = (*self.occupancy.shape, self.n_bins)
+        quality = self.quality_mean
+        if self.entered is None:
+            quality = quality[..., None, :]
+        quality = np.array(np.broadcast_to(quality, shape))
         if self.observation is not None:
-            return self.observation, self.quality_mean
-        identity = np.broadcast_to(np.eye(self.n_states), (*self.occupancy.shape, self.n_states))
-        return np.array(identity), self.quality_mean
+            return self.observation, quality
+        identity = np.broadcast_to(np.eye(self.n_states), shape)
+        return np.array(identity), quality
+
+
+def check_entered(edges: Array, times: int, fail: Callable[[str, str], NoReturn]) -> None:
+    """Entry-class edges are whole grid indices increasing from 0 to the number of times."""
+    whole = bool(np.all(np.isfinite(edges)) and np.all(edges == np.round(edges)))
+    if edges.ndim != 1 or len(edges) < 2 or not whole or edges[0] != 0 or edges[-1] != times:
+        fail("entered", f"expected whole grid indices from 0 to {times}, got {_plain_list(edges)}")
+    if np.any(np.diff(edges) <= 0):
+        fail("entered", f"expected increasing edges, got {_plain_list(edges)}")
 
 
 def _validate_dynamic(p: DynamicProfile) -> None:
@@ -436,12 +530,19 @@ def _validate_dynamic(p: DynamicProfile) -> None:
         fail("observed", f"expected one of {', '.join(OBSERVED)}, got {p.observed!r}")
     if not isinstance(p.samples, int) or isinstance(p.samples, bool) or p.samples < 0:
         fail("samples", f"expected an integer >= 0, got {p.samples!r}")
-    cells, m, k = p.cell_shape, len(p.time), p.n_states
+    cells, m = p.cell_shape, len(p.time)
+    if p.entered is not None:
+        check_entered(p.entered, m, fail)
+    k, kb = p.n_states, p.n_bins
     shapes = {
         "occupancy": (p.occupancy, (*cells, m, k), True),
         "transition": (p.transition, (*cells, m - 1, k, k), True),
-        "quality_mean": (p.quality_mean, (*cells, m, k), False),
-        "observation": (p.observation, (*cells, m, k, k), True),
+        "quality_mean": (
+            p.quality_mean,
+            (*cells, m, kb) if p.entered is None else (*cells, m, k, kb),
+            False,
+        ),
+        "observation": (p.observation, (*cells, m, k, kb), True),
     }
     for field_name, (table, shape, distribution) in shapes.items():
         if table is None:
@@ -464,9 +565,14 @@ def _validate_dynamic(p: DynamicProfile) -> None:
                     f"expected a row summing to 1 (within {SUM_TOLERANCE:g}), got"
                     f" {sums[worst]:.10g}",
                 )
-    if (p.observation is None) != (p.observed == "true"):
+    if (p.observation is None) != (p.observed == "true" and p.entered is None):
         fail(
             "observation",
             "expected a table exactly when the state is not the true quality"
-            f" (observed: {p.observed}), got {'none' if p.observation is None else 'one'}",
+            f" (observed: {p.observed}, entered: {'none' if p.entered is None else 'given'}),"
+            f" got {'none' if p.observation is None else 'one'}",
         )
+
+
+def _plain_list(values: Array) -> list[float | int]:
+    return [int(v) if float(v).is_integer() else float(v) for v in np.asarray(values).reshape(-1)]

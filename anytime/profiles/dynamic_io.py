@@ -18,12 +18,17 @@ A dynamic profile, `anytime-dynamic-profile/1` (`DynamicProfile`; K states, m ti
     inputs: [x]                         # the input axes' names, as in a profile
     input_quality: [[0.4, 1.0]]         # one grid per input; may be empty
     time: [0, 10, 20]                   # required: the grid times
-    quality_bins: [0, 0.5, 1]           # required: K+1 edges from 0 to 1
-    occupancy: ...                      # required: (*cells, m, K) P(state)
+    quality_bins: [0, 0.5, 1]           # required: B+1 edges from 0 to 1
+    entered: [0, 1, 2, 3]               # edges over grid indices 0..m of the classes of the
+                                        # time a run entered its bin (C classes; optional:
+                                        # without it the state is the bin, K = B, C = 1)
+    occupancy: ...                      # required: (*cells, m, K) P(state), K = B * C
     transition: ...                     # required: (*cells, m - 1, K, K) P(next state | state)
-    quality_mean: ...                   # required: (*cells, m, K) mean true quality per bin
-    observation: ...                    # (*cells, m, K, K) P(true bin | state), exactly when
-                                        # observed is not true
+    quality_mean: ...                   # required: (*cells, m, B) mean true quality per bin
+                                        # ((*cells, m, K, B): per state and bin, with entered)
+    observation: ...                    # (*cells, m, K, B) P(true bin | state), exactly when
+                                        # the state is not the true quality (observed is not
+                                        # true, or entered is given)
 
 Quality traces, `anytime-traces/1` (`QualityTraces`; N trials)::
 
@@ -59,7 +64,13 @@ from typing import Any, cast
 import numpy as np
 
 from anytime.errors import ProfileError
-from anytime.profiles.dynamic import OBSERVED, DynamicProfile, Observed, QualityTraces
+from anytime.profiles.dynamic import (
+    OBSERVED,
+    DynamicProfile,
+    Observed,
+    QualityTraces,
+    check_entered,
+)
 from anytime.profiles.io import (
     MAX_CELLS,
     Reader,
@@ -106,6 +117,7 @@ DYNAMIC_FIELDS = (
     "input_quality",
     "time",
     "quality_bins",
+    "entered",
     *DYNAMIC_TABLES,
 )
 TRACES_TABLES = ("quality", "scored", "estimate", "finished")
@@ -145,23 +157,29 @@ def load_dynamic_profile(path: str | os.PathLike[str]) -> DynamicProfile:
     observed = cast(Observed, reader.choice("observed", _word(data, "observed"), OBSERVED))
     samples = _whole(reader, "samples", data.get("samples", 0), least=0)
     bins = reader.grid("quality_bins", data["quality_bins"], minimum=2, quality=True)
-    m, k = len(axes.time), len(bins) - 1
+    entered = None
+    if "entered" in data:
+        entered = reader.grid("entered", data["entered"], minimum=2, quality=False)
+        check_entered(entered, len(axes.time), reader.fail)
+    m, kb = len(axes.time), len(bins) - 1
+    k = kb * (1 if entered is None else len(entered) - 1)
     _check_size(reader, "transition", (*axes.cells, max(m, 1), k, k))
     state, step = (*axes.names, "one per time", "one per state"), "one per time step"
-    per_state = (*axes.cells, m, k)
+    per_state, per_bin = (*axes.cells, m, k), (*axes.cells, m, kb)
+    by_bin = (*axes.names, "one per time", "one per quality bin")
     pair = (*axes.names, step, "one per state", "one per next state")
     occupancy = reader.table("occupancy", data["occupancy"], per_state, state, quality=True)
     transition = reader.table(
         "transition", data["transition"], (*axes.cells, m - 1, k, k), pair, quality=True
     )
-    quality_mean = reader.table(
-        "quality_mean", data["quality_mean"], per_state, state, quality=True
-    )
+    if entered is not None:  # per state and true bin
+        per_bin, by_bin = (*per_state, kb), (*state, "one per true-quality bin")
+    quality_mean = reader.table("quality_mean", data["quality_mean"], per_bin, by_bin, quality=True)
     observation = None
     if "observation" in data:
         true_bin = (*axes.names, "one per time", "one per state", "one per true-quality bin")
         observation = reader.table(
-            "observation", data["observation"], (*per_state, k), true_bin, quality=True
+            "observation", data["observation"], (*per_state, kb), true_bin, quality=True
         )
     try:
         return DynamicProfile(
@@ -177,6 +195,7 @@ def load_dynamic_profile(path: str | os.PathLike[str]) -> DynamicProfile:
             input_grids=axes.grids,
             inputs=axes.inputs,
             time_unit=axes.time_unit,
+            entered=entered,
         )
     except ProfileError as exc:  # the class's own invariants: re-prefix with the file
         reader.refile(exc, axes.module)
@@ -289,6 +308,8 @@ def save_dynamic_profile(
         {"observed": profile.observed, "time_unit": profile.time_unit, "samples": profile.samples},
     )
     data["quality_bins"] = plain(profile.bins)
+    if profile.entered is not None:
+        data["entered"] = [int(e) for e in profile.entered]
     tables = {
         "occupancy": profile.occupancy,
         "transition": profile.transition,

@@ -127,10 +127,12 @@ def evaluate(
     keep = probability > 0
     paths, probability = paths[keep], probability[keep]
     bins = model.profile.bins
+    # What a path's state shows: its bin's (a state is a bin, or a bin and an entry class).
+    kb, classes = model.profile.n_bins, model.profile.classes
     shown = (
-        model.profile.quality_mean[:n]
+        model.profile.true_quality()[1][:n, np.arange(k), np.arange(k) // classes]
         if model.profile.observed == "true"
-        else np.broadcast_to((bins[:-1] + bins[1:]) / 2, (n, k))
+        else np.broadcast_to((bins[:-1] + bins[1:]) / 2, (n, kb))[:, np.arange(k) // classes]
     )
     t = model.time[:n]
     utility = np.empty(len(paths))

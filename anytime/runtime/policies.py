@@ -20,7 +20,10 @@ the next look (`look_at`, infinite: never look again) and the time to stop at wi
       V(j, s) = max( U_stop(j, s),  max_i [ E V(i, s') - c ],  max_i E U_stop(i, s') ),  i > j,
 
   E over P(s' at i | s at j), the product of the profile's one-step transitions. Without a
-  monitoring cost it looks at every grid time.
+  monitoring cost it looks at every grid time. On a profile whose state includes when the run
+  entered its bin (`DynamicProfile.entered`), a look sees that only if the run was seen the step
+  before, so its choices are: stop later without looking, or look from the first grid time on at
+  every one (until it stops, or stops later without looking).
 - `ProjectedStopping` predicts the run's own curve online (Svegliato, Wray & Zilberstein 2018):
   it fits q(t) = a - b exp(-c t) to the qualities seen so far, by least squares, and stops once the
   projected best stopping time has come.
@@ -178,6 +181,8 @@ class StoppingModel:
             occupancy at the first grid time.
         stop_utility: `(m, K)` E[U(true quality, t_j) | state k at t_j].
         expected_true: `(m, K)` E[true quality | state k at t_j].
+        stop_square: `(m, K)` E[U(true quality, t_j)^2 | state k at t_j], for the spread of
+            what a policy realises.
     """
 
     profile: DynamicProfile
@@ -185,6 +190,7 @@ class StoppingModel:
     marginal: Array = field(eq=False)
     stop_utility: Array = field(eq=False)
     expected_true: Array = field(eq=False)
+    stop_square: Array = field(eq=False)
 
     @classmethod
     def of(
@@ -193,14 +199,20 @@ class StoppingModel:
         if not isinstance(profile, DynamicProfile):
             raise PolicyError(f"stopping: expected a DynamicProfile, got {type(profile).__name__}")
         cell = profile.at(input_quality)
-        given, quality = cell.true_quality()  # (m, K, K), (m, K)
-        stop = np.einsum("jkb,jb->jk", given, utility(cell.time, quality))
-        expected_true = np.einsum("jkb,jb->jk", given, quality)
+        given, quality = cell.true_quality()  # (m, K, B) each
+        if cell.entered is None:  # one quality per bin: the utility of (m, B)
+            worth = utility(cell.time, cell.quality_mean)[:, None, :]
+        else:
+            m = len(cell.time)
+            worth = utility(cell.time, quality.reshape(m, -1)).reshape(quality.shape)
+        stop = (given * worth).sum(axis=-1)
+        expected_true = (given * quality).sum(axis=-1)
+        square = (given * worth**2).sum(axis=-1)
         marginal = np.empty_like(cell.occupancy)
         marginal[0] = cell.occupancy[0]
         for j in range(len(cell.time) - 1):  # one vector-matrix product per time step
             marginal[j + 1] = marginal[j] @ cell.transition[j]
-        return cls(cell, utility, marginal, stop, expected_true)
+        return cls(cell, utility, marginal, stop, expected_true, square)
 
     @property
     def time(self) -> Array:
@@ -216,11 +228,16 @@ class StoppingModel:
             np.clip(np.searchsorted(self.time, time * (1 + 1e-12), side="right") - 1, 0, last)
         )
 
-    def state(self, quality: float | None) -> int:
-        """The state of a reported quality (no answer: the state of quality 0)."""
+    def bin(self, quality: float | None) -> int:
+        """The bin of a reported quality (no answer: the bin of quality 0)."""
         bins = self.profile.bins
         q = 0.0 if quality is None or self.profile.observed == "none" else float(quality)
         return int(np.clip(np.searchsorted(bins, q, side="right") - 1, 0, len(bins) - 2))
+
+    def state(self, quality: float | None, entry_class: int = 0) -> int:
+        """The state of a reported quality, the run having entered its bin in `entry_class`
+        (profiles with `entered` only; else there is one class)."""
+        return self.bin(quality) * self.profile.classes + entry_class
 
 
 def trace_cell(traces: QualityTraces, input_quality: Sequence[float], name: str) -> tuple[int, ...]:
@@ -273,8 +290,10 @@ class _GridPolicy(ABC):
         self.observed: Observed | None = self.model.profile.observed
         self.allocation = math.inf
         self.last = len(self.model.time) - 1
+        self._last_look: tuple[int, int, int] | None = None  # the last look: grid index, bin, class
 
     def start(self, allocation: float) -> Decision:
+        self._last_look = None
         self.allocation = check_allocation(self.name, allocation)
         self.last = self.model.last(self.allocation)
         if self.last < 0:
@@ -288,6 +307,32 @@ class _GridPolicy(ABC):
     @abstractmethod
     def observe(self, time: float, quality: float | None) -> Decision:
         """The decision at a look at `time`, the run's answer of `quality` (None: none yet)."""
+
+    def _state(self, j: int, quality: float | None) -> int:
+        """The state of a look at grid index `j`. Where the profile tracks when a run entered its
+        bin (`DynamicProfile.entered`), the class comes from the looks: the last look's if the
+        bin is the same, this step's if the bin changed since the step before, else (looks
+        skipped, or none yet) the most probable under the profile's chain."""
+        model, profile = self.model, self.model.profile
+        b, classes = model.bin(quality), profile.classes
+        if classes == 1:
+            return b
+        seen = self._last_look
+        if seen is not None and seen[1] == b:
+            klass = seen[2]
+        elif seen is not None and j - seen[0] <= 1:
+            klass = profile.entry_class(j)
+        else:
+            if seen is None:
+                belief = model.marginal[j]
+            else:
+                belief = np.zeros(profile.n_states)
+                belief[seen[1] * classes + seen[2]] = 1.0
+                for step in range(seen[0], j):
+                    belief = belief @ profile.transition[step]
+            klass = int(np.argmax(belief[b * classes : (b + 1) * classes]))
+        self._last_look = (j, b, klass)
+        return b * classes + klass
 
     def _look_next(self, j: int, reason: str) -> Decision:
         """Go on to the next grid time and look there."""
@@ -374,7 +419,8 @@ class MyopicStopping(_GridPolicy):
         return Decision.later(self.model.time[0], self.model.time[self.last], "looks every step")
 
     def observe(self, time: float, quality: float | None) -> Decision:
-        j, s = self.model.index(time, self.last), self.model.state(quality)
+        j = self.model.index(time, self.last)
+        s = self._state(j, quality)
         if j == self.last:
             return Decision.now("the last grid time within the allocation")
         gain = float(self.gain()[j, s])
@@ -419,6 +465,9 @@ def solve(model: StoppingModel, last: int, monitoring_cost: float) -> StoppingPl
     next grid time."""
     c = monitoring_cost
     n, k = last + 1, model.profile.n_states
+    # With entry classes a look sees the class only if the run was seen the step before (or at
+    # the start): looks, once begun, come at every grid time, and the first is at the first one.
+    every = model.profile.classes > 1
     u = model.stop_utility[:n]
     value, action, target = u.copy(), np.zeros((n, k), int), np.zeros((n, k), int)
     # Columns i = j + 1 .. last: E[V(i, s')] and E[U_stop(i, s')] from each state at j.
@@ -432,9 +481,10 @@ def solve(model: StoppingModel, last: int, monitoring_cost: float) -> StoppingPl
             looks = step @ np.column_stack([value[j + 1], looks])
             stops = step @ np.column_stack([u[j + 1], stops])
             later = np.arange(j + 1, n)
-            candidates = np.column_stack([u[j], stops, looks - c])
-            kinds = np.r_[STOP, np.full(len(later), STOP_AT), np.full(len(later), LOOK_AT)]
-            targets = np.r_[j, later, later]
+            seen = later[:1] if every else later
+            candidates = np.column_stack([u[j], stops, looks[:, : len(seen)] - c])
+            kinds = np.r_[STOP, np.full(len(later), STOP_AT), np.full(len(seen), LOOK_AT)]
+            targets = np.r_[j, later, seen]
         value[j], chosen = _best(candidates)
         action[j], target[j] = kinds[chosen], targets[chosen]
     # The start sees nothing: the first look's value under the occupancy there.
@@ -442,14 +492,47 @@ def solve(model: StoppingModel, last: int, monitoring_cost: float) -> StoppingPl
     if c == 0:
         return StoppingPlan(value, action, target, float(reach[0]), (LOOK_AT, 0))
     blind = np.einsum("jk,jk->j", model.marginal[:n], u)
-    best, chosen = _best(np.concatenate([blind, reach])[None, :])
+    best, chosen = _best(np.concatenate([blind, reach[:1] if every else reach])[None, :])
     i = int(chosen[0])
     first = (STOP_AT, i) if i < n else (LOOK_AT, i - n)
     return StoppingPlan(value, action, target, float(best[0]), first)
 
 
+def _stop_moments(model: StoppingModel, plan: StoppingPlan, last: int) -> tuple[float, float]:
+    """E[U] and E[U^2] at the stop of a run that follows `plan` on the model's chain (looks not
+    paid): the mass of runs at each look, carried forward to the look or stop each state's
+    action names, one group of states per (action, target)."""
+    n, k = last + 1, model.profile.n_states
+    looking, stopping = np.zeros((n, k)), np.zeros((n, k))
+    action, at = plan.first
+    (stopping if action == STOP_AT else looking)[at] += model.marginal[at]
+    for j in range(n):
+        mass = looking[j]
+        if not mass.any():
+            continue
+        acts, targets = plan.action[j], plan.target[j]
+        stopping[j] += np.where(acts == STOP, mass, 0.0)
+        for a, i in {(int(a), int(i)) for a, i in zip(acts, targets, strict=True) if a != STOP}:
+            moved = np.where((acts == a) & (targets == i), mass, 0.0)
+            for step in range(j, i):  # a vector-matrix product per time step
+                moved = moved @ model.profile.transition[step]
+            (stopping if a == STOP_AT else looking)[i] += moved
+    return (
+        float(np.sum(stopping * model.stop_utility[:n])),
+        float(np.sum(stopping * model.stop_square[:n])),
+    )
+
+
 class OptimalStopping(_GridPolicy):
     """The optimal stopping policy of the profile's Markov model (see the module docstring).
+
+    Its `expected_utility` is the model's value, and the model is learned from the profile's
+    `samples` runs: `standard_error` says how far that value may be from what the policy
+    realises on fresh runs when the model's state is sufficient (the spread of the utility at
+    its stops over the square root of the runs; the spread of the number of looks is left out).
+    Where the state is not sufficient (a binned estimate of runs that differ in kind) the value
+    can be off by more: a profile with `entered` tracks when a run entered its bin, which is
+    what such reports say of a run's rate (see `DynamicProfile`).
 
     Args:
         monitoring_cost: the utility a look costs (0: look at every grid time).
@@ -477,6 +560,16 @@ class OptimalStopping(_GridPolicy):
     def expected_utility(self, allocation: float = math.inf) -> float:
         return self.plan(allocation).expected_utility
 
+    def standard_error(self, allocation: float = math.inf) -> float:
+        """The standard error of `expected_utility` from the profile's sampling (infinite for
+        a profile that does not say how many runs it was learned from)."""
+        samples = self.model.profile.samples
+        if samples <= 0:
+            return math.inf
+        last = self.model.last(check_allocation(self.name, allocation))
+        mean, square = _stop_moments(self.model, self.plan(allocation), last)
+        return math.sqrt(max(square - mean * mean, 0.0) / samples)
+
     def _start(self) -> Decision:
         plan = self.plan(self.allocation)
         action, i = plan.first
@@ -484,7 +577,8 @@ class OptimalStopping(_GridPolicy):
 
     def observe(self, time: float, quality: float | None) -> Decision:
         plan = self.plan(self.allocation)
-        j, s = self.model.index(time, self.last), self.model.state(quality)
+        j = self.model.index(time, self.last)
+        s = self._state(j, quality)
         action, i = int(plan.action[j, s]), int(plan.target[j, s])
         if action == STOP:
             return Decision.now(f"stopping now is worth {plan.value[j, s]:.6g}, going on less")

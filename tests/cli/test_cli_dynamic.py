@@ -49,6 +49,23 @@ def test_states_without_dynamic_is_a_usage_error(cli: Cli) -> None:
     code, _, err = cli("profile", "get-domain-description", "--states", "4")
     assert code == 2
     assert err.splitlines()[-1] == "anytime profile: error: --states K goes with --dynamic"
+    code, _, err = cli("profile", "get-domain-description", "--entered", "4")
+    assert code == 2
+    assert err.splitlines()[-1] == "anytime profile: error: --entered C goes with --dynamic"
+
+
+def test_entered_makes_the_state_remember_when_a_run_entered_its_bin(
+    cli: Cli, tmp_path: Path
+) -> None:
+    out, traces = tmp_path / "g.yaml", tmp_path / "g.traces.yaml"
+    base = ("profile", "get-domain-description", "--trials", "3", "--quiet", "-o", str(out))
+    code, _, err = cli(
+        *base, "--dynamic", "--states", "4", "--entered", "3", "--traces", str(traces)
+    )
+    assert code == 0, err
+    dynamic = load_dynamic_profile(tmp_path / "g.dynamic.yaml")
+    assert dynamic == DynamicProfile.from_traces(load_traces(traces), states=4, entered=3)
+    assert dynamic.classes == 3
 
 
 def test_traces_that_cannot_be_written_are_an_input_error(cli: Cli, tmp_path: Path) -> None:
@@ -68,8 +85,9 @@ def test_traces_that_cannot_be_written_are_an_input_error(cli: Cli, tmp_path: Pa
     assert err == f"anytime: error: cannot write '{missing}': No such file or directory\n"
 
 
-def hand_profiles(directory: Path) -> Path:
-    """A profile-only module 'hand' (no inputs, times 0, 1, 2) and its dynamic profile."""
+def hand_profiles(directory: Path, entered: list[int] | None = None) -> Path:
+    """A profile-only module 'hand' (no inputs, times 0, 1, 2) and its dynamic profile (with
+    entry classes `entered`)."""
     directory.mkdir()
     save_profile(
         tabulate(lambda t: 0.4 * t, time=[0, 1, 2], module="hand"), directory / "hand.yaml"
@@ -82,7 +100,7 @@ def hand_profiles(directory: Path) -> Path:
         estimate=[[0.0, 0.3, 0.9], [0.0, 0.1, 0.4]],
         reports="estimate",
     )
-    dynamic = DynamicProfile.from_traces(traces, bins=[0, 0.5, 1])
+    dynamic = DynamicProfile.from_traces(traces, bins=[0, 0.5, 1], entered=entered)
     save_dynamic_profile(dynamic, directory / "hand.dynamic.yaml")
     return directory
 
@@ -108,6 +126,31 @@ def test_library_show_tells_what_the_dynamic_profile_says(cli: Cli, tmp_path: Pa
     )
 
 
+def test_library_show_names_the_entry_classes_of_the_states(cli: Cli, tmp_path: Path) -> None:
+    profiles = hand_profiles(tmp_path / "p", entered=[0, 1, 3])
+    code, text, err = cli("library", "show", "hand", "--profiles", str(profiles), "--no-plugins")
+    assert code == 0, err
+    section = text[text.index("dynamic profile:") :]
+    assert section == (
+        f"dynamic profile: {profiles / 'hand.dynamic.yaml'}\n"
+        "  observed        the module's own estimate of its quality, with P(true quality |"
+        " estimate)\n"
+        "  states          2 quality bins: 0, 0.5, 1\n"
+        "  entered         each bin in 2 classes of the time the run entered it, from 0, 1 (4"
+        " states)\n"
+        "  time (ticks)    0, 1, 2\n"
+        "  samples         2 trials per cell\n"
+        "  estimate right  67% of runs (in the true quality's bin)\n"
+        "  expected gain in true quality of the next step (rows: state; columns: time in"
+        " ticks):\n"
+        "    state \\ from time  0       1\n"
+        "    [0, 0.5) since 0   +0.400  +0.350\n"
+        "    [0, 0.5) since 1   -       -\n"
+        "    [0.5, 1] since 0   -       -\n"
+        "    [0.5, 1] since 1   -       -\n"
+    )
+
+
 def test_library_show_json_carries_the_dynamic_profile(cli: Cli, tmp_path: Path) -> None:
     profiles = hand_profiles(tmp_path / "p")
     args = ("library", "show", "hand", "--profiles", str(profiles), "--no-plugins", "--json")
@@ -119,6 +162,7 @@ def test_library_show_json_carries_the_dynamic_profile(cli: Cli, tmp_path: Path)
         "observed": "estimate",
         "states": 2,
         "quality_bins": [0.0, 0.5, 1.0],
+        "entered": None,
         "time_grid": [0.0, 1.0, 2.0],
         "time_unit": "ticks",
         "samples": 2,

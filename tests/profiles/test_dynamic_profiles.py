@@ -22,7 +22,7 @@ from anytime.measure.builder import (
     profile_module,
 )
 from anytime.modules import Context, Registry, Result, contract, interruptible
-from anytime.profiles.dynamic import OBSERVED, DynamicProfile, QualityTraces
+from anytime.profiles.dynamic import OBSERVED, DynamicProfile, QualityTraces, entry_edges
 from anytime.profiles.dynamic_io import (
     dynamic_profile_path,
     load_dynamic_profile,
@@ -190,6 +190,25 @@ def test_from_traces_counts_the_transitions() -> None:
     np.testing.assert_allclose(p.expected_gain(), gain)
 
 
+def test_entry_classes_split_a_bin_by_when_each_run_entered_it() -> None:
+    """Two runs in the high bin at time 2: one since time 1, one since time 2. With a class per
+    entry time the state tells them apart, and says which true qualities each holds."""
+    p = DynamicProfile.from_traces(hand_made(), bins=[0, 0.5, 1], entered=[0, 1, 2, 3])
+    assert p.classes == 3 and p.n_states == 6 and p.entered is not None
+    # States: (low, entered 0..2), (high, entered 0..2). At time 2 run 1 is (high, 1), run 2
+    # (high, 2); at time 1 run 1 is (high, 1), run 2 (low, 0).
+    np.testing.assert_array_equal(p.occupancy[2], [0, 0, 0, 0, 0.5, 0.5])
+    np.testing.assert_array_equal(p.occupancy[1], [0.5, 0, 0, 0, 0.5, 0])
+    np.testing.assert_array_equal(p.transition[1][0], [0, 0, 0, 0, 0, 1])  # (low, 0) -> (high, 2)
+    np.testing.assert_array_equal(p.transition[1][4], [0, 0, 0, 0, 1, 0])  # (high, 1) stays
+    assert p.observation is not None and p.observation.shape == (3, 6, 2)
+    np.testing.assert_array_equal(p.observation[2][4:], [[0, 1], [0, 1]])
+    # Each state's own mean quality in its bin: 0.8 for the run there since 1, 0.7 since 2.
+    np.testing.assert_allclose(p.quality_mean[2][4:, 1], [0.8, 0.7])
+    assert [p.entry_class(j) for j in range(3)] == [0, 1, 2]
+    np.testing.assert_array_equal(entry_edges(32, 8), [0, 1, 2, 3, 4, 7, 12, 20, 32])
+
+
 def test_an_estimate_gets_an_observation_table() -> None:
     # The first run's estimate is low at time 1 though its true quality is high.
     p = DynamicProfile.from_traces(
@@ -245,13 +264,18 @@ ROUND_TRIPS = settings(
 
 
 @ROUND_TRIPS
-@given(traces=random_traces(), states=st.integers(1, 6), companion=st.booleans())
+@given(
+    traces=random_traces(),
+    states=st.integers(1, 6),
+    companion=st.booleans(),
+    entered=st.sampled_from([None, 2, 3]),
+)
 def test_traces_and_their_dynamic_profile_round_trip_exactly(
-    tmp_path: Path, traces: QualityTraces, states: int, companion: bool
+    tmp_path: Path, traces: QualityTraces, states: int, companion: bool, entered: int | None
 ) -> None:
     save_traces(traces, tmp_path / "t.traces.yaml", companion=companion)
     assert load_traces(tmp_path / "t.traces.yaml") == traces
-    profile = DynamicProfile.from_traces(traces, states=states)
+    profile = DynamicProfile.from_traces(traces, states=states, entered=entered)
     save_dynamic_profile(profile, tmp_path / "t.dynamic.yaml", companion=companion)
     assert load_dynamic_profile(tmp_path / "t.dynamic.yaml") == profile
 
@@ -359,7 +383,7 @@ def test_the_good_files_load(tmp_path: Path) -> None:
             "observd: true",
             "observd: unknown field, did you mean 'observed'? (expected one of format, module,"
             " observed, time_unit, samples, inputs, input_quality, time, quality_bins,"
-            " occupancy, transition, quality_mean, observation; got 'observd')",
+            " entered, occupancy, transition, quality_mean, observation; got 'observd')",
         ),
         (
             "occupancy: [[1, 0], [0.5, 0.5]]\n",
@@ -380,7 +404,17 @@ def test_the_good_files_load(tmp_path: Path) -> None:
             "observed: true",
             "observed: estimate",
             "observation: expected a table exactly when the state is not the true quality"
-            " (observed: estimate), got none",
+            " (observed: estimate, entered: none), got none",
+        ),
+        (
+            "quality_bins: [0, 0.5, 1]",
+            "quality_bins: [0, 0.5, 1]\nentered: [0, 1, 3]",
+            "entered: expected whole grid indices from 0 to 2, got [0, 1, 3]",
+        ),
+        (
+            "quality_bins: [0, 0.5, 1]",
+            "quality_bins: [0, 0.5, 1]\nentered: [0, 2]",
+            "quality_mean[0][0]: expected a list of 2 numbers (one per true-quality bin), got 0",
         ),
         (
             "quality_mean: [[0, 0.75], [0.2, 0.6]]",

@@ -87,6 +87,11 @@ def test_a_run_that_stalled_early_is_told_from_one_about_to_improve() -> None:
     np.testing.assert_allclose(realised(history, recorded, model), best, atol=1e-9)
     markov = OptimalStopping(DynamicProfile.from_traces(recorded, states=3), model, model)
     assert realised(markov, recorded, model).mean() < best.mean() - 0.01
+    # The Markov policy on (level, when the run reached it) tells them apart too.
+    entered = DynamicProfile.from_traces(recorded, states=3, entered=[0, 1, 2, 3, 10])
+    np.testing.assert_allclose(
+        realised(OptimalStopping(entered, model, model), recorded, model), best, atol=1e-9
+    )
 
 
 def test_a_run_that_ended_is_not_mistaken_for_one_still_running() -> None:

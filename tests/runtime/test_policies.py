@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import attrs
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -43,7 +44,10 @@ def problems(draw: st.DrawFn) -> tuple[DynamicProfile, Linear, float]:
     m = draw(st.integers(2, 5))
     reports = draw(st.sampled_from(["true", "estimate"]))
     recorded = traces(draw(st.integers(0, 10**6)), m, draw(st.integers(1, 25)), reports)
-    profile = DynamicProfile.from_traces(recorded, states=draw(st.integers(1, 3)))
+    # The state: the bin alone, or the bin and the class of the time the run entered it.
+    entered = draw(st.sampled_from([None, 2, 3]))
+    states = draw(st.integers(1, 3 if entered is None else 2))
+    profile = DynamicProfile.from_traces(recorded, states=states, entered=entered)
     model = Linear(draw(st.floats(0.5, 20)), draw(st.floats(0.0, 0.5)))
     allocation = draw(st.sampled_from([math.inf, 0.0, 15.0, 20.0, 35.0]))
     return profile, model, allocation
@@ -285,3 +289,73 @@ def test_a_decision_names_a_time() -> None:
     with pytest.raises(PolicyError) as error:
         Decision(False, stop_at=-1)
     assert str(error.value) == "decision: stop_at must be a time >= 0, got -1.0"
+
+
+# --- a state that remembers when the run entered its bin --------------------------------------
+
+
+class Convex:
+    """U = q^8 - 0.2 t / 31: only the best answers are worth much."""
+
+    def value(self, state: Any, contract: np.ndarray, quality: np.ndarray) -> np.ndarray:
+        return quality**8
+
+    def cost(self, state: Any, contract: np.ndarray, quality: np.ndarray) -> np.ndarray:
+        return 0.2 * contract / 31
+
+
+def quantised_runs(seed: int, trials: int) -> QualityTraces:
+    """q(t) = 1 - exp(-rate t), the rate drawn per run (log-uniform on [0.02, 1]); the module
+    reports q floored to tenths, so the level alone does not say how fast a run is."""
+    rng = np.random.default_rng(seed)
+    rates = np.exp(rng.uniform(np.log(0.02), 0.0, trials))
+    time = np.arange(32.0)
+    quality = 1.0 - np.exp(-np.outer(rates, time))
+    return QualityTraces(
+        module="quantised",
+        time=time,
+        quality=quality,
+        scored=np.ones(quality.shape, bool),
+        estimate=np.floor(quality * 10) / 10,
+        reports="estimate",
+    )
+
+
+def realised(policy: OptimalStopping, runs: QualityTraces, utility: Utility) -> np.ndarray:
+    worth = utility(runs.time, runs.quality.T).T
+    stops = [replay(policy, runs.time, runs.observed[i]).stop_index for i in range(runs.trials)]
+    return worth[np.arange(runs.trials), stops]
+
+
+def test_when_a_run_entered_its_level_makes_a_quantised_report_a_state_to_promise_on() -> None:
+    """On the level alone the policy promises more than it realises on fresh runs (by over 3
+    standard errors) and is beaten by a fixed stop; with the class of the time the run entered
+    its level it realises more than both, within 2 standard errors of its promise."""
+    training, fresh = quantised_runs(1, 2000), quantised_runs(2, 2000)
+    model = Convex()
+    utility = Utility(model, model)
+    got, fixed = {}, None
+    for entered in (None, 8):
+        profile = DynamicProfile.from_traces(training, states=10, entered=entered)
+        policy = OptimalStopping(profile, model, model)
+        values = realised(policy, fresh, utility)
+        se = math.hypot(values.std(ddof=1) / math.sqrt(len(values)), policy.standard_error())
+        got[entered] = (values.mean(), abs(policy.expected_utility() - values.mean()) / se)
+        fixed = realised(FixedStopping(profile, model, model), fresh, utility).mean()
+    assert got[None][1] > 3 and got[None][0] < fixed
+    assert got[8][1] < 2 and got[8][0] > fixed + 0.05 and got[8][0] > got[None][0] + 0.05
+
+
+def test_the_standard_error_is_the_spread_at_the_stops_over_the_runs_learned_from() -> None:
+    """On a model whose runs all stop at once, what is realised is the utility then: its
+    standard deviation over the square root of the profile's runs."""
+    recorded = traces(3, 4, 50)
+    profile = DynamicProfile.from_traces(recorded, states=3, entered=2)
+    model = Linear(1.0, 10.0)  # time costs far more than quality is worth: stop at once
+    policy = OptimalStopping(profile, model, model)
+    worth = Utility(model, model)(recorded.time, recorded.quality.T).T[:, 0]
+    assert policy.plan().first == (2, 0) and (policy.plan().action[0] == 0).all()
+    # The model's spread is over bins' mean qualities, not each run's: close, not equal.
+    assert policy.standard_error() == pytest.approx(worth.std() / math.sqrt(50), rel=0.2)
+    unknown = attrs.evolve(profile, samples=0)
+    assert OptimalStopping(unknown, model, model).standard_error() == math.inf
