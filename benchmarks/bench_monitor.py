@@ -259,10 +259,12 @@ def print_worst(reports: list[Outcome], n: int) -> None:
 
 
 def print_residuals(reports: list[Outcome], first: int = 8) -> None:
-    """The bias of the monitor's prediction by the frame it was made at: the mean of realised
-    less predicted over predicted, with its standard error, for the first frames (a model
-    that is calibrated is unbiased at every frame, not only on average)."""
-    cells = []
+    """The monitor's prediction by the frame it was made at: its bias, the mean of realised
+    less predicted over predicted, with its standard error (a model that is calibrated is
+    unbiased at every frame, not only on average), and its mean error |realised - predicted|
+    / |predicted| (the prediction updated as the frames come: frame 0's is the one made when
+    the task is presented), for the first frames."""
+    cells, errors = [], []
     for i in range(first):
         r = np.array(
             [(o.utility - o.frames[i]) / abs(o.frames[i]) for o in reports if len(o.frames) > i]
@@ -271,8 +273,11 @@ def print_residuals(reports: list[Outcome], first: int = 8) -> None:
             break
         se = r.std(ddof=1) / np.sqrt(r.size)
         cells.append(f"{i}: {100 * r.mean():+.1f} +- {100 * se:.1f}% ({r.size})")
+        errors.append(f"{i}: {100 * np.abs(r).mean():.1f}%")
     print("monitored, (realised - predicted) / predicted by the frame of the prediction:")
     print(" " + ", ".join(cells[:4]) + (",\n " + ", ".join(cells[4:]) if cells[4:] else ""))
+    print("monitored, mean error of the prediction by the frame it was made at:")
+    print(" " + ", ".join(errors))
 
 
 if __name__ == "__main__":

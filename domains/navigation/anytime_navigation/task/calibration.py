@@ -29,10 +29,12 @@ error of 0.007 over 150 worlds. `TaskCalibration.profile` is the profile the mon
 the route, `TaskModel.later_factor`), `progress` scales `TaskModel.first_step`. The shipped
 calibrations are `profiles/task-<size>.json` (radius a quarter of the side); re-measure one with
 
-    .venv/bin/python -m anytime_navigation.task.calibration --size 64 --worlds 150
+    .venv/bin/python -m anytime_navigation.task.calibration --size 64 --worlds 150 --workers 2
 
-(the shipped ones: 150 worlds; about a second of processor time per world at 128 x 128, a
-tenth of that at 64 x 64). Speeds do not enter: the route a
+(the shipped ones: 150 worlds, re-measured when the robot came to remember what it saw around
+itself from frame to frame, `frames`; a few seconds of processor time per world at
+128 x 128, less at 64 x 64; the numbers are the same on any number of workers). Speeds do not
+enter: the route a
 frame walks and its progress do not depend on how fast the robot walks it.
 """
 
@@ -41,6 +43,9 @@ from __future__ import annotations
 import argparse
 import json
 from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from contextlib import ExitStack
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -218,51 +223,71 @@ def measure(
     contracts: Sequence[float] = CONTRACTS,
     first_seed: int = FIRST_SEED,
     on_world: Callable[[int], object] | None = None,
+    workers: int = 1,
 ) -> TaskCalibration:
     """Run the task under each fixed contract on `worlds` training worlds (no calibration in
-    the model: the one being measured must not depend on a previous one)."""
+    the model: the one being measured must not depend on a previous one), on `workers`
+    processes (the same numbers on any number)."""
+    radius = radius or size // 4
+    shape = (len(contracts), worlds)
+    quality, walked, left, stretch = (np.zeros(shape) for _ in range(4))
+    progress = np.zeros(worlds)
+    run = partial(_measure_world, size, radius, tuple(contracts))
+    seeds = range(first_seed, first_seed + worlds)
+    with ExitStack() as stack:
+        if workers > 1:
+            pool = stack.enter_context(ProcessPoolExecutor(workers))
+            results = pool.map(run, seeds)
+        else:
+            results = map(run, seeds)
+        for w, (q, walk, rest, later, first) in enumerate(results):
+            quality[:, w], walked[:, w], left[:, w], stretch[:, w] = q, walk, rest, later
+            progress[w] = first
+            if on_world is not None:
+                on_world(w + 1)
+    return TaskCalibration(
+        size, radius, 4, contracts, quality, progress, first_seed, walked, left, stretch
+    )
+
+
+def _measure_world(
+    size: int, radius: int, contracts: tuple[float, ...], seed: int
+) -> tuple[Any, Any, Any, Any, float]:
+    """One training world under each contract: the route's quality, the first frame's cells
+    walked and distance left, the later frames' stretch (per contract), and the first frame's
+    progress under the middle contract."""
     from .execution import route_length
     from .frame_program import navigation_program
     from .frames import _belief_distance, _TaskRun, _touch
     from .model import NavigationTask, TaskModel
 
-    radius = radius or size // 4
     compiled, trace = navigation_program()
-    shape = (len(contracts), worlds)
-    quality, walked, left, stretch = (np.zeros(shape) for _ in range(4))
-    progress = np.zeros(worlds)
-    for w in range(worlds):
-        seed = first_seed + w
-        world = random_world(size, seed=seed)
-        task = NavigationTask(world, radius=radius, value=task_value(size), seed=seed)
-        straight = TaskModel(task).first_step(world.start)
-        prior = _belief_distance(
-            np.zeros_like(world.blocked, dtype=bool), world.start, world.goal, world.movement
-        )
-        for i, contract in enumerate(contracts):
-            run = _TaskRun(task, compiled, trace, "fixed", contract, "work", (), None, False)
-            r = run.run(200)
-            quality[i, w] = r.optimal_length / r.route_length
-            # The first frame, and the rest of the route after it, on the robot's map as
-            # `learn` has it after the frame.
-            first = r.records[0]
-            end = first.route[-1]
-            known = _touch(first.known, run.truth, first.route)
-            after = (
-                0.0
-                if end == world.goal
-                else _belief_distance(known, end, world.goal, world.movement)
-            )
-            walked[i, w] = route_length(first.route)
-            left[i, w] = after / prior
-            stretch[i, w] = (r.route_length - walked[i, w]) / after if after > 0 else 1.0
-            if i == len(contracts) // 2:
-                progress[w] = run.progress[0] / straight
-        if on_world is not None:
-            on_world(w + 1)
-    return TaskCalibration(
-        size, radius, 4, contracts, quality, progress, first_seed, walked, left, stretch
+    quality, walked, left, stretch = (np.zeros(len(contracts)) for _ in range(4))
+    progress = 0.0
+    world = random_world(size, seed=seed)
+    task = NavigationTask(world, radius=radius, value=task_value(size), seed=seed)
+    straight = TaskModel(task).first_step(world.start)
+    prior = _belief_distance(
+        np.zeros_like(world.blocked, dtype=bool), world.start, world.goal, world.movement
     )
+    for i, contract in enumerate(contracts):
+        run = _TaskRun(task, compiled, trace, "fixed", contract, "work", (), None, False)
+        r = run.run(200)
+        quality[i] = r.optimal_length / r.route_length
+        # The first frame, and the rest of the route after it, on the robot's map as `learn`
+        # has it after the frame.
+        first = r.records[0]
+        end = first.route[-1]
+        known = _touch(first.known, run.truth, first.route)
+        after = (
+            0.0 if end == world.goal else _belief_distance(known, end, world.goal, world.movement)
+        )
+        walked[i] = route_length(first.route)
+        left[i] = after / prior
+        stretch[i] = (r.route_length - walked[i]) / after if after > 0 else 1.0
+        if i == len(contracts) // 2:
+            progress = run.progress[0] / straight
+    return quality, walked, left, stretch, progress
 
 
 def main(argv: Sequence[str] | None = None) -> None:
@@ -270,8 +295,14 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--size", type=int, default=64)
     parser.add_argument("--worlds", type=int, default=150)
     parser.add_argument("--out", type=Path, help="default: the package's profiles/task-SIZE.json")
+    parser.add_argument("--workers", type=int, default=1, help="processes running the worlds")
     args = parser.parse_args(argv)
-    calibration = measure(args.size, args.worlds, on_world=lambda n: print(n, end=" ", flush=True))
+    calibration = measure(
+        args.size,
+        args.worlds,
+        on_world=lambda n: print(n, end=" ", flush=True),
+        workers=args.workers,
+    )
     print()
     out = args.out or Path(str(data_file("profiles", _name(args.size))))
     out.write_text(json.dumps(calibration.as_json()) + "\n", encoding="utf-8")

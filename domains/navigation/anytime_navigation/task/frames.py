@@ -2,7 +2,15 @@
 the quantities reported): each frame senses and plans with the compiled frame program
 (`frame_program`) under the contract the policy chooses, then executes the plan up to the
 sensor window's edge while the next frame's planning overlaps; with moving obstacles, the
-robot decides how to overcome them within the time stock they leave (`overcoming`)."""
+robot decides how to overcome them within the time stock they leave (`overcoming`).
+
+What the robot knows: its map is vision's latest reading of each window it sensed and the
+prior (every cell free) elsewhere, except the cells next to those it stood on, whose true
+state it saw as it moved: vision's later readings, with their errors, do not overwrite them,
+and obstacle avoidance keeps the blocked ones among them from frame to frame (`execute`'s
+memory). With a memory begun afresh each frame, a robot whose plan led behind an obstacle felt
+its way into the same dead end frame after frame and walked several times the shortest
+route."""
 
 from __future__ import annotations
 
@@ -284,6 +292,9 @@ class _TaskRun:
         prior = _belief_distance(np.zeros_like(self.truth), world.start, world.goal, world.movement)
         self.walked = self.foreseen = prior
         self.predictions: list[float] = []  # the whole task's utility, one per decision
+        # The cells whose true state the robot knows for certain: those around the cells it
+        # stood on (it sees its eight neighbours as it moves, `execution`).
+        self.touched = np.zeros_like(self.truth)
 
     # --- one frame's steps ----------------------------------------------------------------
 
@@ -411,6 +422,9 @@ class _TaskRun:
         if domain is not None and domain.value is not None:
             x0, y0, x1, y1 = window
             new_known[y0:y1, x0:x1] = np.asarray(domain.value.blocked)[y0:y1, x0:x1]
+        # What the robot saw around itself is certain: vision's reading of the window (noisy)
+        # does not overwrite it in the robot's map.
+        new_known[self.touched] = self.truth[self.touched]
         return _Planned(
             window=window,
             plan=result.value if result is not None else None,  # None: no plan this frame
@@ -578,10 +592,14 @@ class _TaskRun:
         while position != world.goal and len(records) < max_frames:
             index = len(records)
             known = planned.known
+            # Obstacle avoidance remembers the blocked cells the robot has seen in every frame
+            # so far (a fresh memory each frame let it feel its way into the same dead end
+            # frame after frame); the copy keeps what it would see beyond the segment out.
             executed = execute(
                 planned.plan if planned.plan is not None else [position, world.goal],
                 truth,
                 movement=world.movement,
+                memory=truth & self.touched,
             )
             segment = _segment(executed.route, planned.window)
             end = segment[-1]
@@ -609,6 +627,7 @@ class _TaskRun:
             counts += done.counts
             route.extend(segment[1:])
             known = _touch(known, truth, segment)
+            self.touched |= _near(segment, truth.shape)
             records.append(
                 FrameRecord(
                     index=index,
@@ -718,10 +737,18 @@ def _touch(known: BoolGrid, truth: BoolGrid, segment: Sequence[Position]) -> Boo
     """`known` plus the true state of the cells next to the route (what the robot bumped into
     while moving: its memory of obstacles, whatever vision was given)."""
     out = np.array(known, dtype=bool)
-    h, w = truth.shape
+    near = _near(segment, truth.shape)
+    out[near] = np.asarray(truth, dtype=bool)[near]
+    return out
+
+
+def _near(segment: Sequence[Position], shape: tuple[int, ...]) -> BoolGrid:
+    """The cells within one move (8 neighbours) of a cell of `segment`: what the robot saw
+    around itself while moving along it."""
+    out = np.zeros(shape, dtype=bool)
+    h, w = shape
     for x, y in segment:
-        y0, y1, x0, x1 = max(0, y - 1), min(h, y + 2), max(0, x - 1), min(w, x + 2)
-        out[y0:y1, x0:x1] = truth[y0:y1, x0:x1]
+        out[max(0, y - 1) : min(h, y + 2), max(0, x - 1) : min(w, x + 2)] = True
     return out
 
 
