@@ -39,3 +39,23 @@ def traces(seed: int, m: int, trials: int, reports: str = "true") -> QualityTrac
         estimate=estimate,
         reports=reports,  # type: ignore[arg-type]
     )
+
+
+def ending(recorded: QualityTraces, seed: int) -> QualityTraces:
+    """The traces with about half the runs ending by themselves at a random grid time after
+    the first (their quality and estimate held from there on), the others running to the end."""
+    rng = np.random.default_rng(seed)
+    trials, m = recorded.quality.shape
+    end = np.where(rng.random(trials) < 0.5, rng.integers(1, m, trials), m - 1)
+    held = np.minimum(np.arange(m), end[:, None])
+    rows = np.arange(trials)[:, None]
+    estimate = None if recorded.estimate is None else recorded.estimate[rows, held]
+    return QualityTraces(
+        module=recorded.module,
+        time=recorded.time,
+        quality=recorded.quality[rows, held],
+        scored=recorded.scored,
+        estimate=estimate,
+        reports=recorded.reports,
+        finished=recorded.time[end],
+    )

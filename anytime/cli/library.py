@@ -171,6 +171,8 @@ def _dynamic_lines(entry: LibraryEntry, dynamic: DynamicProfile, times: int) -> 
         [f"time ({unit})", _numbers(dynamic.time)],
         ["samples", f"{dynamic.samples} trials per cell"],
     ]
+    if dynamic.ends:
+        fields.insert(2, ["ended", "a state per bin for runs that ended by themselves"])
     if dynamic.entered is not None:  # each bin split by when the run entered it
         since = [f"{dynamic.time[int(e)]:g}" for e in dynamic.entered[:-1]]
         fields.insert(
@@ -199,9 +201,11 @@ def _dynamic_lines(entry: LibraryEntry, dynamic: DynamicProfile, times: int) -> 
     edges = dynamic.bins
     rows = [["state \\ from time", *(f"{dynamic.time[j]:g}" for j in steps)]]
     for k in states:
-        b = k // dynamic.classes
+        b = int(dynamic.state_bin[k])
         label = f"[{edges[b]:.3g}, {edges[b + 1]:.3g}{']' if b == dynamic.n_bins - 1 else ')'}"
-        if dynamic.entered is not None:
+        if k >= dynamic.running_states:
+            label += " ended"
+        elif dynamic.entered is not None:
             label += f" since {dynamic.time[int(dynamic.entered[k % dynamic.classes])]:g}"
         rows.append([label, *("-" if np.isnan(g) else f"{g:+.3f}" for g in gain[steps, k])])
     title = (
@@ -225,7 +229,7 @@ def _dynamic_facts(entry: LibraryEntry, dynamic: DynamicProfile) -> dict[str, An
     agreement = None
     if here.observation is not None and here.observed == "estimate":
         states = np.arange(here.n_states)
-        right = here.observation[:, states, states // here.classes]  # (m, K): in its own bin
+        right = here.observation[:, states, here.state_bin]  # (m, K): in its own bin
         agreement = round(float(np.mean(np.sum(here.occupancy * right, axis=-1))), 12)
     file = entry.profile_file
     return {
@@ -234,6 +238,7 @@ def _dynamic_facts(entry: LibraryEntry, dynamic: DynamicProfile) -> dict[str, An
         "states": dynamic.n_states,
         "quality_bins": dynamic.bins.tolist(),
         "entered": None if dynamic.entered is None else [int(e) for e in dynamic.entered],
+        "ends": dynamic.ends,
         "time_grid": dynamic.time.tolist(),
         "time_unit": dynamic.time_unit,
         "samples": dynamic.samples,

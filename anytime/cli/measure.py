@@ -111,6 +111,12 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
         " fast the run got there, for a module that reports a level or an estimate",
     )
     profile.add_argument(
+        "--ends",
+        action="store_true",
+        help="with --dynamic: one more state per quality bin for runs that ended by themselves"
+        " (converged and returned), so a run still running is not averaged with them",
+    )
+    profile.add_argument(
         "--traces",
         metavar="FILE",
         help="also write every trial's quality at every time to FILE (as NAME.traces.yaml, a"
@@ -224,6 +230,8 @@ def run_profile(args: argparse.Namespace) -> int:
         args.usage_error("--states K goes with --dynamic")
     if args.entered is not None and not args.dynamic:
         args.usage_error("--entered C goes with --dynamic")
+    if args.ends and not args.dynamic:
+        args.usage_error("--ends goes with --dynamic")
     if args.upstream is None and args.schema is not None:
         args.usage_error("--schema NAME goes with --upstream SCHEMA_FILE")
     if args.upstream is not None:
@@ -265,7 +273,7 @@ def run_profile(args: argparse.Namespace) -> int:
         assert traces is not None  # asked for with the dynamic profile
         written["dynamic_file"] = dynamic_profile_path(output)
         dynamic = DynamicProfile.from_traces(
-            traces, states=args.states or DEFAULT_STATES, entered=args.entered
+            traces, states=args.states or DEFAULT_STATES, entered=args.entered, ends=args.ends
         )
         _save(written["dynamic_file"], lambda path: save_dynamic_profile(dynamic, path))
     if args.traces is not None:

@@ -46,6 +46,16 @@ what a stalled run looks like. States are numbered bin-major (state = bin * clas
 `quality_mean` is per state and true bin (runs of one bin differ by class: the fast ones are
 higher in it). A policy tracks the class from its looks.
 
+A run may also end by itself (it converged and returned): the monitor has nothing more to
+decide, and its answer is worth what it was worth when it ended. Learned with `ends` (from
+traces that say when each run ended, `QualityTraces.finished`), the profile has one more state
+per bin after the running ones, absorbing: "ended, in this bin". Transitions of running runs
+then say how likely a run is to end at the next grid time (the hazard) and where, so a run
+still running at a level is no longer averaged with the runs that ended there. A run's answer
+counts when it ended (the first grid time at or after it returned, as `assess` and `replay`
+count it): a policy's value collects a run's utility as it enters an ended state, and nothing
+more of it after.
+
 Bins default to quantiles of the observed qualities (`quantile_bins`), so that a module whose
 quality lives in [0.9, 1] still gets K states that tell runs apart.
 """
@@ -304,13 +314,16 @@ class DynamicProfile:
         occupancy: `(*cells, m, K)` P(state at each time).
         transition: `(*cells, m - 1, K, K)` P(state at time j + 1 | state at time j).
         quality_mean: `(*cells, m, B)` mean true quality of each true-quality bin at each time;
-            with `entered`, `(*cells, m, K, B)`: of the runs in each state and true bin.
+            with `entered` or `ends`, `(*cells, m, K, B)`: of the runs in each state and true
+            bin.
         observation: `(*cells, m, K, K)` P(true quality bin | state) at each time, or None when
             the state is the true quality.
         observed: what the state is: the module's "true" quality, its "estimate", or "none".
         samples: the trials behind each cell.
         entered: edges over grid indices of the classes of the time a run entered its bin (the
             state is then (bin, class), see the module docstring), or None: the bin alone.
+        ends: whether there is an absorbing "ended" state per bin after the running states,
+            for runs that ended by themselves (see the module docstring).
         input_grids, inputs, time_unit: as in a static profile.
     """
 
@@ -327,9 +340,30 @@ class DynamicProfile:
     inputs: tuple[str, ...] = field(default=(), converter=axis_names)
     time_unit: Unit = "ticks"
     entered: Array | None = optional_array_field()
+    ends: bool = False
 
     def __attrs_post_init__(self) -> None:
         _validate_dynamic(self)
+
+    @property
+    def per_state(self) -> bool:
+        """Whether `quality_mean` is per state and true bin (with entry classes or ended
+        states), not per true bin alone."""
+        return self.entered is not None or self.ends
+
+    @property
+    def running_states(self) -> int:
+        """The states of runs still running, numbered first: bin * classes + class."""
+        return self.n_bins * self.classes
+
+    @property
+    def state_bin(self) -> NDArray[np.intp]:
+        """The quality bin of each state."""
+        running = np.arange(self.running_states) // self.classes
+        bins: NDArray[np.intp] = np.concatenate(
+            [running, np.arange(self.n_bins) if self.ends else np.zeros(0, np.intp)]
+        ).astype(np.intp)
+        return bins
 
     @property
     def n_bins(self) -> int:
@@ -342,7 +376,7 @@ class DynamicProfile:
 
     @property
     def n_states(self) -> int:
-        return self.n_bins * self.classes
+        return self.running_states + (self.n_bins if self.ends else 0)
 
     def entry_class(self, index: int) -> int:
         """The class of entering a bin at grid index `index`."""
@@ -361,10 +395,12 @@ class DynamicProfile:
         bins: ArrayLike | None = None,
         states: int = DEFAULT_STATES,
         entered: int | ArrayLike | None = None,
+        ends: bool = False,
     ) -> DynamicProfile:
         """The dynamic profile of recorded traces, on `bins` (default: `states` quantile bins
         of what the monitor observes); with `entered` (a number of classes, or their edges over
-        grid indices), the state is (bin, class of the time the run entered it)."""
+        grid indices), the state is (bin, class of the time the run entered it); with `ends`,
+        runs that ended by themselves are in ended states of their own."""
         observed = traces.observed
         if bins is not None:
             edges = np.asarray(bins, dtype=np.float64)
@@ -380,13 +416,25 @@ class DynamicProfile:
         else:
             classes_edges = np.asarray(entered, dtype=np.float64)
         kb = len(edges) - 1
-        state = _bin_of(observed, edges)  # (*cells, N, m)
+        level = _bin_of(observed, edges)  # (*cells, N, m)
+        state = level
         true = _bin_of(traces.quality, edges)
         if classes_edges is not None:
             classes = len(classes_edges) - 1
-            since = np.searchsorted(classes_edges, entry_index(state), side="right") - 1
-            state = state * classes + np.clip(since, 0, classes - 1)
+            since = np.searchsorted(classes_edges, entry_index(level), side="right") - 1
+            state = level * classes + np.clip(since, 0, classes - 1)
         k = kb * (1 if classes_edges is None else len(classes_edges) - 1)
+        if ends:
+            if traces.finished is None:
+                raise ProfileError(
+                    f"{traces.module}: ends needs traces that say when each run ended (finished)"
+                )
+            end = traces.end_index()[..., None]  # (*cells, N, 1)
+            # Over from its end on; a run cut by the last grid time did not end by itself.
+            over = (np.arange(m) >= end) & (end < m - 1)
+            at_end = np.take_along_axis(level, end, axis=-1)
+            state = np.where(over, k + at_end, state)
+            k += kb
         n = traces.trials
         occupancy = _counts(state, k) / n
         # Pair counts of consecutive states: (*cells, m - 1, K, K), summed over trials.
@@ -398,7 +446,8 @@ class DynamicProfile:
         sums = _counts(true, kb, weights=traces.quality)
         midpoints = (edges[:-1] + edges[1:]) / 2
         quality_mean = np.where(true_counts > 0, sums / np.maximum(true_counts, 1), midpoints)
-        if classes_edges is not None:  # per state and true bin: runs of one bin differ by class
+        if classes_edges is not None or ends:  # per state and true bin: runs of one bin differ
+            # by class, and the runs still running from those that ended
             pair_counts = _counts(state * kb + true, k * kb)
             pair_sums = _counts(state * kb + true, k * kb, weights=traces.quality)
             shape = (*occupancy.shape, kb)
@@ -409,7 +458,7 @@ class DynamicProfile:
             )
         quality_mean = np.clip(quality_mean, np.r_[0.0, edges[1:-1]], np.r_[edges[1:-1], 1.0])
         observation = None
-        if traces.reports != "true" or classes_edges is not None:
+        if traces.reports != "true" or classes_edges is not None or ends:
             joint = _counts(state * kb + true, k * kb).reshape((*occupancy.shape, kb))
             given = joint.sum(axis=-1, keepdims=True)
             marginal = true_counts[..., None, :] / n
@@ -428,6 +477,7 @@ class DynamicProfile:
             inputs=traces.inputs,
             time_unit=traces.time_unit,
             entered=classes_edges,
+            ends=ends,
         )
 
     def at(self, input_qualities: Sequence[float] = ()) -> DynamicProfile:
@@ -461,6 +511,7 @@ class DynamicProfile:
             samples=self.samples,
             time_unit=self.time_unit,
             entered=self.entered,
+            ends=self.ends,
         )
 
     def transition_over(self, start: int, end: int) -> Array:
@@ -498,7 +549,7 @@ class DynamicProfile:
         quality) | state k, time j] = sum_b P[..., j, k, b] f(q[..., j, k, b])."""
         shape = (*self.occupancy.shape, self.n_bins)
         quality = self.quality_mean
-        if self.entered is None:
+        if not self.per_state:
             quality = quality[..., None, :]
         quality = np.array(np.broadcast_to(quality, shape))
         if self.observation is not None:
@@ -528,6 +579,8 @@ def _validate_dynamic(p: DynamicProfile) -> None:
         fail("quality_bins", f"expected edges from 0 to 1, got {p.bins[0]:g} to {p.bins[-1]:g}")
     if p.observed not in OBSERVED:
         fail("observed", f"expected one of {', '.join(OBSERVED)}, got {p.observed!r}")
+    if not isinstance(p.ends, bool):
+        fail("ends", f"expected true or false, got {p.ends!r}")
     if not isinstance(p.samples, int) or isinstance(p.samples, bool) or p.samples < 0:
         fail("samples", f"expected an integer >= 0, got {p.samples!r}")
     cells, m = p.cell_shape, len(p.time)
@@ -539,11 +592,12 @@ def _validate_dynamic(p: DynamicProfile) -> None:
         "transition": (p.transition, (*cells, m - 1, k, k), True),
         "quality_mean": (
             p.quality_mean,
-            (*cells, m, kb) if p.entered is None else (*cells, m, k, kb),
+            (*cells, m, k, kb) if p.per_state else (*cells, m, kb),
             False,
         ),
         "observation": (p.observation, (*cells, m, k, kb), True),
     }
+
     for field_name, (table, shape, distribution) in shapes.items():
         if table is None:
             continue
@@ -565,12 +619,13 @@ def _validate_dynamic(p: DynamicProfile) -> None:
                     f"expected a row summing to 1 (within {SUM_TOLERANCE:g}), got"
                     f" {sums[worst]:.10g}",
                 )
-    if (p.observation is None) != (p.observed == "true" and p.entered is None):
+    if (p.observation is None) != (p.observed == "true" and p.entered is None and not p.ends):
         fail(
             "observation",
             "expected a table exactly when the state is not the true quality"
-            f" (observed: {p.observed}, entered: {'none' if p.entered is None else 'given'}),"
-            f" got {'none' if p.observation is None else 'one'}",
+            f" (observed: {p.observed}, entered: {'none' if p.entered is None else 'given'},"
+            f" ends: {str(p.ends).lower()}), got"
+            f" {'none' if p.observation is None else 'one'}",
         )
 
 

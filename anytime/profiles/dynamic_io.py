@@ -19,16 +19,20 @@ A dynamic profile, `anytime-dynamic-profile/1` (`DynamicProfile`; K states, m ti
     input_quality: [[0.4, 1.0]]         # one grid per input; may be empty
     time: [0, 10, 20]                   # required: the grid times
     quality_bins: [0, 0.5, 1]           # required: B+1 edges from 0 to 1
+    ends: true                          # one more state per bin, absorbing, for runs that
+                                        # ended by themselves (false)
     entered: [0, 1, 2, 3]               # edges over grid indices 0..m of the classes of the
                                         # time a run entered its bin (C classes; optional:
                                         # without it the state is the bin, K = B, C = 1)
     occupancy: ...                      # required: (*cells, m, K) P(state), K = B * C
     transition: ...                     # required: (*cells, m - 1, K, K) P(next state | state)
     quality_mean: ...                   # required: (*cells, m, B) mean true quality per bin
-                                        # ((*cells, m, K, B): per state and bin, with entered)
+                                        # ((*cells, m, K, B): per state and bin, with entered
+                                        # or ends)
     observation: ...                    # (*cells, m, K, B) P(true bin | state), exactly when
                                         # the state is not the true quality (observed is not
-                                        # true, or entered is given)
+                                        # true, or entered or ends is given)
+
 
 Quality traces, `anytime-traces/1` (`QualityTraces`; N trials)::
 
@@ -117,6 +121,7 @@ DYNAMIC_FIELDS = (
     "input_quality",
     "time",
     "quality_bins",
+    "ends",
     "entered",
     *DYNAMIC_TABLES,
 )
@@ -161,8 +166,12 @@ def load_dynamic_profile(path: str | os.PathLike[str]) -> DynamicProfile:
     if "entered" in data:
         entered = reader.grid("entered", data["entered"], minimum=2, quality=False)
         check_entered(entered, len(axes.time), reader.fail)
+    ends = data.get("ends", False)
+    if not isinstance(ends, bool):
+        reader.fail("ends", f"expected true or false, got {describe(ends)}")
     m, kb = len(axes.time), len(bins) - 1
-    k = kb * (1 if entered is None else len(entered) - 1)
+    # Running states (bin, entry class), then with ends one ended state per bin.
+    k = kb * (1 if entered is None else len(entered) - 1) + (kb if ends else 0)
     _check_size(reader, "transition", (*axes.cells, max(m, 1), k, k))
     state, step = (*axes.names, "one per time", "one per state"), "one per time step"
     per_state, per_bin = (*axes.cells, m, k), (*axes.cells, m, kb)
@@ -172,7 +181,7 @@ def load_dynamic_profile(path: str | os.PathLike[str]) -> DynamicProfile:
     transition = reader.table(
         "transition", data["transition"], (*axes.cells, m - 1, k, k), pair, quality=True
     )
-    if entered is not None:  # per state and true bin
+    if entered is not None or ends:  # per state and true bin
         per_bin, by_bin = (*per_state, kb), (*state, "one per true-quality bin")
     quality_mean = reader.table("quality_mean", data["quality_mean"], per_bin, by_bin, quality=True)
     observation = None
@@ -196,6 +205,7 @@ def load_dynamic_profile(path: str | os.PathLike[str]) -> DynamicProfile:
             inputs=axes.inputs,
             time_unit=axes.time_unit,
             entered=entered,
+            ends=ends,
         )
     except ProfileError as exc:  # the class's own invariants: re-prefix with the file
         reader.refile(exc, axes.module)
@@ -310,6 +320,8 @@ def save_dynamic_profile(
     data["quality_bins"] = plain(profile.bins)
     if profile.entered is not None:
         data["entered"] = [int(e) for e in profile.entered]
+    if profile.ends:
+        data["ends"] = True
     tables = {
         "occupancy": profile.occupancy,
         "transition": profile.transition,
@@ -317,6 +329,7 @@ def save_dynamic_profile(
     }
     if profile.observation is not None:
         tables["observation"] = profile.observation
+
     _write(data, tables, path, companion)
 
 

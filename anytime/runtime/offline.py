@@ -128,17 +128,26 @@ def evaluate(
     paths, probability = paths[keep], probability[keep]
     bins = model.profile.bins
     # What a path's state shows: its bin's (a state is a bin, or a bin and an entry class).
-    kb, classes = model.profile.n_bins, model.profile.classes
+    level = model.profile.state_bin
     shown = (
-        model.profile.true_quality()[1][:n, np.arange(k), np.arange(k) // classes]
+        model.profile.true_quality()[1][:n, np.arange(k), level]
         if model.profile.observed == "true"
-        else np.broadcast_to((bins[:-1] + bins[1:]) / 2, (n, kb))[:, np.arange(k) // classes]
+        else ((bins[:-1] + bins[1:]) / 2)[np.broadcast_to(level, (n, k))]
     )
+    # A path in an ended state is a run that ended there: the executor consults no policy.
+    over = paths >= model.profile.running_states
+    ends = np.where(over.any(axis=1), np.argmax(over, axis=1), n)
     t = model.time[:n]
     utility = np.empty(len(paths))
     looks = np.empty(len(paths))
     for p, path in enumerate(paths):  # a policy may read the whole history: replay each path
-        result = replay(policy, t, shown[np.arange(n), path], allocation=min(allocation, t[-1]))
+        result = replay(
+            policy,
+            t,
+            shown[np.arange(n), path],
+            allocation=min(allocation, t[-1]),
+            ended=int(ends[p]) if ends[p] < n else None,
+        )
         utility[p] = model.stop_utility[result.stop_index, path[result.stop_index]]
         looks[p] = result.looks
     expected_looks = float(probability @ looks)

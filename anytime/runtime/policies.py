@@ -23,7 +23,9 @@ the next look (`look_at`, infinite: never look again) and the time to stop at wi
   monitoring cost it looks at every grid time. On a profile whose state includes when the run
   entered its bin (`DynamicProfile.entered`), a look sees that only if the run was seen the step
   before, so its choices are: stop later without looking, or look from the first grid time on at
-  every one (until it stops, or stops later without looking).
+  every one (until it stops, or stops later without looking). On a profile with ended states
+  (`DynamicProfile.ends`) a run that enters one is over: every policy counts its utility there
+  and never looks at it (`StoppingModel.banked`, `marginal` of the runs still in play).
 - `ProjectedStopping` predicts the run's own curve online (Svegliato, Wray & Zilberstein 2018):
   it fits q(t) = a - b exp(-c t) to the qualities seen so far, by least squares, and stops once the
   projected best stopping time has come.
@@ -41,7 +43,7 @@ from typing import Any, Protocol
 
 import numpy as np
 from attrs import field, frozen
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from anytime.modules import AnytimeModule, Result
 from anytime.profiles.dynamic import DynamicProfile, Observed, QualityTraces
@@ -183,6 +185,9 @@ class StoppingModel:
         expected_true: `(m, K)` E[true quality | state k at t_j].
         stop_square: `(m, K)` E[U(true quality, t_j)^2 | state k at t_j], for the spread of
             what a policy realises.
+        banked: `(m,)` with ended states (`DynamicProfile.ends`), the utility of the runs that
+            ended before each time, counted where they ended (then `marginal` is of the runs
+            still in play: running, or ending there); zeros without.
     """
 
     profile: DynamicProfile
@@ -191,6 +196,20 @@ class StoppingModel:
     stop_utility: Array = field(eq=False)
     expected_true: Array = field(eq=False)
     stop_square: Array = field(eq=False)
+    banked: Array = field(eq=False)
+
+    @property
+    def over(self) -> NDArray[np.bool_]:
+        """`(K,)` the ended states: a run there is over, its answer counted."""
+        ended: NDArray[np.bool_] = np.arange(self.profile.n_states) >= self.profile.running_states
+        return ended
+
+    def blind(self, last: int) -> Array:
+        """`(last + 1,)` the expected utility of stopping at each grid time without looking (a
+        run that ended before counts where it ended)."""
+        n = last + 1
+        curve: Array = np.einsum("jk,jk->j", self.marginal[:n], self.stop_utility[:n])
+        return curve + self.banked[:n]
 
     @classmethod
     def of(
@@ -200,19 +219,23 @@ class StoppingModel:
             raise PolicyError(f"stopping: expected a DynamicProfile, got {type(profile).__name__}")
         cell = profile.at(input_quality)
         given, quality = cell.true_quality()  # (m, K, B) each
-        if cell.entered is None:  # one quality per bin: the utility of (m, B)
-            worth = utility(cell.time, cell.quality_mean)[:, None, :]
+        m = len(cell.time)
+        if not cell.per_state:  # one quality per bin: the utility of (m, B)
+            worth = np.broadcast_to(utility(cell.time, cell.quality_mean)[:, None, :], given.shape)
         else:
-            m = len(cell.time)
             worth = utility(cell.time, quality.reshape(m, -1)).reshape(quality.shape)
         stop = (given * worth).sum(axis=-1)
         expected_true = (given * quality).sum(axis=-1)
         square = (given * worth**2).sum(axis=-1)
+        # Runs in play at each time; a run that ends is counted (banked) where it ended.
+        over = np.arange(cell.n_states) >= cell.running_states
         marginal = np.empty_like(cell.occupancy)
         marginal[0] = cell.occupancy[0]
-        for j in range(len(cell.time) - 1):  # one vector-matrix product per time step
-            marginal[j + 1] = marginal[j] @ cell.transition[j]
-        return cls(cell, utility, marginal, stop, expected_true, square)
+        banked = np.zeros(m)
+        for j in range(m - 1):  # one vector-matrix product per time step
+            banked[j + 1] = banked[j] + marginal[j][over] @ stop[j][over]
+            marginal[j + 1] = np.where(over, 0.0, marginal[j]) @ cell.transition[j]
+        return cls(cell, utility, marginal, stop, expected_true, square, banked)
 
     @property
     def time(self) -> Array:
@@ -354,9 +377,7 @@ class FixedStopping(_GridPolicy):
         return float(self._curve(last).max()) if last >= 0 else 0.0
 
     def _curve(self, last: int) -> Array:
-        m = self.model
-        curve: Array = np.einsum("jk,jk->j", m.marginal[: last + 1], m.stop_utility[: last + 1])
-        return curve
+        return self.model.blind(last)
 
     def _start(self) -> Decision:
         curve = self._curve(self.last)
@@ -378,8 +399,10 @@ def _every_step_value(
     each look costing `monitoring_cost`."""
     alive = model.marginal[0].copy()
     total = looks = 0.0
+    running = ~model.over
     for j in range(last + 1):  # forward over time steps, vectorised over states
-        looks += alive.sum() if j < last else 0.0  # the run ends at `last`: no look there
+        # The run ends at `last`: no look there; nor at a run that ended by itself.
+        looks += alive[running].sum() if j < last else 0.0
         stopping = alive if j == last else alive * stop[j]
         total += stopping @ model.stop_utility[j]
         if j < last:
@@ -407,7 +430,8 @@ class MyopicStopping(_GridPolicy):
 
     def stops(self) -> Array:
         """`(m, K)` where the rule stops (always at the last grid time)."""
-        return np.vstack([self.gain() < 0, np.ones((1, self.model.profile.n_states), bool)])
+        over = np.arange(self.model.profile.n_states) >= self.model.profile.running_states
+        return np.vstack([(self.gain() < 0) | over, np.ones((1, len(over)), bool)])
 
     def expected_utility(self, allocation: float = math.inf) -> float:
         last = self.model.last(check_allocation(self.name, allocation))
@@ -468,6 +492,7 @@ def solve(model: StoppingModel, last: int, monitoring_cost: float) -> StoppingPl
     # With entry classes a look sees the class only if the run was seen the step before (or at
     # the start): looks, once begun, come at every grid time, and the first is at the first one.
     every = model.profile.classes > 1
+    over = np.arange(k) >= model.profile.running_states
     u = model.stop_utility[:n]
     value, action, target = u.copy(), np.zeros((n, k), int), np.zeros((n, k), int)
     # Columns i = j + 1 .. last: E[V(i, s')] and E[U_stop(i, s')] from each state at j.
@@ -478,8 +503,12 @@ def solve(model: StoppingModel, last: int, monitoring_cost: float) -> StoppingPl
             candidates = np.column_stack([u[j], step @ value[j + 1]])
             kinds, targets = np.array([STOP, LOOK_AT]), np.array([j, j + 1])
         else:
-            looks = step @ np.column_stack([value[j + 1], looks])
-            stops = step @ np.column_stack([u[j + 1], stops])
+            ahead_look = np.column_stack([value[j + 1], looks])
+            ahead_stop = np.column_stack([u[j + 1], stops])
+            # A run that ends at j + 1 is over there: worth its answer then, and not looked at.
+            ahead_look[over] = u[j + 1, over, None] + c
+            ahead_stop[over] = u[j + 1, over, None]
+            looks, stops = step @ ahead_look, step @ ahead_stop
             later = np.arange(j + 1, n)
             seen = later[:1] if every else later
             candidates = np.column_stack([u[j], stops, looks[:, : len(seen)] - c])
@@ -487,11 +516,15 @@ def solve(model: StoppingModel, last: int, monitoring_cost: float) -> StoppingPl
             targets = np.r_[j, later, seen]
         value[j], chosen = _best(candidates)
         action[j], target[j] = kinds[chosen], targets[chosen]
-    # The start sees nothing: the first look's value under the occupancy there.
-    reach = np.einsum("jk,jk->j", model.marginal[:n], value) - c
+        # A run in an ended state is over: nothing is decided there, it is worth its answer.
+        value[j, over], action[j, over], target[j, over] = u[j, over], STOP, j
+    # The start sees nothing: the first look's value under the occupancy there (a run that
+    # ended before counts where it ended; one ending there is not looked at).
+    running = model.marginal[:n, ~over].sum(axis=1)
+    reach = np.einsum("jk,jk->j", model.marginal[:n], value) + model.banked[:n] - c * running
     if c == 0:
         return StoppingPlan(value, action, target, float(reach[0]), (LOOK_AT, 0))
-    blind = np.einsum("jk,jk->j", model.marginal[:n], u)
+    blind = model.blind(last)
     best, chosen = _best(np.concatenate([blind, reach[:1] if every else reach])[None, :])
     i = int(chosen[0])
     first = (STOP_AT, i) if i < n else (LOOK_AT, i - n)
@@ -504,8 +537,17 @@ def _stop_moments(model: StoppingModel, plan: StoppingPlan, last: int) -> tuple[
     action names, one group of states per (action, target)."""
     n, k = last + 1, model.profile.n_states
     looking, stopping = np.zeros((n, k)), np.zeros((n, k))
+    over = model.over
+
+    def carry(moved: Array, j: int, i: int) -> Array:
+        """Runs from grid index j to i, those that end on the way stopping where they end."""
+        for step in range(j, i):  # a vector-matrix product per time step
+            stopping[step] += np.where(over, moved, 0.0)
+            moved = np.where(over, 0.0, moved) @ model.profile.transition[step]
+        return moved
+
     action, at = plan.first
-    (stopping if action == STOP_AT else looking)[at] += model.marginal[at]
+    (stopping if action == STOP_AT else looking)[at] += carry(model.marginal[0], 0, at)
     for j in range(n):
         mass = looking[j]
         if not mass.any():
@@ -513,9 +555,7 @@ def _stop_moments(model: StoppingModel, plan: StoppingPlan, last: int) -> tuple[
         acts, targets = plan.action[j], plan.target[j]
         stopping[j] += np.where(acts == STOP, mass, 0.0)
         for a, i in {(int(a), int(i)) for a, i in zip(acts, targets, strict=True) if a != STOP}:
-            moved = np.where((acts == a) & (targets == i), mass, 0.0)
-            for step in range(j, i):  # a vector-matrix product per time step
-                moved = moved @ model.profile.transition[step]
+            moved = carry(np.where((acts == a) & (targets == i), mass, 0.0), j, i)
             (stopping if a == STOP_AT else looking)[i] += moved
     return (
         float(np.sum(stopping * model.stop_utility[:n])),

@@ -60,12 +60,16 @@ def test_entered_makes_the_state_remember_when_a_run_entered_its_bin(
     out, traces = tmp_path / "g.yaml", tmp_path / "g.traces.yaml"
     base = ("profile", "get-domain-description", "--trials", "3", "--quiet", "-o", str(out))
     code, _, err = cli(
-        *base, "--dynamic", "--states", "4", "--entered", "3", "--traces", str(traces)
+        *base, "--dynamic", "--states", "4", "--entered", "3", "--ends", "--traces", str(traces)
     )
     assert code == 0, err
     dynamic = load_dynamic_profile(tmp_path / "g.dynamic.yaml")
-    assert dynamic == DynamicProfile.from_traces(load_traces(traces), states=4, entered=3)
-    assert dynamic.classes == 3
+    recorded = load_traces(traces)
+    assert dynamic == DynamicProfile.from_traces(recorded, states=4, entered=3, ends=True)
+    assert dynamic.classes == 3 and dynamic.ends
+    code, _, err = cli("profile", "get-domain-description", "--ends")
+    assert code == 2
+    assert err.splitlines()[-1] == "anytime profile: error: --ends goes with --dynamic"
 
 
 def test_traces_that_cannot_be_written_are_an_input_error(cli: Cli, tmp_path: Path) -> None:
@@ -163,6 +167,7 @@ def test_library_show_json_carries_the_dynamic_profile(cli: Cli, tmp_path: Path)
         "states": 2,
         "quality_bins": [0.0, 0.5, 1.0],
         "entered": None,
+        "ends": False,
         "time_grid": [0.0, 1.0, 2.0],
         "time_unit": "ticks",
         "samples": 2,

@@ -209,6 +209,22 @@ def test_entry_classes_split_a_bin_by_when_each_run_entered_it() -> None:
     np.testing.assert_array_equal(entry_edges(32, 8), [0, 1, 2, 3, 4, 7, 12, 20, 32])
 
 
+def test_runs_that_ended_are_in_ended_states_of_their_own() -> None:
+    """The first run returns at time 1 (its answer 0.6 from then on), the second runs to the
+    end: from time 1 the first is in the ended state of the high bin, absorbing."""
+    traces = attrs.evolve(hand_made(), finished=[1.0, 2.0])
+    p = DynamicProfile.from_traces(traces, bins=[0, 0.5, 1], ends=True)
+    assert p.ends and p.n_states == 4 and p.running_states == 2
+    np.testing.assert_array_equal(p.state_bin, [0, 1, 0, 1])
+    np.testing.assert_array_equal(p.occupancy, [[1, 0, 0, 0], [0.5, 0, 0, 0.5], [0, 0.5, 0, 0.5]])
+    np.testing.assert_array_equal(p.transition[0][0], [0.5, 0, 0, 0.5])  # half end, high
+    np.testing.assert_array_equal(p.transition[1][3], [0, 0, 0, 1])  # ended stays ended
+    np.testing.assert_array_equal(p.transition[1][0], [0, 1, 0, 0])  # the other rises
+    with pytest.raises(ProfileError) as error:
+        DynamicProfile.from_traces(hand_made(), ends=True)
+    assert str(error.value) == ("hand: ends needs traces that say when each run ended (finished)")
+
+
 def test_an_estimate_gets_an_observation_table() -> None:
     # The first run's estimate is low at time 1 though its true quality is high.
     p = DynamicProfile.from_traces(
@@ -275,7 +291,8 @@ def test_traces_and_their_dynamic_profile_round_trip_exactly(
 ) -> None:
     save_traces(traces, tmp_path / "t.traces.yaml", companion=companion)
     assert load_traces(tmp_path / "t.traces.yaml") == traces
-    profile = DynamicProfile.from_traces(traces, states=states, entered=entered)
+    ends = traces.finished is not None  # ended runs in states of their own, when known
+    profile = DynamicProfile.from_traces(traces, states=states, entered=entered, ends=ends)
     save_dynamic_profile(profile, tmp_path / "t.dynamic.yaml", companion=companion)
     assert load_dynamic_profile(tmp_path / "t.dynamic.yaml") == profile
 
@@ -383,7 +400,7 @@ def test_the_good_files_load(tmp_path: Path) -> None:
             "observd: true",
             "observd: unknown field, did you mean 'observed'? (expected one of format, module,"
             " observed, time_unit, samples, inputs, input_quality, time, quality_bins,"
-            " entered, occupancy, transition, quality_mean, observation; got 'observd')",
+            " ends, entered, occupancy, transition, quality_mean, observation; got 'observd')",
         ),
         (
             "occupancy: [[1, 0], [0.5, 0.5]]\n",
@@ -404,7 +421,7 @@ def test_the_good_files_load(tmp_path: Path) -> None:
             "observed: true",
             "observed: estimate",
             "observation: expected a table exactly when the state is not the true quality"
-            " (observed: estimate, entered: none), got none",
+            " (observed: estimate, entered: none, ends: false), got none",
         ),
         (
             "quality_bins: [0, 0.5, 1]",
@@ -422,6 +439,7 @@ def test_the_good_files_load(tmp_path: Path) -> None:
             "quality_mean[1][1]: expected a quality in [0, 1], got 1.5",
         ),
         ("module: walk", "module: walk\nsamples: -1", "samples: expected an integer >= 0, got -1"),
+        ("module: walk", "module: walk\nends: 1", "ends: expected true or false, got 1"),
     ],
 )
 def test_a_bad_dynamic_profile_is_refused_with_its_reason(

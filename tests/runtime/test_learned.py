@@ -105,6 +105,13 @@ def test_a_run_that_ended_is_not_mistaken_for_one_still_running() -> None:
     values = realised(HistoryStopping(recorded, utility), recorded, model)
     assert values[20:] == pytest.approx(np.full(20, 1.0 - 0.05 * 7))  # the running ones run on
     assert values[:20] == pytest.approx(np.full(20, 0.5 - 0.05 * 3))  # the converged ones end
+    # The Markov policy on a profile with ended states learns it too; on the level alone it
+    # averages the running runs with the ended ones and stops them at 0.5.
+    ends = OptimalStopping(DynamicProfile.from_traces(recorded, states=3, ends=True), model, model)
+    assert realised(ends, recorded, model) == pytest.approx(values)
+    assert ends.expected_utility() == pytest.approx(values.mean())
+    level = OptimalStopping(DynamicProfile.from_traces(recorded, states=3), model, model)
+    assert realised(level, recorded, model).mean() < values.mean() - 0.05
 
 
 def test_what_it_promises_is_what_fresh_runs_realise() -> None:

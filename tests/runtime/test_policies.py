@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from stopping_models import Linear, traces
+from stopping_models import Linear, ending, traces
 
 from anytime.profiles.dynamic import DynamicProfile, QualityTraces
 from anytime.runtime import (
@@ -43,11 +43,16 @@ TOLERANCE = 1e-9
 def problems(draw: st.DrawFn) -> tuple[DynamicProfile, Linear, float]:
     m = draw(st.integers(2, 5))
     reports = draw(st.sampled_from(["true", "estimate"]))
-    recorded = traces(draw(st.integers(0, 10**6)), m, draw(st.integers(1, 25)), reports)
-    # The state: the bin alone, or the bin and the class of the time the run entered it.
+    seed = draw(st.integers(0, 10**6))
+    recorded = traces(seed, m, draw(st.integers(1, 25)), reports)
+    # The state: the bin alone, or the bin and the class of the time the run entered it; with
+    # runs that end by themselves in states of their own, or not.
     entered = draw(st.sampled_from([None, 2, 3]))
+    ends = draw(st.booleans())
+    if ends:
+        recorded = ending(recorded, seed)
     states = draw(st.integers(1, 3 if entered is None else 2))
-    profile = DynamicProfile.from_traces(recorded, states=states, entered=entered)
+    profile = DynamicProfile.from_traces(recorded, states=states, entered=entered, ends=ends)
     model = Linear(draw(st.floats(0.5, 20)), draw(st.floats(0.0, 0.5)))
     allocation = draw(st.sampled_from([math.inf, 0.0, 15.0, 20.0, 35.0]))
     return profile, model, allocation
