@@ -134,25 +134,18 @@ def test_library_show_names_the_entry_classes_of_the_states(cli: Cli, tmp_path: 
     profiles = hand_profiles(tmp_path / "p", entered=[0, 1, 3])
     code, text, err = cli("library", "show", "hand", "--profiles", str(profiles), "--no-plugins")
     assert code == 0, err
-    section = text[text.index("dynamic profile:") :]
-    assert section == (
-        f"dynamic profile: {profiles / 'hand.dynamic.yaml'}\n"
-        "  observed        the module's own estimate of its quality, with P(true quality |"
-        " estimate)\n"
-        "  states          2 quality bins: 0, 0.5, 1\n"
+    lines = text[text.index("dynamic profile:") :].splitlines()
+    assert lines[3] == (
         "  entered         each bin in 2 classes of the time the run entered it, from 0, 1 (4"
-        " states)\n"
-        "  time (ticks)    0, 1, 2\n"
-        "  samples         2 trials per cell\n"
-        "  estimate right  67% of runs (in the true quality's bin)\n"
-        "  expected gain in true quality of the next step (rows: state; columns: time in"
-        " ticks):\n"
-        "    state \\ from time  0       1\n"
-        "    [0, 0.5) since 0   +0.400  +0.350\n"
-        "    [0, 0.5) since 1   -       -\n"
-        "    [0.5, 1] since 0   -       -\n"
-        "    [0.5, 1] since 1   -       -\n"
+        " states)"
     )
+    assert lines[-5:] == [
+        "    state \\ from time  0       1",
+        "    [0, 0.5) since 0   +0.400  +0.350",
+        "    [0, 0.5) since 1   -       -",
+        "    [0.5, 1] since 0   -       -",
+        "    [0.5, 1] since 1   -       -",
+    ]
 
 
 def test_library_show_json_carries_the_dynamic_profile(cli: Cli, tmp_path: Path) -> None:
