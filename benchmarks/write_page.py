@@ -98,7 +98,8 @@ BENCHMARKS = [
         ["--quick-synthetic", "--history"],
         "Runtime: when to stop",
         "Stopping policies (fixed, myopic, projected, optimal by backward induction over the"
-        " dynamic profile, history learned on the training traces' histories) on held-out"
+        " dynamic profile, with a state per bin for runs that ended by themselves where some"
+        " do, history learned on the training traces' histories) on held-out"
         " traces of the ATP, 2-opt tours, k-means clustering and"
         " a test plugin's local search that stalls (it registers only when it improves), as a"
         " fraction of the clairvoyant utility of each trace, with the monitor seeing what"
@@ -111,8 +112,10 @@ BENCHMARKS = [
         " run to its end. Last, synthetic families (q = 1 - exp(-lambda t), lambda drawn per"
         " run from a known prior; the monitor sees the true quality, a quantised or a biased"
         " quantised estimate) against their exact Bayes optimum, computed in the benchmark,"
-        " with and without a monitoring cost: every policy, the history policy learned on the"
-        " traces' histories included, as a fraction of the Bayes optimum and of the"
+        " with and without a monitoring cost: every policy (the optimal one on a state of the"
+        " quality bin and when the run entered it, and, for comparison, on the bin alone; the"
+        " history policy learned on the traces' histories), as a fraction of the Bayes optimum"
+        " and of the"
         " clairvoyant, and the optimal and history policies' claimed expected utility against"
         " what they realise (targets: >= 0.98 of the Bayes optimum, never below fixed by more"
         " than the se, claim within 2 se). `--quick-synthetic` runs the synthetic section on"
