@@ -85,6 +85,21 @@ def test_a_live_run_keeps_what_replay_stops_its_trace_at(
             Cost(rate),
             input_quality=quality,
         ),
+        # The state with when the run entered its bin, and ended runs apart: the policy tracks
+        # the class from its looks, live as in replay.
+        "optimal, entered and ends": lambda: OptimalStopping(
+            DynamicProfile.from_traces(traces, states=3, entered=3, ends=True),
+            Value(),
+            Cost(rate),
+            input_quality=quality,
+        ),
+        "optimal, entered, costly looks": lambda: OptimalStopping(
+            DynamicProfile.from_traces(traces, states=3, entered=3),
+            Value(),
+            Cost(rate),
+            input_quality=quality,
+            monitoring_cost=0.002,
+        ),
     }
     grid = Grid(time, inputs)  # the build's, so that trial i is made as the builder made it
     chunk = Chunk(module, problems, grid, "work", 5, trials, 0, trials, SOFT)
