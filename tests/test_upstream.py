@@ -108,6 +108,19 @@ def test_trials_take_their_inputs_from_the_probes_pools(library: AnytimeLibrary)
     assert np.all(samples[1:-1] == samples[1:-1, :1])  # the same at every time
 
 
+def test_the_number_of_probes_is_asked(library: AnytimeLibrary) -> None:
+    low = library.program_problems("low")
+    counting = Counting(low.problems)
+    problems = ProgramProblems.of(counting, time_grid=low.time_grid, resolution=low.resolution)
+    measure_upstream(
+        "polish", lab.schemas(), "low", library, trials=5, rounds=1, problems=problems, probes=200
+    )
+    assert 200 <= counting.drawn < PROBES
+    with pytest.raises(UpstreamError) as raised:
+        measure_upstream("polish", lab.schemas(), "low", library, trials=5, probes=0)
+    assert str(raised.value) == "probes: expected a whole number >= 1, got 0"
+
+
 def test_the_same_seed_gives_the_same_profile_on_any_workers() -> None:
     """Pools are drawn in the parent from the seed, and each trial chooses (and draws fresh
     inputs, as some do with 80 trials: see above) with its own stream: one worker and two
@@ -201,10 +214,27 @@ def test_the_command_measures_round_by_round(cli: Cli, lab_any: str) -> None:
     assert Path("polish.yaml").exists()
 
 
+def test_a_change_within_a_small_pools_noise_asks_for_more_probes(cli: Cli, lab_any: str) -> None:
+    """Two rounds with 60 trials: the second moves the table by more than 0.005 but within
+    the noise, which is the cell 0.4's, measured on a pool of 9 inputs: more trials would
+    reuse them, more probes add to them."""
+    code, out, err = cli(
+        "profile", "polish", "--upstream", lab_any, "--schema", "low", "--trials", "60",
+        "--rounds", "2", "--quiet", "-o", "polish.yaml",
+    )  # fmt: skip
+    assert (code, err) == (0, "")
+    assert out.splitlines()[0] == (
+        "polish on schema low: 2 rounds, not converged: the last round moved the table by"
+        " 0.0061, more than 0.005, within the measurement's noise, most of it in a cell"
+        " measured on a few inputs of the program, reused: measure with more --probes"
+    )
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [
         (["--schema", "low"], "--schema NAME goes with --upstream SCHEMA_FILE"),
+        (["--probes", "10"], "--probes N goes with --upstream SCHEMA_FILE"),
         (["--upstream", "lab.any", "--dynamic"], "--dynamic does not go with --upstream"),
     ],
 )

@@ -40,7 +40,7 @@ from anytime.measure.builder import (
 from anytime.measure.calibrate import Calibration, calibrate, convert_profile
 from anytime.measure.catalogue import check_module
 from anytime.measure.progress import timed_progress
-from anytime.measure.upstream import Round, UpstreamError, measure_upstream
+from anytime.measure.upstream import PROBES, Round, UpstreamError, measure_upstream
 from anytime.modules import AnytimeModule
 from anytime.profiles.dynamic import DEFAULT_STATES, DynamicProfile
 from anytime.profiles.dynamic_io import dynamic_profile_path, save_dynamic_profile, save_traces
@@ -56,6 +56,8 @@ MAX_CALIBRATION_SECONDS = 3600
 MAX_STATES = 100
 #: The most rounds of `anytime profile --upstream`.
 MAX_ROUNDS = 10
+#: The most program runs `anytime profile --upstream --probes` draws a round.
+MAX_PROBES = 1_000_000
 #: `--upstream` stops when the compiled expectations move by at most this.
 UPSTREAM_TOLERANCE = 0.005
 
@@ -142,6 +144,15 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
         metavar="N",
         help=f"at most N rounds of measuring and compiling (3; at most {MAX_ROUNDS}); it stops"
         f" when the compiled expectations move by at most {UPSTREAM_TOLERANCE}",
+    )
+    upstream.add_argument(
+        "--probes",
+        type=int_in_range(1, MAX_PROBES),
+        metavar="N",
+        help=f"program runs drawn first in each round, whose inputs, pooled by input cell, the"
+        f" trials take theirs from ({PROBES:,}; at most {MAX_PROBES:,}): a cell the program"
+        " rarely reaches is measured on the few inputs they find there, which more --probes"
+        " add to and more --trials do not",
     )
     isolation_options(profile, "trial")
     library_options(profile)
@@ -234,6 +245,8 @@ def run_profile(args: argparse.Namespace) -> int:
         args.usage_error("--ends goes with --dynamic")
     if args.upstream is None and args.schema is not None:
         args.usage_error("--schema NAME goes with --upstream SCHEMA_FILE")
+    if args.upstream is None and args.probes is not None:
+        args.usage_error("--probes N goes with --upstream SCHEMA_FILE")
     if args.upstream is not None:
         return _run_upstream(args)
     module, library = _runnable(args)
@@ -326,6 +339,7 @@ def _run_upstream(args: argparse.Namespace) -> int:
             tolerance=UPSTREAM_TOLERANCE,
             progress=False if args.quiet or args.json else None,
             on_round=told,
+            probes=args.probes if args.probes is not None else PROBES,
         )
     except (UpstreamError, CompileError) as error:
         raise InputError(str(error), where=getattr(error, "where", None)) from None
@@ -346,7 +360,12 @@ def _run_upstream(args: argparse.Namespace) -> int:
                 f"not converged: the last round moved the table by {last.change:.4f}, more"
                 f" than {UPSTREAM_TOLERANCE}"
                 + (
-                    ", within the measurement's noise: measure with more --trials"
+                    (
+                        ", within the measurement's noise, most of it in a cell measured on"
+                        " a few inputs of the program, reused: measure with more --probes"
+                        if last.pooled
+                        else ", within the measurement's noise: measure with more --trials"
+                    )
                     if last.change <= last.noise
                     else ": give more --rounds"
                 )

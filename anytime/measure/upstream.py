@@ -391,13 +391,15 @@ class Round:
     cells), how many cells of the module's input grid the program reached, and the
     measurement's own noise: 3 times the largest standard error of the profile's expected
     quality in a cell (a change well within it says more trials are needed, not more
-    rounds)."""
+    rounds), and whether that cell's trials took their inputs from a pool smaller than their
+    number (then more probes are, not more trials: they would reuse the same inputs)."""
 
     profile: ConditionalPerformanceProfile
     change: float
     reached: int
     cells: int
     noise: float = 0.0
+    pooled: bool = False
 
 
 @frozen
@@ -438,6 +440,7 @@ def measure_upstream(
     on_round: Callable[[int, Round], None] | None = None,
     problems: ProgramProblems | None = None,
     mode: RunMode = SOFT,
+    probes: int = PROBES,
 ) -> UpstreamMeasurement:
     """Measure module `name` on the inputs schema `schema` feeds it, compiled against
     `library` (see the module's docstring), for up to `rounds` rounds, until the compiled
@@ -446,13 +449,17 @@ def measure_upstream(
     `problems` (default: the ones a plugin declares for the schema), whose time grid and
     resolution, when declared, are the compilation's (else `time_grid`, `resolution`).
     `on_round(k, round)` is told of each round as it ends. The trials run as `mode` says (see
-    `build_profile`; by default in the worker itself, soft).
+    `build_profile`; by default in the worker itself, soft). Each round first runs the program
+    `probes` times, whose inputs the trials take from (see the module's docstring).
 
     Raises:
         UpstreamError: the module is not called once, as a module, by the schema; or its
-            result cannot be scored; or a cell cannot be measured.
+            result cannot be scored; or a cell cannot be measured; or `probes` is not a whole
+            number >= 1.
         LibraryError: no program problem set is declared for the schema.
     """
+    if not isinstance(probes, int | np.integer) or isinstance(probes, bool) or probes < 1:
+        raise UpstreamError(f"probes: expected a whole number >= 1, got {probes!r}")
     if problems is None:
         problems = library.program_problems(schema)
     entry = library[name]
@@ -507,7 +514,7 @@ def measure_upstream(
     done: list[Round] = []
     for index in range(rounds):
         probe = UpstreamProblems(compiled, node, problems, grids, fallback)
-        pools = probe_pools(probe, seed + index)
+        pools = probe_pools(probe, seed + index, int(probes))
         upstream = UpstreamProblems(compiled, node, problems, grids, fallback, pools, trials)
         reached = upstream.reached
         build = build_profile(
@@ -534,9 +541,11 @@ def measure_upstream(
         current = profile
         again = compiled_with(library)
         change = float(np.max(np.abs(again.expected - compiled.expected)))
-        noise = _noise(measured)
+        noise, noisiest = _noise(measured)
         cells = int(np.prod(profile.cell_shape[:-1]))
-        done.append(Round(profile, change, len(reached), cells, noise))
+        # a pool of n < t - 1 inputs: its effective count below t / 2
+        pooled = bool(upstream.effective_samples().reshape(-1)[noisiest] < trials / 2)
+        done.append(Round(profile, change, len(reached), cells, noise, pooled))
         if on_round is not None:
             on_round(index + 1, done[-1])
         compiled = again
@@ -546,12 +555,16 @@ def measure_upstream(
     return UpstreamMeasurement(module.name, schema, tuple(done), tolerance)
 
 
-def _noise(profile: ConditionalPerformanceProfile) -> float:
-    """3 times the largest standard error of a measured profile's expected quality in a cell."""
+def _noise(profile: ConditionalPerformanceProfile) -> tuple[float, int]:
+    """3 times the largest standard error of a measured profile's expected quality in a cell,
+    and the flat index of that cell's input qualities."""
     if profile.std is None or profile.samples is None:
-        return 0.0
+        return 0.0, 0
     se = profile.std / np.sqrt(np.maximum(profile.samples, 1))
-    return 3 * float(np.max(se, initial=0.0))
+    at = int(np.argmax(se)) if se.size else 0
+    noisiest = np.unravel_index(at, se.shape)[:-1] if se.size else ()
+    flat = int(np.ravel_multi_index(noisiest, se.shape[:-1])) if noisiest else 0
+    return 3 * float(np.max(se, initial=0.0)), flat
 
 
 def _module(node: ModuleNode) -> AnytimeModule:
