@@ -43,7 +43,8 @@ bound where some trials drew fresh inputs), so its standard error, the compiled 
 tell, not what the trial count suggests. A module whose result depends on its own random
 stream (not only its input) gets more from its trials than that; the count is for the
 worst case, a module that does the same on the same input. A cell whose pool is small is
-measured coarsely, and measuring with more trials does not help it: more probes would.
+measured coarsely, and measuring with more trials does not help it: more probes would
+(`measure_upstream(probes=...)`, `anytime profile --upstream --probes N`).
 
 The allocations depend on the profile and the profile on the allocations, so the measurement
 is iterated: compile, measure on the compiled program's inputs, compile again with the new
