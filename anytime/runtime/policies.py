@@ -22,10 +22,12 @@ the next look (`look_at`, infinite: never look again) and the time to stop at wi
   E over P(s' at i | s at j), the product of the profile's one-step transitions. Without a
   monitoring cost it looks at every grid time. On a profile whose state includes when the run
   entered its bin (`DynamicProfile.entered`), a look sees that only if the run was seen the step
-  before, so its choices are: stop later without looking, or look from the first grid time on at
-  every one (until it stops, or stops later without looking). On a profile with ended states
-  (`DynamicProfile.ends`) a run that enters one is over: every policy counts its utility there
-  and never looks at it (`StoppingModel.banked`, `marginal` of the runs still in play).
+  before: after skipped grid times the policy takes the most probable class, so the backward
+  induction's value is then what a policy that saw the class would get, and the policy's
+  `expected_utility` is instead the exact value of what it does on the model (`plan_outcome`).
+  On a profile with ended states (`DynamicProfile.ends`) a run that enters one is over: every
+  policy counts its utility there and never looks at it (`StoppingModel.banked`, `marginal` of
+  the runs still in play).
 - `ProjectedStopping` predicts the run's own curve online (Svegliato, Wray & Zilberstein 2018):
   it fits q(t) = a - b exp(-c t) to the qualities seen so far, by least squares, and stops once the
   projected best stopping time has come.
@@ -41,6 +43,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
 from typing import Any, Protocol
 
+import attrs
 import numpy as np
 from attrs import field, frozen
 from numpy.typing import ArrayLike, NDArray
@@ -263,6 +266,32 @@ class StoppingModel:
         return self.bin(quality) * self.profile.classes + entry_class
 
 
+def perceived_classes(
+    model: StoppingModel, last_look: tuple[int, int, int] | None, j: int
+) -> NDArray[np.intp]:
+    """`(B,)` for a look at grid index `j` that sees each bin, the class a policy takes the run
+    to have entered it in, where the profile tracks entry times (`DynamicProfile.entered`):
+    the last look's (grid index, bin, class) if the bin is the same, this step's if the bin
+    changed since the step before, else (looks skipped, or none yet) the most probable under
+    the profile's chain from the last look (from the start: the marginal)."""
+    profile = model.profile
+    classes, bins = profile.classes, profile.n_bins
+    if last_look is None:
+        belief = model.marginal[j]
+    else:
+        belief = np.zeros(profile.n_states)
+        belief[last_look[1] * classes + last_look[2]] = 1.0
+        for step in range(last_look[0], j):  # a vector-matrix product per time step
+            belief = belief @ profile.transition[step]
+    running = belief[: profile.running_states].reshape(bins, classes)
+    chosen: NDArray[np.intp] = np.argmax(running, axis=1)
+    if last_look is not None:
+        if j - last_look[0] <= 1:
+            chosen[:] = profile.entry_class(j)
+        chosen[last_look[1]] = last_look[2]
+    return chosen
+
+
 def trace_cell(traces: QualityTraces, input_quality: Sequence[float], name: str) -> tuple[int, ...]:
     """The index of the input-quality cell of `traces` nearest to `input_quality`: where a
     policy learned from traces learns."""
@@ -332,28 +361,12 @@ class _GridPolicy(ABC):
         """The decision at a look at `time`, the run's answer of `quality` (None: none yet)."""
 
     def _state(self, j: int, quality: float | None) -> int:
-        """The state of a look at grid index `j`. Where the profile tracks when a run entered its
-        bin (`DynamicProfile.entered`), the class comes from the looks: the last look's if the
-        bin is the same, this step's if the bin changed since the step before, else (looks
-        skipped, or none yet) the most probable under the profile's chain."""
+        """The state of a look at grid index `j` (see `perceived_classes`)."""
         model, profile = self.model, self.model.profile
         b, classes = model.bin(quality), profile.classes
         if classes == 1:
             return b
-        seen = self._last_look
-        if seen is not None and seen[1] == b:
-            klass = seen[2]
-        elif seen is not None and j - seen[0] <= 1:
-            klass = profile.entry_class(j)
-        else:
-            if seen is None:
-                belief = model.marginal[j]
-            else:
-                belief = np.zeros(profile.n_states)
-                belief[seen[1] * classes + seen[2]] = 1.0
-                for step in range(seen[0], j):
-                    belief = belief @ profile.transition[step]
-            klass = int(np.argmax(belief[b * classes : (b + 1) * classes]))
+        klass = int(perceived_classes(model, self._last_look, j)[b])
         self._last_look = (j, b, klass)
         return b * classes + klass
 
@@ -483,15 +496,15 @@ class StoppingPlan:
 STOP, STOP_AT, LOOK_AT = 0, 1, 2
 
 
-def solve(model: StoppingModel, last: int, monitoring_cost: float) -> StoppingPlan:
+def solve(
+    model: StoppingModel, last: int, monitoring_cost: float, skips: bool = True
+) -> StoppingPlan:
     """Backward induction over the model's states up to grid index `last` (see the module
     docstring); without a monitoring cost the only choice at a look is to stop or look at the
-    next grid time."""
+    next grid time. Without `skips`, looks, once begun, come at every grid time from the first
+    (so a look always sees a run's entry class)."""
     c = monitoring_cost
     n, k = last + 1, model.profile.n_states
-    # With entry classes a look sees the class only if the run was seen the step before (or at
-    # the start): looks, once begun, come at every grid time, and the first is at the first one.
-    every = model.profile.classes > 1
     over = np.arange(k) >= model.profile.running_states
     u = model.stop_utility[:n]
     value, action, target = u.copy(), np.zeros((n, k), int), np.zeros((n, k), int)
@@ -510,7 +523,7 @@ def solve(model: StoppingModel, last: int, monitoring_cost: float) -> StoppingPl
             ahead_stop[over] = u[j + 1, over, None]
             looks, stops = step @ ahead_look, step @ ahead_stop
             later = np.arange(j + 1, n)
-            seen = later[:1] if every else later
+            seen = later if skips else later[:1]
             candidates = np.column_stack([u[j], stops, looks[:, : len(seen)] - c])
             kinds = np.r_[STOP, np.full(len(later), STOP_AT), np.full(len(seen), LOOK_AT)]
             targets = np.r_[j, later, seen]
@@ -525,42 +538,89 @@ def solve(model: StoppingModel, last: int, monitoring_cost: float) -> StoppingPl
     if c == 0:
         return StoppingPlan(value, action, target, float(reach[0]), (LOOK_AT, 0))
     blind = model.blind(last)
-    best, chosen = _best(np.concatenate([blind, reach[:1] if every else reach])[None, :])
+    best, chosen = _best(np.concatenate([blind, reach if skips else reach[:1]])[None, :])
     i = int(chosen[0])
     first = (STOP_AT, i) if i < n else (LOOK_AT, i - n)
     return StoppingPlan(value, action, target, float(best[0]), first)
 
 
-def _stop_moments(model: StoppingModel, plan: StoppingPlan, last: int) -> tuple[float, float]:
-    """E[U] and E[U^2] at the stop of a run that follows `plan` on the model's chain (looks not
-    paid): the mass of runs at each look, carried forward to the look or stop each state's
-    action names, one group of states per (action, target)."""
+@frozen
+class Outcome:
+    """What following a plan is worth on its model: the expected utility (looks paid), and E[U]
+    and E[U^2] at the stop (looks not paid), for the spread of what a run realises."""
+
+    value: float
+    mean: float
+    square: float
+
+
+def plan_outcome(model: StoppingModel, plan: StoppingPlan, last: int, cost: float) -> Outcome:
+    """The exact outcome of the policy that follows `plan` on the model's chain, as the policy
+    acts: at each look it takes the state it perceives (`perceived_classes`: the entry class
+    is known only when the run was seen the step before), while the chain moves on from the
+    true one. The mass of runs at each look is kept per (true state, perceived state) and
+    carried, a group of perceived states per (action, target), to the look or stop their
+    action names; a run that ends on the way stops where it ends."""
     n, k = last + 1, model.profile.n_states
-    looking, stopping = np.zeros((n, k)), np.zeros((n, k))
-    over = model.over
+    classes, over = model.profile.classes, model.over
+    level = model.profile.state_bin
+    looking: dict[int, Array] = {}
+    stopping = np.zeros((n, k))
+    looks = 0.0
 
     def carry(moved: Array, j: int, i: int) -> Array:
-        """Runs from grid index j to i, those that end on the way stopping where they end."""
-        for step in range(j, i):  # a vector-matrix product per time step
-            stopping[step] += np.where(over, moved, 0.0)
-            moved = np.where(over, 0.0, moved) @ model.profile.transition[step]
-        return moved
+        """Runs (states x columns) from grid index j to i, those that end on the way stopping
+        where they end (those that end at i too)."""
+        for step in range(j, i):  # a matrix product per time step
+            stopping[step] += np.where(over[:, None], moved, 0.0).sum(axis=1)
+            moved = model.profile.transition[step].T @ np.where(over[:, None], 0.0, moved)
+        stopping[i] += np.where(over[:, None], moved, 0.0).sum(axis=1)
+        return np.where(over[:, None], 0.0, moved)
+
+    def look(mass: Array, i: int, perceived: list[NDArray[np.intp]]) -> None:
+        """Runs (states x columns) arriving at a look at i, column c taking bin b for state
+        perceived[c][b]."""
+        nonlocal looks
+        table = looking.setdefault(i, np.zeros((k, k)))
+        looks += float(mass.sum())
+        running = np.flatnonzero(~over)
+        for column in range(mass.shape[1]):
+            seen = perceived[column][level[running]]
+            np.add.at(table, (running, seen), mass[running, column])
+
+    def seen_as(last_look: tuple[int, int, int] | None, i: int) -> NDArray[np.intp]:
+        """State perceived at a look at i, per bin."""
+        bins: NDArray[np.intp] = np.arange(model.profile.n_bins)
+        if classes == 1:
+            return bins
+        return bins * classes + perceived_classes(model, last_look, i)
 
     action, at = plan.first
-    (stopping if action == STOP_AT else looking)[at] += carry(model.marginal[0], 0, at)
+    start = carry(model.marginal[0][:, None], 0, at)
+    if action == STOP_AT:
+        stopping[at] += start[:, 0]
+    else:
+        look(start, at, [seen_as(None, at)])
     for j in range(n):
-        mass = looking[j]
-        if not mass.any():
+        if j not in looking:
             continue
+        mass = looking.pop(j)
         acts, targets = plan.action[j], plan.target[j]
-        stopping[j] += np.where(acts == STOP, mass, 0.0)
-        for a, i in {(int(a), int(i)) for a, i in zip(acts, targets, strict=True) if a != STOP}:
-            moved = carry(np.where((acts == a) & (targets == i), mass, 0.0), j, i)
-            (stopping if a == STOP_AT else looking)[i] += moved
-    return (
-        float(np.sum(stopping * model.stop_utility[:n])),
-        float(np.sum(stopping * model.stop_square[:n])),
-    )
+        stopping[j] += mass[:, acts == STOP].sum(axis=1)
+        groups = {(int(a), int(i)) for a, i in zip(acts, targets, strict=True) if a != STOP}
+        for a, i in sorted(groups):
+            columns = np.flatnonzero((acts == a) & (targets == i) & (mass.sum(axis=0) > 0))
+            if not len(columns):
+                continue
+            moved = carry(mass[:, columns], j, i)
+            if a == STOP_AT:
+                stopping[i] += moved.sum(axis=1)
+            else:
+                perceived = [seen_as((j, int(level[p]), int(p % classes)), i) for p in columns]
+                look(moved, i, perceived)
+    mean = float(np.sum(stopping * model.stop_utility[:n]))
+    square = float(np.sum(stopping * model.stop_square[:n]))
+    return Outcome(mean - cost * looks, mean, square)
 
 
 class OptimalStopping(_GridPolicy):
@@ -586,12 +646,26 @@ class OptimalStopping(_GridPolicy):
         self._plans: dict[int, StoppingPlan] = {}
 
     def plan(self, allocation: float = math.inf) -> StoppingPlan:
-        """The solution for a deadline (computed once per deadline)."""
+        """The solution for a deadline (computed once per deadline). Where a look after skipped
+        grid times cannot see a run's entry class, the backward induction's value of looking
+        is what a policy that could would get: the plan's `expected_utility` is then the exact
+        value of the policy as it acts (`plan_outcome`), and where looking at every grid time
+        once it looks (or never) is worth more, that is the plan."""
         last = self.model.last(check_allocation(self.name, allocation))
         if last < 0:
             raise PolicyError(f"{self.name}: no grid time within the allocation {allocation:g}")
         if last not in self._plans:
-            self._plans[last] = solve(self.model, last, self.monitoring_cost)
+            plan = solve(self.model, last, self.monitoring_cost)
+            if self.model.profile.classes > 1 and self.monitoring_cost > 0:
+                # Skipping looks as planned, valued as the policy acts, against looking at every
+                # grid time once it looks (exact: every look sees the class) or not at all.
+                acting = plan_outcome(self.model, plan, last, self.monitoring_cost).value
+                every = solve(self.model, last, self.monitoring_cost, skips=False)
+                if every.expected_utility >= acting:
+                    plan = every
+                else:
+                    plan = attrs.evolve(plan, expected_utility=acting)
+            self._plans[last] = plan
         return self._plans[last]
 
     def value_function(self, allocation: float = math.inf) -> Array:
@@ -607,8 +681,8 @@ class OptimalStopping(_GridPolicy):
         if samples <= 0:
             return math.inf
         last = self.model.last(check_allocation(self.name, allocation))
-        mean, square = _stop_moments(self.model, self.plan(allocation), last)
-        return math.sqrt(max(square - mean * mean, 0.0) / samples)
+        outcome = plan_outcome(self.model, self.plan(allocation), last, self.monitoring_cost)
+        return math.sqrt(max(outcome.square - outcome.mean**2, 0.0) / samples)
 
     def _start(self) -> Decision:
         plan = self.plan(self.allocation)
