@@ -36,6 +36,13 @@ robot's base cell, each waypoint in turn is
    worlds, 2,000 per cell: at 100 ticks 0.974 against 0.993 at map quality 0.85, equal from
    400 ticks on).
 
+   A robot told to give a waypoint up when the way to it turns long (`give_up`, the task's
+   frames) stops feeling its way into a block once what it walked toward it and the path it
+   plans on from there are longer than `give_up` times the block's distance from where it set
+   out and than that distance plus `SLACK`, and aims for the next waypoint (never the goal):
+   a plan made before the robot saw the walls around it may put a waypoint in a pocket that
+   only the long way round reaches, a detour the plan never meant.
+
 The robot never enters a blocked cell, every step is a legal move, and the route ends at the
 goal whenever the goal is reachable from the start (the goal is the last waypoint and every
 waypoint reachable is reached). An unreachable goal (or a blocked one) is not an error: the
@@ -81,6 +88,11 @@ __all__ = [
 
 Waypoint = tuple[int, Position]
 Box = tuple[int, int, int, int]  # (x0, y0, x1, y1), half-open: blocked[y0:y1, x0:x1]
+
+#: `execute(give_up=)`: a way to a waypoint is long only when it is longer than its distance
+#: plus this many cells too (a small obstacle in the way of a near waypoint is no reason to give
+#: it up).
+SLACK = 8
 
 _STRAIGHT = ((1, 0), (-1, 0), (0, 1), (0, -1))
 _DIAGONAL = ((1, 1), (-1, 1), (1, -1), (-1, -1))
@@ -148,6 +160,7 @@ def execute(
     ctx: Context | None = None,
     memory: BoolGrid | None = None,
     keep_to_plan: bool = False,
+    give_up: float | None = None,
 ) -> Execution:
     """Follow `plan` on the true map `blocked` (see the module docstring).
 
@@ -165,6 +178,17 @@ def execute(
             Off by default: on a sensed map the corridor may leave out free cells the noise
             hid, and a robot that feels its way does better early on (find-path's profile,
             measured on sensed maps, is of that robot).
+        give_up: let the robot give a waypoint up when the way to it turns long: when what it
+            walked toward a waypoint's block and the path it plans on from there on its memory
+            (free-space assumption) are longer than `give_up` times the distance to the block
+            from where it set out for it (Manhattan, or octile with 8
+            moves) and longer than that distance plus `SLACK` cells, it aims for the next
+            waypoint instead (never the goal's: the goal is always sought). For a plan made
+            ahead of time on a map that did not yet hold what the robot saw since (the task's
+            frames, whose plan is made while the segment before is walked): its waypoints may
+            lie behind walls it has found, and reaching one the long way round only to come
+            back is a detour the plan never meant. None (the default): every reachable
+            waypoint is reached, as find-path's profile was measured.
 
     Raises:
         ValueError: an empty plan, a start or a waypoint outside the grid, a blocked start, an
@@ -175,6 +199,8 @@ def execute(
         raise ValueError(f"the map must be a 2-D grid blocked[y, x], got shape {grid.shape}")
     if movement not in (4, 8):
         raise ValueError(f"movement must be 4 or 8, got {movement!r}")
+    if give_up is not None and not give_up >= 1.0:
+        raise ValueError(f"give_up must be >= 1 or None, got {give_up!r}")
     regions: list[BoolGrid | None]
     corridor: BoolGrid | None = None
     if isinstance(plan, MultiPath):
@@ -207,7 +233,8 @@ def execute(
 
     route: list[Position] = [start]
     expansions = 0
-    for (x0, y0, x1, y1), region in zip(boxes, regions, strict=True):
+    last = len(boxes) - 1
+    for i, ((x0, y0, x1, y1), region) in enumerate(zip(boxes, regions, strict=True)):
         target = ok[y0:y1, x0:x1]
         if region is not None:  # the node's cells (as the plan's map says) that can be reached
             aimed = target & region[: y1 - y0, : x1 - x0]
@@ -222,7 +249,14 @@ def execute(
             route.append(step)
             continue
         path, work = _feel_into(
-            grid, memory, route[-1], (x0, y0, x1, y1), target, movement, corridor
+            grid,
+            memory,
+            route[-1],
+            (x0, y0, x1, y1),
+            target,
+            movement,
+            corridor,
+            give_up if i < last else None,
         )
         expansions += work
         if tick is not None:
@@ -313,12 +347,15 @@ def _feel_into(
     target: BoolGrid,
     movement: int,
     corridor: BoolGrid | None = None,
+    give_up: float | None = None,
 ) -> tuple[list[Position], int]:
     """Obstacle avoidance toward the `target` cells of `box` (a mask of the box) with the
     free-space assumption (see the module docstring): plan with A* on `memory` (the blocked
     cells the robot has seen; updated in place), walk the path, re-plan when a cell seen
-    blocked is in the way. Returns the cells walked (`position` first) and the A*
-    expansions."""
+    blocked is in the way. With `give_up`, stop (short of the box) when the cells walked and
+    the path planned on from there are longer than `give_up` times the distance to the box from
+    `position` and than that distance plus `SLACK`.
+    Returns the cells walked (`position` first) and the A* expansions."""
     height, width = grid.shape
     x0, y0, x1, y1 = box
     walked = [position]
@@ -326,6 +363,9 @@ def _feel_into(
     x, y = position
     _see(grid, memory, x, y)
     ending = np.where(target, 0.0, -1.0)
+    if give_up is not None:
+        near = _distance_to_box(x, y, box, movement)
+        longest = max(give_up * near, near + SLACK)
     while not (x0 <= x < x1 and y0 <= y < y1 and target[y - y0, x - x0]):
         path = None
         margin = 8
@@ -357,6 +397,8 @@ def _feel_into(
                 corridor, margin = None, 8
             else:  # pragma: no cover
                 raise AssertionError(f"no way into {box} on the robot's map")  # ok said there is
+        if give_up is not None and route_length(walked) + route_length(path) > longest:
+            break  # the way has turned long: the caller aims for the next waypoint
         for nx, ny in path[1:]:
             if memory[ny, nx] or (nx != x and ny != y and (memory[y, nx] or memory[ny, x])):
                 break  # seen blocked since the path was planned: plan again from here
@@ -364,6 +406,16 @@ def _feel_into(
             walked.append((x, y))
             _see(grid, memory, x, y)
     return walked, work
+
+
+def _distance_to_box(x: int, y: int, box: Box, movement: int) -> float:
+    """The distance from (x, y) to the nearest cell of `box` on an empty map."""
+    x0, y0, x1, y1 = box
+    dx = max(x0 - x, 0, x - (x1 - 1))
+    dy = max(y0 - y, 0, y - (y1 - 1))
+    if movement == 4:
+        return float(dx + dy)
+    return float(max(dx, dy) + (SQRT2 - 1) * min(dx, dy))
 
 
 def _see(grid: BoolGrid, memory: BoolGrid, x: int, y: int) -> None:
