@@ -197,7 +197,7 @@ def _dynamic_lines(entry: LibraryEntry, dynamic: DynamicProfile, times: int) -> 
     if gain.size == 0:
         return lines
     steps = _spread(gain.shape[0], times or gain.shape[0])
-    states = _spread(gain.shape[1], SHOWN_STATES)
+    states = _spread(dynamic.running_states, SHOWN_STATES)  # an ended run has no next step
     edges = dynamic.bins
     rows = [["state \\ from time", *(f"{dynamic.time[j]:g}" for j in steps)]]
     for k in states:
@@ -224,7 +224,8 @@ def _dynamic_facts(entry: LibraryEntry, dynamic: DynamicProfile) -> dict[str, An
     """The facts `library show` gives of a dynamic profile, at the highest input qualities."""
     top = [float(grid[-1]) for grid in dynamic.input_grids]
     here = dynamic.at(top)
-    occupied = here.occupancy[:-1] > 0
+    # A state no run was in has no gain, nor has an ended run (it has no next step).
+    occupied = (here.occupancy[:-1] > 0) & ~(np.arange(here.n_states) >= here.running_states)
     gain = np.where(occupied, np.round(here.expected_gain(), 12), np.nan)
     agreement = None
     if here.observation is not None and here.observed == "estimate":

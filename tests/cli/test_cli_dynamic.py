@@ -89,9 +89,9 @@ def test_traces_that_cannot_be_written_are_an_input_error(cli: Cli, tmp_path: Pa
     assert err == f"anytime: error: cannot write '{missing}': No such file or directory\n"
 
 
-def hand_profiles(directory: Path, entered: list[int] | None = None) -> Path:
+def hand_profiles(directory: Path, entered: list[int] | None = None, ends: bool = False) -> Path:
     """A profile-only module 'hand' (no inputs, times 0, 1, 2) and its dynamic profile (with
-    entry classes `entered`)."""
+    entry classes `entered`; with `ends`, the first run ending at time 1)."""
     directory.mkdir()
     save_profile(
         tabulate(lambda t: 0.4 * t, time=[0, 1, 2], module="hand"), directory / "hand.yaml"
@@ -103,8 +103,9 @@ def hand_profiles(directory: Path, entered: list[int] | None = None) -> Path:
         scored=[[False, True, True], [False, True, True]],
         estimate=[[0.0, 0.3, 0.9], [0.0, 0.1, 0.4]],
         reports="estimate",
+        finished=[1.0, 2.0] if ends else None,
     )
-    dynamic = DynamicProfile.from_traces(traces, bins=[0, 0.5, 1], entered=entered)
+    dynamic = DynamicProfile.from_traces(traces, bins=[0, 0.5, 1], entered=entered, ends=ends)
     save_dynamic_profile(dynamic, directory / "hand.dynamic.yaml")
     return directory
 
@@ -146,6 +147,20 @@ def test_library_show_names_the_entry_classes_of_the_states(cli: Cli, tmp_path: 
         "    [0.5, 1] since 0   -       -",
         "    [0.5, 1] since 1   -       -",
     ]
+
+
+def test_library_show_gives_no_gain_for_a_run_that_ended(cli: Cli, tmp_path: Path) -> None:
+    profiles = hand_profiles(tmp_path / "p", ends=True)
+    args = ("library", "show", "hand", "--profiles", str(profiles), "--no-plugins")
+    code, text, err = cli(*args, "--json")
+    assert code == 0, err
+    dynamic = json.loads(text)["dynamic_profile"]
+    assert dynamic["ends"] is True and dynamic["states"] == 4
+    assert [row[2:] for row in dynamic["expected_gain"]] == [[None, None], [None, None]]
+    code, text, err = cli(*args)
+    assert code == 0, err
+    assert "  ended           a state per bin for runs that ended by themselves\n" in text
+    assert " ended " not in text[text.index("expected gain") :]  # no row for ended runs
 
 
 def test_library_show_json_carries_the_dynamic_profile(cli: Cli, tmp_path: Path) -> None:
