@@ -225,7 +225,7 @@ def _dynamic_facts(entry: LibraryEntry, dynamic: DynamicProfile) -> dict[str, An
     top = [float(grid[-1]) for grid in dynamic.input_grids]
     here = dynamic.at(top)
     # A state no run was in has no gain, nor has an ended run (it has no next step).
-    occupied = (here.occupancy[:-1] > 0) & ~(np.arange(here.n_states) >= here.running_states)
+    occupied = (here.occupancy[:-1] > 0) & ~here.ended
     gain = np.where(occupied, np.round(here.expected_gain(), 12), np.nan)
     agreement = None
     if here.observation is not None and here.observed == "estimate":

@@ -357,6 +357,12 @@ class DynamicProfile:
         return self.n_bins * self.classes
 
     @property
+    def ended(self) -> NDArray[np.bool_]:
+        """`(K,)` the ended states (with `ends`): a run there is over, its answer counted."""
+        over: NDArray[np.bool_] = np.arange(self.n_states) >= self.running_states
+        return over
+
+    @property
     def state_bin(self) -> NDArray[np.intp]:
         """The quality bin of each state."""
         running = np.arange(self.running_states) // self.classes
@@ -409,11 +415,11 @@ class DynamicProfile:
         else:
             edges = quantile_bins(observed, states)
         m = len(traces.time)
-        if entered is None or np.ndim(entered) == 0 and int(entered) == 1:  # type: ignore[arg-type]
-            classes_edges = None
-        elif np.ndim(entered) == 0:
-            classes_edges = entry_edges(m, int(entered)).astype(np.float64)  # type: ignore[arg-type]
-        else:
+        classes_edges: Array | None = None
+        if isinstance(entered, int | np.integer):  # a number of classes (1: the bin alone)
+            if entered > 1:
+                classes_edges = entry_edges(m, int(entered)).astype(np.float64)
+        elif entered is not None:
             classes_edges = np.asarray(entered, dtype=np.float64)
         kb = len(edges) - 1
         level = _bin_of(observed, edges)  # (*cells, N, m)

@@ -201,12 +201,6 @@ class StoppingModel:
     stop_square: Array = field(eq=False)
     banked: Array = field(eq=False)
 
-    @property
-    def over(self) -> NDArray[np.bool_]:
-        """`(K,)` the ended states: a run there is over, its answer counted."""
-        ended: NDArray[np.bool_] = np.arange(self.profile.n_states) >= self.profile.running_states
-        return ended
-
     def blind(self, last: int) -> Array:
         """`(last + 1,)` the expected utility of stopping at each grid time without looking (a
         run that ended before counts where it ended)."""
@@ -231,7 +225,7 @@ class StoppingModel:
         expected_true = (given * quality).sum(axis=-1)
         square = (given * worth**2).sum(axis=-1)
         # Runs in play at each time; a run that ends is counted (banked) where it ended.
-        over = np.arange(cell.n_states) >= cell.running_states
+        over = cell.ended
         marginal = np.empty_like(cell.occupancy)
         marginal[0] = cell.occupancy[0]
         banked = np.zeros(m)
@@ -412,7 +406,7 @@ def _every_step_value(
     each look costing `monitoring_cost`."""
     alive = model.marginal[0].copy()
     total = looks = 0.0
-    running = ~model.over
+    running = ~model.profile.ended
     for j in range(last + 1):  # forward over time steps, vectorised over states
         # The run ends at `last`: no look there; nor at a run that ended by itself.
         looks += alive[running].sum() if j < last else 0.0
@@ -443,7 +437,7 @@ class MyopicStopping(_GridPolicy):
 
     def stops(self) -> Array:
         """`(m, K)` where the rule stops (always at the last grid time)."""
-        over = np.arange(self.model.profile.n_states) >= self.model.profile.running_states
+        over = self.model.profile.ended
         return np.vstack([(self.gain() < 0) | over, np.ones((1, len(over)), bool)])
 
     def expected_utility(self, allocation: float = math.inf) -> float:
@@ -505,7 +499,7 @@ def solve(
     (so a look always sees a run's entry class)."""
     c = monitoring_cost
     n, k = last + 1, model.profile.n_states
-    over = np.arange(k) >= model.profile.running_states
+    over = model.profile.ended
     u = model.stop_utility[:n]
     value, action, target = u.copy(), np.zeros((n, k), int), np.zeros((n, k), int)
     # Columns i = j + 1 .. last: E[V(i, s')] and E[U_stop(i, s')] from each state at j.
@@ -562,7 +556,7 @@ def plan_outcome(model: StoppingModel, plan: StoppingPlan, last: int, cost: floa
     carried, a group of perceived states per (action, target), to the look or stop their
     action names; a run that ends on the way stops where it ends."""
     n, k = last + 1, model.profile.n_states
-    classes, over = model.profile.classes, model.over
+    classes, over = model.profile.classes, model.profile.ended
     level = model.profile.state_bin
     looking: dict[int, Array] = {}
     stopping = np.zeros((n, k))
