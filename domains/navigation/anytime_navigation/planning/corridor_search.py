@@ -551,6 +551,121 @@ def compressed_rows(
 
 
 @_compiled
+def quads(
+    free: NDArray[np.bool_], movement: int, labels: NDArray[np.int8], moves: IntArray
+) -> tuple[IntArray, int, IntArray, IntArray, IntArray, IntArray]:
+    """Level 1 of the abstraction (`components._quads`) in three passes over the 2 x 2 blocks:
+    each block's pattern of free cells (bit 2y + x) and its components (`labels`, one row per
+    pattern), numbered block by block in raster order; each base cell's node (-1 where
+    blocked), the nodes' cells node by node and each node's first cell (raster order); then the
+    edges each block has to the blocks after it (`moves`: the rows (direction, tail position,
+    head position, dx, dy) of the legal moves into the `_FORWARD` blocks, by direction, the
+    diagonals needing their two corner cells free), made in ascending order (by low, then high)
+    without a sort: a block's lower node first, the directions' blocks in raster order, and
+    their lower node before their higher within each.
+
+    Returns (grid, count, low, high, cells, first cell of each node)."""
+    side = free.shape[0]
+    m = side // 2
+    pattern = np.zeros(m * m, dtype=np.int64)
+    offset = np.full(m * m, -1, dtype=np.int64)
+    count = 0
+    occupied = 0
+    for by in range(m):
+        for bx in range(m):
+            y, x = 2 * by, 2 * bx
+            p = (
+                np.int64(free[y, x])
+                | np.int64(free[y, x + 1]) << 1
+                | np.int64(free[y + 1, x]) << 2
+                | np.int64(free[y + 1, x + 1]) << 3
+            )
+            if p:
+                b = by * m + bx
+                pattern[b] = p
+                offset[b] = count
+                most = -1
+                for q in range(4):
+                    if labels[p, q] > most:
+                        most = labels[p, q]
+                count += most + 1
+                occupied += 1
+    grid = np.full(side * side, -1, dtype=np.int64)
+    cells = np.empty(4 * occupied, dtype=np.int64)
+    first_cell = np.full(count, -1, dtype=np.int64)
+    k = 0
+    for b in range(m * m):
+        p = pattern[b]
+        if p == 0:
+            continue
+        x, y = 2 * (b % m), 2 * (b // m)
+        for q in range(4):
+            label = labels[p, q]
+            if label >= 0:
+                cell = (y + (q >> 1)) * side + x + (q & 1)
+                node = offset[b] + label
+                grid[cell] = node
+                cells[k] = cell
+                k += 1
+                if first_cell[node] < 0:
+                    first_cell[node] = cell
+    # The pairs of components each block joins with each block after it: bit 2 * tail's label
+    # + head's, per direction (`moves` ordered by direction: each one's rows read once).
+    move_first = np.zeros(5, dtype=np.int64)
+    for r in range(len(moves)):
+        move_first[moves[r, 0] + 1] = r + 1
+    for d in range(4):
+        move_first[d + 1] = max(move_first[d + 1], move_first[d])
+    fdx = (1, -1, 0, 1)
+    fdy = (0, 1, 1, 1)
+    joined = np.zeros(4 * m * m, dtype=np.uint8)
+    total = 0
+    for b in range(m * m):
+        p = pattern[b]
+        if p == 0:
+            continue
+        bx, by = b % m, b // m
+        for d in range(4):
+            nx, ny = bx + fdx[d], by + fdy[d]
+            if nx < 0 or nx >= m or ny >= m or pattern[ny * m + nx] == 0:
+                continue
+            np_ = pattern[ny * m + nx]
+            bits = 0
+            for r in range(move_first[d], move_first[d + 1]):
+                tail, head, dx, dy = moves[r, 1], moves[r, 2], moves[r, 3], moves[r, 4]
+                tail_label, head_label = labels[p, tail], labels[np_, head]
+                if tail_label < 0 or head_label < 0:
+                    continue
+                if dx != 0 and dy != 0:  # no corner cutting: both orthogonal neighbours free
+                    tx, ty = 2 * bx + (tail & 1), 2 * by + (tail >> 1)
+                    if not (free[ty, tx + dx] and free[ty + dy, tx]):
+                        continue
+                bits |= 1 << (2 * tail_label + head_label)
+            joined[4 * b + d] = bits
+            for bit in range(4):
+                total += (bits >> bit) & 1
+    low = np.empty(total, dtype=np.int64)
+    high = np.empty(total, dtype=np.int64)
+    e = 0
+    for b in range(m * m):
+        if pattern[b] == 0:
+            continue
+        bx, by = b % m, b // m
+        for tail_label in range(2):
+            for d in range(4):
+                bits = joined[4 * b + d]
+                if bits == 0:
+                    continue
+                nb = (by + fdy[d]) * m + bx + fdx[d]
+                for head_label in range(2):
+                    if bits >> (2 * tail_label + head_label) & 1:
+                        low[e] = offset[b] + tail_label
+                        high[e] = offset[nb] + head_label
+                        e += 1
+    return grid, count, low, high, cells[:k], first_cell
+
+
+@_compiled
 def door_points(
     grid: IntArray, movement: int, ordered: IntArray, order: IntArray, count: int, states: int
 ) -> FloatArray:
