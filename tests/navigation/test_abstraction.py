@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 from anytime_navigation.planning.abstraction import Pyramid, cell_bounds, project
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 
@@ -126,3 +126,38 @@ def test_cell_bounds_cover_the_grid_exactly() -> None:
             x0, y0, x1, y1 = cell_bounds((x, y), 2)
             counts[y0:y1, x0:x1] += 1
     assert (counts == 1).all()
+
+
+@settings(deadline=None)  # the first call loads the compiled code
+@given(st.integers(0, 2**31), st.integers(1, 60), st.integers(0, 200), st.integers(1, 8))
+def test_the_compiled_grouped_components_are_scipys(
+    seed: int, n: int, edge_count: int, groups: int
+) -> None:
+    """The build's union-find (`corridor_search.grouped_components`) labels the graph of the
+    edges within each group as scipy's connected components did before it, numbered by group,
+    then by first cell."""
+    from anytime_navigation.planning.search import compiled
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    rng = np.random.default_rng(seed)
+    side = 16
+    group = np.sort(rng.integers(0, groups, n))
+    first_cell = rng.permutation(side * side)[:n].astype(np.int64)  # distinct, as cells are
+    a, b = rng.integers(0, n, edge_count), rng.integers(0, n, edge_count)
+    keep = a != b
+    low, high = np.minimum(a, b)[keep], np.maximum(a, b)[keep]
+    inside = group[low] == group[high]
+    graph = csr_matrix((np.ones(int(inside.sum())), (low[inside], high[inside])), shape=(n, n))
+    count, label = connected_components(graph, directed=False)
+    first = np.full(count, side * side, dtype=np.int64)
+    np.minimum.at(first, label, first_cell)
+    where = np.zeros(count, dtype=np.int64)
+    where[label] = group
+    order = np.argsort(where * side * side + first)
+    rank = np.zeros(count, dtype=np.int64)
+    rank[order] = np.arange(count)
+    component, found, firsts = compiled().grouped_components(low, high, group, first_cell, side)
+    assert found == count
+    assert np.array_equal(component, rank[label])
+    assert np.array_equal(firsts, first[order])

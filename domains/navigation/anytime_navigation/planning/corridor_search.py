@@ -666,6 +666,53 @@ def quads(
 
 
 @_compiled
+def _root(parent: IntArray, u: int) -> int:
+    """Node u's representative in the union-find forest `parent`, halving the path to it."""
+    while parent[u] != u:
+        parent[u] = parent[parent[u]]
+        u = parent[u]
+    return u
+
+
+@_compiled
+def grouped_components(
+    low: IntArray, high: IntArray, group: IntArray, first_cell: IntArray, side: int
+) -> tuple[IntArray, int, IntArray]:
+    """The components of the graph of the edges (low, high) that stay within a `group`
+    (`components._components`), by union-find: each node's component, their number and first
+    cells (the least of their nodes' `first_cell`), numbered by group, then by first cell."""
+    n = len(group)
+    forest = np.arange(n)
+    for e in range(len(low)):
+        a, b = low[e], high[e]
+        if group[a] == group[b]:
+            ra, rb = _root(forest, a), _root(forest, b)
+            if ra != rb:
+                forest[max(ra, rb)] = min(ra, rb)
+    label = np.full(n, -1, dtype=np.int64)
+    count = 0
+    for u in range(n):
+        r = _root(forest, u)
+        if label[r] < 0:
+            label[r] = count
+            count += 1
+        label[u] = label[r]
+    first = np.full(count, side * side, dtype=np.int64)
+    where = np.zeros(count, dtype=np.int64)
+    for u in range(n):
+        c = label[u]
+        first[c] = min(first[c], first_cell[u])
+        where[c] = group[u]
+    order = np.argsort(where * side * side + first)  # unique keys: first cells differ
+    rank = np.empty(count, dtype=np.int64)
+    rank[order] = np.arange(count)
+    component = np.empty(n, dtype=np.int64)
+    for u in range(n):
+        component[u] = rank[label[u]]
+    return component, count, first[order]
+
+
+@_compiled
 def door_points(
     grid: IntArray, movement: int, ordered: IntArray, order: IntArray, count: int, states: int
 ) -> FloatArray:
