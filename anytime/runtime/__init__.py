@@ -49,6 +49,7 @@ from anytime.runtime.policies import (
     Utility,
 )
 from anytime.runtime.program import ExecutionError, ProgramRecord, program_module, run_program
+from anytime.runtime.selection import Candidate, FittedStopping, fit_optimal
 
 __all__ = [
     "Observer",
@@ -62,6 +63,9 @@ __all__ = [
     "ConformalStopping",
     "ConformalTable",
     "HistoryStopping",
+    "Candidate",
+    "FittedStopping",
+    "fit_optimal",
     "Assessment",
     "assess",
     "HistoryTable",

@@ -200,6 +200,23 @@ def assess(
     each run ending where it ended by itself) and score it: U(true quality, time) at its stop,
     less `monitoring_cost` per look. On runs the policy was not built from, this is the check
     of what it promises (its `expected_utility`)."""
+    got, best, looks = scores(policy, traces, utility, allocation, monitoring_cost, input_quality)
+    n = len(got)
+    se = float(got.std(ddof=1) / math.sqrt(n)) if n > 1 else math.inf
+    return Assessment(float(got.mean()), se, float(best.mean()), float(looks.mean()), n)
+
+
+def scores(
+    policy: StoppingPolicy,
+    traces: QualityTraces,
+    utility: Utility,
+    allocation: float | None = None,
+    monitoring_cost: float = 0.0,
+    input_quality: Sequence[float] = (),
+) -> tuple[Array, Array, Array]:
+    """What `assess` averages, run by run: `(utility, clairvoyant, looks)`, each `(trials,)`.
+    A policy started afresh decides the same on the same trace, so runs that showed the monitor
+    the same (reports, answers and end) are replayed once."""
     c = check_monitoring_cost("assess", monitoring_cost)
     cell = trace_cell(traces, input_quality, "assess")
     t = traces.time
@@ -209,17 +226,17 @@ def assess(
         raise PolicyError(f"assess: no grid time within the allocation {deadline:g}")
     observed, scored = traces.observed[cell], traces.scored[cell]
     quality, ends = traces.quality[cell][:, : last + 1], traces.end_index()[cell]
-    runs = [  # one replay per run: a policy may read the whole history
-        replay(policy, t, observed[i], deadline, scored[i], int(ends[i]))
-        for i in range(len(observed))
+    seen = np.column_stack([observed, scored, ends])
+    _, first, inverse = np.unique(seen, axis=0, return_index=True, return_inverse=True)
+    runs = [  # one replay per distinct trace: a policy may read the whole history
+        replay(policy, t, observed[i], deadline, scored[i], int(ends[i])) for i in first
     ]
-    stop = np.array([r.stop_index for r in runs])
-    looks = np.array([r.looks for r in runs], dtype=np.float64)
+    inverse = inverse.reshape(-1)
+    stop = np.array([r.stop_index for r in runs], dtype=np.intp)[inverse]
+    looks = np.array([r.looks for r in runs], dtype=np.float64)[inverse]
     worth = utility(t[: last + 1], quality.T).T
-    got = worth[np.arange(len(stop)), stop] - c * looks
+    got: Array = worth[np.arange(len(stop)), stop] - c * looks
     # What each run allowed: up to the allocation and its own end.
     reach = np.arange(last + 1)[None, :] <= ends[:, None]
-    best = np.where(reach, worth, -np.inf).max(axis=1)
-    n = len(got)
-    se = float(got.std(ddof=1) / math.sqrt(n)) if n > 1 else math.inf
-    return Assessment(float(got.mean()), se, float(best.mean()), float(looks.mean()), n)
+    best: Array = np.where(reach, worth, -np.inf).max(axis=1)
+    return got, best, looks
