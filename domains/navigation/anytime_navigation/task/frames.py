@@ -4,9 +4,13 @@ the quantities reported): each frame senses and plans with the compiled frame pr
 sensor window's edge while the next frame's planning overlaps; with moving obstacles, the
 robot decides how to overcome them within the time stock they leave (`overcoming`).
 
-What the robot knows: its map is vision's latest reading of each window it sensed and the
-prior (every cell free) elsewhere, except the cells next to those it stood on, whose true
-state it saw as it moved: vision's later readings, with their errors, do not overwrite them,
+What the robot knows: its map is vision's best reading of each cell it sensed (the reading of
+the longest vision time; a frame whose contract leaves vision no time to read, under `T_A`,
+keeps the map as it was, and a poorer reading does not replace a better one: with a window's
+reading replaced by the prior, a robot whose contract dropped to 200 ticks planned through a
+wall it had read clearly the frame before) and the prior (every cell free) elsewhere, except
+the cells next to those it stood on, whose true state it saw as it moved: vision's later
+readings, with their errors, do not overwrite them,
 and obstacle avoidance keeps the blocked ones among them from frame to frame (`execute`'s
 memory). With a memory begun afresh each frame, a robot whose plan led behind an obstacle felt
 its way into the same dead end frame after frame and walked several times the shortest
@@ -25,7 +29,7 @@ from attrs import evolve as replace
 
 from anytime import Budget, CompiledProgram, OptimalStopping, StoppingPolicy, run_program
 from anytime.plugin import Clock, Unit, WorkClock
-from anytime.plugin.compose import Adjustment, EventLog, Monitor
+from anytime.plugin.compose import Adjustment, EventLog, Monitor, VisionHyperbola
 
 from ..obstacles.moving import MovingObstacle, Plan, Traffic
 from ..world import BoolGrid, Position
@@ -44,7 +48,7 @@ from .model import (
     TaskReport,
     optimal_utility,
 )
-from .vision import Sensor
+from .vision import Q_A, T_A, T_B, Sensor
 
 __all__ = ["NO_DYNAMIC_PROFILE", "WallTicks", "run_task"]
 
@@ -304,6 +308,8 @@ class _TaskRun:
         # The cells whose true state the robot knows for certain: those around the cells it
         # stood on (it sees its eight neighbours as it moves, `execution`).
         self.touched = np.zeros_like(self.truth)
+        # The model quality of the reading each cell of the robot's map holds (0: the prior).
+        self.reading = np.zeros(self.truth.shape)
 
     # --- one frame's steps ----------------------------------------------------------------
 
@@ -400,10 +406,15 @@ class _TaskRun:
         task, world = self.task, self.world
         contract = decision.contract
         window = task.window(position)
+        allocation = self.compiled.allocation_at(list(self.input_quality or ()), contract)
+        # Vision given less than its first reading's time reads nothing: the robot falls back on
+        # what it knows of the window (its prior there is its map, not every cell free).
+        reads = bool(allocation[0] >= T_A)
+        x0, y0 = window[:2]
         sensor = Sensor(
             self.truth,
             seed=task.seed * 7919 + index,
-            window=window,
+            window=window if reads else (x0, y0, x0, y0),
             known=known,
             movement=world.movement,
         )
@@ -424,13 +435,17 @@ class _TaskRun:
         spent = self.run_clock.now() - started
         for event in self.trace.decisions:
             self.log.record(state.now + event.time, event.kind, {**event.data, "frame": index})
-        allocation = self.compiled.allocation_at(list(self.input_quality or ()), contract)
         result = ran.result
         domain = next((r.result for r in ran.records if r.module == "get-domain-description"), None)
         new_known = np.array(known, dtype=bool)
-        if domain is not None and domain.value is not None:
+        if reads and domain is not None and domain.value is not None:
+            # The robot keeps each cell's better reading: a short contract's poorer one (more
+            # errors) does not replace what a longer one read there before.
             x0, y0, x1, y1 = window
-            new_known[y0:y1, x0:x1] = np.asarray(domain.value.blocked)[y0:y1, x0:x1]
+            quality = float(VisionHyperbola(T_A, Q_A, T_B)(float(allocation[0])))
+            better = self.reading[y0:y1, x0:x1] <= quality
+            new_known[y0:y1, x0:x1][better] = np.asarray(domain.value.blocked)[y0:y1, x0:x1][better]
+            self.reading[y0:y1, x0:x1][better] = quality
         # What the robot saw around itself is certain: vision's reading of the window (noisy)
         # does not overwrite it in the robot's map.
         new_known[self.touched] = self.truth[self.touched]
