@@ -21,9 +21,9 @@ finds a path. Refinement never needs a widened corridor.
 Costs. A level's edges join the centres (mean positions) of the nodes' cells, each costing the
 distance between them as the robot moves (Manhattan for 4-connected moves, octile for
 8-connected ones; at level 0 that is the move's length, 1 or sqrt 2). The whole hierarchy is
-built once per map, bottom-up and vectorised (`Components.build`): level 1 read off the 2 x 2
-blocks' patterns, each level above from the graph of the one below (scipy's connected
-components); about linear in the free cells, but for sorting each level's edges. The top level
+built once per map, bottom-up, vectorised and compiled (`Components.build`): level 1 read off
+the 2 x 2 blocks' patterns, each level above from the graph of the one below (a union-find);
+linear in the free cells, each level's edges sorted by counting. The top level
 also gets its *doors* (`doors`: where a route crosses from node to node, for searching the
 first plan's level again by the way through the nodes rather than their centres).
 
