@@ -363,11 +363,23 @@ class _TaskRun:
                 "expected_value": decision.expected_value,
                 "expected_cost": decision.expected_cost,
                 "expected_utility": decision.expected_utility,
-                "predicted_utility": decision.expected_utility - spent,
+                "predicted_utility": self.prediction(state, decision) - spent,
             },
         )
-        self.predictions.append(decision.expected_utility - spent)
+        self.predictions.append(self.prediction(state, decision) - spent)
         return decision, state
+
+    def prediction(self, state: FrameState, decision: Any) -> float:
+        """The utility of the rest of the task the monitor predicts for `decision` in `state`:
+        with a calibration, the median of its model's distribution (over the training worlds
+        for the first frame, over the route qualities of the profile later), the point of least
+        expected absolute error; the contract is chosen on the expected utility. Without one,
+        the expected utility."""
+        if isinstance(decision, FirstDecision):
+            return decision.median_utility
+        if self.calibration is None:
+            return float(decision.expected_utility)
+        return self.model.median_utility(state, decision.contract)
 
     def choose(self, state: FrameState, now: float) -> Any:
         """The contract of highest expected utility in `state`: the first frame's from the
@@ -604,7 +616,7 @@ class _TaskRun:
         records: list[FrameRecord] = []
 
         decision, state = self.decide(now, position, known, None)
-        predicted = decision.expected_utility
+        predicted = self.predictions[0]
         planned = self.plan(position, known, decision, state, 0)
         planned_at = now
         now += self.planning_time(decision, planned)

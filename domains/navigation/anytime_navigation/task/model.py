@@ -47,16 +47,22 @@ lasts until the policy stops it.
 
 Two references:
 
-- `predicted_utility`: the expected utility of the whole task that the monitor computes when
-  the task is presented, i.e. its first inter-frame decision: the highest over the contract
-  grid and the speed grid of E_q[V(T_hat) - E_hat], where the expectation is over the output
-  quality distribution at the contract of the profile the monitor plans with, and `T_hat`,
-  `E_hat` come from the
-  environment model `TaskModel` with the remaining distance the shortest route on the prior map
-  (nothing known: every cell free, i.e. the Manhattan distance for 4-connected movement).
-  Where the calibration measured the first frame apart (`TaskModel.first_choice`), the
-  expectation is over the training worlds instead: the first frame's route and the later
-  frames' stretch of the rest, world by world.
+- `predicted_utility`: the utility of the whole task that the monitor predicts when the task
+  is presented, at its first inter-frame decision: the contract and speed of highest
+  E_q[V(T_hat) - E_hat] over the contract grid and the speed grid, where the expectation is
+  over the output quality distribution at the contract of the profile the monitor plans with,
+  and `T_hat`, `E_hat` come from the environment model `TaskModel` with the remaining
+  distance the shortest route on the prior map (nothing known: every cell free, i.e. the
+  Manhattan distance for 4-connected movement). Where the calibration measured the first frame
+  apart (`TaskModel.first_choice`), the distribution is over the training worlds instead: the
+  first frame's route and the later frames' stretch of the rest, world by world. Without a
+  calibration the prediction is that expected utility; with one, the median of the same
+  distribution at the chosen contract (`FirstDecision.median_utility`,
+  `TaskModel.median_utility`): the point of least expected absolute error, which is what
+  `prediction_error` measures (a few worlds in which the robot wanders pull the mean below
+  what most worlds realise: on 200 validation worlds, seeds 2000-2199, the mean error was
+  1.56% and 2.03% at 64 x 64 and 128 x 128 with the expected utility, 1.18% and 1.78% with
+  the median).
 - `optimal_utility`: a clairvoyant bound on the same world: the true map known, no sensing or
   planning time, a shortest route `L*`, at the best constant speed of the grid:
   `max_v V(L* / v) - energy_per_cell(v) * L*`.
@@ -93,6 +99,7 @@ __all__ = [
     "TaskModel",
     "TaskReport",
     "optimal_utility",
+    "weighted_median",
 ]
 
 POLICIES = ("monitored", "fixed", "min", "max", "stopping")
@@ -227,6 +234,24 @@ class FirstDecision:
     expected_completion: float
     grid: Array
     utility_curve: Array
+    #: The median over the training worlds of the whole task's utility at this contract: the
+    #: prediction of least expected absolute error (the mean is pulled down by the few worlds
+    #: in which the robot wanders).
+    median_utility: float = math.nan
+
+
+def weighted_median(values: Array, weights: Array) -> float:
+    """The smallest of `values` at which the cumulative share of `weights` reaches one half:
+    a point of least expected absolute error for a distribution of `values` with `weights`."""
+    v = np.asarray(values, dtype=np.float64).reshape(-1)
+    w = np.asarray(weights, dtype=np.float64).reshape(-1)
+    keep = w > 0
+    if not keep.any():
+        raise ValueError("weighted_median needs a positive weight")
+    v, w = v[keep], w[keep]
+    order = np.argsort(v, kind="stable")
+    share = np.cumsum(w[order]) / w.sum()
+    return float(v[order][np.searchsorted(share, 0.5 - 1e-12)])
 
 
 @frozen
@@ -410,6 +435,7 @@ class TaskModel:
         # The quality the monitor expects: the distance over the expected route, as the
         # calibration measures a route's quality.
         route = float(path[i, :, j].mean())
+        per_world = np.take_along_axis(utility, mix, axis=-1)[i, :, j, 0]
         return FirstDecision(
             contract=float(c[i]),
             expected_quality=min(1.0, d / route) if route > 0 else 1.0,
@@ -419,6 +445,7 @@ class TaskModel:
             expected_completion=float(at_mix(completion)[i, j]),
             grid=c,
             utility_curve=u_curve,
+            median_utility=float(np.median(per_world)),
         )
 
     @property
@@ -453,6 +480,20 @@ class TaskModel:
         """Value minus cost of the rest of the task for one contract and plan quality."""
         c, q = np.asarray(contract, dtype=np.float64), np.asarray(quality, dtype=np.float64)
         return float(self.value(state, c, q) - self.cost(state, c, q))
+
+    def median_utility(self, state: FrameState, contract: float) -> float:
+        """The median of the rest of the task's utility at `contract` over the quality
+        distribution of the profile at it (`weighted_median`: the prediction of least expected
+        absolute error; the expected utility is the one the contract is chosen on)."""
+        if self.profile is None:
+            raise ValueError("the task model has no profile: no distribution to take it over")
+        inputs = np.ones(self.profile.n_inputs)
+        t = np.asarray(float(contract))
+        weights = self.profile.distribution(inputs, t)
+        qualities = self.profile.representatives(inputs, t)
+        c = np.full(qualities.shape, float(contract))
+        utilities = self.value(state, c, qualities) - self.cost(state, c, qualities)
+        return weighted_median(utilities, weights)
 
     def expected_completion(self, state: FrameState, contract: float, quality: float) -> float:
         completion, _ = self._parts(
@@ -511,8 +552,9 @@ class FrameRecord:
     Times are task times in ticks. `plan` is the program's output (a `MultiPath`, or None);
     `route` the cells the robot moved along in this frame (its first cell is where it stood);
     `predicted_utility` the utility of the whole task the monitor predicted when it chose this
-    frame's contract (the energy spent until then plus the expected value minus energy of the
-    rest: the first frame's is the report's `predicted_utility`); `adjustments` what the
+    frame's contract (the energy spent until then taken from the predicted value minus energy
+    of the rest, `frames._TaskRun.prediction`: the first frame's is the report's
+    `predicted_utility`); `adjustments` what the
     intra-frame rule said at each check during it ("faster declined", "slower declined": a
     move the task model expected not to pay, so not made); `stopped_at`, under the `stopping`
     policy, the program time at which the policy stopped the planner (None: it ran to the
