@@ -303,6 +303,29 @@ def _counts(index: NDArray[np.intp], k: int, weights: Array | None = None) -> Ar
     return counts.astype(np.float64).reshape((*lead, k))
 
 
+def _joint_counts(
+    state: NDArray[np.intp],
+    true: NDArray[np.intp],
+    shape: tuple[int, int],
+    entering: NDArray[np.bool_] | None,
+    weights: Array | None = None,
+) -> Array:
+    """`(*cells, m, K, B)` counts (or sums of `weights`) of the trials in each (state, true bin)
+    at each time, for `shape` (K, B): of the trials marked `entering` where some in the state
+    at that time are (all of them where None), else of every trial in it. An ended state's
+    true quality is that of the runs that ended then, and of those that ended before where
+    none did."""
+    k, kb = shape
+    index = state * kb + true
+    every = _counts(index, k * kb, weights).reshape((*index.shape[:-2], -1, k, kb))
+    if entering is None:
+        return every
+    mask = entering.astype(np.float64)
+    fresh = _counts(index, k * kb, mask if weights is None else mask * weights)
+    marked = _counts(index, k * kb, mask).reshape(every.shape).sum(axis=-1, keepdims=True)
+    return np.where(marked > 0, fresh.reshape(every.shape), every)
+
+
 @frozen
 class DynamicProfile:
     """A module's dynamic performance profile (see the module docstring).
@@ -423,6 +446,7 @@ class DynamicProfile:
             classes_edges = np.asarray(entered, dtype=np.float64)
         kb = len(edges) - 1
         level = _bin_of(observed, edges)  # (*cells, N, m)
+        entering: NDArray[np.bool_] | None = None
         state = level
         true = _bin_of(traces.quality, edges)
         if classes_edges is not None:
@@ -441,6 +465,10 @@ class DynamicProfile:
             at_end = np.take_along_axis(level, end, axis=-1)
             state = np.where(over, k + at_end, state)
             k += kb
+            # A run that ended counts where it ended (the policies bank it as it enters its
+            # ended state): what an ended state says of the true quality at a time is learned
+            # from the runs entering it then, not from every run that ended before.
+            entering = ~over | (np.arange(m) == end)
         n = traces.trials
         occupancy = _counts(state, k) / n
         # Pair counts of consecutive states: (*cells, m - 1, K, K), summed over trials.
@@ -452,20 +480,16 @@ class DynamicProfile:
         sums = _counts(true, kb, weights=traces.quality)
         midpoints = (edges[:-1] + edges[1:]) / 2
         quality_mean = np.where(true_counts > 0, sums / np.maximum(true_counts, 1), midpoints)
+        joint = _joint_counts(state, true, (k, kb), entering)  # (*cells, m, K, B)
         if classes_edges is not None or ends:  # per state and true bin: runs of one bin differ
             # by class, and the runs still running from those that ended
-            pair_counts = _counts(state * kb + true, k * kb)
-            pair_sums = _counts(state * kb + true, k * kb, weights=traces.quality)
-            shape = (*occupancy.shape, kb)
+            state_sums = _joint_counts(state, true, (k, kb), entering, traces.quality)
             quality_mean = np.where(
-                pair_counts.reshape(shape) > 0,
-                pair_sums.reshape(shape) / np.maximum(pair_counts.reshape(shape), 1),
-                quality_mean[..., None, :],
+                joint > 0, state_sums / np.maximum(joint, 1), quality_mean[..., None, :]
             )
         quality_mean = np.clip(quality_mean, np.r_[0.0, edges[1:-1]], np.r_[edges[1:-1], 1.0])
         observation = None
         if traces.reports != "true" or classes_edges is not None or ends:
-            joint = _counts(state * kb + true, k * kb).reshape((*occupancy.shape, kb))
             given = joint.sum(axis=-1, keepdims=True)
             marginal = true_counts[..., None, :] / n
             observation = np.where(given > 0, joint / np.maximum(given, 1), marginal)

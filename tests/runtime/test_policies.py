@@ -389,3 +389,32 @@ def test_with_costly_looks_it_promises_what_it_does_when_a_skipped_look_cannot_s
     assert abs(policy.expected_utility() - values.mean()) < 2 * se
     fixed = realised(FixedStopping(profile, model, model), fresh, utility).mean()
     assert values.mean() > fixed + 0.02
+
+
+@given(
+    st.integers(0, 10**6),
+    st.integers(2, 6),
+    st.integers(1, 30),
+    st.sampled_from(["true", "estimate"]),
+    st.integers(1, 4),
+    st.sampled_from([None, 2]),
+    st.floats(0.0, 0.5),
+)
+@SETTINGS
+def test_the_fixed_stops_value_with_runs_that_end_is_the_traces_own(
+    seed: int, m: int, trials: int, reports: str, states: int, entered: int | None, rate: float
+) -> None:
+    """Without looking, the value of stopping at each grid time is the mean over the recorded
+    runs of U where each is then (at that time, or where it ended by itself): a linear utility
+    needs no model, so the profile's must be exact, whatever its bins and classes. (An ended
+    state's true quality is that of the runs that ended then, not of every run that ended
+    before, which the runs that ended later would skew.)"""
+    recorded = ending(traces(seed, m, trials, reports), seed)
+    profile = DynamicProfile.from_traces(recorded, states=states, entered=entered, ends=True)
+    model = Linear(1.0, rate)
+    policy = FixedStopping(profile, model, model)
+    worth = Utility(model, model)(recorded.time, recorded.quality.T).T  # (trials, m)
+    end = recorded.end_index()
+    held = np.minimum(np.arange(m), end[:, None])
+    expected = worth[np.arange(trials)[:, None], held].mean(axis=0)
+    np.testing.assert_allclose(policy.model.blind(m - 1), expected, atol=TOLERANCE)
