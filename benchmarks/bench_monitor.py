@@ -15,7 +15,9 @@ monitored policy's utility less the policy's, world by world, with the standard 
 mean difference (positive: the monitor did better; paired on the same worlds, the worlds'
 own spread cancels). Then whether the monitored policy is above every fixed contract and MIN,
 and its prediction: the mean predicted and realised utility (the prediction's bias, with its
-standard error), the mean error, and the mean error of the best single number in hindsight:
+standard error; the prediction is the median of the monitor's model at its first decision,
+not the mean, so a bias is expected where a few worlds wander, `anytime_navigation.task.model`),
+the mean error, and the mean error of the best single number in hindsight:
 the prediction made when the task is presented is one number for every world (the robot has
 sensed nothing yet, and the worlds share their start, goal and size), so that error bounds
 what any prediction made then can reach on these worlds. Then the worlds the monitor predicts
