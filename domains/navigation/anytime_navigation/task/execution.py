@@ -43,6 +43,14 @@ robot's base cell, each waypoint in turn is
    a plan made before the robot saw the walls around it may put a waypoint in a pocket that
    only the long way round reaches, a detour the plan never meant.
 
+   A robot given its map (`believed`, with a `penalty`) plans its detours around the obstacles
+   the map shows, each of their cells costing `penalty` cells more to cross than a free one,
+   rather than through them: the frames give it the robot's map when the plan runs through
+   cells blocked on the map it was made on (the planner at times answers with such a plan,
+   refined to the base level and estimated at quality 1.0), where with the free-space
+   assumption alone the robot felt its way along the wrong side of an obstacle it had read.
+   Not impassable: vision's false obstacles are crossed at their cost.
+
 The robot never enters a blocked cell, every step is a legal move, and the route ends at the
 goal whenever the goal is reachable from the start (the goal is the last waypoint and every
 waypoint reachable is reached). An unreachable goal (or a blocked one) is not an error: the
@@ -65,9 +73,11 @@ refined plan computed on the true map costs 0.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
+import numpy.typing as npt
 from attrs import frozen
 
 from anytime.plugin import Context
@@ -93,6 +103,10 @@ Box = tuple[int, int, int, int]  # (x0, y0, x1, y1), half-open: blocked[y0:y1, x
 #: plus this many cells too (a small obstacle in the way of a near waypoint is no reason to give
 #: it up).
 SLACK = 8
+
+#: `execute(believed=)`: the margin around the robot and the block of obstacle avoidance's first
+#: search; the free-space assumption's 8 cells leave no room to go round an obstacle read wider.
+MARGIN_BELIEVED = 24
 
 _STRAIGHT = ((1, 0), (-1, 0), (0, 1), (0, -1))
 _DIAGONAL = ((1, 1), (-1, 1), (1, -1), (-1, -1))
@@ -161,6 +175,8 @@ def execute(
     memory: BoolGrid | None = None,
     keep_to_plan: bool = False,
     give_up: float | None = None,
+    believed: npt.ArrayLike | None = None,
+    penalty: float = 0.0,
 ) -> Execution:
     """Follow `plan` on the true map `blocked` (see the module docstring).
 
@@ -189,6 +205,14 @@ def execute(
             lie behind walls it has found, and reaching one the long way round only to come
             back is a detour the plan never meant. None (the default): every reachable
             waypoint is reached, as find-path's profile was measured.
+        believed: the cells the robot's map says are blocked (a sensed map, with its errors),
+            shaped like `blocked`: obstacle avoidance plans around them, each costing `penalty`
+            cells more to cross than a free one, rather than through them as if free; they are
+            not impassable (a false reading of one cell costs its `penalty`, a wide obstacle
+            read as such costs its width times it). Only the memory's cells are impassable.
+            Default: none (the free-space assumption alone, as find-path's profile was
+            measured).
+        penalty: the extra cost of crossing a `believed` cell, in cells (>= 0).
 
     Raises:
         ValueError: an empty plan, a start or a waypoint outside the grid, a blocked start, an
@@ -201,6 +225,13 @@ def execute(
         raise ValueError(f"movement must be 4 or 8, got {movement!r}")
     if give_up is not None and not give_up >= 1.0:
         raise ValueError(f"give_up must be >= 1 or None, got {give_up!r}")
+    if not penalty >= 0.0 or math.isinf(penalty):
+        raise ValueError(f"penalty must be finite and >= 0, got {penalty!r}")
+    costs: np.ndarray | None = None
+    if believed is not None and penalty > 0:
+        costs = np.asarray(believed, dtype=np.float64)
+        if costs.shape != grid.shape:
+            raise ValueError(f"believed has shape {costs.shape}, the map {grid.shape}")
     regions: list[BoolGrid | None]
     corridor: BoolGrid | None = None
     if isinstance(plan, MultiPath):
@@ -257,6 +288,8 @@ def execute(
             movement,
             corridor,
             give_up if i < last else None,
+            costs,
+            penalty,
         )
         expansions += work
         if tick is not None:
@@ -348,13 +381,17 @@ def _feel_into(
     movement: int,
     corridor: BoolGrid | None = None,
     give_up: float | None = None,
+    believed: np.ndarray | None = None,
+    penalty: float = 0.0,
 ) -> tuple[list[Position], int]:
     """Obstacle avoidance toward the `target` cells of `box` (a mask of the box) with the
     free-space assumption (see the module docstring): plan with A* on `memory` (the blocked
     cells the robot has seen; updated in place), walk the path, re-plan when a cell seen
     blocked is in the way. With `give_up`, stop (short of the box) when the cells walked and
     the path planned on from there are longer than `give_up` times the distance to the box from
-    `position` and than that distance plus `SLACK`.
+    `position` and than that distance plus `SLACK`. With `believed`, its cells cost `penalty`
+    more to cross (see `execute`), and the first search looks further around (`MARGIN_BELIEVED`):
+    a detour around an obstacle the robot read is wider than one around a cell it bumped into.
     Returns the cells walked (`position` first) and the A* expansions."""
     height, width = grid.shape
     x0, y0, x1, y1 = box
@@ -368,7 +405,7 @@ def _feel_into(
         longest = max(give_up * near, near + SLACK)
     while not (x0 <= x < x1 and y0 <= y < y1 and target[y - y0, x - x0]):
         path = None
-        margin = 8
+        margin = 8 if believed is None else MARGIN_BELIEVED
         while path is None:
             wx0, wy0 = max(0, min(x, x0) - margin), max(0, min(y, y0) - margin)
             wx1, wy1 = min(width, max(x + 1, x1) + margin), min(height, max(y + 1, y1) + margin)
@@ -378,11 +415,11 @@ def _feel_into(
                 closed = seen | ~corridor[wy0:wy1, wx0:wx1]
                 closed[y - wy0, x - wx0] = False
             found = find_path_to_box(
-                seen,
+                seen if believed is None else believed[wy0:wy1, wx0:wx1],
                 [(x - wx0, y - wy0)],
                 (x0 - wx0, y0 - wy0, x1 - 1 - wx0, y1 - 1 - wy0),
                 movement=movement,
-                weight=0.0,
+                weight=penalty if believed is not None else 0.0,
                 impassable=closed,
                 box_costs=ending,  # only at a target: the box's other cells may be crossed
             )
