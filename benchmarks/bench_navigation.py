@@ -25,8 +25,9 @@ ATP's abstraction.
    with a line saying so, when it is not installed.
 3. Per map kind (issues 17 and 36): the default ATP, and beside it each option of `atp` that
    issue 36 asks to measure (`KIND_CONFIGS`: the door search kept near the first plan, the first
-   plan a level higher, a direct search for short problems, and one for narrow corridors after
-   the first plan; each with its own abstraction's build), against A* on the longest problems
+   plan a level higher, a direct search for short problems, one for narrow corridors after
+   the first plan, and open level-1 segments refined without a ring; each with its own
+   abstraction's build), against A* on the longest problems
    of 14 MovingAI maps, the shipped three and eleven
    more in benchmarks/data/movingai/ (random with 20% of cells blocked, rooms of 16, 32 and 64,
    mazes of corridor widths 2, 4 and 8, two street maps, a Baldur's Gate II and a Dragon Age
@@ -136,6 +137,12 @@ KIND_CONFIGS: dict[str, dict[str, Any]] = {
     "top=4": {"top": 4},
     "top=4, direct=4": {"top": 4, "direct": 4},
     "top=4, direct=4, direct_width=12": {"top": 4, "direct": 4, "direct_width": 12},
+    "... and no_ring_when_open=0.05": {
+        "top": 4,
+        "direct": 4,
+        "direct_width": 12,
+        "no_ring_when_open": 0.05,
+    },
 }
 
 #: The papers' result when run to completion, and the issue's target on 512 x 512 maps.
@@ -920,8 +927,10 @@ def bench_kinds(
         " up, the abstraction built up to L; direct=D: a first plan of at most D nodes is\n"
         " followed by one base search through its cells and its neighbours' instead of the\n"
         " refinements; direct_width=W: likewise after the first plan when those cells are at\n"
-        f" most W per unit of its length (a narrow corridor); the {count} problems of the\n"
-        " longest buckets per map, octile without\n"
+        " most W per unit of its length (a narrow corridor); no_ring_when_open=T (with the\n"
+        " row above's options): a level-1 segment of mean obstacleness at most T is refined\n"
+        " through its own nodes' cells, without a ring of neighbours; the\n"
+        f" {count} problems of the longest buckets per map, octile without\n"
         " corner cutting, optimal lengths from A*; A* and the ATP interleaved, each the best of\n"
         f" {repeats} run(s); columns as in the first table, but an execution is given up after\n"
         f" {budget:g}x the pure-Python A*'s time;\n"
