@@ -93,6 +93,10 @@ def fit_optimal(
     `states` x `entered` (see the module docstring), for runs with `allocation` (default: the
     traces' last time). `ends` (default: whether some run ended by itself before the last grid
     time) gives the profiles ended states."""
+    if not isinstance(training, QualityTraces):
+        raise PolicyError(
+            f"fit_optimal: expected QualityTraces to learn from, got {type(training).__name__}"
+        )
     n = training.trials
     if not isinstance(folds, int) or isinstance(folds, bool) or not 2 <= folds <= n:
         raise PolicyError(

@@ -110,6 +110,9 @@ def test_bad_arguments_are_named() -> None:
     recorded = quantised(4, 10)
     model = Linear(1.0, 0.0)
     utility = Utility(model, model)
+    with pytest.raises(PolicyError) as error:
+        fit_optimal("traces", utility)  # type: ignore[arg-type]
+    assert str(error.value) == "fit_optimal: expected QualityTraces to learn from, got str"
     for folds in (1, 11, True, 2.5):
         with pytest.raises(PolicyError) as error:
             fit_optimal(recorded, utility, folds=folds)  # type: ignore[arg-type]
