@@ -83,10 +83,10 @@ def test_where_the_policy_stops_planners_early(report):
     assert stopped == [(2, 1000.0, 947.0), (3, 1000.0, 908.0)]
     reasons = [e.data["reason"] for e in report.log.of_kind("stopping") if e.data["frame"] == 2]
     assert reasons == [
-        "expected utility 767.792",
-        "going on is worth 767.797",
-        "going on is worth 767.99",
-        "stopping now is worth 767.814, going on less",
+        "expected utility 767.717",
+        "going on is worth 767.722",
+        "going on is worth 767.916",
+        "stopping now is worth 767.74, going on less",
     ]
 
 
