@@ -36,10 +36,10 @@ itself from frame to frame, `frames`, again when it came to give up a waypoint t
 which turned long, `frames.GIVE_UP`, and when a frame whose vision reads nothing came to plan
 on the robot's map rather than on the prior, `frames`: one world of 150 moved, at 200 ticks at
 64 x 64, and when detours came to be planned on the robot's map where a plan crosses its own,
-`frames.PENALTY`: mean route over shortest within 0.003 per contract; a few seconds of processor time per world at
-128 x 128, less at 64 x 64; the numbers are the same on any number of workers). Speeds do not
-enter: the route a
-frame walks and its progress do not depend on how fast the robot walks it.
+`frames.PENALTY`: mean route over shortest within 0.003 per contract; a few seconds of
+processor time per world at 128 x 128, less at 64 x 64; the numbers are the same on any number
+of workers). Speeds do not enter: the route a frame walks and its progress do not depend on how
+fast the robot walks it.
 """
 
 from __future__ import annotations
