@@ -39,9 +39,10 @@ utility, max over t of U(q_t, t) of each test trace, which knows the whole trace
    without looking; a cell is a range of rates per bias). Policies are built on 2,000
    training runs and replayed on 2,000 test runs; the Bayes policy is replayed too, and its
    realised mean checked against its exact value. The optimal policy is `fit_optimal`'s: the
-   Markov policy on the state (quality bins x classes of the time the run entered its bin)
-   that 5-fold cross-validation on the training runs chose, its claim the cross-validated
-   utility; "optimal, bin only" is the Markov policy on 10 bins alone, its claim its model's
+   Markov policy on the state (quality bins x classes of the time the run entered its bin),
+   or the history policy where it beats every such state by more than a standard error, that
+   5-fold cross-validation on the training runs chose, its claim the cross-validated utility;
+   "optimal, bin only" is the Markov policy on 10 bins alone, its claim its model's
    value, for comparison. Targets for the optimal (and history) policy: >= 0.98 of the Bayes
    optimum, never below fixed by more than the se of the paired difference, its claimed
    expected utility within 2 se of what it realises (the se of both: the claim's own and the
@@ -92,7 +93,7 @@ from anytime.runtime.policies import (
     StoppingPolicy,
     Utility,
 )
-from anytime.runtime.selection import fit_optimal
+from anytime.runtime.selection import FittedStopping, fit_optimal
 
 
 @frozen
@@ -302,7 +303,7 @@ def free_looks(
                 *(["-"] if "history" not in got else []),
                 lead(got, "optimal", best),
                 lead(got, "history", best),
-                f"{fit.states} x {fit.entered}",
+                state_of(fit),
                 _claim(claim),
             ]
         )
@@ -707,6 +708,11 @@ class SharedFits(ProjectedStopping):
         return self.fits[key]
 
 
+def state_of(fit: FittedStopping) -> str:
+    """The state `fit_optimal` chose, short: "history", or "bins x classes"."""
+    return fit.state if fit.states == 0 else f"{fit.states} x {fit.entered}"
+
+
 def history_policy(
     train: QualityTraces, utility: Utility, monitoring: float, input_quality: float = 1.0
 ) -> HistoryStopping:
@@ -775,7 +781,7 @@ def synthetic_row(
         elif name.startswith("optimal") or name == "history":
             claimed, claimed_se = policy.expected_utility(), policy.standard_error()
         outcomes[name] = Outcome(got, claimed, claimed_se)
-    return exact, outcomes, table[test].max(axis=1), f"{fit.states} x {fit.entered}"
+    return exact, outcomes, table[test].max(axis=1), state_of(fit)
 
 
 def _verdict(name: str, outcomes: dict[str, Outcome]) -> str:
@@ -949,12 +955,12 @@ def modules(args: argparse.Namespace, started: float) -> None:
         f" policies come from {trials} training traces of other instances (fixed, myopic,"
         f" projected and 'optimal, 10 bins' on their dynamic profile of {STATES} quality bins,"
         " with a state per bin for the runs that ended by themselves where some did); optimal:"
-        " `fit_optimal`, the optimal policy on the state (quality bins x entry-time classes)"
-        " the training traces' 5-fold cross-validation chose, its claim the cross-validated"
-        " utility; history: the policy learned on the training runs' histories, with --history"
-        " only; target: optimal (and history) >= 0.98 where the fixed policy's ceiling allows,"
-        " its lead over fixed and myopic never below minus its standard error, and its claim"
-        " within 2 se of what it realised)"
+        " `fit_optimal`, the optimal policy on the state (quality bins x entry-time classes, or the"
+        " history) the training traces' 5-fold cross-validation chose, its claim the"
+        " cross-validated utility; history: the policy learned on the training runs' histories,"
+        " with --history only; target: optimal (and history) >= 0.98 where the fixed policy's"
+        " ceiling allows, its lead over fixed and myopic never below minus its standard error, and"
+        " its claim within 2 se of what it realised)"
     )
     print()
     print(
@@ -1048,12 +1054,12 @@ def synthetic(quick: bool) -> None:
         )
     )
     print(
-        "\n(optimal's state: quality bins x entry-time classes; claimed: the utility a policy"
-        " promises with its standard error (the optimal policy's cross-validated utility, the"
-        " history policy's `expected_utility()` and `standard_error()`; the Bayes"
-        " policy's is the exact value of its backward induction); realised: its mean on the"
-        " test runs; z: |claimed - realised| over the standard errors of both; targets: >= 0.98"
-        " of the Bayes policy, not below fixed by more than the standard error of the paired"
+        "\n(optimal's state: quality bins x entry-time classes, or the history; claimed: the"
+        " utility a policy promises with its standard error (the optimal policy's cross-validated"
+        " utility, the history policy's `expected_utility()` and `standard_error()`; the Bayes"
+        " policy's is the exact value of its backward induction); realised: its mean on the test"
+        " runs; z: |claimed - realised| over the standard errors of both; targets: >= 0.98 of the"
+        " Bayes policy, not below fixed by more than the standard error of the paired"
         f" difference, claim within 2 se. Rows meeting all three: optimal {met['optimal']},"
         f" history {met['history']} of {met['rows']})"
     )

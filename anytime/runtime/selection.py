@@ -13,6 +13,13 @@ state whose cross-validated utility is within one standard error of the best (of
 difference, run by run: the one-standard-error rule, which prefers the state learned better
 when the data cannot tell them apart), and builds the policy on all the traces.
 
+The candidates are Markov states and, unless `history=False`, the run's whole history
+(`HistoryStopping`: the decision learned from the training runs whose reports so far were
+nearest, a belief over the kinds of run). The history is the richest state, so it is kept only
+where it beats every Markov state by more than a standard error: where the report's level says
+less than how it got there (a biased or quantised estimate the runs differ in), which no number
+of bins recovers from a few thousand runs.
+
 Its promise is that cross-validated utility, with its standard error: an estimate of what the
 policy realises on fresh runs like the training ones that does not rest on the Markov
 assumption (slightly low: each fold's policy learned from K - 1 folds of the runs). The model's
@@ -25,13 +32,16 @@ that ends by itself still ends there).
 from __future__ import annotations
 
 import math
+import weakref
 from collections.abc import Sequence
 
 import numpy as np
 from attrs import frozen
+from numpy.typing import NDArray
 
 from anytime.profiles.dynamic import DynamicProfile, QualityTraces
 from anytime.profiles.profile import Array
+from anytime.runtime.learned import HistoryStopping
 from anytime.runtime.observe import PolicyError
 from anytime.runtime.offline import scores
 from anytime.runtime.policies import OptimalStopping, Utility
@@ -41,16 +51,30 @@ STATES = (1, 5, 10, 20)
 ENTERED = (1, 4, 8, 16)
 #: Cross-validation folds.
 FOLDS = 5
+#: The name of the history state.
+HISTORY = "history"
 
 
 @frozen
 class Candidate:
-    """One candidate state and what its policy realised on the runs it was not learned from."""
+    """One candidate state and what its policy realised on the runs it was not learned from.
+
+    Attributes:
+        states: quality bins (0: the history state).
+        entered: entry-time classes (0: the history state).
+        utility: the cross-validated mean utility (looks paid).
+        standard_error: its standard error.
+    """
 
     states: int
     entered: int
     utility: float
     standard_error: float
+
+    @property
+    def state(self) -> str:
+        """`"history"`, or `"B bins x C classes"`."""
+        return HISTORY if self.states == 0 else f"{self.states} bins x {self.entered} classes"
 
 
 @frozen
@@ -58,22 +82,29 @@ class FittedStopping:
     """The optimal policy on the chosen state, and its cross-validated promise.
 
     Attributes:
-        policy: `OptimalStopping` on `profile`.
-        profile: the dynamic profile of all the training traces on the chosen state.
-        states: its number of quality bins (at most; quantile bins merge equal qualities).
-        entered: its number of entry-time classes (1: the bin alone).
+        policy: `OptimalStopping` on `profile`, or `HistoryStopping` on the training traces.
+        profile: the dynamic profile of all the training traces on the chosen state (None for
+            the history).
+        states: its number of quality bins (at most; quantile bins merge equal qualities; 0
+            for the history).
+        entered: its number of entry-time classes (1: the bin alone; 0 for the history).
         utility: the chosen state's cross-validated mean utility (looks paid): the promise.
         standard_error: that mean's standard error.
         candidates: every candidate's, in the order tried.
     """
 
-    policy: OptimalStopping
-    profile: DynamicProfile
+    policy: OptimalStopping | HistoryStopping
+    profile: DynamicProfile | None
     states: int
     entered: int
     utility: float
     standard_error: float
     candidates: tuple[Candidate, ...]
+
+    @property
+    def state(self) -> str:
+        """`"history"`, or `"B bins x C classes"`."""
+        return Candidate(self.states, self.entered, self.utility, self.standard_error).state
 
 
 def fit_optimal(
@@ -85,14 +116,15 @@ def fit_optimal(
     input_quality: Sequence[float] = (),
     states: Sequence[int] = STATES,
     entered: Sequence[int] = ENTERED,
+    history: bool = True,
     ends: bool | None = None,
     folds: int = FOLDS,
     seed: int = 0,
 ) -> FittedStopping:
     """`OptimalStopping` on the state the training traces' cross-validation chooses among
-    `states` x `entered` (see the module docstring), for runs with `allocation` (default: the
-    traces' last time). `ends` (default: whether some run ended by itself before the last grid
-    time) gives the profiles ended states."""
+    `states` x `entered` and, with `history`, the run's history (see the module docstring), for
+    runs with `allocation` (default: the traces' last time). `ends` (default: whether some run
+    ended by itself before the last grid time) gives the profiles ended states."""
     if not isinstance(training, QualityTraces):
         raise PolicyError(
             f"fit_optimal: expected QualityTraces to learn from, got {type(training).__name__}"
@@ -102,17 +134,16 @@ def fit_optimal(
         raise PolicyError(
             f"fit_optimal: folds must be an integer from 2 to the {n} runs, got {folds!r}"
         )
-    shapes = _candidates(states, entered)
+    shapes = _candidates(states, entered) + ([(0, 0)] if history else [])
     if ends is None:
         ends = training.finished is not None and bool(
             (training.end_index() < len(training.time) - 1).any()
         )
-    fold = np.random.default_rng(seed).permutation(n) % folds
+    fold, split = _folds(training, folds, seed)
     realised = np.empty((len(shapes), n))  # each run's utility, scored by a policy without it
-    for f in range(folds):
-        learn, held = training.select(fold != f), training.select(fold == f)
+    for f, (learn, held) in enumerate(split):
         for c, (k, e) in enumerate(shapes):
-            policy = _policy(_profile(learn, k, e, ends), utility, monitoring_cost, input_quality)
+            policy = _policy(learn, k, e, ends, utility, monitoring_cost, input_quality)
             realised[c, fold == f] = scores(
                 policy, held, utility, allocation, monitoring_cost, input_quality
             )[0]
@@ -120,13 +151,13 @@ def fit_optimal(
     best = int(np.argmax(mean))
     spread = (realised - realised[best]).std(axis=1, ddof=1) / math.sqrt(n)
     near = np.flatnonzero(mean >= mean[best] - spread)
-    size = np.array([k * e for k, e in shapes])
+    size = np.array([k * e if k else math.inf for k, e in shapes])  # the history: the most
     chosen = int(near[np.lexsort((-mean[near], size[near]))[0]])  # fewest states, then best
     k, e = shapes[chosen]
-    profile = _profile(training, k, e, ends)
+    policy = _policy(training, k, e, ends, utility, monitoring_cost, input_quality)
     return FittedStopping(
-        policy=_policy(profile, utility, monitoring_cost, input_quality),
-        profile=profile,
+        policy=policy,
+        profile=policy.model.profile if isinstance(policy, OptimalStopping) else None,
         states=k,
         entered=e,
         utility=float(mean[chosen]),
@@ -136,6 +167,28 @@ def fit_optimal(
             for (k_, e_), m, s in zip(shapes, mean, se, strict=True)
         ),
     )
+
+
+#: Each run's fold, and per fold the traces learned from and those held out.
+Folds = tuple[NDArray[np.intp], list[tuple[QualityTraces, QualityTraces]]]
+#: The folds of training traces (by identity, while they live), number and seed: fits of several
+#: utilities to the same traces learn from the same fold objects, so the history policies share
+#: their neighbourhoods (most of their learning's time).
+_FOLDS: dict[tuple[int, int, int], tuple[weakref.ref[QualityTraces], Folds]] = {}
+
+
+def _folds(training: QualityTraces, folds: int, seed: int) -> Folds:
+    """The folds of `training`, made once while it lives."""
+    key = (id(training), folds, seed)
+    kept = _FOLDS.get(key)
+    if kept is not None and kept[0]() is training:
+        return kept[1]
+    for stale in [k for k, (ref, _) in _FOLDS.items() if ref() is None]:
+        del _FOLDS[stale]
+    fold = np.random.default_rng(seed).permutation(training.trials) % folds
+    split = [(training.select(fold != f), training.select(fold == f)) for f in range(folds)]
+    _FOLDS[key] = (weakref.ref(training), (fold, split))
+    return fold, split
 
 
 def _candidates(states: Sequence[int], entered: Sequence[int]) -> list[tuple[int, int]]:
@@ -148,17 +201,24 @@ def _candidates(states: Sequence[int], entered: Sequence[int]) -> list[tuple[int
     return sorted({(int(k), 1 if k == 1 else int(e)) for k in states for e in entered})
 
 
-def _profile(traces: QualityTraces, states: int, entered: int, ends: bool) -> DynamicProfile:
-    bins: Array | None = np.array([0.0, 1.0]) if states == 1 else None
-    return DynamicProfile.from_traces(traces, bins=bins, states=states, entered=entered, ends=ends)
-
-
 def _policy(
-    profile: DynamicProfile,
+    traces: QualityTraces,
+    states: int,
+    entered: int,
+    ends: bool,
     utility: Utility,
     monitoring_cost: float,
     input_quality: Sequence[float],
-) -> OptimalStopping:
+) -> OptimalStopping | HistoryStopping:
+    """The policy of a candidate state learned from `traces` (`states` 0: the history)."""
+    if states == 0:
+        return HistoryStopping(
+            traces, utility, monitoring_cost=monitoring_cost, input_quality=input_quality
+        )
+    bins: Array | None = np.array([0.0, 1.0]) if states == 1 else None
+    profile = DynamicProfile.from_traces(
+        traces, bins=bins, states=states, entered=entered, ends=ends
+    )
     return OptimalStopping(
         profile,
         utility.value_model,

@@ -1,8 +1,9 @@
 """`fit_optimal`: the optimal policy's state chosen by cross-validation on the traces.
 
 Its promise (the cross-validated utility) must be what fresh runs realise where the model's own
-value is not; it must choose a richer state where the data show one pays, the smallest where
-nothing tells the candidates apart, and one bin must be the best fixed stop.
+value is not; it must choose a richer state where the data show one pays (the history where no
+Markov state matches it), the smallest where nothing tells the candidates apart, and one bin
+must be the best fixed stop.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from test_learned import kinds, realised
 from anytime.profiles.dynamic import DynamicProfile, QualityTraces
 from anytime.runtime import (
     FixedStopping,
+    HistoryStopping,
     OptimalStopping,
     PolicyError,
     Utility,
@@ -55,15 +57,27 @@ def quantised(seed: int, trials: int) -> QualityTraces:
 def test_its_promise_is_what_fresh_runs_realise_where_the_models_is_not() -> None:
     training, fresh = quantised(1, 400), quantised(2, 400)
     model = Convex()
-    fit = fit_optimal(training, Utility(model, model), states=(1, 4, 8), entered=(1, 4))
-    values = realised(fit.policy, fresh, model)  # type: ignore[arg-type]
+    markov = fit_optimal(
+        training, Utility(model, model), states=(1, 4, 8), entered=(1, 4), history=False
+    )
+    values = realised(markov.policy, fresh, model)  # type: ignore[arg-type]
     se = values.std(ddof=1) / math.sqrt(len(values))
-    assert abs(fit.utility - values.mean()) < 2 * math.hypot(se, fit.standard_error)
-    assert fit.entered > 1  # when the run reached its level is worth knowing here
+    assert abs(markov.utility - values.mean()) < 2 * math.hypot(se, markov.standard_error)
+    assert markov.entered > 1  # when the run reached its level is worth knowing here
+    assert markov.state == f"{markov.states} bins x {markov.entered} classes"
     # The Markov model on the level alone promises what it does not deliver.
     level = OptimalStopping(DynamicProfile.from_traces(training, states=4), model, model)
     assert level.expected_utility() - realised(level, fresh, model).mean() > 5 * se
     assert values.mean() > realised(level, fresh, model).mean() + 2 * se
+    # How fast the run climbed the quarters says more than when it entered the last one: the
+    # history is chosen, and keeps its promise too.
+    fit = fit_optimal(training, Utility(model, model), states=(1, 4, 8), entered=(1, 4))
+    assert (fit.state, fit.states, fit.entered, fit.profile) == ("history", 0, 0, None)
+    assert isinstance(fit.policy, HistoryStopping)
+    history = realised(fit.policy, fresh, model)  # type: ignore[arg-type]
+    assert abs(fit.utility - history.mean()) < 2 * math.hypot(se, fit.standard_error)
+    assert fit.utility > markov.utility + fit.standard_error
+    assert fit.candidates[-1].state == "history"
 
 
 def test_a_richer_state_is_chosen_where_it_tells_runs_apart() -> None:
@@ -78,7 +92,12 @@ def test_a_richer_state_is_chosen_where_it_tells_runs_apart() -> None:
     best = (0.5 - 0.03 + 1.0 - 0.03 * 7) / 2
     assert fit.utility == pytest.approx(best)
     assert realised(fit.policy, recorded, model).mean() == pytest.approx(best)
-    assert [(c.states, c.entered) for c in fit.candidates] == [(1, 1), (3, 1), (3, 4)]
+    assert [c.state for c in fit.candidates] == [
+        "1 bins x 1 classes",
+        "3 bins x 1 classes",
+        "3 bins x 4 classes",
+        "history",
+    ]
 
 
 def test_the_smallest_state_is_chosen_where_nothing_tells_them_apart() -> None:
@@ -89,7 +108,7 @@ def test_the_smallest_state_is_chosen_where_nothing_tells_them_apart() -> None:
     assert (fit.states, fit.entered) == (1, 1)
     assert fit.utility == pytest.approx(0.8 - 0.05 * 3)
     assert fit.standard_error == pytest.approx(0.0)
-    assert [c.utility for c in fit.candidates] == pytest.approx([0.8 - 0.05 * 3] * 13)
+    assert [c.utility for c in fit.candidates] == pytest.approx([0.8 - 0.05 * 3] * 14)
 
 
 def test_one_bin_is_the_best_fixed_stop() -> None:
@@ -98,7 +117,7 @@ def test_one_bin_is_the_best_fixed_stop() -> None:
     training = quantised(3, 200)
     model = Linear(1.0, 0.004)
     utility = Utility(model, model)
-    fit = fit_optimal(training, utility, states=(1,))
+    fit = fit_optimal(training, utility, states=(1,), history=False)
     mean = utility(training.time, training.quality.T).T.mean(axis=0)
     values = realised(fit.policy, training, model)
     assert values == pytest.approx(utility(training.time, training.quality.T).T[:, mean.argmax()])
