@@ -125,6 +125,37 @@ def test_a_corridor_search_counts_what_a_star_expands_and_keeps_to_its_limit() -
     assert c.corridor(0, every, [start], [goal], limit=found.expansions) == found
 
 
+@settings(max_examples=40, deadline=None)
+@given(any_maps, st.sampled_from([4, 8]), st.data())
+def test_the_grids_between_made_when_read_are_the_same_and_so_is_a_pickle(
+    blocked: np.ndarray, movement: int, data: st.DataObject
+) -> None:
+    """The grids between level 0 and the top are made when first read (`components._Grids`):
+    a node read before them (through its ancestors) is the one they hold, whether a cell is
+    connected to another is what the regions say, and a pickle is the same before and after
+    they are read (it holds what they are made from)."""
+    import pickle
+
+    top = data.draw(st.integers(0, blocked.shape[0].bit_length() - 1))
+    c = Components.build(blocked, movement, top=top)
+    before = pickle.dumps(c)
+    free = np.argwhere(~blocked)
+    cells = [(int(x), int(y)) for y, x in free[:: max(1, len(free) // 8)]]
+    nodes = {(cell, k): c.node(cell, k) for cell in cells for k in range(top + 1)}
+    assert pickle.dumps(c) == before
+    for (cell, k), node in nodes.items():
+        assert node == c.grids[k][cell[1], cell[0]]
+    for one in cells:
+        for other in cells:
+            assert c.connected(one, other) == (
+                c.regions[one[1], one[0]] == c.regions[other[1], other[0]]
+            )
+    assert pickle.dumps(c) == before
+    copy = pickle.loads(before)
+    assert all(np.array_equal(a, b) for a, b in zip(copy.grids, c.grids, strict=True))
+    assert np.array_equal(copy.regions, c.regions)
+
+
 def test_a_block_split_by_a_wall_is_two_nodes() -> None:
     blocked = np.zeros((8, 8), dtype=bool)
     blocked[:, 3] = True

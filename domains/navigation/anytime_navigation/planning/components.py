@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import overload
 
 import numpy as np
 from attrs import field, frozen
@@ -123,6 +124,61 @@ class NodePath:
     expansions: int
 
 
+class _Grids(Sequence[IntArray]):
+    """The level-k node of each base cell, k = 0 .. top (-1 where blocked): level 0's and the
+    top's made with the hierarchy, the levels between when first read (`grids[k + 1]` is level
+    k's parents of `grids[k]`: the planner reads none of them, an executor reading a plan's
+    regions does; on a 1024 x 1024 map each is 8 MB written). A pickle holds what they are
+    made from, not what was read: the same before and after."""
+
+    def __init__(
+        self, base: IntArray, parents: tuple[IntArray, ...], top: IntArray | None = None
+    ) -> None:
+        self._parents = parents
+        self._made: dict[int, IntArray] = {0: base}
+        if parents:
+            if top is None:  # each base cell's node's ancestor at the top: one map-sized pass
+                up = np.arange(len(parents[0]), dtype=np.int64)
+                for parent in parents:
+                    up = parent[up]
+                top = np.append(up, -1)[base]  # blocked, -1, picks the -1 appended
+            self._made[len(parents)] = top
+        self._regions: IntArray | None = None
+
+    def __reduce__(self) -> tuple[object, ...]:
+        return (_Grids, (self._made[0], self._parents, self._made[len(self._parents)]))
+
+    def __len__(self) -> int:
+        return len(self._parents) + 1
+
+    @overload
+    def __getitem__(self, index: int) -> IntArray: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> tuple[IntArray, ...]: ...
+
+    def __getitem__(self, index: int | slice) -> IntArray | tuple[IntArray, ...]:
+        if isinstance(index, slice):
+            return tuple(self[k] for k in range(len(self))[index])
+        k = index + len(self) if index < 0 else index
+        if not 0 <= k < len(self):
+            raise IndexError(f"level {index} of {len(self)}")
+        if k not in self._made:
+            grid: IntArray = np.append(self._parents[k - 1], -1)[self[k - 1]]
+            self._made[k] = grid
+        return self._made[k]
+
+    def made(self, k: int) -> bool:
+        """Whether level k's grid is made."""
+        return k in self._made
+
+    def regions(self, top_regions: IntArray) -> IntArray:
+        """Each base cell's region, its top-level node's (`top_regions`), made once."""
+        if self._regions is None:
+            self._regions = np.append(top_regions, -1)[self[len(self) - 1]]
+        return self._regions
+
+
 @frozen(eq=False)
 class Components:
     """The hierarchy of a square power-of-two map: `levels[k]` for k = 0 .. top, and
@@ -130,9 +186,12 @@ class Components:
     `Components.build`."""
 
     levels: tuple[Level, ...]
-    grids: tuple[IntArray, ...]
+    # Made when first read but for levels 0 and top (`_Grids`): the planner reads no other.
+    grids: _Grids
     movement: int
-    regions: IntArray  # the connected free region of each base cell (-1 where blocked)
+    # The connected free region of each top-level node: `regions` (each base cell's) is made
+    # from it when first read; `connected` reads the two cells' nodes.
+    top_regions: IntArray
     doors: Doors | None = None  # the top level's, when it is above level 0 (first plans)
     # Each level's scratch for its searches: -1 for every node between them (made here, so that
     # a plan's pickle, which holds its abstraction, is the same before and after a search).
@@ -146,6 +205,12 @@ class Components:
     def cell(self) -> IntArray:
         """The level-0 node of each base cell (-1 where blocked)."""
         return self.grids[0]
+
+    @property
+    def regions(self) -> IntArray:
+        """The connected free region of each base cell (-1 where blocked), made when first
+        read (`grids` keeps it)."""
+        return self.grids.regions(self.top_regions)
 
     @classmethod
     def build(cls, blocked: BoolGrid, movement: int = 4, top: int | None = None) -> Components:
@@ -185,19 +250,15 @@ class Components:
         quad_children: IntArray | None = None  # level 1's children, read off its blocks
         for k in range(top):  # level k + 1 from level k
             if k == 0:
-                grid_up, count, edges_up, quad_cells, first_up = _quads(free, movement)
-                quad_children = nodes[quad_cells]
-                parent = grid_up.ravel()[cells]
+                parent, count, edges_up, quad_children, first_up = _quads(free, nodes, movement)
             else:
                 k_up, across = k + 1, side >> (k + 1)  # blocks per row one level up
                 x, y = first_cell & (side - 1), first_cell >> highest
                 block_up = (y >> k_up) * across + (x >> k_up)
                 parent, count, first_up = _components(edges, block_up, first_cell, side)
                 edges_up = _lifted(edges, parent, count)
-                grid_up = np.append(parent, -1)[grids[-1]]  # blocked, -1, picks the -1 appended
             made.append((first_cell, size, sums, edges))
             parents.append(parent)
-            grids.append(grid_up)
             size = np.bincount(parent, weights=size, minlength=count).astype(np.int64)
             sums = (
                 np.bincount(parent, weights=sums[0], minlength=count),
@@ -218,19 +279,19 @@ class Components:
             )
             for k in range(top + 1)
         )
+        made_grids = _Grids(grids[0], tuple(parents[:top]))
         if top > 0:  # the free regions: the components of the top level's graph
             region, _, _ = _components(edges, np.zeros(len(size), np.int64), first_cell, side)
-            regions = np.append(region, -1)[grids[top]]
         else:
             from scipy import ndimage  # imported here, as in `world.reachable`
 
             labels, _ = ndimage.label(free)  # 4-connected: octile moves join the same cells
-            regions = labels.astype(np.int64) - 1
+            region = labels.ravel()[cells].astype(np.int64) - 1
         doors = None
         if top > 0:
             at = levels[top]
-            doors = Doors.build(top, grids[top], at.block, at.first, at.neighbour, movement)
-        return cls(levels, tuple(grids), movement, regions, doors)
+            doors = Doors.build(top, made_grids[top], at.block, at.first, at.neighbour, movement)
+        return cls(levels, made_grids, movement, region, doors)
 
     @property
     def top(self) -> int:
@@ -239,7 +300,10 @@ class Components:
     def node(self, position: Position, level: int) -> int:
         """The level-`level` node of a base cell (-1 when the cell is blocked)."""
         x, y = position
-        return int(self.grids[level][y, x])
+        if level == self.top or self.grids.made(level):
+            return int(self.grids[level][y, x])
+        node = int(self.grids[0][y, x])
+        return node if node < 0 else self.ancestor(node, 0, level)
 
     def ancestor(self, node: int, level: int, to_level: int) -> int:
         """The node at `to_level` >= `level` that contains `node` of `level`."""
@@ -254,7 +318,9 @@ class Components:
     def connected(self, one: Position, other: Position) -> bool:
         """Whether a route joins two free base cells."""
         (ax, ay), (bx, by) = one, other
-        return bool(self.regions[ay, ax] >= 0 and self.regions[ay, ax] == self.regions[by, bx])
+        top = self.grids[self.top]
+        a, b = top[ay, ax], top[by, bx]
+        return bool(a >= 0 and b >= 0 and self.top_regions[a] == self.top_regions[b])
 
     def region(self, node: int, level: int) -> BoolGrid:
         """Which cells of the node's block belong to it, a (2^level, 2^level) mask [y, x]."""
@@ -509,18 +575,25 @@ def _level(
     )
 
 
-def _quads(free: BoolGrid, movement: int) -> tuple[IntArray, int, Edges, IntArray, IntArray]:
+def _quads(
+    free: BoolGrid, cell_node: IntArray, movement: int
+) -> tuple[IntArray, int, Edges, IntArray, IntArray]:
     """Level 1 from the 2 x 2 blocks' patterns of free cells (`_QUAD_LABELS`; the blocks with a
-    free cell only: a sparse map costs little): its node of each base cell (-1 where blocked),
-    its number of nodes, its edges, its nodes' cells (y * side + x) node by node, ascending (a
-    block's two components, when it has two, are one cell each, in raster order), and each
-    node's first cell. One compiled call (`corridor_search.quads`: a third of the time of the
-    vectorised passes it replaced on 512 x 512 maps, about 5 against 16 ms)."""
-    side = free.shape[0]
-    grid, count, low, high, cells, first = compiled().quads(
-        np.ascontiguousarray(free, dtype=np.bool_), movement, _QUAD_LABELS, _QUAD_MOVES[movement]
+    free cell only: a sparse map costs little), `cell_node` the level-0 node of each base cell
+    (ravelled, -1 where blocked): the level-1 node of each level-0 node (its parent), the
+    number of level-1 nodes, their edges, their children (level-0 nodes) node by node,
+    ascending (a block's two components, when it has two, are one cell each, in raster order),
+    and each node's first cell. One compiled call (`corridor_search.quads`: a third of the time
+    of the vectorised passes it replaced on 512 x 512 maps, about 5 against 16 ms), making no
+    map-sized array (on a 1024 x 1024 map the level-1 grid it made was 8 MB written)."""
+    parent, count, low, high, children, first = compiled().quads(
+        np.ascontiguousarray(free, dtype=np.bool_),
+        cell_node,
+        movement,
+        _QUAD_LABELS,
+        _QUAD_MOVES[movement],
     )
-    return grid.reshape(side, side), int(count), (low, high), cells, first
+    return parent, int(count), (low, high), children, first
 
 
 def _components(

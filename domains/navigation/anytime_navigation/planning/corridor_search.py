@@ -569,19 +569,26 @@ def compressed_rows(
 
 @_compiled
 def quads(
-    free: NDArray[np.bool_], movement: int, labels: NDArray[np.int8], moves: IntArray
+    free: NDArray[np.bool_],
+    cell_node: IntArray,
+    movement: int,
+    labels: NDArray[np.int8],
+    moves: IntArray,
 ) -> tuple[IntArray, int, IntArray, IntArray, IntArray, IntArray]:
     """Level 1 of the abstraction (`components._quads`) in three passes over the 2 x 2 blocks:
     each block's pattern of free cells (bit 2y + x) and its components (`labels`, one row per
-    pattern), numbered block by block in raster order; each base cell's node (-1 where
-    blocked), the nodes' cells node by node and each node's first cell (raster order); then the
-    edges each block has to the blocks after it (`moves`: the rows (direction, tail position,
-    head position, dx, dy) of the legal moves into the `_FORWARD` blocks, by direction, the
-    diagonals needing their two corner cells free), made in ascending order (by low, then high)
-    without a sort: a block's lower node first, the directions' blocks in raster order, and
-    their lower node before their higher within each.
+    pattern), numbered block by block in raster order; the level-1 node of each level-0 node
+    (`cell_node`: the level-0 node of each base cell, ravelled, -1 where blocked), the level-0
+    nodes of each level-1 node, node by node, and each node's first cell (raster order); then
+    the edges each block has to the blocks after it (`moves`: the rows (direction, tail
+    position, head position, dx, dy) of the legal moves into the `_FORWARD` blocks, by
+    direction, the diagonals needing their two corner cells free), made in ascending order (by
+    low, then high) without a sort: a block's lower node first, the directions' blocks in raster
+    order, and their lower node before their higher within each. (No map-sized array is made:
+    the level-1 grid is the level-0 grid's nodes' parents, `components._Grids`.)
 
-    Returns (grid, count, low, high, cells, first cell of each node)."""
+    Returns (parent of each level-0 node, count, low, high, children, first cell of each
+    node)."""
     side = free.shape[0]
     m = side // 2
     pattern = np.zeros(m * m, dtype=np.int64)
@@ -607,8 +614,8 @@ def quads(
                         most = labels[p, q]
                 count += most + 1
                 occupied += 1
-    grid = np.full(side * side, -1, dtype=np.int64)
-    cells = np.empty(4 * occupied, dtype=np.int64)
+    parent = np.empty(4 * occupied, dtype=np.int64)
+    children = np.empty(4 * occupied, dtype=np.int64)
     first_cell = np.full(count, -1, dtype=np.int64)
     k = 0
     for b in range(m * m):
@@ -621,8 +628,9 @@ def quads(
             if label >= 0:
                 cell = (y + (q >> 1)) * side + x + (q & 1)
                 node = offset[b] + label
-                grid[cell] = node
-                cells[k] = cell
+                below = cell_node[cell]
+                parent[below] = node
+                children[k] = below
                 k += 1
                 if first_cell[node] < 0:
                     first_cell[node] = cell
@@ -679,7 +687,7 @@ def quads(
                         low[e] = offset[b] + tail_label
                         high[e] = offset[nb] + head_label
                         e += 1
-    return grid, count, low, high, cells[:k], first_cell
+    return parent[:k], count, low, high, children[:k], first_cell
 
 
 @_compiled
