@@ -244,13 +244,16 @@ class Components:
         # level's edges (low < high, sorted).
         made: list[tuple[IntArray, IntArray, tuple[FloatArray, FloatArray], Edges]] = []
         first_cell, size = cells, np.ones(len(cells), dtype=np.int64)
-        sums = ((cells & (side - 1)).astype(np.float64), (cells >> highest).astype(np.float64))
+        no_sums = np.zeros(0)
+        sums = (no_sums, no_sums)  # level 0's centres are its cells' (level 1's: `_quads`)
         edges: Edges = (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64))
         parents: list[IntArray] = []
         quad_children: IntArray | None = None  # level 1's children, read off its blocks
         for k in range(top):  # level k + 1 from level k
             if k == 0:
-                parent, count, edges_up, quad_children, first_up = _quads(free, nodes, movement)
+                parent, count, edges_up, quad_children, first_up, size_up, sums_up = _quads(
+                    free, nodes, movement
+                )
             else:
                 k_up, across = k + 1, side >> (k + 1)  # blocks per row one level up
                 x, y = first_cell & (side - 1), first_cell >> highest
@@ -259,11 +262,14 @@ class Components:
                 edges_up = _lifted(edges, parent, count)
             made.append((first_cell, size, sums, edges))
             parents.append(parent)
-            size = np.bincount(parent, weights=size, minlength=count).astype(np.int64)
-            sums = (
-                np.bincount(parent, weights=sums[0], minlength=count),
-                np.bincount(parent, weights=sums[1], minlength=count),
-            )
+            if k == 0:  # counted and summed block by block
+                size, sums = size_up, sums_up
+            else:
+                size = np.bincount(parent, weights=size, minlength=count).astype(np.int64)
+                sums = (  # float64 already: not copied
+                    np.bincount(parent, weights=sums[0], minlength=count).astype(float, copy=False),
+                    np.bincount(parent, weights=sums[1], minlength=count).astype(float, copy=False),
+                )
             first_cell, edges = first_up, edges_up
         made.append((first_cell, size, sums, edges))
         parents.append(np.full(len(size), -1, dtype=np.int64))
@@ -577,23 +583,24 @@ def _level(
 
 def _quads(
     free: BoolGrid, cell_node: IntArray, movement: int
-) -> tuple[IntArray, int, Edges, IntArray, IntArray]:
+) -> tuple[IntArray, int, Edges, IntArray, IntArray, IntArray, tuple[FloatArray, FloatArray]]:
     """Level 1 from the 2 x 2 blocks' patterns of free cells (`_QUAD_LABELS`; the blocks with a
     free cell only: a sparse map costs little), `cell_node` the level-0 node of each base cell
     (ravelled, -1 where blocked): the level-1 node of each level-0 node (its parent), the
     number of level-1 nodes, their edges, their children (level-0 nodes) node by node,
     ascending (a block's two components, when it has two, are one cell each, in raster order),
-    and each node's first cell. One compiled call (`corridor_search.quads`: a third of the time
-    of the vectorised passes it replaced on 512 x 512 maps, about 5 against 16 ms), making no
-    map-sized array (on a 1024 x 1024 map the level-1 grid it made was 8 MB written)."""
-    parent, count, low, high, children, first = compiled().quads(
+    each node's first cell, its number of cells and the sums of their x and of their y. One
+    compiled call (`corridor_search.quads`: a third of the time of the vectorised passes it
+    replaced on 512 x 512 maps, about 5 against 16 ms), making no map-sized array (on a
+    1024 x 1024 map the level-1 grid it made was 8 MB written)."""
+    parent, count, low, high, children, first, size, sum_x, sum_y = compiled().quads(
         np.ascontiguousarray(free, dtype=np.bool_),
         cell_node,
         movement,
         _QUAD_LABELS,
         _QUAD_MOVES[movement],
     )
-    return parent, int(count), (low, high), children, first
+    return parent, int(count), (low, high), children, first, size, (sum_x, sum_y)
 
 
 def _components(

@@ -574,7 +574,7 @@ def quads(
     movement: int,
     labels: NDArray[np.int8],
     moves: IntArray,
-) -> tuple[IntArray, int, IntArray, IntArray, IntArray, IntArray]:
+) -> tuple[IntArray, int, IntArray, IntArray, IntArray, IntArray, IntArray, FloatArray, FloatArray]:
     """Level 1 of the abstraction (`components._quads`) in three passes over the 2 x 2 blocks:
     each block's pattern of free cells (bit 2y + x) and its components (`labels`, one row per
     pattern), numbered block by block in raster order; the level-1 node of each level-0 node
@@ -588,7 +588,8 @@ def quads(
     the level-1 grid is the level-0 grid's nodes' parents, `components._Grids`.)
 
     Returns (parent of each level-0 node, count, low, high, children, first cell of each
-    node)."""
+    node, and each node's number of cells and the sums of their x and of their y: integers, so
+    exact in any order)."""
     side = free.shape[0]
     m = side // 2
     pattern = np.zeros(m * m, dtype=np.int64)
@@ -617,6 +618,9 @@ def quads(
     parent = np.empty(4 * occupied, dtype=np.int64)
     children = np.empty(4 * occupied, dtype=np.int64)
     first_cell = np.full(count, -1, dtype=np.int64)
+    size = np.zeros(count, dtype=np.int64)
+    sum_x = np.zeros(count, dtype=np.float64)
+    sum_y = np.zeros(count, dtype=np.float64)
     k = 0
     for b in range(m * m):
         p = pattern[b]
@@ -634,6 +638,9 @@ def quads(
                 k += 1
                 if first_cell[node] < 0:
                     first_cell[node] = cell
+                size[node] += 1
+                sum_x[node] += x + (q & 1)
+                sum_y[node] += y + (q >> 1)
     # The pairs of components each block joins with each block after it: bit 2 * tail's label
     # + head's, per direction (`moves` ordered by direction: each one's rows read once).
     move_first = np.zeros(5, dtype=np.int64)
@@ -687,7 +694,7 @@ def quads(
                         low[e] = offset[b] + tail_label
                         high[e] = offset[nb] + head_label
                         e += 1
-    return parent[:k], count, low, high, children[:k], first_cell
+    return parent[:k], count, low, high, children[:k], first_cell, size, sum_x, sum_y
 
 
 @_compiled
