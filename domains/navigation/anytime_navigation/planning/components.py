@@ -535,6 +535,39 @@ def _quad_moves(movement: int) -> IntArray:
 _QUAD_MOVES = {movement: _quad_moves(movement) for movement in (4, 8)}
 
 
+def _side_joins(movement: int) -> NDArray[np.uint8]:
+    """For the blocks beside (direction 0 of `_FORWARD`) and below (direction 2) a 2 x 2
+    block, by the two blocks' patterns: the pairs of their components the legal moves between
+    them join, bit 2 * the first's label + the second's (what `corridor_search.quads` made row
+    by row of `_QUAD_MOVES`: the corner cells of these moves are all in the two blocks)."""
+    joins = np.zeros((2, 16, 16), dtype=np.uint8)
+    moves = _QUAD_MOVES[movement]
+    for d in (0, 2):
+        dx_, dy_ = _FORWARD[d]
+        for p in range(16):
+            for q in range(16):
+                free = np.zeros((4, 4), dtype=bool)  # the two blocks, the first at (0, 0)
+                for position in range(4):
+                    x, y = position & 1, position >> 1
+                    free[y, x] = bool(p >> position & 1)
+                    free[2 * dy_ + y, 2 * dx_ + x] = bool(q >> position & 1)
+                bits = 0
+                for _, tail, head, dx, dy in moves[moves[:, 0] == d].tolist():
+                    tail_label, head_label = _QUAD_LABELS[p, tail], _QUAD_LABELS[q, head]
+                    if tail_label < 0 or head_label < 0:
+                        continue
+                    if dx and dy:  # no corner cutting: both orthogonal neighbours free
+                        tx, ty = tail & 1, tail >> 1
+                        if not (free[ty, tx + dx] and free[ty + dy, tx]):
+                            continue
+                    bits |= 1 << (2 * int(tail_label) + int(head_label))
+                joins[d >> 1, p, q] = bits
+    return joins
+
+
+_SIDE_JOINS = {movement: _side_joins(movement) for movement in (4, 8)}
+
+
 def _level(
     k: int,
     first_cell: IntArray,
@@ -599,6 +632,7 @@ def _quads(
         movement,
         _QUAD_LABELS,
         _QUAD_MOVES[movement],
+        _SIDE_JOINS[movement],
     )
     return parent, int(count), (low, high), children, first, size, (sum_x, sum_y)
 

@@ -574,6 +574,7 @@ def quads(
     movement: int,
     labels: NDArray[np.int8],
     moves: IntArray,
+    side_joins: NDArray[np.uint8],
 ) -> tuple[IntArray, int, IntArray, IntArray, IntArray, IntArray, IntArray, FloatArray, FloatArray]:
     """Level 1 of the abstraction (`components._quads`) in three passes over the 2 x 2 blocks:
     each block's pattern of free cells (bit 2y + x) and its components (`labels`, one row per
@@ -582,7 +583,9 @@ def quads(
     nodes of each level-1 node, node by node, and each node's first cell (raster order); then
     the edges each block has to the blocks after it (`moves`: the rows (direction, tail
     position, head position, dx, dy) of the legal moves into the `_FORWARD` blocks, by
-    direction, the diagonals needing their two corner cells free), made in ascending order (by
+    direction, the diagonals needing their two corner cells free; for the blocks beside and
+    below, whose moves' corner cells are all in the two blocks, `side_joins[d >> 1, pattern,
+    pattern]` holds the pairs those rows join), made in ascending order (by
     low, then high) without a sort: a block's lower node first, the directions' blocks in raster
     order, and their lower node before their higher within each. (No map-sized array is made:
     the level-1 grid is the level-0 grid's nodes' parents, `components._Grids`.)
@@ -662,6 +665,11 @@ def quads(
             if nx < 0 or nx >= m or ny >= m or pattern[ny * m + nx] == 0:
                 continue
             np_ = pattern[ny * m + nx]
+            if d == 0 or d == 2:  # the blocks beside and below: read off the two patterns
+                pairs = int(side_joins[d >> 1, p, np_])
+                joined[4 * b + d] = pairs
+                total += (pairs & 1) + (pairs >> 1 & 1) + (pairs >> 2 & 1) + (pairs >> 3)
+                continue
             bits = 0
             for r in range(move_first[d], move_first[d + 1]):
                 tail, head, dx, dy = moves[r, 1], moves[r, 2], moves[r, 3], moves[r, 4]
