@@ -125,28 +125,23 @@ class NodePath:
 
 
 class _Grids(Sequence[IntArray]):
-    """The level-k node of each base cell, k = 0 .. top (-1 where blocked): level 0's and the
-    top's made with the hierarchy, the levels between when first read (`grids[k + 1]` is level
-    k's parents of `grids[k]`: the planner reads none of them, an executor reading a plan's
-    regions does; on a 1024 x 1024 map each is 8 MB written). A pickle holds what they are
-    made from, not what was read: the same before and after."""
+    """The level-k node of each base cell, k = 0 .. top (-1 where blocked): level 0's made with
+    the hierarchy, the others when first read (`grids[k + 1]` is level k's parents of
+    `grids[k]`, the top's level 0's nodes' ancestors `up`: the planner reads none of them, an
+    executor reading a plan's regions does; on a 1024 x 1024 map each is 8 MB written). A
+    pickle holds what they are made from, not what was read: the same before and after."""
 
-    def __init__(
-        self, base: IntArray, parents: tuple[IntArray, ...], top: IntArray | None = None
-    ) -> None:
+    def __init__(self, base: IntArray, parents: tuple[IntArray, ...]) -> None:
         self._parents = parents
         self._made: dict[int, IntArray] = {0: base}
-        if parents:
-            if top is None:  # each base cell's node's ancestor at the top: one map-sized pass
-                up = np.arange(len(parents[0]), dtype=np.int64)
-                for parent in parents:
-                    up = parent[up]
-                top = np.append(up, -1)[base]  # blocked, -1, picks the -1 appended
-            self._made[len(parents)] = top
+        # each level-0 node's ancestor at the top (itself at top 0)
+        self.up = np.arange(len(parents[0]) if parents else 0, dtype=np.int64)
+        for parent in parents:
+            self.up = parent[self.up]
         self._regions: IntArray | None = None
 
     def __reduce__(self) -> tuple[object, ...]:
-        return (_Grids, (self._made[0], self._parents, self._made[len(self._parents)]))
+        return (_Grids, (self._made[0], self._parents))
 
     def __len__(self) -> int:
         return len(self._parents) + 1
@@ -164,18 +159,30 @@ class _Grids(Sequence[IntArray]):
         if not 0 <= k < len(self):
             raise IndexError(f"level {index} of {len(self)}")
         if k not in self._made:
-            grid: IntArray = np.append(self._parents[k - 1], -1)[self[k - 1]]
+            grid: IntArray
+            if k == len(self._parents):  # one map-sized pass
+                grid = np.append(self.up, -1)[self._made[0]]  # blocked, -1: the -1 appended
+            else:
+                grid = np.append(self._parents[k - 1], -1)[self[k - 1]]
             self._made[k] = grid
         return self._made[k]
+
+    def top_node(self, position: Position) -> int:
+        """The top-level node of a base cell (-1 where blocked), its grid unread."""
+        x, y = position
+        node = int(self._made[0][y, x])
+        return node if node < 0 or not self._parents else int(self.up[node])
 
     def made(self, k: int) -> bool:
         """Whether level k's grid is made."""
         return k in self._made
 
     def regions(self, top_regions: IntArray) -> IntArray:
-        """Each base cell's region, its top-level node's (`top_regions`), made once."""
+        """Each base cell's region, its top-level node's (`top_regions`), made once (one
+        map-sized pass)."""
         if self._regions is None:
-            self._regions = np.append(top_regions, -1)[self[len(self) - 1]]
+            below = top_regions[self.up] if self._parents else top_regions  # level 0's nodes'
+            self._regions = np.append(below, -1)[self._made[0]]
         return self._regions
 
 
@@ -296,7 +303,9 @@ class Components:
         doors = None
         if top > 0:
             at = levels[top]
-            doors = Doors.build(top, made_grids[top], at.block, at.first, at.neighbour, movement)
+            doors = Doors.build(
+                top, grids[0], at.block, at.first, at.neighbour, movement, up=made_grids.up
+            )
         return cls(levels, made_grids, movement, region, doors)
 
     @property
@@ -306,8 +315,10 @@ class Components:
     def node(self, position: Position, level: int) -> int:
         """The level-`level` node of a base cell (-1 when the cell is blocked)."""
         x, y = position
-        if level == self.top or self.grids.made(level):
+        if self.grids.made(level):
             return int(self.grids[level][y, x])
+        if level == self.top:
+            return self.grids.top_node(position)
         node = int(self.grids[0][y, x])
         return node if node < 0 else self.ancestor(node, 0, level)
 
@@ -323,9 +334,7 @@ class Components:
 
     def connected(self, one: Position, other: Position) -> bool:
         """Whether a route joins two free base cells."""
-        (ax, ay), (bx, by) = one, other
-        top = self.grids[self.top]
-        a, b = top[ay, ax], top[by, bx]
+        a, b = self.grids.top_node(one), self.grids.top_node(other)
         return bool(a >= 0 and b >= 0 and self.top_regions[a] == self.top_regions[b])
 
     def region(self, node: int, level: int) -> BoolGrid:

@@ -754,13 +754,20 @@ def grouped_components(
 
 @_compiled
 def door_points(
-    grid: IntArray, movement: int, ordered: IntArray, order: IntArray, count: int, states: int
+    grid: IntArray,
+    up: IntArray,
+    movement: int,
+    ordered: IntArray,
+    order: IntArray,
+    count: int,
+    states: int,
 ) -> FloatArray:
     """The doors' points (`doors.Doors`), in one pass over the grid: for each legal base move
-    between two nodes of a level (`grid`: each cell's node, -1 where blocked), its midpoint
-    added to the state from the lower node to the higher (`ordered`: tail * count + head of
-    the states, ascending, `order` their states), then each such state's mean. (The midpoints
-    are multiples of 1/2, so their sums are exact in any order.)"""
+    between two nodes of a level (each cell's node `up[grid[y, x]]`, none where `grid` is -1,
+    blocked), its midpoint added to the state from the lower node to the higher (`ordered`:
+    tail * count + head of the states, ascending, `order` their states), then each such
+    state's mean. (The midpoints are multiples of 1/2, so their sums are exact in any
+    order.)"""
     sums = np.zeros((states, 2))
     moves = np.zeros(states)
     height, width = grid.shape
@@ -770,6 +777,7 @@ def door_points(
             a = grid[y, x]
             if a < 0:
                 continue
+            a = up[a]
             for m in range(forward):  # (1, 0), (0, 1), (1, 1), (-1, 1)
                 dx = 1 if m == 0 or m == 2 else (-1 if m == 3 else 0)
                 dy = 0 if m == 0 else 1
@@ -777,7 +785,10 @@ def door_points(
                 if tx < 0 or tx >= width or ty >= height:
                     continue
                 b = grid[ty, tx]
-                if b < 0 or b == a:
+                if b < 0:
+                    continue
+                b = up[b]
+                if b == a:
                     continue
                 if dx != 0 and dy != 0 and (grid[y, tx] < 0 or grid[ty, x] < 0):
                     continue  # no corner cutting: both orthogonal neighbours free

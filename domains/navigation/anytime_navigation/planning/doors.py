@@ -60,7 +60,11 @@ class Doors:
     `first[i]:first[i + 1]`."""
 
     level: int
-    grid: IntArray  # the level's node of each base cell (-1 where blocked)
+    # Each base cell's node at the level is `up[grid[y, x]]` (none where `grid` is -1, blocked):
+    # `grid` the level's own grid and `up` the identity, or level 0's grid and each cell's
+    # ancestor at the level (`Components.build`: the top level's grid is then not made).
+    grid: IntArray
+    up: IntArray
     head_block: IntArray  # each state's head's block at the level: x in row 0, y in row 1
     movement: int
     first: IntArray
@@ -84,17 +88,20 @@ class Doors:
         first: IntArray,
         neighbour: IntArray,
         movement: int,
+        up: IntArray | None = None,
     ) -> Doors:
-        """The doors of a level from its node of each base cell (`grid`), its nodes' blocks and
-        its compressed rows (`first`, `neighbour`: node i's neighbours are
-        `neighbour[first[i]:first[i + 1]]`)."""
+        """The doors of a level from its node of each base cell (`grid`; with `up`, the node of
+        a cell is `up[grid[y, x]]`), its nodes' blocks and its compressed rows (`first`,
+        `neighbour`: node i's neighbours are `neighbour[first[i]:first[i + 1]]`)."""
         count, states = len(first) - 1, len(neighbour)
+        if up is None:
+            up = np.arange(count, dtype=np.int64)
         tail = np.repeat(np.arange(count, dtype=np.int64), np.diff(first))
         head = np.asarray(neighbour, dtype=np.int64)
         keys = tail * count + head
         order = np.argsort(keys, kind="stable")
         reverse = order[np.searchsorted(keys[order], head * count + tail)]
-        point = compiled().door_points(grid, movement, keys[order], order, count, states)
+        point = compiled().door_points(grid, up, movement, keys[order], order, count, states)
         downward = tail > head
         point[downward] = point[reverse[downward]]  # the same door both ways
         # Each state followed by the states leaving its head but the one back.
@@ -111,8 +118,8 @@ class Doors:
         length = move_distance(np.abs(step[:, 0]), np.abs(step[:, 1]), movement)
         head_block = np.ascontiguousarray(block[head].T)
         return cls(
-            level, grid, head_block, movement, first, tail, head, reverse, point, after_first,
-            after, from_tail, length, keys[order], order,
+            level, grid, up, head_block, movement, first, tail, head, reverse, point,
+            after_first, after, from_tail, length, keys[order], order,
         )  # fmt: skip
 
     def route(
@@ -134,7 +141,7 @@ class Doors:
             SearchLimit: that work is more than `limit`.
         """
         (sx, sy), (gx, gy) = start, goal
-        source, target = int(self.grid[sy, sx]), int(self.grid[gy, gx])
+        source, target = int(self.up[self.grid[sy, sx]]), int(self.up[self.grid[gy, gx]])
         if source == target:
             return (source,), float(self._distance_to(np.array([[sx + 0.5, sy + 0.5]]), goal)[0]), 0
         leaving = np.arange(self.first[source], self.first[source + 1])
