@@ -499,3 +499,23 @@ def test_bad_options_are_named() -> None:
     for name in ("door_rings", "direct", "direct_width"):
         with pytest.raises(ValueError, match=f"{name} must be >= 0 or None, got -1"):
             next(atp(Context(), world.start, world.goal, pyramid, **{name: -1}))
+
+
+@pytest.mark.parametrize("movement", [4, 8])
+def test_a_plan_across_opened_walls_is_worth_less_than_its_estimate(movement: int) -> None:
+    """A wall one cell thick walls the goal off: the planner opens the cheapest route that
+    counts a blocked cell as two free ones (along the top row: 15 cells, one blocked, cost 16)
+    and plans on that map; its plans keep 15 / 16 of their estimate, the last, fully refined
+    (1.0 on the opened map), is reported at 15 / 16 exactly, not 1.0."""
+    blocked = np.zeros((16, 16), dtype=bool)
+    blocked[:, 8] = True
+    pyramid = Pyramid.build(blocked)
+    results = list(atp(Context(), (0, 0), (15, 0), pyramid, movement=movement))
+    route = results[-1].value.base_route()
+    assert route is not None and (8, 0) in route  # across the wall, where it was opened
+    assert results[-1].quality == 15 / 16
+    assert all(r.quality <= 15 / 16 for r in results)
+    blocked[0, 8] = False  # a door there: the same route, nothing opened, quality 1.0
+    free = list(atp(Context(), (0, 0), (15, 0), Pyramid.build(blocked), movement=movement))
+    assert free[-1].value.base_route() == route
+    assert free[-1].quality == 1.0

@@ -365,7 +365,9 @@ def atp(
     A goal the map given does not connect to the start (a noisy map can wall it off) is not an
     error: the planner then opens the walls in the way (the cells of the cheapest route that
     counts a blocked cell as two free ones) and plans on that map; execution on the true map
-    avoids the obstacles.
+    avoids the obstacles. Such a plan's quality is its estimate on the opened map times that
+    route's length over its cost (its blocked cells counted twice): below 1 even fully refined,
+    for it crosses cells blocked on the map given (a plan crossing 10 of 100 cells: 100 / 110).
 
     Raises:
         ValueError: a blocked start or goal, a top outside the pyramid, segment_moves < 1, or
@@ -391,9 +393,10 @@ def atp(
             f"the components are of a {components.cell.shape} map, the pyramid's is"
             f" {pyramid.levels[0].shape}"
         )
+    share = 1.0  # the quality's share a plan across opened walls keeps (`_opened`)
     if not components.connected(start, goal):
-        blocked = pyramid.levels[0] >= 1.0
-        components = Components.build(_opened(blocked, start, goal, movement), movement, top=top)
+        opened, share = _opened(pyramid.levels[0] >= 1.0, start, goal, movement)
+        components = Components.build(opened, movement, top=top)
     for name, option in (
         ("door_rings", door_rings),
         ("direct", direct),
@@ -422,7 +425,7 @@ def atp(
         except SearchLimit as stopped:  # the deadline came first: register the first plan
             ctx.tick(stopped.expansions)
         else:
-            yield Result(MultiPath(start, goal, (), (route,), (), components), 1.0)
+            yield Result(MultiPath(start, goal, (), (route,), (), components), share)
             return
     worst = _Worst(pyramid.top)
 
@@ -452,7 +455,7 @@ def atp(
 
     segments, plan = begin(found)
     if better(plan):  # the first plan: always (nothing is registered before it)
-        yield Result(plan, worst.quality())
+        yield Result(plan, share * worst.quality())
     if direct_width is not None and top > 0 and planner.width(top, found) <= direct_width:
         try:
             route = planner.direct(top, found.nodes)
@@ -461,7 +464,7 @@ def atp(
             return
         plan = MultiPath(start, goal, (), (route,), (), components)
         if better(plan):
-            yield Result(plan, 1.0)
+            yield Result(plan, share)
         return
     if doors and top > 0:
         try:
@@ -472,7 +475,7 @@ def atp(
         if rerouted is not None:
             segments, plan = begin(rerouted)
             if follow is not None and better(plan):
-                yield Result(plan, worst.quality())
+                yield Result(plan, share * worst.quality())
     while not ctx.expired:
         popped = worst.pop()
         if popped is None:
@@ -492,7 +495,7 @@ def atp(
         tail = plan.tail[1:] if index == len(segments) - len(new) else plan.tail
         plan = MultiPath(start, goal, head, tuple(segments), tail, components)
         if better(plan):
-            yield Result(plan, 1.0 if worst.refined else worst.quality())
+            yield Result(plan, share * (1.0 if worst.refined else worst.quality()))
 
 
 class _Worst:
@@ -557,9 +560,12 @@ def _runs(moves: int, most: int | None) -> list[tuple[int, int]]:
     return list(zip(bounds, bounds[1:], strict=False))
 
 
-def _opened(blocked: BoolGrid, start: Position, goal: Position, movement: int) -> BoolGrid:
+def _opened(
+    blocked: BoolGrid, start: Position, goal: Position, movement: int
+) -> tuple[BoolGrid, float]:
     """`blocked` with the walls between start and goal opened: the blocked cells of the
-    cheapest route that counts a blocked cell as two free ones."""
+    cheapest route that counts a blocked cell as two free ones; and that route's length over
+    its cost (below 1: the share of its quality a plan across the opened walls keeps, `atp`)."""
     grid = np.asarray(blocked, dtype=bool)
     found = find_path(
         grid, start, goal, movement=movement, weight=1.0, impassable=np.zeros_like(grid)
@@ -568,7 +574,7 @@ def _opened(blocked: BoolGrid, start: Position, goal: Position, movement: int) -
     opened = np.array(blocked, dtype=bool)
     for x, y in found.path:
         opened[y, x] = False
-    return opened
+    return opened, found.length / found.cost
 
 
 class _Planner:

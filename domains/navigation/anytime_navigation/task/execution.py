@@ -46,8 +46,8 @@ robot's base cell, each waypoint in turn is
    A robot given its map (`believed`, with a `penalty`) plans its detours around the obstacles
    the map shows, each of their cells costing `penalty` cells more to cross than a free one,
    rather than through them: the frames give it the robot's map when the plan runs through
-   cells blocked on the map it was made on (the planner at times answers with such a plan,
-   refined to the base level and estimated at quality 1.0), where with the free-space
+   cells blocked on the map it was made on (where that map walls the goal off, the planner
+   opens the walls in the way and plans across them, `planner.atp`), where with the free-space
    assumption alone the robot felt its way along the wrong side of an obstacle it had read.
    Not impassable: vision's false obstacles are crossed at their cost.
 

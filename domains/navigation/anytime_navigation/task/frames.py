@@ -808,9 +808,10 @@ def _near(segment: Sequence[Position], shape: tuple[int, ...]) -> BoolGrid:
 
 def _crosses_its_map(plan: Any, blocked: BoolGrid, start: Position, goal: Position) -> bool:
     """Whether a plan's base cells run through cells blocked on the map it was made on (its
-    start and goal aside, which the planner takes as free): the planner at times answers with
-    such a plan, refined to the base level and estimated at quality 1.0, and a robot feeling its
-    way past the obstacle with the free-space assumption alone may go round the wrong side."""
+    start and goal aside, which the planner takes as free): where that map walls the goal off,
+    the planner opens the walls in the way and plans across them (its quality below 1, `atp`),
+    and a robot feeling its way past the obstacle with the free-space assumption alone may go
+    round the wrong side."""
     if plan is None or not hasattr(plan, "parts"):
         return False
     cells = np.array(
