@@ -26,7 +26,8 @@ ATP's abstraction.
 3. Per map kind (issues 17 and 36): the default ATP, and beside it each option of `atp` that
    issue 36 asks to measure (`KIND_CONFIGS`: the door search kept near the first plan, the first
    plan a level higher, a direct search for short problems, one for narrow corridors after
-   the first plan, and open level-1 segments refined without a ring; each with its own
+   the first plan, open level-1 segments refined without a ring, and open level-2 segments
+   with one ring instead of three; each with its own
    abstraction's build), against A* on the longest problems
    of 14 MovingAI maps, the shipped three and eleven
    more in benchmarks/data/movingai/ (random with 20% of cells blocked, rooms of 16, 32 and 64,
@@ -142,6 +143,13 @@ KIND_CONFIGS: dict[str, dict[str, Any]] = {
         "direct": 4,
         "direct_width": 12,
         "no_ring_when_open": 0.05,
+    },
+    "... and one_ring_when_open=0.1": {
+        "top": 4,
+        "direct": 4,
+        "direct_width": 12,
+        "no_ring_when_open": 0.05,
+        "one_ring_when_open": 0.1,
     },
 }
 
@@ -929,7 +937,9 @@ def bench_kinds(
         " refinements; direct_width=W: likewise after the first plan when those cells are at\n"
         " most W per unit of its length (a narrow corridor); no_ring_when_open=T (with the\n"
         " row above's options): a level-1 segment of mean obstacleness at most T is refined\n"
-        " through its own nodes' cells, without a ring of neighbours; the\n"
+        " through its own nodes' cells, without a ring of neighbours; one_ring_when_open=T\n"
+        " (with the row above's options): a level-2 segment of mean obstacleness at most T is\n"
+        " refined with one ring of neighbouring nodes, not three; the\n"
         f" {count} problems of the longest buckets per map, octile without\n"
         " corner cutting, optimal lengths from A*; A* and the ATP interleaved, each the best of\n"
         f" {repeats} run(s); columns as in the first table, but an execution is given up after\n"
