@@ -756,6 +756,7 @@ def grouped_components(
 def door_points(
     grid: IntArray,
     up: IntArray,
+    level: int,
     movement: int,
     ordered: IntArray,
     order: IntArray,
@@ -767,41 +768,69 @@ def door_points(
     blocked), its midpoint added to the state from the lower node to the higher (`ordered`:
     tail * count + head of the states, ascending, `order` their states), then each such
     state's mean. (The midpoints are multiples of 1/2, so their sums are exact in any
-    order.)"""
+    order.) Only the cells of the last row and of the first and last columns of each block of
+    the `level` are read: a legal move within a block joins two cells of one node (its
+    connected components are the nodes), and from any other cell every move stays in it."""
     sums = np.zeros((states, 2))
     moves = np.zeros(states)
     height, width = grid.shape
-    forward = 4 if movement == 8 else 2
+    side = 1 << level
     for y in range(height):
-        for x in range(width):
-            a = grid[y, x]
-            if a < 0:
-                continue
-            a = up[a]
-            for m in range(forward):  # (1, 0), (0, 1), (1, 1), (-1, 1)
-                dx = 1 if m == 0 or m == 2 else (-1 if m == 3 else 0)
-                dy = 0 if m == 0 else 1
-                tx, ty = x + dx, y + dy
-                if tx < 0 or tx >= width or ty >= height:
-                    continue
-                b = grid[ty, tx]
-                if b < 0:
-                    continue
-                b = up[b]
-                if b == a:
-                    continue
-                if dx != 0 and dy != 0 and (grid[y, tx] < 0 or grid[ty, x] < 0):
-                    continue  # no corner cutting: both orthogonal neighbours free
-                key = min(a, b) * count + max(a, b)
-                state = order[np.searchsorted(ordered, key)]
-                sums[state, 0] += x + 0.5 + dx / 2
-                sums[state, 1] += y + 0.5 + dy / 2
-                moves[state] += 1.0
+        if y & (side - 1) == side - 1 or side <= 2:  # its moves down leave the block
+            for x in range(width):
+                _door_moves(grid, up, movement, ordered, order, count, sums, moves, x, y)
+        else:
+            for x0 in range(0, width, side):
+                _door_moves(grid, up, movement, ordered, order, count, sums, moves, x0, y)
+                last = x0 + side - 1
+                _door_moves(grid, up, movement, ordered, order, count, sums, moves, last, y)
     for j in range(states):
         if moves[j] > 0.0:
             sums[j, 0] /= moves[j]
             sums[j, 1] /= moves[j]
     return sums
+
+
+@_compiled
+def _door_moves(
+    grid: IntArray,
+    up: IntArray,
+    movement: int,
+    ordered: IntArray,
+    order: IntArray,
+    count: int,
+    sums: FloatArray,
+    moves: FloatArray,
+    x: int,
+    y: int,
+) -> None:
+    """`door_points`' forward moves from cell (x, y): each legal one between two nodes added
+    to its state's sums."""
+    height, width = grid.shape
+    a = grid[y, x]
+    if a < 0:
+        return
+    a = up[a]
+    forward = 4 if movement == 8 else 2
+    for m in range(forward):  # (1, 0), (0, 1), (1, 1), (-1, 1)
+        dx = 1 if m == 0 or m == 2 else (-1 if m == 3 else 0)
+        dy = 0 if m == 0 else 1
+        tx, ty = x + dx, y + dy
+        if tx < 0 or tx >= width or ty >= height:
+            continue
+        b = grid[ty, tx]
+        if b < 0:
+            continue
+        b = up[b]
+        if b == a:
+            continue
+        if dx != 0 and dy != 0 and (grid[y, tx] < 0 or grid[ty, x] < 0):
+            continue  # no corner cutting: both orthogonal neighbours free
+        key = min(a, b) * count + max(a, b)
+        state = order[np.searchsorted(ordered, key)]
+        sums[state, 0] += x + 0.5 + dx / 2
+        sums[state, 1] += y + 0.5 + dy / 2
+        moves[state] += 1.0
 
 
 @_compiled

@@ -101,7 +101,7 @@ class Doors:
         keys = tail * count + head
         order = np.argsort(keys, kind="stable")
         reverse = order[np.searchsorted(keys[order], head * count + tail)]
-        point = compiled().door_points(grid, up, movement, keys[order], order, count, states)
+        point = compiled().door_points(grid, up, level, movement, keys[order], order, count, states)
         downward = tail > head
         point[downward] = point[reverse[downward]]  # the same door both ways
         # Each state followed by the states leaving its head but the one back.
