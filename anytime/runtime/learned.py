@@ -34,7 +34,8 @@ from __future__ import annotations
 
 import math
 import weakref
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from typing import Any, TypeVar, cast
 
 import numpy as np
 from attrs import field, frozen
@@ -45,6 +46,8 @@ from anytime.profiles.profile import Array
 from anytime.runtime.monitor import TIE_TOLERANCE
 from anytime.runtime.observe import Decision, PolicyError
 from anytime.runtime.policies import Utility, check_allocation, check_monitoring_cost, trace_cell
+
+T = TypeVar("T")
 
 #: The neighbour counts the policy chooses among (those below the number of training runs).
 NEIGHBOURS = (5, 10, 20, 40, 80, 160)
@@ -313,24 +316,32 @@ class HistoryStopping:
 #: Neighbourhoods per training traces (by identity, while they live), cell and neighbour counts:
 #: policies of several utilities learned from the same traces share them (they are most of the
 #: learning's time).
-_NEIGHBOURHOODS: dict[
-    tuple[int, tuple[int, ...], tuple[int, ...]],
-    tuple[weakref.ref[QualityTraces], dict[int, tuple[NDArray[np.intp], NDArray[np.intp]]]],
-] = {}
+_NEIGHBOURHOODS: dict[tuple[Any, ...], tuple[weakref.ref[QualityTraces], Any]] = {}
 
 
 def _shared_neighbourhoods(
     training: QualityTraces, cell: tuple[int, ...], choices: tuple[int, ...]
 ) -> dict[int, tuple[NDArray[np.intp], NDArray[np.intp]]]:
-    key = (id(training), cell, choices)
-    kept = _NEIGHBOURHOODS.get(key)
-    if kept is not None and kept[0]() is training:
-        return kept[1]
-    for stale in [k for k, (ref, _) in _NEIGHBOURHOODS.items() if ref() is None]:
-        del _NEIGHBOURHOODS[stale]
-    near: dict[int, tuple[NDArray[np.intp], NDArray[np.intp]]] = {}
-    _NEIGHBOURHOODS[key] = (weakref.ref(training), near)
-    return near
+    return kept_while_alive(_NEIGHBOURHOODS, training, (cell, choices), dict)
+
+
+def kept_while_alive(
+    store: dict[tuple[Any, ...], tuple[weakref.ref[QualityTraces], Any]],
+    traces: QualityTraces,
+    key: tuple[Any, ...],
+    make: Callable[[], T],
+) -> T:
+    """What `make()` made for `traces` (by identity) and `key`, made once while the traces
+    live: traces are arrays, not hashable, and a derived value must not keep them alive."""
+    full = (id(traces), *key)
+    kept = store.get(full)
+    if kept is not None and kept[0]() is traces:
+        return cast(T, kept[1])
+    for stale in [k for k, (ref, _) in store.items() if ref() is None]:
+        del store[stale]
+    made = make()
+    store[full] = (weakref.ref(traces), made)
+    return made
 
 
 def _choose(values: Array, blind: bool) -> NDArray[np.intp]:

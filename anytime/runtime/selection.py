@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 import weakref
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from attrs import frozen
@@ -41,7 +42,7 @@ from numpy.typing import NDArray
 
 from anytime.profiles.dynamic import DynamicProfile, QualityTraces
 from anytime.profiles.profile import Array
-from anytime.runtime.learned import HistoryStopping
+from anytime.runtime.learned import HistoryStopping, kept_while_alive
 from anytime.runtime.observe import PolicyError
 from anytime.runtime.offline import scores
 from anytime.runtime.policies import OptimalStopping, Utility
@@ -174,21 +175,19 @@ Folds = tuple[NDArray[np.intp], list[tuple[QualityTraces, QualityTraces]]]
 #: The folds of training traces (by identity, while they live), number and seed: fits of several
 #: utilities to the same traces learn from the same fold objects, so the history policies share
 #: their neighbourhoods (most of their learning's time).
-_FOLDS: dict[tuple[int, int, int], tuple[weakref.ref[QualityTraces], Folds]] = {}
+_FOLDS: dict[tuple[Any, ...], tuple[weakref.ref[QualityTraces], Any]] = {}
 
 
 def _folds(training: QualityTraces, folds: int, seed: int) -> Folds:
     """The folds of `training`, made once while it lives."""
-    key = (id(training), folds, seed)
-    kept = _FOLDS.get(key)
-    if kept is not None and kept[0]() is training:
-        return kept[1]
-    for stale in [k for k, (ref, _) in _FOLDS.items() if ref() is None]:
-        del _FOLDS[stale]
-    fold = np.random.default_rng(seed).permutation(training.trials) % folds
-    split = [(training.select(fold != f), training.select(fold == f)) for f in range(folds)]
-    _FOLDS[key] = (weakref.ref(training), (fold, split))
-    return fold, split
+
+    def make() -> Folds:
+        fold = np.random.default_rng(seed).permutation(training.trials) % folds
+        return fold, [
+            (training.select(fold != f), training.select(fold == f)) for f in range(folds)
+        ]
+
+    return kept_while_alive(_FOLDS, training, (folds, seed), make)
 
 
 def _candidates(states: Sequence[int], entered: Sequence[int]) -> list[tuple[int, int]]:
