@@ -695,17 +695,26 @@ def replay_states(policy: StoppingPolicy, hyp: Hypotheses, states: Array) -> tup
     return stops[inverse.reshape(-1)], looks[inverse.reshape(-1)]
 
 
+Seen = tuple[tuple[float, float], ...]
+
+
 class SharedFits(ProjectedStopping):
     """`ProjectedStopping` with its fits shared among the policies of one profile: a fit (and
     so the projected curve) depends on the points seen only, not on the utility."""
 
-    fits: dict[tuple[int, int, tuple[tuple[float, float], ...]], Array] = {}
+    #: Per profile (by identity; kept alive here, so that a later profile cannot take its id):
+    #: the fits by deadline and points seen.
+    shared: dict[int, tuple[DynamicProfile, dict[tuple[int, Seen], Array]]] = {}
 
     def projection(self) -> Array:
-        key = (id(self.model.profile), self.last, tuple(self._seen))
-        if key not in self.fits:
-            self.fits[key] = super().projection()
-        return self.fits[key]
+        profile = self.model.profile
+        kept = self.shared.get(id(profile))
+        if kept is None or kept[0] is not profile:
+            kept = self.shared[id(profile)] = (profile, {})
+        fits, key = kept[1], (self.last, tuple(self._seen))
+        if key not in fits:
+            fits[key] = super().projection()
+        return fits[key]
 
 
 def state_of(fit: FittedStopping) -> str:
