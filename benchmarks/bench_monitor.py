@@ -1,7 +1,7 @@
 """The monitor against fixed contracts, the MIN/MAX policies and the stopping policy over
 seeded worlds.
 
-    .venv/bin/python benchmarks/bench_monitor.py [--worlds 100] [--sizes 64,128] [--quick]
+    .venv/bin/python benchmarks/bench_monitor.py [--worlds 400] [--sizes 64,128] [--quick]
         [--workers 2]
 
 Per world size, every policy on the same worlds (seeds 0 to worlds - 1; the monitor's
@@ -84,7 +84,7 @@ class Outcome:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--worlds", type=int, default=100)
+    parser.add_argument("--worlds", type=int, default=400)
     parser.add_argument("--sizes", default="128", help="world sides, comma-separated")
     parser.add_argument("--radius", type=int, help="sensor radius (default: a quarter of the side)")
     parser.add_argument("--quick", action="store_true", help="64x64 worlds only")
