@@ -75,7 +75,7 @@ class Candidate:
     @property
     def state(self) -> str:
         """`"history"`, or `"B bins x C classes"`."""
-        return HISTORY if self.states == 0 else f"{self.states} bins x {self.entered} classes"
+        return _name(self.states, self.entered)
 
 
 @frozen
@@ -105,7 +105,7 @@ class FittedStopping:
     @property
     def state(self) -> str:
         """`"history"`, or `"B bins x C classes"`."""
-        return Candidate(self.states, self.entered, self.utility, self.standard_error).state
+        return _name(self.states, self.entered)
 
 
 def fit_optimal(
@@ -188,6 +188,10 @@ def _folds(training: QualityTraces, folds: int, seed: int) -> Folds:
         ]
 
     return kept_while_alive(_FOLDS, training, (folds, seed), make)
+
+
+def _name(states: int, entered: int) -> str:
+    return HISTORY if states == 0 else f"{states} bins x {entered} classes"
 
 
 def _candidates(states: Sequence[int], entered: Sequence[int]) -> list[tuple[int, int]]:
