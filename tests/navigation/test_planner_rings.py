@@ -9,9 +9,11 @@ from typing import Any
 
 import numpy as np
 import pytest
+from anytime_navigation.planning import planner
 from anytime_navigation.planning.abstraction import Pyramid
 from anytime_navigation.planning.components import Components
 from anytime_navigation.planning.planner import atp
+from anytime_navigation.planning.search import STEP_REFINED
 from anytime_navigation.task.execution import execute
 from anytime_navigation.world import random_world
 
@@ -34,19 +36,23 @@ def _run(
     pyramid = Pyramid.build(blocked)
     components = Components.build(blocked, 8, top=3)
     used: list[tuple[int, float]] = []
-    refinement = Components.refinement
+    refine = planner._Steps.refine
 
-    def recorded(self: Components, at: int, route: Any, rings: int, *rest: Any, **kw: Any) -> Any:
-        if at == level:
-            blocks = self.levels[level].block[np.asarray(route)]
+    def recorded(self: Any, limit: float) -> Any:
+        # the segment refined is the heap's first (`corridor_search.refine_step`)
+        worst = int(self.heap_items[0]) if self.counts[3] else -1
+        done, index, lower, rings, *rest = refine(self, limit)
+        if done == STEP_REFINED and lower + 1 == level:
+            route = self.pool[self.begin_at[worst] : self.end_at[worst]]
+            blocks = components.levels[level].block[route]
             obstacleness = pyramid.levels[level][blocks[:, 1], blocks[:, 0]].mean()
             used.append((rings, float(obstacleness)))
-        return refinement(self, at, route, rings, *rest, **kw)
+        return (done, index, lower, rings, *rest)
 
-    monkeypatch.setattr(Components, "refinement", recorded)
+    monkeypatch.setattr(planner._Steps, "refine", recorded)
     ctx = Context()
     plans = list(atp(ctx, start, goal, pyramid, movement=8, components=components, **options))
-    monkeypatch.setattr(Components, "refinement", refinement)
+    monkeypatch.setattr(planner._Steps, "refine", refine)
     return used, plans[-1].value, int(ctx.ticks)
 
 

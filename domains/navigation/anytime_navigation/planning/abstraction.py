@@ -62,10 +62,19 @@ def cell_bounds(position: Position, level: int) -> tuple[int, int, int, int]:
 
 
 def _levels(value: Any) -> tuple[FloatGrid, ...]:
-    levels = tuple(np.array(level, dtype=np.float64, copy=True) for level in value)
-    for level in levels:
+    """The levels copied into one array, one after another (`Pyramid.stacked`), read-only."""
+    arrays = [np.asarray(level, dtype=np.float64) for level in value]
+    stacked = np.empty(sum(array.size for array in arrays))
+    levels = []
+    at = 0
+    for array in arrays:
+        level = stacked[at : at + array.size].reshape(array.shape)
+        level[...] = array
         level.setflags(write=False)
-    return levels
+        levels.append(level)
+        at += array.size
+    stacked.setflags(write=False)
+    return tuple(levels)
 
 
 def _levels_equal(a: tuple[FloatGrid, ...], b: tuple[FloatGrid, ...]) -> bool:
@@ -107,6 +116,25 @@ class Pyramid:
     @property
     def top(self) -> int:
         return len(self.levels) - 1
+
+    def stacked(self) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.int64]] | None:
+        """The levels ravelled one after another, where each begins and each one's side: level
+        n's obstacleness at (x, y) is `stacked[at[n] + y * side[n] + x]` (what compiled code
+        reads any level from: `corridor_search.refine_step`); None when the levels are not
+        views of one array (a pyramid unpickled: its levels are apart)."""
+        stacked = self.levels[0].base
+        if not isinstance(stacked, np.ndarray) or stacked.ndim != 1:
+            return None
+        origin = stacked.__array_interface__["data"][0]
+        at = [0]
+        for level in self.levels:
+            if level.base is not stacked or level.__array_interface__["data"][0] != (
+                origin + at[-1] * stacked.itemsize
+            ):
+                return None
+            at.append(at[-1] + level.size)
+        sides = np.array([level.shape[1] for level in self.levels], dtype=np.int64)
+        return stacked, np.array(at, dtype=np.int64), sides
 
     @property
     def size(self) -> int:

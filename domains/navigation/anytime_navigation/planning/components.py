@@ -33,8 +33,9 @@ Arrays are indexed [y, x]; positions are (x, y).
 from __future__ import annotations
 
 import math
+import weakref
 from collections.abc import Sequence
-from typing import overload
+from typing import Any, NamedTuple, overload
 
 import numpy as np
 from attrs import field, frozen
@@ -186,6 +187,65 @@ class _Grids(Sequence[IntArray]):
         return self._regions
 
 
+class Stacked(NamedTuple):
+    """Levels 1 .. top's arrays, each kind concatenated (values unchanged) so that compiled code
+    reads any level's as a slice (`corridor_search.refine_step`): level k's nodes' rows are
+    `[node_at[k]:node_at[k + 1]]` of `parent`, `block`, `centre` and `scratch` (-1 everywhere,
+    a search's), its compressed rows `[first_at[k]:first_at[k + 1]]` of `first` and
+    `first_child`, its edges `[edge_at[k]:edge_at[k + 1]]` of `neighbour` and `cost`, its
+    children `[child_at[k]:child_at[k + 1]]` of `child` (level 0's: none); `base_scratch` is
+    level 0's scratch (the abstraction's own)."""
+
+    base_scratch: IntArray
+    node_at: IntArray
+    parent: IntArray
+    block: IntArray
+    centre: FloatArray
+    scratch: IntArray
+    first_at: IntArray
+    first: IntArray
+    edge_at: IntArray
+    neighbour: IntArray
+    cost: FloatArray
+    child_at: IntArray
+    first_child: IntArray
+    child: IntArray
+
+
+def _stack(levels: Sequence[Level], base_scratch: IntArray) -> Stacked:
+    above = levels[1:]
+
+    def offsets(sizes: list[int]) -> IntArray:
+        return np.cumsum([0, 0, *sizes], dtype=np.int64)  # level 0's: empty
+
+    def joined(arrays: list[NDArray[Any]], empty: NDArray[Any]) -> NDArray[Any]:
+        return np.concatenate(arrays) if arrays else empty
+
+    no_ints, no_floats = np.zeros(0, dtype=np.int64), np.zeros(0)
+    node_at = offsets([len(level) for level in above])
+    return Stacked(
+        base_scratch,
+        node_at,
+        joined([level.parent for level in above], no_ints),
+        joined([level.block for level in above], np.zeros((0, 2), dtype=np.int64)),
+        joined([level.centre for level in above], np.zeros((0, 2))),
+        np.full(int(node_at[-1]), -1, dtype=np.int64),
+        offsets([len(level.first) for level in above]),
+        joined([level.first for level in above], no_ints),
+        offsets([len(level.neighbour) for level in above]),
+        joined([level.neighbour for level in above], no_ints),
+        joined([level.cost for level in above], no_floats),
+        offsets([len(level.child) for level in above]),
+        joined([level.first_child for level in above], no_ints),
+        joined([level.child for level in above], no_ints),
+    )
+
+
+# Each abstraction's `Stacked`, made when a plan is first refined: kept apart from its fields, so
+# that a plan's pickle, which holds its abstraction, is the same before and after.
+_STACKED: weakref.WeakKeyDictionary[Components, Stacked] = weakref.WeakKeyDictionary()
+
+
 @frozen(eq=False)
 class Components:
     """The hierarchy of a square power-of-two map: `levels[k]` for k = 0 .. top, and
@@ -207,6 +267,13 @@ class Components:
     @_scratch.default
     def _no_nodes(self) -> tuple[IntArray, ...]:
         return tuple(np.full(len(level), -1, dtype=np.int64) for level in self.levels)
+
+    def stacked(self) -> Stacked:
+        """Levels 1 .. top's arrays concatenated (`Stacked`), made once."""
+        stacked = _STACKED.get(self)
+        if stacked is None:
+            stacked = _STACKED[self] = _stack(self.levels, self._scratch[0])
+        return stacked
 
     @property
     def cell(self) -> IntArray:

@@ -26,6 +26,8 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from .search import STEP_NO_PATH, STEP_NONE_LEFT, STEP_OVER, STEP_REFINED
+
 IntArray = NDArray[np.int64]
 FloatArray = NDArray[np.float64]
 
@@ -992,3 +994,317 @@ def grid_astar(
         path[i] = u
         u = parent[u]
     return path, g[goal], expansions
+
+
+# The anytime planner's refinement step (`planner.atp`) in one compiled call: WORST-SEGMENT, the
+# refinement's search, the two halves and the quality estimate kept up to date, over a plan held
+# in arrays (issue 36: the step's Python objects and numpy calls were 25-40% of the planner's
+# time). A plan's segments are numbered in the order they are made; segment s is at level
+# `level[s]`, its nodes `pool[begin[s]:end[s]]`, its mean obstacleness `obstacleness[s]`;
+# `order[:counts[0]]` the plan's segments in route order; `counts` also holds how many segments
+# were made, how many entries of `pool` are used and the heap's size; `sums` the estimate's
+# extent and credit. A level k >= 1's arrays are slices of the concatenations of those of
+# levels 1 .. top (`Components.stacked`), level 0's are passed apart.
+
+
+@_compiled
+def pairwise_sum(values: FloatArray, lo: int, n: int) -> float:
+    """The sum of `values[lo:lo + n]` exactly as numpy's `np.add.reduce` makes it (pairwise, by
+    blocks of 128 in eight lanes): the means the planner keeps match those made in Python to
+    the last bit."""
+    if n < 8:
+        total = 0.0
+        for i in range(lo, lo + n):
+            total += values[i]
+        return total
+    if n <= 128:
+        r = values[lo : lo + 8].copy()
+        i = 8
+        while i < n - (n % 8):
+            for j in range(8):
+                r[j] += values[lo + i + j]
+            i += 8
+        total = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+        while i < n:
+            total += values[lo + i]
+            i += 1
+        return float(total)
+    half = n // 2
+    half -= half % 8
+    return pairwise_sum(values, lo, half) + pairwise_sum(values, lo + half, n - half)
+
+
+@_compiled
+def _before_in_heap(keys: FloatArray, items: IntArray, i: int, key: float, item: int) -> bool:
+    """Whether heap entry i comes before (key, item): by key, then by item (the order made)."""
+    return bool(keys[i] < key or (keys[i] == key and items[i] < item))
+
+
+@_compiled
+def _push_ordered(keys: FloatArray, items: IntArray, size: int, key: float, item: int) -> int:
+    """`_push` with ties broken by the smaller item (Python's heap of (key, order) tuples)."""
+    i = size
+    while i > 0:
+        parent = (i - 1) >> 1
+        if _before_in_heap(keys, items, parent, key, item):
+            break
+        keys[i], items[i] = keys[parent], items[parent]
+        i = parent
+    keys[i], items[i] = key, item
+    return size + 1
+
+
+@_compiled
+def _pop_ordered(keys: FloatArray, items: IntArray, size: int) -> int:
+    """`_pop` with ties broken by the smaller item; the new size."""
+    size -= 1
+    key, item = keys[size], items[size]
+    i = 0
+    while True:
+        child = 2 * i + 1
+        if child >= size:
+            break
+        if child + 1 < size and _before_in_heap(keys, items, child + 1, keys[child], items[child]):
+            child += 1
+        if not _before_in_heap(keys, items, child, key, item):
+            break
+        keys[i], items[i] = keys[child], items[child]
+        i = child
+    if size > 0:
+        keys[i], items[i] = key, item
+    return size
+
+
+@_compiled
+def _credit(moves: int, level: int, obstacleness: float, top: int) -> tuple[float, float]:
+    """A segment's (extent, credit) in the quality estimate (`planner._credit`, the same
+    arithmetic)."""
+    extent = max(moves, 1) * float(1 << level)
+    if level == 0:
+        return extent, extent
+    coarseness = 1.0 - level / (top + 1)
+    return extent, extent * (1.0 - obstacleness) * coarseness
+
+
+@_compiled
+def _entered(
+    s: int,
+    level: IntArray,
+    begin: IntArray,
+    end: IntArray,
+    obstacleness: FloatArray,
+    heap_keys: FloatArray,
+    heap_items: IntArray,
+    counts: IntArray,
+    sums: FloatArray,
+    top: int,
+) -> None:
+    """Segment s enters the estimate and, above level 0, WORST-SEGMENT's heap (`_Worst.add`),
+    its score `2^k * (1 + o)`."""
+    extent, credit = _credit(end[s] - begin[s] - 1, level[s], obstacleness[s], top)
+    sums[0] += extent
+    sums[1] += credit
+    if level[s] > 0:
+        score = (1 << level[s]) * (1.0 + obstacleness[s])
+        counts[3] = _push_ordered(heap_keys, heap_items, counts[3], -score, s)
+
+
+@_compiled
+def begin_plan(
+    level: IntArray,
+    begin: IntArray,
+    end: IntArray,
+    obstacleness: FloatArray,
+    heap_keys: FloatArray,
+    heap_items: IntArray,
+    counts: IntArray,
+    sums: FloatArray,
+    top: int,
+) -> float:
+    """The first `counts[1]` segments, in route order, enter the estimate and the heap; the
+    estimate."""
+    sums[0] = sums[1] = 0.0
+    counts[3] = 0
+    for s in range(counts[1]):
+        _entered(s, level, begin, end, obstacleness, heap_keys, heap_items, counts, sums, top)
+    return float(min(1.0, max(0.0, sums[1] / sums[0])))
+
+
+@_compiled
+def _ancestor(node: int, level: int, to_level: int, parent0: IntArray, parents: IntArray,
+              node_at: IntArray) -> int:  # fmt: skip
+    """The node at `to_level` that contains `node` of `level` (`Components.ancestor`)."""
+    for k in range(level, to_level):
+        node = parent0[node] if k == 0 else parents[node_at[k] + node]
+    return node
+
+
+@_compiled
+def refine_step(
+    level: IntArray,
+    begin: IntArray,
+    end: IntArray,
+    obstacleness: FloatArray,
+    pool: IntArray,
+    order: IntArray,
+    heap_keys: FloatArray,
+    heap_items: IntArray,
+    counts: IntArray,
+    sums: FloatArray,
+    parent0: IntArray,
+    block0: IntArray,
+    centre0: FloatArray,
+    scratch0: IntArray,
+    padded: IntArray,
+    wide: int,
+    node_at: IntArray,
+    parents: IntArray,
+    blocks: IntArray,
+    centres: FloatArray,
+    scratches: IntArray,
+    first_at: IntArray,
+    firsts: IntArray,
+    edge_at: IntArray,
+    neighbours: IntArray,
+    costs: FloatArray,
+    child_at: IntArray,
+    first_children: IntArray,
+    children: IntArray,
+    pyramid: FloatArray,
+    pyramid_at: IntArray,
+    pyramid_side: IntArray,
+    movement: int,
+    top: int,
+    start: int,
+    goal: int,
+    rings_by_level: IntArray,
+    no_ring_when_open: float,
+    one_ring_when_open: float,
+    limit: float,
+) -> tuple[int, int, int, int, int, float, IntArray, IntArray, IntArray]:
+    """REFINE(WORST-SEGMENT(plan)) (`planner._Planner.refine`, the same choices): the worst
+    segment's nodes searched one level lower through the children of its nodes and of
+    `rings_by_level[k]` rings of neighbours (none or one when its mean obstacleness is at most
+    `no_ring_when_open` at level 1 or `one_ring_when_open` at level 2; NaN: never), its ends
+    the start's and goal's nodes (`start`, `goal`: level 0's) or a finer neighbour's end, else
+    any child of its end node, costed toward the coarser neighbour's next node; the path found
+    cut at its middle into two segments (one when it has fewer than two moves) in its place.
+
+    Returns (what it did, `search.STEP_*`; the plan's index of the segment refined; the new
+    segments' level; the rings searched; the search's expansions; the quality estimate after
+    it; the path's nodes; their blocks (x, y) at that level; `pool`, grown when it ran out).
+    Over `limit` or without a path, the plan is left as it was."""
+    nothing = np.zeros(0, dtype=np.int64)
+    no_blocks = np.zeros((0, 2), dtype=np.int64)
+    if counts[3] == 0:
+        return STEP_NONE_LEFT, -1, -1, -1, 0, 1.0, nothing, no_blocks, pool
+    s = heap_items[0]
+    counts[3] = _pop_ordered(heap_keys, heap_items, counts[3])
+    count = counts[0]
+    index = 0
+    while order[index] != s:
+        index += 1
+    k = level[s]
+    lower = k - 1
+    if index == 0:
+        source = _ancestor(start, 0, lower, parent0, parents, node_at)
+        source_node, source_x, source_y = -1, 0.0, 0.0
+    else:
+        p = order[index - 1]
+        if level[p] <= lower:
+            source = _ancestor(pool[end[p] - 1], level[p], lower, parent0, parents, node_at)
+            source_node, source_x, source_y = -1, 0.0, 0.0
+        else:
+            toward = pool[begin[p] + max(end[p] - begin[p] - 2, 0)]
+            source, source_node = -1, pool[begin[s]]
+            at = node_at[level[p]] + toward
+            source_x, source_y = centres[at, 0], centres[at, 1]
+    if index == count - 1:
+        target = _ancestor(goal, 0, lower, parent0, parents, node_at)
+        target_node, target_x, target_y = -1, 0.0, 0.0
+    else:
+        n = order[index + 1]
+        if level[n] <= lower:
+            target = _ancestor(pool[begin[n]], level[n], lower, parent0, parents, node_at)
+            target_node, target_x, target_y = -1, 0.0, 0.0
+        else:
+            toward = pool[begin[n] + min(1, end[n] - begin[n] - 1)]
+            target, target_node = -1, pool[end[s] - 1]
+            at = node_at[level[n]] + toward
+            target_x, target_y = centres[at, 0], centres[at, 1]
+    o = obstacleness[s]
+    rings = rings_by_level[k] if k < len(rings_by_level) else 1
+    if k == 1 and o <= no_ring_when_open:
+        rings = 0
+    if k == 2 and o <= one_ring_when_open:
+        rings = 1
+    up_nodes = scratches[node_at[k] : node_at[k + 1]]
+    up_first = firsts[first_at[k] : first_at[k + 1]]
+    up_neighbour = neighbours[edge_at[k] : edge_at[k + 1]]
+    first_child = first_children[first_at[k] : first_at[k + 1]]
+    child = children[child_at[k] : child_at[k + 1]]
+    route = pool[begin[s] : end[s]]
+    if lower == 0:
+        path, _, expansions = refinement(
+            up_first, up_neighbour, first_child, child, up_nodes, route, rings,
+            nothing, nothing, np.zeros(0), padded, wide, block0, centre0, movement, scratch0,
+            source, source_node, source_x, source_y, target, target_node, target_x, target_y,
+        )  # fmt: skip
+        blocks_lower = block0
+    else:
+        blocks_lower = blocks[node_at[lower] : node_at[lower + 1]]
+        path, _, expansions = refinement(
+            up_first, up_neighbour, first_child, child, up_nodes, route, rings,
+            firsts[first_at[lower] : first_at[lower + 1]],
+            neighbours[edge_at[lower] : edge_at[lower + 1]],
+            costs[edge_at[lower] : edge_at[lower + 1]],
+            nothing, 0, blocks_lower, centres[node_at[lower] : node_at[lower + 1]], movement,
+            scratches[node_at[lower] : node_at[lower + 1]],
+            source, source_node, source_x, source_y, target, target_node, target_x, target_y,
+        )  # fmt: skip
+    if expansions > limit:  # checked first, as `Components.refinement` does
+        return STEP_OVER, index, lower, rings, expansions, 0.0, path, no_blocks, pool
+    if not len(path):
+        return STEP_NO_PATH, index, lower, rings, expansions, 0.0, path, no_blocks, pool
+    # The path's blocks and their obstacleness, then its halves made segments in its place.
+    moves = len(path) - 1
+    found = np.empty((moves + 1, 2), dtype=np.int64)
+    values = np.empty(moves + 1)
+    side = pyramid_side[lower]
+    for i in range(moves + 1):
+        x, y = blocks_lower[path[i], 0], blocks_lower[path[i], 1]
+        found[i, 0], found[i, 1] = x, y
+        values[i] = pyramid[pyramid_at[lower] + y * side + x]
+    if counts[2] + 2 * (moves + 1) > len(pool):
+        pool = _grown_pool(pool, counts[2] + 2 * (moves + 1))
+    halves = 1 if moves < 2 else 2
+    middle = moves // 2
+    # `_Worst.remove`, then `add` for each half, in that order (the sums' rounding).
+    extent, credit = _credit(end[s] - begin[s] - 1, k, o, top)
+    sums[0] -= extent
+    sums[1] -= credit
+    if halves == 2:
+        for i in range(count - 1, index, -1):
+            order[i + 1] = order[i]
+        counts[0] = count + 1
+    for h in range(halves):
+        first, last = (0, moves) if halves == 1 else ((0, middle) if h == 0 else (middle, moves))
+        new = counts[1]
+        counts[1] = new + 1
+        level[new] = lower
+        begin[new] = counts[2]
+        pool[counts[2] : counts[2] + last + 1 - first] = path[first : last + 1]
+        counts[2] += last + 1 - first
+        end[new] = counts[2]
+        obstacleness[new] = pairwise_sum(values, first, last + 1 - first) / (last + 1 - first)
+        order[index + h] = new
+        _entered(new, level, begin, end, obstacleness, heap_keys, heap_items, counts, sums, top)
+    quality = 1.0 if counts[3] == 0 else min(1.0, max(0.0, sums[1] / sums[0]))
+    return STEP_REFINED, index, lower, rings, expansions, quality, path, found, pool
+
+
+@_compiled
+def _grown_pool(pool: IntArray, least: int) -> IntArray:
+    grown = np.empty(max(2 * len(pool), least), dtype=np.int64)
+    grown[: len(pool)] = pool
+    return grown

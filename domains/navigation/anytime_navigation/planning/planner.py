@@ -34,9 +34,8 @@ over it, compiled: `corridor_search`; a tick is a node an A* search would expand
 
 from __future__ import annotations
 
-import heapq
-import itertools
 import math
+import weakref
 from collections.abc import Callable, Iterable, Iterator, Sequence
 
 import numpy as np
@@ -48,7 +47,15 @@ from anytime.plugin import Context, Result
 from ..world import BoolGrid, Position
 from .abstraction import Pyramid, project
 from .components import Components, NodePath
-from .search import GridAstar, SearchLimit, find_path
+from .search import (
+    STEP_NO_PATH,
+    STEP_NONE_LEFT,
+    STEP_OVER,
+    GridAstar,
+    SearchLimit,
+    compiled,
+    find_path,
+)
 
 #: The level of the first plan by default: blocks of 8 x 8 cells (measured on the MovingAI maps of
 #: every kind, benchmarks/bench_navigation.py: coarser first plans confine the refinements to
@@ -218,14 +225,6 @@ def segmentize(position: Position, top: int) -> tuple[Segment, ...]:
     plan; here it is also where refinement takes the endpoints of the first and last halves
     (the cell containing the start one level lower, not an arbitrary child)."""
     return tuple(Segment(level, (project(position, 0, level),)) for level in range(top))
-
-
-def _score(level: int, obstacleness: float) -> float:
-    """WORST-SEGMENT's score of a segment at level k > 0 with mean obstacleness o over its cells:
-    `2^k * (1 + o)`. The level dominates (a segment one level higher scores at least as much
-    unless the lower one is fully blocked), and within a level the most blocked one wins (`atp`
-    keeps the scores in a heap, `_Worst`; ties go to the segment created first)."""
-    return (1 << level) * (1.0 + obstacleness)
 
 
 def _credit(segment: Segment, obstacleness: float, top: int) -> tuple[float, float]:
@@ -439,17 +438,20 @@ def atp(
         else:
             yield Result(MultiPath(start, goal, (), (route,), (), components), share)
             return
-    worst = _Worst(pyramid.top)
 
-    def begin(path: NodePath) -> tuple[list[Segment], MultiPath]:
-        """The plan of a top-level route, WORST-SEGMENT's heap and the estimate made for it."""
-        worst.clear()
+    def begin(path: NodePath) -> tuple[list[tuple[Segment, float]], MultiPath, float]:
+        """The segments of a top-level route with their mean obstacleness, its plan and the
+        estimate made for it (the sums in the order `_Steps` keeps them)."""
         made = planner.segments(top, path.nodes, _runs(len(path.nodes) - 1, segment_moves))
+        extent = credit = 0.0
         for segment, o in made:
-            worst.add(segment, o)
-        route = [segment for segment, _ in made]
+            extent_, credit_ = _credit(segment, o, pyramid.top)
+            extent += extent_
+            credit += credit_
+        route = tuple(segment for segment, _ in made)
         ends = segmentize(start, top), segmentize(goal, top)[::-1]
-        return route, MultiPath(start, goal, ends[0], tuple(route), ends[1], components)
+        plan = MultiPath(start, goal, ends[0], route, ends[1], components)
+        return made, plan, _clip(credit / extent)
 
     kept = math.inf  # how long the last plan registered is followed (`follow`)
 
@@ -465,9 +467,9 @@ def atp(
         kept = length
         return True
 
-    segments, plan = begin(found)
+    made, plan, estimate = begin(found)
     if better(plan):  # the first plan: always (nothing is registered before it)
-        yield Result(plan, share * worst.quality())
+        yield Result(plan, share * estimate)
     if direct_width is not None and top > 0 and planner.width(top, found) <= direct_width:
         try:
             route = planner.direct(top, found.nodes)
@@ -485,83 +487,134 @@ def atp(
             ctx.tick(stopped.expansions)
             return
         if rerouted is not None:
-            segments, plan = begin(rerouted)
+            made, plan, estimate = begin(rerouted)
             if follow is not None and better(plan):
-                yield Result(plan, share * worst.quality())
+                yield Result(plan, share * estimate)
+    # The plan in arrays, made after the first plan is registered (its time is the first plan's)
+    steps = _Steps(planner, pyramid, top)
+    steps.begin(made)
+    segments = [segment for segment, _ in made]
     while not ctx.expired:
-        popped = worst.pop()
-        if popped is None:
+        # REFINE(WORST-SEGMENT(plan)) in one compiled call (`_Steps.refine`); here, only the
+        # new segments made objects for the plan registered
+        limit = ctx.remaining
+        done, index, lower, _, expansions, estimate, path, blocks = steps.refine(limit)
+        if done == STEP_NONE_LEFT:
             return
-        old, old_obstacleness = popped
-        index = next(i for i in range(len(segments)) if segments[i] is old)
-        try:
-            new = planner.refine(segments, index, old_obstacleness)
-        except SearchLimit as stopped:  # the deadline came mid-refinement: keep the last plan
-            ctx.tick(stopped.expansions)
+        if done == STEP_OVER:  # the deadline came mid-refinement: keep the last plan
+            ctx.tick(int(limit))
             return
-        worst.remove(old, old_obstacleness)
-        for segment, o in new:
-            worst.add(segment, o)
-        segments[index : index + 1] = [segment for segment, _ in new]
+        if done == STEP_NO_PATH:
+            raise AssertionError(f"no path at level {lower} through the children of a path")
+        ctx.tick(expansions)
+        nodes = tuple(path.tolist())
+        cells = tuple(zip(blocks[:, 0].tolist(), blocks[:, 1].tolist(), strict=True))
+        n = len(nodes) - 1
+        halves = [(0, n)] if n < 2 else [(0, n // 2), (n // 2, n)]
+        segments[index : index + 1] = [
+            Segment._made(lower, cells[first : last + 1], nodes[first : last + 1])
+            for first, last in halves
+        ]
         head = plan.head[:-1] if index == 0 else plan.head
-        tail = plan.tail[1:] if index == len(segments) - len(new) else plan.tail
+        tail = plan.tail[1:] if index == len(segments) - len(halves) else plan.tail
         plan = MultiPath(start, goal, head, tuple(segments), tail, components)
         if better(plan):
-            yield Result(plan, share * (1.0 if worst.refined else worst.quality()))
+            yield Result(plan, share * estimate)
 
 
-class _Worst:
-    """WORST-SEGMENT and the quality estimate kept up to date as `atp` refines: a heap of
-    (-score, creation order, segment, its mean obstacleness) over the plan's refinable
-    segments, stale entries skipped, and the estimate's two sums (`quality_estimate`), so that
-    no refinement rescans the plan."""
+class _Steps:
+    """The plan as `corridor_search.refine_step` refines it: its segments in arrays (numbered in
+    the order they are made: WORST-SEGMENT's ties go to the one made first), the heap of the
+    refinable ones by score `2^k * (1 + o)` (k the level, o the mean obstacleness: the level
+    dominates, and within a level the most blocked one wins), the quality estimate's two sums
+    (`quality_estimate`, kept up to date rather than recomputed), and the arrays of the
+    abstraction and pyramid the step reads."""
 
-    def __init__(self, top: int) -> None:
-        self.top = top
-        self.order = itertools.count()
-        self.live: set[int] = set()
-        self.heap: list[tuple[float, int, Segment, float]] = []
-        self.extent = 0.0
-        self.credit = 0.0
+    def __init__(self, planner: _Planner, pyramid: Pyramid, top: int) -> None:
+        c = planner.components
+        base, stacked = c.levels[0], c.stacked()
+        none = np.zeros(0, dtype=np.int64)
+        no_ring = planner.no_ring_when_open
+        one_ring = planner.one_ring_when_open
+        self.top, self.pyramid_top = top, pyramid.top
+        self.reads = (
+            base.parent, base.block, base.centre, stacked.base_scratch,
+            base.padded if base.padded is not None else none,
+            base.grid.shape[1] + 2 if base.grid is not None else 0,
+            stacked.node_at, stacked.parent, stacked.block, stacked.centre, stacked.scratch,
+            stacked.first_at, stacked.first, stacked.edge_at, stacked.neighbour, stacked.cost,
+            stacked.child_at, stacked.first_child, stacked.child,
+            *_stacked_pyramid(pyramid), c.movement, pyramid.top,
+            c.node(planner.start, 0), c.node(planner.goal, 0),
+            np.array([_RINGS.get(k, 1) for k in range(c.top + 1)], dtype=np.int64),
+            math.nan if no_ring is None else no_ring,  # NaN: no segment is that open
+            math.nan if one_ring is None else one_ring,
+        )  # fmt: skip
 
-    def clear(self) -> None:
-        self.live.clear()
-        self.heap.clear()
-        self.extent = self.credit = 0.0
+    def begin(self, made: list[tuple[Segment, float]]) -> float:
+        """The plan of the segments `made` (route order, each with its mean obstacleness); its
+        quality estimate."""
+        room = len(made) << (self.top + 1)  # a segment at level k is refined into < 2^(k+1)
+        self.level = np.empty(room, dtype=np.int64)
+        self.begin_at = np.empty(room, dtype=np.int64)
+        self.end_at = np.empty(room, dtype=np.int64)
+        self.obstacleness = np.empty(room)
+        self.order = np.empty(room, dtype=np.int64)
+        self.heap_keys = np.empty(room)
+        self.heap_items = np.empty(room, dtype=np.int64)
+        used = 0
+        for s, (segment, o) in enumerate(made):
+            self.level[s], self.obstacleness[s], self.order[s] = segment.level, o, s
+            self.begin_at[s] = used
+            used += len(segment.nodes)
+            self.end_at[s] = used
+        self.pool = np.empty(4 * used, dtype=np.int64)
+        self.pool[:used] = [node for segment, _ in made for node in segment.nodes]
+        self.counts = np.array([len(made), len(made), used, 0], dtype=np.int64)
+        self.sums = np.zeros(2)
+        estimate: float = compiled().begin_plan(
+            self.level, self.begin_at, self.end_at, self.obstacleness,
+            self.heap_keys, self.heap_items, self.counts, self.sums, self.pyramid_top,
+        )  # fmt: skip
+        return estimate
 
-    def add(self, segment: Segment, o: float) -> None:
-        """A segment of mean obstacleness `o` enters the plan."""
-        extent, credit = _credit(segment, o, self.top)
-        self.extent += extent
-        self.credit += credit
-        if segment.level > 0:
-            self.live.add(id(segment))
-            heapq.heappush(self.heap, (-_score(segment.level, o), next(self.order), segment, o))
+    def refine(
+        self, limit: float
+    ) -> tuple[int, int, int, int, int, float, npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+        """`corridor_search.refine_step` on the plan: what it did, the index of the segment
+        refined, the new segments' level, the rings searched, the expansions, the estimate after
+        it, the path's nodes and their blocks."""
+        done, index, lower, rings, expansions, estimate, path, blocks, self.pool = (
+            compiled().refine_step(
+                self.level, self.begin_at, self.end_at, self.obstacleness, self.pool,
+                self.order, self.heap_keys, self.heap_items, self.counts, self.sums,
+                *self.reads, limit,
+            )
+        )  # fmt: skip
+        return done, index, lower, rings, expansions, estimate, path, blocks
 
-    def remove(self, segment: Segment, o: float) -> None:
-        """A segment popped for refinement leaves the estimate."""
-        extent, credit = _credit(segment, o, self.top)
-        self.extent -= extent
-        self.credit -= credit
 
-    def pop(self) -> tuple[Segment, float] | None:
-        """The worst refinable segment and its mean obstacleness (out of the heap), or None
-        when none is left."""
-        while self.heap and id(self.heap[0][2]) not in self.live:
-            heapq.heappop(self.heap)
-        if not self.heap:
-            return None
-        _, _, segment, o = heapq.heappop(self.heap)
-        self.live.discard(id(segment))
-        return segment, o
+# The stacked levels (`Pyramid.stacked`) of pyramids whose levels are apart (unpickled), by the
+# pyramid's id while it lives: made once for the many plans on one map.
+_PYRAMIDS: dict[int, tuple[weakref.ref[Pyramid], tuple[npt.NDArray[np.generic], ...]]] = {}
 
-    @property
-    def refined(self) -> bool:
-        """Whether no segment is left to refine (the plan is at the base level)."""
-        return not self.live
 
-    def quality(self) -> float:
-        return _clip(self.credit / self.extent)
+def _stacked_pyramid(
+    pyramid: Pyramid,
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+    """`Pyramid.stacked`, made when the pyramid's levels are not views of one array."""
+    stacked = pyramid.stacked()
+    if stacked is not None:
+        return stacked
+    key = id(pyramid)
+    kept = _PYRAMIDS.get(key)
+    if kept is None or kept[0]() is not pyramid:
+        levels = pyramid.levels
+        made = Pyramid(levels).stacked()  # copied into one array by the converter
+        assert made is not None
+        kept = (weakref.ref(pyramid, lambda _: _PYRAMIDS.pop(key, None)), made)
+        _PYRAMIDS[key] = kept
+    return kept[1]  # type: ignore[return-value]
 
 
 def _runs(moves: int, most: int | None) -> list[tuple[int, int]]:
@@ -686,67 +739,6 @@ class _Planner:
             segment = Segment._made(level, cells[first : last + 1], tuple(nodes[first : last + 1]))
             made.append((segment, mean))
         return made
-
-    def refine(
-        self, segments: list[Segment], index: int, obstacleness: float
-    ) -> list[tuple[Segment, float]]:
-        """REFINE route segment `index` (of mean `obstacleness`): its replacement, two halves
-        one level lower (one segment when the path found has fewer than two moves), each with
-        its mean obstacleness."""
-        c = self.components
-        segment = segments[index]
-        lower = segment.level - 1
-        # The search runs through the children of its nodes (connected: a path exists among
-        # them) and of their neighbours (`_RINGS` of them): room for the route to leave the
-        # coarse blocks where that is shorter. Its ends: a node one level down where the
-        # neighbouring segment is that fine already, else any child of the end node, each
-        # costing how much farther its centre is from the centre of the neighbour's next node
-        # than the nearest child's (the cost a flexible junction adds to the neighbour, so that
-        # the junction is chosen for both sides). All of it one compiled call
-        # (`Components.refinement`: 10-12% less time than its steps called one by one).
-        source: tuple[int, int, float, float]
-        target: tuple[int, int, float, float]
-        if index == 0:
-            source = (c.node(self.start, lower), -1, 0.0, 0.0)
-        elif segments[index - 1].level <= lower:
-            prev = segments[index - 1]
-            source = (c.ancestor(prev.nodes[-1], prev.level, lower), -1, 0.0, 0.0)
-        else:
-            before = segments[index - 1]
-            toward = before.nodes[max(len(before.nodes) - 2, 0)]
-            x, y = c.levels[before.level].centre[toward].tolist()
-            source = (-1, segment.nodes[0], x, y)
-        if index == len(segments) - 1:
-            target = (c.node(self.goal, lower), -1, 0.0, 0.0)
-        elif segments[index + 1].level <= lower:
-            nxt = segments[index + 1]
-            target = (c.ancestor(nxt.nodes[0], nxt.level, lower), -1, 0.0, 0.0)
-        else:
-            after = segments[index + 1]
-            toward = after.nodes[min(1, len(after.nodes) - 1)]
-            x, y = c.levels[after.level].centre[toward].tolist()
-            target = (-1, segment.nodes[-1], x, y)
-        rings = _RINGS.get(segment.level, 1)
-        open_ = self.no_ring_when_open
-        if segment.level == 1 and open_ is not None and obstacleness <= open_:
-            rings = 0  # free blocks: the best route keeps to them (`atp`'s no_ring_when_open)
-        one = self.one_ring_when_open
-        if segment.level == 2 and one is not None and obstacleness <= one:
-            rings = 1  # open 4 x 4 blocks: one ring, as elsewhere (`atp`'s one_ring_when_open)
-        path, _, expansions = c.refinement(
-            segment.level,
-            segment.nodes,
-            rings,
-            source,
-            target,
-            limit=self.ctx.remaining,
-        )
-        if not len(path):
-            raise AssertionError(f"no path at level {lower} through the children of a path")
-        self.ctx.tick(expansions)
-        n = len(path) - 1
-        halves = [(0, n)] if n < 2 else [(0, n // 2), (n // 2, n)]
-        return self.segments(lower, tuple(path.tolist()), halves, path)
 
 
 def _mean_obstacleness(segment: Segment, pyramid: Pyramid) -> float:

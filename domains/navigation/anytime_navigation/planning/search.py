@@ -55,6 +55,12 @@ def compiled() -> ModuleType:
     return _compiled
 
 
+#: What the planner's compiled refinement step (`corridor_search.refine_step`) did: refined a
+#: segment; found none left to refine; went over its limit (the plan unchanged); found no path
+#: (a broken abstraction). Here, not there: the planner reads them without loading numba.
+STEP_REFINED, STEP_NONE_LEFT, STEP_OVER, STEP_NO_PATH = 0, 1, 2, 3
+
+
 class SearchLimit(Exception):
     """The search used up its `limit` of expansions before it could answer."""
 
