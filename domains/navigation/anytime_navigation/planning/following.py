@@ -1,0 +1,671 @@
+"""How long a route the robot walks following a plan on the map it was made on, compiled: the
+`follow` that makes `planner.atp`'s anytime curve monotone (issue 36, item 3).
+
+`Follower(blocked, movement)(plan)` is `execution.execute(plan, blocked, movement=movement,
+keep_to_plan=True).length`, to the bit: the same waypoints (`execution.waypoints`), the same
+steps into their blocks, the same obstacle avoidance (A* on the robot's memory inside the
+plan's corridor, `MultiPath.corridor`, the same windows, the same heap order, so the same
+path whenever several are equally short) and the same re-plans. What differs is the cost:
+`execute` runs in Python and materialises the corridor and the reachable cells once per call
+(10-20 ms per plan on a 512 x 512 MovingAI map, five to nine times the compiled A*'s time for
+the ATP's 15 or 16 plans of a long problem); here the map's connected cells are labelled once
+per map, each plan's nodes are marked in a table per level, and the corridor is read cell by
+cell inside the windows obstacle avoidance searches, all of it one compiled call.
+
+With it, `atp(..., follow=follower)` registers a plan only when the robot would walk no farther
+following it than following the last plan registered: the executed quality never falls from
+one registered plan to the next.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TypeVar, cast
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from ..world import BoolGrid
+from .components import Components
+from .planner import MultiPath, Segment
+
+__all__ = ["Follower"]
+
+IntArray = NDArray[np.int64]
+
+_SQRT2 = math.sqrt(2.0)
+_F = TypeVar("_F")
+
+
+def _compiled(function: _F) -> _F:
+    """Compiled to machine code on the first call and cached on disk for the next process."""
+    return cast(_F, numba.njit(cache=True, nogil=True)(function))
+
+
+def _inlined(function: _F) -> _F:
+    """Compiled into its callers: a call passing arrays counts references to each, which cost
+    more than these small functions' own work (they run for every cell a search reaches)."""
+    return cast(_F, numba.njit(cache=True, nogil=True, inline="always")(function))
+
+
+# execute's move order: straight moves first, then the diagonals (`execution._step_into`), and
+# find_path_to_box's (`search`): its neighbour order decides which of equal keys is pushed first.
+_STEP_DX = np.array([1, -1, 0, 0, 1, -1, 1, -1], dtype=np.int64)
+_STEP_DY = np.array([0, 0, 1, -1, 1, 1, -1, -1], dtype=np.int64)
+_ASTAR_DX = np.array([1, -1, 0, 0, 1, -1, 1, -1], dtype=np.int64)
+_ASTAR_DY = np.array([0, 0, 1, -1, 1, 1, -1, -1], dtype=np.int64)
+
+
+@_inlined
+def _less(f1: float, n1: float, c1: int, f2: float, n2: float, c2: int) -> bool:
+    """find_path_to_box's heap order: its keys (f, -g, counter) as tuples compare (the heap
+    holds -g, `n`)."""
+    if f1 != f2:
+        return f1 < f2
+    if n1 != n2:
+        return n1 < n2
+    return c1 < c2
+
+
+@_inlined
+def _push(
+    hf: NDArray[np.float64],
+    hg: NDArray[np.float64],
+    hc: IntArray,
+    hn: IntArray,
+    size: int,
+    f: float,
+    g: float,
+    c: int,
+    n: int,
+) -> int:
+    i = size
+    while i > 0:
+        parent = (i - 1) >> 1
+        if not _less(f, g, c, hf[parent], hg[parent], hc[parent]):
+            break
+        hf[i], hg[i], hc[i], hn[i] = hf[parent], hg[parent], hc[parent], hn[parent]
+        i = parent
+    hf[i], hg[i], hc[i], hn[i] = f, g, c, n
+    return size + 1
+
+
+@_inlined
+def _pop(
+    hf: NDArray[np.float64], hg: NDArray[np.float64], hc: IntArray, hn: IntArray, size: int
+) -> int:
+    """Remove the least entry (read it from index 0 first); the new size."""
+    size -= 1
+    f, g, c, n = hf[size], hg[size], hc[size], hn[size]
+    i = 0
+    while True:
+        child = 2 * i + 1
+        if child >= size:
+            break
+        if child + 1 < size and _less(
+            hf[child + 1], hg[child + 1], hc[child + 1], hf[child], hg[child], hc[child]
+        ):
+            child += 1
+        if not _less(hf[child], hg[child], hc[child], f, g, c):
+            break
+        hf[i], hg[i], hc[i], hn[i] = hf[child], hg[child], hc[child], hn[child]
+        i = child
+    if size > 0:
+        hf[i], hg[i], hc[i], hn[i] = f, g, c, n
+    return size
+
+
+# The follower's scratch, map-sized rows of `stamps` (index x + y * width): a cell's entry in a
+# row is valid only when it holds the current run's (one plan followed) or search's number, so
+# nothing map-sized is cleared between plans or searches.
+_MEMORY, _MEANT, _CORRIDOR, _REACHED, _CLOSED = range(5)
+
+
+@_inlined
+def _meant(
+    grids: IntArray,
+    held: NDArray[np.bool_],
+    offsets: IntArray,
+    ends: IntArray,
+    stamps: IntArray,
+    meant: NDArray[np.bool_],
+    run: int,
+    x: int,
+    y: int,
+) -> bool:
+    """Whether base cell (x, y) is of the plan's nodes, or the start or the goal:
+    `MultiPath.corridor` before its corner cells (`grids` [y, x, level]: the levels of a cell
+    side by side). Worked out once per run."""
+    height, width, levels = grids.shape
+    if not (0 <= y < height and 0 <= x < width):
+        return False
+    c = x + y * width
+    if stamps[_MEANT, c] == run:
+        return bool(meant[c])
+    value = bool((x == ends[0] and y == ends[1]) or (x == ends[2] and y == ends[3]))
+    if not value:
+        for k in range(levels):
+            node = grids[y, x, k]
+            if offsets[k] >= 0 and node >= 0 and held[offsets[k] + node]:
+                value = True
+                break
+    stamps[_MEANT, c] = run
+    meant[c] = value
+    return value
+
+
+@_inlined
+def _free(grids: IntArray, x: int, y: int) -> bool:
+    return bool(0 <= y < grids.shape[0] and 0 <= x < grids.shape[1] and grids[y, x, 0] >= 0)
+
+
+@_inlined
+def _in_corridor(
+    grids: IntArray,
+    held: NDArray[np.bool_],
+    offsets: IntArray,
+    ends: IntArray,
+    stamps: IntArray,
+    meant: NDArray[np.bool_],
+    corridor: NDArray[np.bool_],
+    run: int,
+    corners: bool,
+    x: int,
+    y: int,
+) -> bool:
+    """`MultiPath.corridor()[y, x]`: a cell of the plan's nodes, or with 8 moves a free corner
+    cell of a diagonal move between two of them. Worked out once per run."""
+    c = x + y * grids.shape[1]
+    if stamps[_CORRIDOR, c] == run:
+        return bool(corridor[c])
+    value = _meant(grids, held, offsets, ends, stamps, meant, run, x, y)
+    if not value and corners and _free(grids, x, y):
+        # the four diagonal moves that have (x, y) as a corner cell (`MultiPath.corridor`)
+        left, right = (
+            _meant(grids, held, offsets, ends, stamps, meant, run, x - 1, y),
+            _meant(grids, held, offsets, ends, stamps, meant, run, x + 1, y),
+        )
+        up, down = (
+            _meant(grids, held, offsets, ends, stamps, meant, run, x, y - 1),
+            _meant(grids, held, offsets, ends, stamps, meant, run, x, y + 1),
+        )
+        value = (
+            (left and down and _free(grids, x - 1, y + 1))
+            or (up and right and _free(grids, x + 1, y - 1))
+            or (left and up and _free(grids, x - 1, y - 1))
+            or (down and right and _free(grids, x + 1, y + 1))
+        )
+    stamps[_CORRIDOR, c] = run
+    corridor[c] = value
+    return value
+
+
+@_inlined
+def _see(blocked: NDArray[np.bool_], stamps: IntArray, run: int, x: int, y: int) -> None:
+    """The robot sees the cells around it: the blocked ones enter its memory."""
+    height, width = blocked.shape
+    for yy in range(max(0, y - 1), min(height, y + 2)):
+        for xx in range(max(0, x - 1), min(width, x + 2)):
+            if blocked[yy, xx]:
+                stamps[_MEMORY, xx + yy * width] = run
+
+
+@_inlined
+def _passable(
+    grids: IntArray,
+    held: NDArray[np.bool_],
+    offsets: IntArray,
+    ends: IntArray,
+    stamps: IntArray,
+    meant: NDArray[np.bool_],
+    corridor: NDArray[np.bool_],
+    run: int,
+    corners: bool,
+    keep: bool,
+    robot: int,
+    x: int,
+    y: int,
+) -> bool:
+    """Whether obstacle avoidance's search may enter (x, y): not in the memory, and with `keep`
+    in the plan's corridor (or the robot's own cell)."""
+    c = x + y * grids.shape[1]
+    if stamps[_MEMORY, c] == run:
+        return False
+    if not keep or c == robot:
+        return True
+    return _in_corridor(grids, held, offsets, ends, stamps, meant, corridor, run, corners, x, y)
+
+
+@_compiled
+def _astar(
+    window: tuple[int, int, int, int],
+    robot: tuple[int, int],
+    box: tuple[int, int, int, int],
+    target: NDArray[np.bool_],
+    keep: bool,
+    grids: IntArray,
+    held: NDArray[np.bool_],
+    offsets: IntArray,
+    ends: IntArray,
+    stamps: IntArray,
+    meant: NDArray[np.bool_],
+    corridor: NDArray[np.bool_],
+    g: NDArray[np.float64],
+    parent: IntArray,
+    run: int,
+    search: int,
+    octile: bool,
+    corners: bool,
+) -> IntArray:
+    """find_path_to_box as obstacle avoidance calls it (`execution._feel_into`, weight 0): from
+    the robot to a `target` cell of `box` (half-open) inside `window`, the memory's cells
+    impassable and, with `keep`, the cells off the plan's corridor but the robot's; the same
+    keys (f, -g, order pushed) and neighbour order, so the same path. Its cells as flat indices
+    (x + y * width), the robot's first; empty when there is none. Cells are judged passable
+    when the search first reaches them, not the whole window beforehand."""
+    wx0, wy0, wx1, wy1 = window
+    x0, y0, x1, y1 = box
+    rx, ry = robot
+    width = grids.shape[1]
+    me = rx + ry * width
+    empty = np.empty(0, dtype=np.int64)
+    if not _passable(
+        grids, held, offsets, ends, stamps, meant, corridor, run, corners, keep, me, rx, ry
+    ):
+        return empty
+    any_box = False
+    for yy in range(y0, y1):
+        for xx in range(x0, x1):
+            if _passable(
+                grids, held, offsets, ends, stamps, meant, corridor, run, corners, keep, me, xx, yy
+            ):
+                any_box = True
+                break
+        if any_box:
+            break
+    if not any_box:
+        return empty
+    capacity = 8 * (wx1 - wx0) * (wy1 - wy0) + 8
+    hf = np.empty(capacity)
+    hg = np.empty(capacity)
+    hc = np.empty(capacity, dtype=np.int64)
+    hn = np.empty(capacity, dtype=np.int64)
+    tx1, ty1 = x1 - 1, y1 - 1
+    unit = 1.0
+    diagonal_unit = unit * (_SQRT2 - 1.0)
+    g[me] = 0.0
+    stamps[_REACHED, me] = search
+    parent[me] = -1
+    dx = x0 - rx if rx < x0 else rx - tx1 if rx > tx1 else 0
+    dy = y0 - ry if ry < y0 else ry - ty1 if ry > ty1 else 0
+    if octile:
+        h0 = unit * max(dx, dy) + diagonal_unit * min(dx, dy)
+    else:
+        h0 = unit * (dx + dy)
+    counter = 1
+    heap = _push(hf, hg, hc, hn, 0, 0.0 + h0, -0.0, counter, me)
+    found = -1
+    moves = 8 if octile else 4
+    while heap > 0:
+        node = hn[0]
+        heap = _pop(hf, hg, hc, hn, heap)
+        if stamps[_CLOSED, node] == search:
+            continue
+        y = node // width
+        x = node - y * width
+        if x0 <= x < x1 and y0 <= y < y1 and target[y - y0, x - x0]:
+            found = node
+            break
+        stamps[_CLOSED, node] = search
+        g_node = g[node]
+        for d in range(moves):
+            ddx, ddy = _ASTAR_DX[d], _ASTAR_DY[d]
+            nx, ny = x + ddx, y + ddy
+            if not (wx0 <= nx < wx1 and wy0 <= ny < wy1):
+                continue
+            neighbour = nx + ny * width
+            if stamps[_CLOSED, neighbour] == search or not _passable(
+                grids, held, offsets, ends, stamps, meant, corridor, run, corners, keep, me, nx, ny
+            ):
+                continue
+            if d >= 4:
+                if not _passable(
+                    grids,
+                    held,
+                    offsets,
+                    ends,
+                    stamps,
+                    meant,
+                    corridor,
+                    run,
+                    corners,
+                    keep,
+                    me,
+                    nx,
+                    y,
+                ) or not _passable(
+                    grids,
+                    held,
+                    offsets,
+                    ends,
+                    stamps,
+                    meant,
+                    corridor,
+                    run,
+                    corners,
+                    keep,
+                    me,
+                    x,
+                    ny,
+                ):
+                    continue
+                g_new = g_node + _SQRT2 * 1.0
+            else:
+                g_new = g_node + 1.0
+            if stamps[_REACHED, neighbour] != search or g_new < g[neighbour]:
+                stamps[_REACHED, neighbour] = search
+                g[neighbour] = g_new
+                parent[neighbour] = node
+                dx = x0 - nx if nx < x0 else nx - tx1 if nx > tx1 else 0
+                dy = y0 - ny if ny < y0 else ny - ty1 if ny > ty1 else 0
+                if octile:
+                    hh = (
+                        unit * dx + diagonal_unit * dy
+                        if dx > dy
+                        else unit * dy + diagonal_unit * dx
+                    )
+                else:
+                    hh = unit * (dx + dy)
+                counter += 1
+                heap = _push(hf, hg, hc, hn, heap, g_new + hh, -g_new, counter, neighbour)
+    if found < 0:
+        return empty
+    count = 1
+    cell = found
+    while parent[cell] >= 0:
+        cell = parent[cell]
+        count += 1
+    path = np.empty(count, dtype=np.int64)
+    cell = found
+    for i in range(count - 1, -1, -1):
+        path[i] = cell
+        cell = parent[cell]
+    return path
+
+
+@_inlined
+def _contains(o: IntArray, i: IntArray) -> bool:
+    return bool(o[0] <= i[0] and o[1] <= i[1] and i[2] <= o[2] and i[3] <= o[3])
+
+
+@_compiled
+def _length(
+    blocked: NDArray[np.bool_],
+    labels: IntArray,
+    grids: IntArray,
+    held: NDArray[np.bool_],
+    offsets: IntArray,
+    sequence: IntArray,
+    ends: IntArray,
+    stamps: IntArray,
+    meant: NDArray[np.bool_],
+    corridor: NDArray[np.bool_],
+    g: NDArray[np.float64],
+    parent: IntArray,
+    counters: IntArray,
+    route: IntArray,
+    octile: bool,
+    corners: bool,
+) -> float:
+    """`execute(plan, blocked, keep_to_plan=True).length`: `sequence` is the plan's cells
+    (level, x, y, node or -1) in order, the goal's last; `ends` the start and goal (x, y, x, y).
+    `held` marks the plan's nodes per level (`offsets`); `counters` the last run's and search's
+    numbers (`stamps`)."""
+    height, width = blocked.shape
+    sx, sy = ends[0], ends[1]
+    counters[0] += 1
+    run = counters[0]
+    # execution._targets: the waypoints, a block containing the last kept or the next dropped
+    n = sequence.shape[0]
+    kept = np.empty((n + 1, 4), dtype=np.int64)  # level, x, y, node
+    boxes = np.empty((n + 1, 4), dtype=np.int64)
+    kept[0, 0], kept[0, 1], kept[0, 2], kept[0, 3] = 0, sx, sy, -1
+    boxes[0, 0], boxes[0, 1], boxes[0, 2], boxes[0, 3] = sx, sy, sx + 1, sy + 1
+    count = 1
+    box = np.empty(4, dtype=np.int64)
+    for i in range(n):
+        level, cx, cy = sequence[i, 0], sequence[i, 1], sequence[i, 2]
+        side = 1 << level
+        box[0], box[1], box[2], box[3] = cx * side, cy * side, (cx + 1) * side, (cy + 1) * side
+        if _contains(box, boxes[count - 1]):
+            continue
+        while count > 1 and _contains(boxes[count - 1], box):
+            count -= 1
+        if _contains(box, boxes[count - 1]):
+            continue
+        kept[count, 0], kept[count, 1], kept[count, 2] = level, cx, cy
+        kept[count, 3] = sequence[i, 3]
+        boxes[count] = box
+        count += 1
+
+    start_label = labels[sy, sx]
+    x, y = sx, sy
+    steps = 0  # the route's cells after the start, in `route` while it has room
+    straight = diagonal = 0
+    for i in range(count):
+        level, node = kept[i, 0], kept[i, 3]
+        x0, y0 = max(0, boxes[i, 0]), max(0, boxes[i, 1])
+        x1, y1 = min(width, boxes[i, 2]), min(height, boxes[i, 3])
+        bw, bh = x1 - x0, y1 - y0
+        # the target cells: reachable, and of the waypoint's node when any of them is
+        target = np.zeros((bh, bw), dtype=np.bool_)
+        aimed = False
+        reachable = False
+        for yy in range(bh):
+            for xx in range(bw):
+                if labels[y0 + yy, x0 + xx] == start_label:
+                    target[yy, xx] = True
+                    reachable = True
+                    if node >= 0 and level > 0 and grids[y0 + yy, x0 + xx, level] == node:
+                        aimed = True
+        if aimed:
+            for yy in range(bh):
+                for xx in range(bw):
+                    if grids[y0 + yy, x0 + xx, level] != node:
+                        target[yy, xx] = False
+        if x0 <= x < x1 and y0 <= y < y1 and target[y - y0, x - x0]:
+            continue
+        if not reachable:
+            continue
+        stepped = False
+        for d in range(8 if octile else 4):
+            nx, ny = x + _STEP_DX[d], y + _STEP_DY[d]
+            if not (x0 <= nx < x1 and y0 <= ny < y1) or not target[ny - y0, nx - x0]:
+                continue
+            if d >= 4 and (blocked[y, nx] or blocked[ny, x]):
+                continue
+            if d >= 4:
+                diagonal += 1
+            else:
+                straight += 1
+            x, y = nx, ny
+            if steps < route.shape[0]:
+                route[steps] = x + y * grids.shape[1]
+            steps += 1
+            stepped = True
+            break
+        if stepped:
+            continue
+        # execution._feel_into, with the plan's corridor until the true map cuts it
+        keep = True
+        _see(blocked, stamps, run, x, y)
+        while not (x0 <= x < x1 and y0 <= y < y1 and target[y - y0, x - x0]):
+            margin = 8
+            while True:
+                wx0, wy0 = max(0, min(x, x0) - margin), max(0, min(y, y0) - margin)
+                wx1 = min(width, max(x + 1, x1) + margin)
+                wy1 = min(height, max(y + 1, y1) + margin)
+                counters[1] += 1
+                path = _astar(
+                    (wx0, wy0, wx1, wy1),
+                    (x, y),
+                    (x0, y0, x1, y1),
+                    target,
+                    keep,
+                    grids,
+                    held,
+                    offsets,
+                    ends,
+                    stamps,
+                    meant,
+                    corridor,
+                    g,
+                    parent,
+                    run,
+                    counters[1],
+                    octile,
+                    corners,
+                )
+                if path.shape[0] > 0:
+                    break
+                if (wx0, wy0, wx1, wy1) != (0, 0, width, height):
+                    margin *= 4
+                elif keep:
+                    keep, margin = False, 8
+                else:
+                    return math.inf  # no way in (cannot be: the block is reachable)
+            for j in range(1, path.shape[0]):
+                ny = path[j] // grids.shape[1]
+                nx = path[j] - ny * grids.shape[1]
+                memory = stamps[_MEMORY, path[j]] == run
+                if memory or (
+                    nx != x
+                    and ny != y
+                    and (
+                        stamps[_MEMORY, nx + y * grids.shape[1]] == run
+                        or stamps[_MEMORY, x + ny * grids.shape[1]] == run
+                    )
+                ):
+                    break  # seen blocked since the path was planned: plan again from here
+                if nx != x and ny != y:
+                    diagonal += 1
+                else:
+                    straight += 1
+                x, y = nx, ny
+                if steps < route.shape[0]:
+                    route[steps] = x + y * grids.shape[1]
+                steps += 1
+                _see(blocked, stamps, run, x, y)
+    counters[2] = steps
+    return straight + _SQRT2 * diagonal
+
+
+class Follower:
+    """The length of the route `execution.execute(plan, blocked, movement=movement,
+    keep_to_plan=True)` follows, compiled (see the module docstring): pass it to `planner.atp`
+    as `follow` for plans made on `blocked` itself. Build it once per map: it labels the map's
+    connected cells and keeps, per abstraction, its node grids stacked."""
+
+    def __init__(self, blocked: BoolGrid, movement: int = 8) -> None:
+        from scipy import ndimage
+
+        self.blocked = np.ascontiguousarray(blocked, dtype=bool)
+        self.movement = movement
+        four = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
+        labels, _ = ndimage.label(~self.blocked, structure=four)  # `world.reachable`'s
+        self.labels = np.asarray(labels, dtype=np.int64)
+        self._described: tuple[Components, IntArray, IntArray, NDArray[np.bool_]] | None = None
+        self._cells: dict[int, tuple[Segment, IntArray]] = {}
+        cells = self.blocked.size
+        self._stamps = np.zeros((5, cells), dtype=np.int64)
+        self._meant = np.zeros(cells, dtype=bool)
+        self._corridor = np.zeros(cells, dtype=bool)
+        self._g = np.zeros(cells)
+        self._parent = np.zeros(cells, dtype=np.int64)
+        self._counters = np.zeros(3, dtype=np.int64)
+        self._route = np.zeros(0, dtype=np.int64)  # `route`'s
+
+    def _abstraction(self, components: Components) -> tuple[IntArray, IntArray, NDArray[np.bool_]]:
+        if self._described is None or self._described[0] is not components:
+            if components.grids[0].shape != self.blocked.shape:
+                raise ValueError(
+                    f"the plan's abstraction is of a {components.grids[0].shape} map, the"
+                    f" follower's is {self.blocked.shape}"
+                )
+            # [y, x, level]: the levels of a cell side by side, read together
+            grids = np.stack(
+                [np.asarray(components.grids[k]) for k in range(len(components.grids))], axis=-1
+            )
+            sizes = [len(level) for level in components.levels]
+            offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+            held = np.zeros(sum(sizes), dtype=bool)
+            self._described = (
+                components,
+                np.ascontiguousarray(grids, dtype=np.int64),
+                offsets,
+                held,
+            )
+            self._cells.clear()
+        _, grids, offsets, held = self._described
+        return grids, offsets, held
+
+    def _segment(self, segment: Segment) -> IntArray:
+        """A segment's cells as rows (level, x, y, node or -1), kept while the segment is
+        (a refinement replaces one segment of the plan: the others' rows are reused)."""
+        known = self._cells.get(id(segment))
+        if known is not None and known[0] is segment:
+            return known[1]
+        rows = np.empty((len(segment.cells), 4), dtype=np.int64)
+        rows[:, 0] = segment.level
+        rows[:, 1:3] = segment.cells
+        rows[:, 3] = segment.nodes if segment.nodes else -1
+        self._cells[id(segment)] = (segment, rows)
+        return rows
+
+    def route(self, plan: MultiPath) -> tuple[tuple[int, int], ...]:
+        """The route itself, `execute(...).route` (for tests: `__call__` keeps no route)."""
+        self._route = np.zeros(4 * self.blocked.size, dtype=np.int64)
+        try:
+            self(plan)
+        finally:
+            cells, self._route = self._route[: self._counters[2]], np.zeros(0, dtype=np.int64)
+        width = self.blocked.shape[1]
+        return (plan.start, *((int(c % width), int(c // width)) for c in cells))
+
+    def __call__(self, plan: MultiPath) -> float:
+        if plan.abstraction is None:
+            raise ValueError("a plan without its abstraction has no corridor to keep to")
+        grids, offsets, held = self._abstraction(plan.abstraction)
+        goal = np.array([[0, plan.goal[0], plan.goal[1], -1]], dtype=np.int64)
+        sequence = np.concatenate([*(self._segment(s) for s in plan.parts), goal])
+        marked = sequence[sequence[:, 3] >= 0]
+        index = offsets[marked[:, 0]] + marked[:, 3]
+        held[index] = True
+        used = np.full(len(offsets), -1, dtype=np.int64)  # the levels of no node: not read
+        used[marked[:, 0]] = offsets[marked[:, 0]]
+        ends = np.array([*plan.start, *plan.goal], dtype=np.int64)
+        try:
+            length = _length(
+                self.blocked,
+                self.labels,
+                grids,
+                held,
+                used,
+                sequence,
+                ends,
+                self._stamps,
+                self._meant,
+                self._corridor,
+                self._g,
+                self._parent,
+                self._counters,
+                self._route,
+                self.movement == 8,
+                plan.abstraction.movement == 8,
+            )
+        finally:
+            held[index] = False
+        # keep the rows of this plan's segments only: the next plan shares all but one
+        self._cells = {id(s): self._cells[id(s)] for s in plan.parts}
+        return float(length)

@@ -1,0 +1,127 @@
+"""The compiled follower (`following.Follower`): the length `execution.execute` walks following a
+plan with keep_to_plan, to the bit, for every plan ATP yields (on the true map, on a noisy one:
+the corridor cut, waypoints out of reach); and with it as atp's `follow`, the registered plans'
+executed lengths never increase."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from anytime_navigation.movingai import load_problems
+from anytime_navigation.planning.abstraction import Pyramid
+from anytime_navigation.planning.following import Follower
+from anytime_navigation.planning.planner import MultiPath, atp
+from anytime_navigation.resources import data_file
+from anytime_navigation.task.execution import execute
+from anytime_navigation.world import BoolGrid, random_world, reachable
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from anytime.modules import Context
+
+
+def _plans(
+    blocked: BoolGrid,
+    start: tuple[int, int],
+    goal: tuple[int, int],
+    movement: int,
+    **options: object,
+) -> list[MultiPath]:
+    pyramid = Pyramid.build(blocked)
+    return [r.value for r in atp(Context(), start, goal, pyramid, movement=movement, **options)]
+
+
+def _noisy(
+    blocked: BoolGrid, start: tuple[int, int], goal: tuple[int, int], movement: int, seed: int
+) -> BoolGrid:
+    """The map with 5% of its cells flipped, start and goal free, the goal reachable on it."""
+    rng = np.random.default_rng(seed)
+    while True:
+        seen = blocked ^ (rng.random(blocked.shape) < 0.05)
+        for x, y in (start, goal):
+            seen[y, x] = False
+        if reachable(seen, start, movement)[goal[1], goal[0]]:
+            return seen
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    size=st.sampled_from([16, 32, 64]),
+    movement=st.sampled_from([4, 8]),
+    density=st.sampled_from([0.1, 0.2, 0.3]),
+    noisy=st.booleans(),
+    options=st.sampled_from(
+        [
+            {},
+            {"top": 2},
+            {"segment_moves": 3},
+            {"direct_width": 12.0},
+            {"no_ring_when_open": 0.05, "one_ring_when_open": 0.1},
+        ]
+    ),
+)
+def test_follower_is_execute(
+    seed: int, size: int, movement: int, density: float, noisy: bool, options: dict[str, float]
+) -> None:
+    world = random_world(size, seed=seed, density=density, movement=movement)
+    planned = world.blocked
+    if noisy:  # plans on a map that is not the one followed: the corridor may be cut
+        planned = _noisy(world.blocked, world.start, world.goal, movement, seed)
+    follower = Follower(world.blocked, movement)
+    for plan in _plans(planned, world.start, world.goal, movement, **options):  # type: ignore[arg-type]
+        expected = execute(plan, world.blocked, movement=movement, keep_to_plan=True).length
+        assert follower(plan) == expected
+
+
+def test_follower_is_execute_on_a_movingai_map() -> None:
+    """A 512 x 512 map (random, 10% blocked), two long problems, every plan of the best
+    options of issue 36's per-kind table."""
+    blocked, _, _, scenarios = load_problems(Path(str(data_file("maps"))) / "random512-10-0.map")
+    follower = Follower(blocked, 8)
+    options = {"top": 4, "direct": 4, "direct_width": 12, "no_ring_when_open": 0.05}
+    for scenario in sorted(scenarios, key=lambda s: -s.optimal)[:2]:
+        for plan in _plans(blocked, scenario.start, scenario.goal, 8, **options):  # type: ignore[arg-type]
+            expected = execute(plan, blocked, movement=8, keep_to_plan=True).length
+            assert follower(plan) == expected
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    size=st.sampled_from([32, 64]),
+    movement=st.sampled_from([4, 8]),
+    segment_moves=st.sampled_from([None, 2]),
+)
+def test_registered_plans_are_followed_no_worse(
+    seed: int, size: int, movement: int, segment_moves: int | None
+) -> None:
+    world = random_world(size, seed=seed, density=0.25, movement=movement)
+    follower = Follower(world.blocked, movement)
+    pyramid = Pyramid.build(world.blocked)
+    plans = [
+        r.value
+        for r in atp(
+            Context(),
+            world.start,
+            world.goal,
+            pyramid,
+            movement=movement,
+            segment_moves=segment_moves,
+            follow=follower,
+        )
+    ]
+    lengths = [
+        execute(p, world.blocked, movement=movement, keep_to_plan=True).length for p in plans
+    ]
+    assert lengths == sorted(lengths, reverse=True)
+
+
+def test_plan_without_abstraction() -> None:
+    world = random_world(16, seed=1)
+    plan = _plans(world.blocked, world.start, world.goal, 4)[0]
+    bare = MultiPath(plan.start, plan.goal, plan.head, plan.segments, plan.tail)
+    with pytest.raises(ValueError, match="abstraction"):
+        Follower(world.blocked, 4)(bare)
