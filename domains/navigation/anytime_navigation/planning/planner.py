@@ -45,7 +45,7 @@ from attrs import field, frozen
 from anytime.plugin import Context, Result
 
 from ..world import BoolGrid, Position
-from .abstraction import Pyramid, project
+from .abstraction import Pyramid
 from .components import Components, NodePath
 from .search import (
     STEP_NO_PATH,
@@ -224,7 +224,8 @@ def segmentize(position: Position, top: int) -> tuple[Segment, ...]:
     the top-level route). The papers use it to tie the base-level start and goal to the abstract
     plan; here it is also where refinement takes the endpoints of the first and last halves
     (the cell containing the start one level lower, not an arbitrary child)."""
-    return tuple(Segment(level, (project(position, 0, level),)) for level in range(top))
+    x, y = int(position[0]), int(position[1])  # projected up: (x >> k, y >> k), `project`
+    return tuple(Segment._made(level, ((x >> level, y >> level),), ()) for level in range(top))
 
 
 def _credit(segment: Segment, obstacleness: float, top: int) -> tuple[float, float]:
@@ -438,6 +439,7 @@ def atp(
         else:
             yield Result(MultiPath(start, goal, (), (route,), (), components), share)
             return
+    ends = segmentize(start, top), segmentize(goal, top)[::-1]
 
     def begin(path: NodePath) -> tuple[list[tuple[Segment, float]], MultiPath, float]:
         """The segments of a top-level route with their mean obstacleness, its plan and the
@@ -449,7 +451,6 @@ def atp(
             extent += extent_
             credit += credit_
         route = tuple(segment for segment, _ in made)
-        ends = segmentize(start, top), segmentize(goal, top)[::-1]
         plan = MultiPath(start, goal, ends[0], route, ends[1], components)
         return made, plan, _clip(credit / extent)
 
@@ -532,24 +533,16 @@ class _Steps:
 
     def __init__(self, planner: _Planner, pyramid: Pyramid, top: int) -> None:
         c = planner.components
-        base, stacked = c.levels[0], c.stacked()
-        none = np.zeros(0, dtype=np.int64)
         no_ring = planner.no_ring_when_open
         one_ring = planner.one_ring_when_open
         self.top, self.pyramid_top = top, pyramid.top
         self.reads = (
-            base.parent, base.block, base.centre, stacked.base_scratch,
-            base.padded if base.padded is not None else none,
-            base.grid.shape[1] + 2 if base.grid is not None else 0,
-            stacked.node_at, stacked.parent, stacked.block, stacked.centre, stacked.scratch,
-            stacked.first_at, stacked.first, stacked.edge_at, stacked.neighbour, stacked.cost,
-            stacked.child_at, stacked.first_child, stacked.child,
-            *_stacked_pyramid(pyramid), c.movement, pyramid.top,
-            c.node(planner.start, 0), c.node(planner.goal, 0),
-            np.array([_RINGS.get(k, 1) for k in range(c.top + 1)], dtype=np.int64),
+            *_map_reads(c, pyramid),
+            c.node(planner.start, 0),
+            c.node(planner.goal, 0),
             math.nan if no_ring is None else no_ring,  # NaN: no segment is that open
             math.nan if one_ring is None else one_ring,
-        )  # fmt: skip
+        )
 
     def begin(self, made: list[tuple[Segment, float]]) -> float:
         """The plan of the segments `made` (route order, each with its mean obstacleness); its
@@ -594,27 +587,38 @@ class _Steps:
         return done, index, lower, rings, expansions, estimate, path, blocks
 
 
-# The stacked levels (`Pyramid.stacked`) of pyramids whose levels are apart (unpickled), by the
-# pyramid's id while it lives: made once for the many plans on one map.
-_PYRAMIDS: dict[int, tuple[weakref.ref[Pyramid], tuple[npt.NDArray[np.generic], ...]]] = {}
+# The arrays `_Steps` reads of the last abstraction and pyramid planned on (`_map_reads`), with
+# weak references to them: made once for the many plans on one map.
+_last_map: tuple[weakref.ref[Components], weakref.ref[Pyramid], tuple[object, ...]] | None = None
 
 
-def _stacked_pyramid(
-    pyramid: Pyramid,
-) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int64], npt.NDArray[np.int64]]:
-    """`Pyramid.stacked`, made when the pyramid's levels are not views of one array."""
-    stacked = pyramid.stacked()
-    if stacked is not None:
-        return stacked
-    key = id(pyramid)
-    kept = _PYRAMIDS.get(key)
-    if kept is None or kept[0]() is not pyramid:
-        levels = pyramid.levels
-        made = Pyramid(levels).stacked()  # copied into one array by the converter
-        assert made is not None
-        kept = (weakref.ref(pyramid, lambda _: _PYRAMIDS.pop(key, None)), made)
-        _PYRAMIDS[key] = kept
-    return kept[1]  # type: ignore[return-value]
+def _map_reads(components: Components, pyramid: Pyramid) -> tuple[object, ...]:
+    """The arguments of `corridor_search.refine_step` that are the map's: level 0's arrays and
+    the other levels' stacked (`Components.stacked`), the pyramid's stacked (`Pyramid.stacked`,
+    copied when its levels are apart), the movement, the pyramid's top (the estimate's) and
+    the rings of each level (`_RINGS`)."""
+    global _last_map
+    last = _last_map
+    if last is not None and last[0]() is components and last[1]() is pyramid:
+        return last[2]
+    base, stacked = components.levels[0], components.stacked()
+    none = np.zeros(0, dtype=np.int64)
+    obstacleness = pyramid.stacked()
+    if obstacleness is None:  # levels apart (an unpickled pyramid): copied into one array
+        obstacleness = Pyramid(pyramid.levels).stacked()
+        assert obstacleness is not None
+    reads = (
+        base.parent, base.block, base.centre, stacked.base_scratch,
+        base.padded if base.padded is not None else none,
+        base.grid.shape[1] + 2 if base.grid is not None else 0,
+        stacked.node_at, stacked.parent, stacked.block, stacked.centre, stacked.scratch,
+        stacked.first_at, stacked.first, stacked.edge_at, stacked.neighbour, stacked.cost,
+        stacked.child_at, stacked.first_child, stacked.child,
+        *obstacleness, components.movement, pyramid.top,
+        np.array([_RINGS.get(k, 1) for k in range(components.top + 1)], dtype=np.int64),
+    )  # fmt: skip
+    _last_map = (weakref.ref(components), weakref.ref(pyramid), reads)
+    return reads
 
 
 def _runs(moves: int, most: int | None) -> list[tuple[int, int]]:
