@@ -84,6 +84,7 @@ import numpy as np
 from anytime_navigation.movingai import MapError, Scenario, load_problems
 from anytime_navigation.planning.abstraction import Pyramid
 from anytime_navigation.planning.components import Components
+from anytime_navigation.planning.following import Follower
 from anytime_navigation.planning.planner import DEFAULT_TOP, MultiPath, atp, compile_searches
 from anytime_navigation.planning.search import GridAstar, find_path
 from anytime_navigation.task.execution import Execution, execute, plan_quality, waypoints
@@ -128,6 +129,11 @@ CONFIGS: dict[str, dict[str, Any]] = {
     "segments of 8 moves": {"segment_moves": 8},
 }
 
+#: An option value that stands for the map's `following.Follower` (built once per map, like the
+#: abstraction; its build timed with it): `atp(follow=...)` registers a plan only when the robot
+#: follows it no longer than the last registered one (issue 36 item 3: a monotone curve).
+FOLLOW = "the map's Follower"
+
 #: The per-kind table's ATP configurations, each a row per map beside the default, measured in
 #: the same run (issue 36 item 2: every new option of `atp` is kept only if this shows it pays):
 #: name -> keyword arguments of `atp`. `top` needs the abstraction built up to that level: each
@@ -150,6 +156,14 @@ KIND_CONFIGS: dict[str, dict[str, Any]] = {
         "direct_width": 12,
         "no_ring_when_open": 0.05,
         "one_ring_when_open": 0.1,
+    },
+    "... and follow (compiled)": {
+        "top": 4,
+        "direct": 4,
+        "direct_width": 12,
+        "no_ring_when_open": 0.05,
+        "one_ring_when_open": 0.1,
+        "follow": FOLLOW,
     },
 }
 
@@ -300,13 +314,15 @@ def measure_problem(
     budget: float = EXECUTION_BUDGET,
     every_plan: bool = False,
     executed: bool = True,
+    follower: Follower | None = None,
 ) -> tuple[Baseline, dict[str, AtpRun]]:
     """The compiled A*'s and the pure-Python A*'s best times, and each ATP configuration's run,
     interleaved (`components` by the level of the configuration's first plan); executing a plan
     is given up after `budget` times the pure-Python A*'s time (the budget the benchmark gave
     before the compiled A* was its reference). `every_plan`: execute every plan registered, to
     count the falls of the executed quality (else the first and the last only). `executed`
-    False: no plan executed (times only; the qualities are NaN)."""
+    False: no plan executed (times only; the qualities are NaN). `follower`: the map's, for the
+    configurations whose follow is `FOLLOW` (reset before each run, in its time)."""
     compiled_best = python_best = math.inf
     found = None
     best: dict[str, list[float]] = {name: [math.inf, math.inf] for name in configs}
@@ -325,6 +341,10 @@ def measure_problem(
             ctx = Context()
 
             def plan(ctx: Context = ctx, options: dict[str, Any] = options) -> Any:
+                if options.get("follow") == FOLLOW:
+                    assert follower is not None, "the map's follower is built with its abstraction"
+                    follower.reset()  # nothing kept from the last run: each run pays its own
+                    options = {**options, "follow": follower}
                 plans = atp(
                     ctx,
                     problem.start,
@@ -442,7 +462,7 @@ def measure_suite(
     every_plan: bool = False,
     executed: bool = True,
 ) -> Measured:
-    described: dict[int, tuple[GridAstar, Pyramid, dict[int, Components]]] = {}
+    described: dict[int, tuple[GridAstar, Pyramid, dict[int, Components], Follower | None]] = {}
     measured = Measured([], [], [], {name: [] for name in configs})
     for problem in suite.problems:
         key = id(problem.blocked)
@@ -451,8 +471,10 @@ def measure_suite(
             pyramid = Pyramid.build(problem.blocked)
             tops = {first_level(options.get("top"), pyramid) for options in configs.values()}
             built = {top: abstraction(problem.blocked, suite.movement, top)[1] for top in tops}
-            described[key] = (astar, pyramid, built)
-        astar, pyramid, components = described[key]
+            follows = any(options.get("follow") == FOLLOW for options in configs.values())
+            follower = Follower(problem.blocked, suite.movement) if follows else None
+            described[key] = (astar, pyramid, built, follower)
+        astar, pyramid, components, follower = described[key]
         baseline, runs = measure_problem(
             problem,
             astar,
@@ -464,6 +486,7 @@ def measure_suite(
             budget,
             every_plan,
             executed,
+            follower,
         )
         measured.astar_times.append(baseline.seconds)
         measured.astar_expansions.append(baseline.expansions)
@@ -860,9 +883,12 @@ def bench_kinds(
             top = first_level(options.get("top"), pyramid)
             if top not in builds:  # the abstraction up to the first plan's level, once per map
                 builds[top] = best_of(repeats, partial(abstraction, blocked, 8, top))[0]
+            build = builds[top]
+            if options.get("follow") == FOLLOW:  # and the follower's, once per map
+                build += best_of(repeats, partial(Follower, blocked, 8))[0]
             runs = measured.runs[name]
             summary = summarise(measured.astar_times, measured.astar_expansions, runs)
-            with_abstraction = (sum(r.seconds for r in runs) + builds[top]) / astar_total
+            with_abstraction = (sum(r.seconds for r in runs) + build) / astar_total
             random_ratio = sum(r.seconds for r in shorts.runs[name]) / sum(shorts.astar_times)
             falls = sum(r.falls for r in runs)
             steps = sum(r.refinements for r in runs)
@@ -939,7 +965,10 @@ def bench_kinds(
         " row above's options): a level-1 segment of mean obstacleness at most T is refined\n"
         " through its own nodes' cells, without a ring of neighbours; one_ring_when_open=T\n"
         " (with the row above's options): a level-2 segment of mean obstacleness at most T is\n"
-        " refined with one ring of neighbouring nodes, not three; the\n"
+        " refined with one ring of neighbouring nodes, not three; follow (with the row above's\n"
+        " options): a plan is registered only when the robot follows it no longer than the\n"
+        " last one registered (following.Follower: execute's length, compiled; its calls in the\n"
+        " ATP's time, its build, once per map, with the abstraction's); the\n"
         f" {count} problems of the longest buckets per map, octile without\n"
         " corner cutting, optimal lengths from A*; A* and the ATP interleaved, each the best of\n"
         f" {repeats} run(s); columns as in the first table, but an execution is given up after\n"

@@ -76,6 +76,25 @@ def test_follower_is_execute(
         assert follower(plan) == expected
 
 
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 10_000), movement=st.sampled_from([4, 8]), data=st.data())
+def test_follower_in_any_order(seed: int, movement: int, data: st.DataObject) -> None:
+    """Called on plans in any order, of two problems interleaved: what it resumes from is only
+    ever what the plans share, so each is still followed as `execute` follows it."""
+    world = random_world(32, seed=seed, density=0.2, movement=movement)
+    plans = _plans(world.blocked, world.start, world.goal, movement, top=3)
+    back = _plans(world.blocked, world.goal, world.start, movement, top=3)
+    mixed = data.draw(st.permutations(plans + back))
+    follower = Follower(world.blocked, movement)
+    for plan in mixed:
+        expected = execute(plan, world.blocked, movement=movement, keep_to_plan=True).length
+        assert follower(plan) == expected
+    assert (
+        follower.route(mixed[0])
+        == execute(mixed[0], world.blocked, movement=movement, keep_to_plan=True).route
+    )
+
+
 def test_follower_is_execute_on_a_movingai_map() -> None:
     """A 512 x 512 map (random, 10% blocked), two long problems, every plan of the best
     options of issue 36's per-kind table."""

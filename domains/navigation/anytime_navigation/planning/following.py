@@ -116,10 +116,20 @@ def _pop(
     return size
 
 
-# The follower's scratch, map-sized rows of `stamps` (index x + y * width): a cell's entry in a
-# row is valid only when it holds the current run's (one plan followed) or search's number, so
-# nothing map-sized is cleared between plans or searches.
+# The follower's state, map-sized rows of `stamps` (index x + y * width): a cell's entry in a
+# row holds while it carries the current epoch's number (a new problem starts a new epoch), or
+# the search's for the last two, so nothing map-sized is cleared between plans or searches.
+# _MEMORY: the robot has seen the cell blocked; _MEANT, _CORRIDOR: `meant` and `corridor` hold
+# the cell's (dropped when a node of its or of a neighbour's flips in or out of the plan).
 _MEMORY, _MEANT, _CORRIDOR, _REACHED, _CLOSED = range(5)
+# `counters`: the epoch, the last search's number, the route's steps, the lengths of the two
+# logs (the cells seen blocked, the cells whose corridor was read, in order: what a resumed run
+# takes back), how many waypoints the last plan had.
+_EPOCH, _SEARCH, _STEPS, _SEEN, _READ, _COUNT = range(6)
+# `checkpoints[i]`: the state before waypoint i of the last plan followed (its last row: at the
+# end): position, moves straight and diagonal, steps, the logs' lengths.
+_CHECKPOINT = 7
+_NEVER = np.iinfo(np.int64).max  # `read_at` of a cell not read
 
 
 @_inlined
@@ -130,18 +140,18 @@ def _meant(
     ends: IntArray,
     stamps: IntArray,
     meant: NDArray[np.bool_],
-    run: int,
+    epoch: int,
     x: int,
     y: int,
 ) -> bool:
     """Whether base cell (x, y) is of the plan's nodes, or the start or the goal:
     `MultiPath.corridor` before its corner cells (`grids` [y, x, level]: the levels of a cell
-    side by side). Worked out once per run."""
+    side by side). Worked out once, until a node of the cell's flips (`_flip`)."""
     height, width, levels = grids.shape
     if not (0 <= y < height and 0 <= x < width):
         return False
     c = x + y * width
-    if stamps[_MEANT, c] == run:
+    if stamps[_MEANT, c] == epoch:
         return bool(meant[c])
     value = bool((x == ends[0] and y == ends[1]) or (x == ends[2] and y == ends[3]))
     if not value:
@@ -150,7 +160,7 @@ def _meant(
             if offsets[k] >= 0 and node >= 0 and held[offsets[k] + node]:
                 value = True
                 break
-    stamps[_MEANT, c] = run
+    stamps[_MEANT, c] = epoch
     meant[c] = value
     return value
 
@@ -169,26 +179,27 @@ def _in_corridor(
     stamps: IntArray,
     meant: NDArray[np.bool_],
     corridor: NDArray[np.bool_],
-    run: int,
+    epoch: int,
     corners: bool,
     x: int,
     y: int,
 ) -> bool:
     """`MultiPath.corridor()[y, x]`: a cell of the plan's nodes, or with 8 moves a free corner
-    cell of a diagonal move between two of them. Worked out once per run."""
+    cell of a diagonal move between two of them. Worked out once, until a node of the cell's
+    or of a neighbour's flips (`_flip`)."""
     c = x + y * grids.shape[1]
-    if stamps[_CORRIDOR, c] == run:
+    if stamps[_CORRIDOR, c] == epoch:
         return bool(corridor[c])
-    value = _meant(grids, held, offsets, ends, stamps, meant, run, x, y)
+    value = _meant(grids, held, offsets, ends, stamps, meant, epoch, x, y)
     if not value and corners and _free(grids, x, y):
         # the four diagonal moves that have (x, y) as a corner cell (`MultiPath.corridor`)
         left, right = (
-            _meant(grids, held, offsets, ends, stamps, meant, run, x - 1, y),
-            _meant(grids, held, offsets, ends, stamps, meant, run, x + 1, y),
+            _meant(grids, held, offsets, ends, stamps, meant, epoch, x - 1, y),
+            _meant(grids, held, offsets, ends, stamps, meant, epoch, x + 1, y),
         )
         up, down = (
-            _meant(grids, held, offsets, ends, stamps, meant, run, x, y - 1),
-            _meant(grids, held, offsets, ends, stamps, meant, run, x, y + 1),
+            _meant(grids, held, offsets, ends, stamps, meant, epoch, x, y - 1),
+            _meant(grids, held, offsets, ends, stamps, meant, epoch, x, y + 1),
         )
         value = (
             (left and down and _free(grids, x - 1, y + 1))
@@ -196,19 +207,30 @@ def _in_corridor(
             or (left and up and _free(grids, x - 1, y - 1))
             or (down and right and _free(grids, x + 1, y + 1))
         )
-    stamps[_CORRIDOR, c] = run
+    stamps[_CORRIDOR, c] = epoch
     corridor[c] = value
     return value
 
 
 @_inlined
-def _see(blocked: NDArray[np.bool_], stamps: IntArray, run: int, x: int, y: int) -> None:
-    """The robot sees the cells around it: the blocked ones enter its memory."""
+def _see(
+    blocked: NDArray[np.bool_],
+    stamps: IntArray,
+    logs: IntArray,
+    counters: IntArray,
+    epoch: int,
+    x: int,
+    y: int,
+) -> None:
+    """The robot sees the cells around it: the blocked ones enter its memory (and the log)."""
     height, width = blocked.shape
     for yy in range(max(0, y - 1), min(height, y + 2)):
         for xx in range(max(0, x - 1), min(width, x + 2)):
-            if blocked[yy, xx]:
-                stamps[_MEMORY, xx + yy * width] = run
+            c = xx + yy * width
+            if blocked[yy, xx] and stamps[_MEMORY, c] != epoch:
+                stamps[_MEMORY, c] = epoch
+                logs[0, counters[_SEEN]] = c
+                counters[_SEEN] += 1
 
 
 @_inlined
@@ -220,21 +242,30 @@ def _passable(
     stamps: IntArray,
     meant: NDArray[np.bool_],
     corridor: NDArray[np.bool_],
-    run: int,
+    read_at: IntArray,
+    logs: IntArray,
+    counters: IntArray,
+    epoch: int,
     corners: bool,
     keep: bool,
     robot: int,
+    waypoint: int,
     x: int,
     y: int,
 ) -> bool:
     """Whether obstacle avoidance's search may enter (x, y): not in the memory, and with `keep`
-    in the plan's corridor (or the robot's own cell)."""
+    in the plan's corridor (or the robot's own cell). A corridor cell read for the first time
+    is logged with its waypoint: a later plan whose corridor differs there resumes before it."""
     c = x + y * grids.shape[1]
-    if stamps[_MEMORY, c] == run:
+    if stamps[_MEMORY, c] == epoch:
         return False
     if not keep or c == robot:
         return True
-    return _in_corridor(grids, held, offsets, ends, stamps, meant, corridor, run, corners, x, y)
+    if read_at[c] > waypoint:
+        read_at[c] = waypoint
+        logs[1, counters[_READ]] = c
+        counters[_READ] += 1
+    return _in_corridor(grids, held, offsets, ends, stamps, meant, corridor, epoch, corners, x, y)
 
 
 @_compiled
@@ -244,6 +275,7 @@ def _astar(
     box: tuple[int, int, int, int],
     target: NDArray[np.bool_],
     keep: bool,
+    waypoint: int,
     grids: IntArray,
     held: NDArray[np.bool_],
     offsets: IntArray,
@@ -251,10 +283,11 @@ def _astar(
     stamps: IntArray,
     meant: NDArray[np.bool_],
     corridor: NDArray[np.bool_],
+    read_at: IntArray,
+    logs: IntArray,
+    counters: IntArray,
     g: NDArray[np.float64],
     parent: IntArray,
-    run: int,
-    search: int,
     octile: bool,
     corners: bool,
 ) -> IntArray:
@@ -269,17 +302,22 @@ def _astar(
     rx, ry = robot
     width = grids.shape[1]
     me = rx + ry * width
+    epoch = counters[_EPOCH]
+    counters[_SEARCH] += 1
+    search = counters[_SEARCH]
     empty = np.empty(0, dtype=np.int64)
     if not _passable(
-        grids, held, offsets, ends, stamps, meant, corridor, run, corners, keep, me, rx, ry
-    ):
+        grids, held, offsets, ends, stamps, meant, corridor, read_at, logs, counters,
+        epoch, corners, keep, me, waypoint, rx, ry,
+    ):  # fmt: skip
         return empty
     any_box = False
     for yy in range(y0, y1):
         for xx in range(x0, x1):
             if _passable(
-                grids, held, offsets, ends, stamps, meant, corridor, run, corners, keep, me, xx, yy
-            ):
+                grids, held, offsets, ends, stamps, meant, corridor, read_at, logs, counters,
+                epoch, corners, keep, me, waypoint, xx, yy,
+            ):  # fmt: skip
                 any_box = True
                 break
         if any_box:
@@ -326,39 +364,18 @@ def _astar(
                 continue
             neighbour = nx + ny * width
             if stamps[_CLOSED, neighbour] == search or not _passable(
-                grids, held, offsets, ends, stamps, meant, corridor, run, corners, keep, me, nx, ny
-            ):
+                grids, held, offsets, ends, stamps, meant, corridor, read_at, logs, counters,
+                epoch, corners, keep, me, waypoint, nx, ny,
+            ):  # fmt: skip
                 continue
             if d >= 4:
                 if not _passable(
-                    grids,
-                    held,
-                    offsets,
-                    ends,
-                    stamps,
-                    meant,
-                    corridor,
-                    run,
-                    corners,
-                    keep,
-                    me,
-                    nx,
-                    y,
+                    grids, held, offsets, ends, stamps, meant, corridor, read_at, logs, counters,
+                    epoch, corners, keep, me, waypoint, nx, y,
                 ) or not _passable(
-                    grids,
-                    held,
-                    offsets,
-                    ends,
-                    stamps,
-                    meant,
-                    corridor,
-                    run,
-                    corners,
-                    keep,
-                    me,
-                    x,
-                    ny,
-                ):
+                    grids, held, offsets, ends, stamps, meant, corridor, read_at, logs, counters,
+                    epoch, corners, keep, me, waypoint, x, ny,
+                ):  # fmt: skip
                     continue
                 g_new = g_node + _SQRT2 * 1.0
             else:
@@ -400,36 +417,14 @@ def _contains(o: IntArray, i: IntArray) -> bool:
 
 
 @_compiled
-def _length(
-    blocked: NDArray[np.bool_],
-    labels: IntArray,
-    grids: IntArray,
-    held: NDArray[np.bool_],
-    offsets: IntArray,
-    sequence: IntArray,
-    ends: IntArray,
-    stamps: IntArray,
-    meant: NDArray[np.bool_],
-    corridor: NDArray[np.bool_],
-    g: NDArray[np.float64],
-    parent: IntArray,
-    counters: IntArray,
-    route: IntArray,
-    octile: bool,
-    corners: bool,
-) -> float:
-    """`execute(plan, blocked, keep_to_plan=True).length`: `sequence` is the plan's cells
-    (level, x, y, node or -1) in order, the goal's last; `ends` the start and goal (x, y, x, y).
-    `held` marks the plan's nodes per level (`offsets`); `counters` the last run's and search's
-    numbers (`stamps`)."""
-    height, width = blocked.shape
-    sx, sy = ends[0], ends[1]
-    counters[0] += 1
-    run = counters[0]
-    # execution._targets: the waypoints, a block containing the last kept or the next dropped
+def _waypoints(sequence: IntArray, ends: IntArray) -> tuple[IntArray, IntArray]:
+    """`execution._targets`: the waypoints (level, x, y, node or -1) of the plan's cells
+    `sequence` (the goal's last) and their blocks (x0, y0, x1, y1, unclipped): a block
+    containing the last kept or the next is dropped."""
     n = sequence.shape[0]
-    kept = np.empty((n + 1, 4), dtype=np.int64)  # level, x, y, node
+    kept = np.empty((n + 1, 4), dtype=np.int64)
     boxes = np.empty((n + 1, 4), dtype=np.int64)
+    sx, sy = ends[0], ends[1]
     kept[0, 0], kept[0, 1], kept[0, 2], kept[0, 3] = 0, sx, sy, -1
     boxes[0, 0], boxes[0, 1], boxes[0, 2], boxes[0, 3] = sx, sy, sx + 1, sy + 1
     count = 1
@@ -448,12 +443,116 @@ def _length(
         kept[count, 3] = sequence[i, 3]
         boxes[count] = box
         count += 1
+    return kept[:count], boxes[:count]
 
-    start_label = labels[sy, sx]
-    x, y = sx, sy
-    steps = 0  # the route's cells after the start, in `route` while it has room
-    straight = diagonal = 0
-    for i in range(count):
+
+@_compiled
+def _flip(
+    before: IntArray,
+    after: IntArray,
+    grids: IntArray,
+    held: NDArray[np.bool_],
+    tally: IntArray,
+    offsets: IntArray,
+    stamps: IntArray,
+    read_at: IntArray,
+) -> int:
+    """The plan's nodes from `before`'s to `after`'s (rows level, x, y, node or -1): `tally`
+    counts each node's rows (the first `len(offsets)` entries past the nodes': each level's
+    nodes held), `held` says which are; the cells of a node that flips, and their neighbours,
+    lose their corridor and `_meant`. Returns the first waypoint that read one of those cells'
+    corridor (`_NEVER`: none)."""
+    levels = offsets.shape[0]
+    nodes = tally.shape[0] - levels
+    height, width = grids.shape[0], grids.shape[1]
+    for i in range(before.shape[0]):
+        if before[i, 3] >= 0:
+            tally[offsets[before[i, 0]] + before[i, 3]] -= 1
+    for i in range(after.shape[0]):
+        if after[i, 3] >= 0:
+            tally[offsets[after[i, 0]] + after[i, 3]] += 1
+    first = _NEVER
+    for rows in (before, after):
+        for i in range(rows.shape[0]):
+            level, node = rows[i, 0], rows[i, 3]
+            if node < 0:
+                continue
+            f = offsets[level] + node
+            now = tally[f] > 0
+            if held[f] == now:
+                continue
+            held[f] = now
+            tally[nodes + level] += 1 if now else -1
+            side = 1 << level
+            bx, by = rows[i, 1] * side, rows[i, 2] * side
+            for y in range(max(0, by - 1), min(height, by + side + 1)):
+                for x in range(max(0, bx - 1), min(width, bx + side + 1)):
+                    c = x + y * width
+                    stamps[_MEANT, c] = 0
+                    stamps[_CORRIDOR, c] = 0
+                    first = min(first, read_at[c])
+    return first
+
+
+@_compiled
+def _follow(
+    blocked: NDArray[np.bool_],
+    labels: IntArray,
+    grids: IntArray,
+    held: NDArray[np.bool_],
+    offsets: IntArray,
+    kept: IntArray,
+    boxes: IntArray,
+    before: IntArray,
+    resume: int,
+    ends: IntArray,
+    stamps: IntArray,
+    meant: NDArray[np.bool_],
+    corridor: NDArray[np.bool_],
+    read_at: IntArray,
+    logs: IntArray,
+    counters: IntArray,
+    checkpoints: IntArray,
+    g: NDArray[np.float64],
+    parent: IntArray,
+    route: IntArray,
+    octile: bool,
+    corners: bool,
+) -> float:
+    """`execute(plan, blocked, keep_to_plan=True).length` for the plan whose waypoints are
+    `kept` (with their `boxes`), resumed from the last plan's state before waypoint `resume`
+    (the last plan's waypoints `before`; the two plans agree up to it, and no corridor cell
+    read before it differs): the logs are taken back to that point, then waypoint after
+    waypoint as `execute` (`offsets`: the levels' first entries in `held`, -1 for a level of
+    no node)."""
+    height, width = blocked.shape
+    epoch = counters[_EPOCH]
+    count = kept.shape[0]
+    resume = min(resume, count, counters[_COUNT], before.shape[0])
+    for i in range(resume):  # the waypoints the two plans share
+        for k in range(4):
+            if kept[i, k] != before[i, k]:
+                resume = i
+                break
+        if resume == i:
+            break
+    if resume > 0:
+        x, y, straight, diagonal, steps = checkpoints[resume, :5]
+    else:
+        x, y, straight, diagonal, steps = ends[0], ends[1], 0, 0, 0
+    seen = checkpoints[resume, 5] if resume > 0 else 0
+    while counters[_SEEN] > seen:  # what the robot saw after the checkpoint: unseen
+        counters[_SEEN] -= 1
+        stamps[_MEMORY, logs[0, counters[_SEEN]]] = 0
+    read = checkpoints[resume, 6] if resume > 0 else 0
+    while counters[_READ] > read:
+        counters[_READ] -= 1
+        read_at[logs[1, counters[_READ]]] = _NEVER
+    start_label = labels[ends[1], ends[0]]
+    for i in range(resume, count):
+        checkpoints[i, 0], checkpoints[i, 1] = x, y
+        checkpoints[i, 2], checkpoints[i, 3], checkpoints[i, 4] = straight, diagonal, steps
+        checkpoints[i, 5], checkpoints[i, 6] = counters[_SEEN], counters[_READ]
         level, node = kept[i, 0], kept[i, 3]
         x0, y0 = max(0, boxes[i, 0]), max(0, boxes[i, 1])
         x1, y1 = min(width, boxes[i, 2]), min(height, boxes[i, 3])
@@ -491,7 +590,7 @@ def _length(
                 straight += 1
             x, y = nx, ny
             if steps < route.shape[0]:
-                route[steps] = x + y * grids.shape[1]
+                route[steps] = x + y * width
             steps += 1
             stepped = True
             break
@@ -499,20 +598,20 @@ def _length(
             continue
         # execution._feel_into, with the plan's corridor until the true map cuts it
         keep = True
-        _see(blocked, stamps, run, x, y)
+        _see(blocked, stamps, logs, counters, epoch, x, y)
         while not (x0 <= x < x1 and y0 <= y < y1 and target[y - y0, x - x0]):
             margin = 8
             while True:
                 wx0, wy0 = max(0, min(x, x0) - margin), max(0, min(y, y0) - margin)
                 wx1 = min(width, max(x + 1, x1) + margin)
                 wy1 = min(height, max(y + 1, y1) + margin)
-                counters[1] += 1
                 path = _astar(
                     (wx0, wy0, wx1, wy1),
                     (x, y),
                     (x0, y0, x1, y1),
                     target,
                     keep,
+                    i,
                     grids,
                     held,
                     offsets,
@@ -520,10 +619,11 @@ def _length(
                     stamps,
                     meant,
                     corridor,
+                    read_at,
+                    logs,
+                    counters,
                     g,
                     parent,
-                    run,
-                    counters[1],
                     octile,
                     corners,
                 )
@@ -536,15 +636,14 @@ def _length(
                 else:
                     return math.inf  # no way in (cannot be: the block is reachable)
             for j in range(1, path.shape[0]):
-                ny = path[j] // grids.shape[1]
-                nx = path[j] - ny * grids.shape[1]
-                memory = stamps[_MEMORY, path[j]] == run
-                if memory or (
+                ny = path[j] // width
+                nx = path[j] - ny * width
+                if stamps[_MEMORY, path[j]] == epoch or (
                     nx != x
                     and ny != y
                     and (
-                        stamps[_MEMORY, nx + y * grids.shape[1]] == run
-                        or stamps[_MEMORY, x + ny * grids.shape[1]] == run
+                        stamps[_MEMORY, nx + y * width] == epoch
+                        or stamps[_MEMORY, x + ny * width] == epoch
                     )
                 ):
                     break  # seen blocked since the path was planned: plan again from here
@@ -554,18 +653,26 @@ def _length(
                     straight += 1
                 x, y = nx, ny
                 if steps < route.shape[0]:
-                    route[steps] = x + y * grids.shape[1]
+                    route[steps] = x + y * width
                 steps += 1
-                _see(blocked, stamps, run, x, y)
-    counters[2] = steps
-    return straight + _SQRT2 * diagonal
+                _see(blocked, stamps, logs, counters, epoch, x, y)
+    checkpoints[count, 0], checkpoints[count, 1] = x, y
+    checkpoints[count, 2], checkpoints[count, 3], checkpoints[count, 4] = straight, diagonal, steps
+    checkpoints[count, 5], checkpoints[count, 6] = counters[_SEEN], counters[_READ]
+    counters[_STEPS] = steps
+    counters[_COUNT] = count
+    return float(straight + _SQRT2 * diagonal)
 
 
 class Follower:
     """The length of the route `execution.execute(plan, blocked, movement=movement,
     keep_to_plan=True)` follows, compiled (see the module docstring): pass it to `planner.atp`
-    as `follow` for plans made on `blocked` itself. Build it once per map: it labels the map's
-    connected cells and keeps, per abstraction, its node grids stacked."""
+    as `follow`. Build it once per map: it labels the map's connected cells and keeps, per
+    abstraction, its node grids stacked.
+
+    Called plan after plan (a refinement changes one segment), it resumes from the last plan
+    followed: the route up to the first waypoint the two plans do not share, or the first whose
+    searches read a corridor cell the change touched, is the same, and is not walked again."""
 
     def __init__(self, blocked: BoolGrid, movement: int = 8) -> None:
         from scipy import ndimage
@@ -575,18 +682,28 @@ class Follower:
         four = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
         labels, _ = ndimage.label(~self.blocked, structure=four)  # `world.reachable`'s
         self.labels = np.asarray(labels, dtype=np.int64)
-        self._described: tuple[Components, IntArray, IntArray, NDArray[np.bool_]] | None = None
+        self._described: tuple[Components, IntArray, IntArray, NDArray[np.bool_], IntArray] | None
+        self._described = None
         self._cells: dict[int, tuple[Segment, IntArray]] = {}
         cells = self.blocked.size
         self._stamps = np.zeros((5, cells), dtype=np.int64)
         self._meant = np.zeros(cells, dtype=bool)
         self._corridor = np.zeros(cells, dtype=bool)
+        self._read_at = np.full(cells, _NEVER, dtype=np.int64)
+        self._logs = np.zeros((2, cells), dtype=np.int64)
         self._g = np.zeros(cells)
         self._parent = np.zeros(cells, dtype=np.int64)
-        self._counters = np.zeros(3, dtype=np.int64)
+        self._counters = np.zeros(6, dtype=np.int64)
+        self._counters[_EPOCH] = 1
+        self._checkpoints = np.zeros((0, _CHECKPOINT), dtype=np.int64)
         self._route = np.zeros(0, dtype=np.int64)  # `route`'s
+        self._ends: tuple[int, int, int, int] | None = None
+        self._sequence = np.zeros((0, 4), dtype=np.int64)  # the last plan's cells
+        self._kept = np.zeros((0, 4), dtype=np.int64)  # and its waypoints
 
-    def _abstraction(self, components: Components) -> tuple[IntArray, IntArray, NDArray[np.bool_]]:
+    def _abstraction(
+        self, components: Components
+    ) -> tuple[IntArray, IntArray, NDArray[np.bool_], IntArray]:
         if self._described is None or self._described[0] is not components:
             if components.grids[0].shape != self.blocked.shape:
                 raise ValueError(
@@ -600,15 +717,17 @@ class Follower:
             sizes = [len(level) for level in components.levels]
             offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
             held = np.zeros(sum(sizes), dtype=bool)
+            tally = np.zeros(sum(sizes) + len(sizes), dtype=np.int64)
             self._described = (
                 components,
                 np.ascontiguousarray(grids, dtype=np.int64),
                 offsets,
                 held,
+                tally,
             )
-            self._cells.clear()
-        _, grids, offsets, held = self._described
-        return grids, offsets, held
+            self.reset()
+        _, grids, offsets, held, tally = self._described
+        return grids, offsets, held, tally
 
     def _segment(self, segment: Segment) -> IntArray:
         """A segment's cells as rows (level, x, y, node or -1), kept while the segment is
@@ -623,49 +742,79 @@ class Follower:
         self._cells[id(segment)] = (segment, rows)
         return rows
 
+    def reset(self) -> None:
+        """Forget the plans followed so far: the next call follows its plan from the start."""
+        counters = self._counters
+        counters[_EPOCH] += 1  # the memory, `_meant` and the corridor: none holds
+        self._read_at[self._logs[1, : counters[_READ]]] = _NEVER
+        counters[_SEEN] = counters[_READ] = counters[_COUNT] = 0
+        if self._described is not None:
+            self._described[3][:] = False
+            self._described[4][:] = 0
+        self._cells.clear()
+        self._ends = None
+        self._sequence = np.zeros((0, 4), dtype=np.int64)
+        self._kept = np.zeros((0, 4), dtype=np.int64)
+
     def route(self, plan: MultiPath) -> tuple[tuple[int, int], ...]:
-        """The route itself, `execute(...).route` (for tests: `__call__` keeps no route)."""
+        """The route itself, `execute(...).route`, followed from the start (for tests:
+        `__call__` keeps no route)."""
+        self.reset()
         self._route = np.zeros(4 * self.blocked.size, dtype=np.int64)
         try:
             self(plan)
         finally:
-            cells, self._route = self._route[: self._counters[2]], np.zeros(0, dtype=np.int64)
+            cells = self._route[: self._counters[_STEPS]]
+            self._route = np.zeros(0, dtype=np.int64)
         width = self.blocked.shape[1]
         return (plan.start, *((int(c % width), int(c // width)) for c in cells))
 
     def __call__(self, plan: MultiPath) -> float:
         if plan.abstraction is None:
             raise ValueError("a plan without its abstraction has no corridor to keep to")
-        grids, offsets, held = self._abstraction(plan.abstraction)
+        grids, offsets, held, tally = self._abstraction(plan.abstraction)
+        ends = (*plan.start, *plan.goal)
+        if ends != self._ends:  # another problem: nothing of the last one's holds
+            self.reset()
+            self._ends = ends
+        at = np.array(ends, dtype=np.int64)
         goal = np.array([[0, plan.goal[0], plan.goal[1], -1]], dtype=np.int64)
         sequence = np.concatenate([*(self._segment(s) for s in plan.parts), goal])
-        marked = sequence[sequence[:, 3] >= 0]
-        index = offsets[marked[:, 0]] + marked[:, 3]
-        held[index] = True
-        used = np.full(len(offsets), -1, dtype=np.int64)  # the levels of no node: not read
-        used[marked[:, 0]] = offsets[marked[:, 0]]
-        ends = np.array([*plan.start, *plan.goal], dtype=np.int64)
-        try:
-            length = _length(
-                self.blocked,
-                self.labels,
-                grids,
-                held,
-                used,
-                sequence,
-                ends,
-                self._stamps,
-                self._meant,
-                self._corridor,
-                self._g,
-                self._parent,
-                self._counters,
-                self._route,
-                self.movement == 8,
-                plan.abstraction.movement == 8,
-            )
-        finally:
-            held[index] = False
+        kept, boxes = _waypoints(sequence, at)
+        if len(self._checkpoints) < len(kept) + 1:
+            grown = np.zeros((2 * len(kept) + 1, _CHECKPOINT), dtype=np.int64)
+            grown[: len(self._checkpoints)] = self._checkpoints
+            self._checkpoints = grown
+        resume = _flip(
+            self._sequence, sequence, grids, held, tally, offsets, self._stamps, self._read_at
+        )
+        # the levels of no node are not read (`_meant`)
+        used = np.where(tally[len(held) :] > 0, offsets, -1)
+        length = _follow(
+            self.blocked,
+            self.labels,
+            grids,
+            held,
+            used,
+            kept,
+            boxes,
+            self._kept,
+            resume,
+            at,
+            self._stamps,
+            self._meant,
+            self._corridor,
+            self._read_at,
+            self._logs,
+            self._counters,
+            self._checkpoints,
+            self._g,
+            self._parent,
+            self._route,
+            self.movement == 8,
+            plan.abstraction.movement == 8,
+        )
+        self._sequence, self._kept = sequence, kept
         # keep the rows of this plan's segments only: the next plan shares all but one
         self._cells = {id(s): self._cells[id(s)] for s in plan.parts}
         return float(length)
