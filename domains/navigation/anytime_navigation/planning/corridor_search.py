@@ -1003,8 +1003,8 @@ def grid_astar(
 # `level[s]`, its nodes `pool[begin[s]:end[s]]`, its mean obstacleness `obstacleness[s]`;
 # `order[:counts[0]]` the plan's segments in route order; `counts` also holds how many segments
 # were made, how many entries of `pool` are used and the heap's size; `sums` the estimate's
-# extent and credit. A level k >= 1's arrays are slices of the concatenations of those of
-# levels 1 .. top (`Components.stacked`), level 0's are passed apart.
+# extent and credit. A level k >= 2's arrays are slices of the concatenations of those of
+# levels 2 .. top (`Components.stacked`), levels 0 and 1's are passed apart (`_of_level`).
 
 
 @_compiled
@@ -1131,12 +1131,26 @@ def begin_plan(
 
 
 @_compiled
-def _ancestor(node: int, level: int, to_level: int, parent0: IntArray, parents: IntArray,
-              node_at: IntArray) -> int:  # fmt: skip
+def _ancestor(node: int, level: int, to_level: int, parent0: IntArray, parent1: IntArray,
+              parents: IntArray, node_at: IntArray) -> int:  # fmt: skip
     """The node at `to_level` that contains `node` of `level` (`Components.ancestor`)."""
     for k in range(level, to_level):
-        node = parent0[node] if k == 0 else parents[node_at[k] + node]
+        if k == 0:
+            node = parent0[node]
+        elif k == 1:
+            node = parent1[node]
+        else:
+            node = parents[node_at[k] + node]
     return node
+
+
+@_compiled
+def _of_level(k: int, one: Any, stacked: Any, at: IntArray) -> Any:
+    """Level k's (>= 1) rows of an array: level 1's apart, those of levels 2 and up a slice of
+    their concatenation (`Components.stacked`)."""
+    if k == 1:
+        return one
+    return stacked[at[k] : at[k + 1]]
 
 
 @_compiled
@@ -1157,6 +1171,15 @@ def refine_step(
     scratch0: IntArray,
     padded: IntArray,
     wide: int,
+    parent1: IntArray,
+    block1: IntArray,
+    centre1: FloatArray,
+    scratch1: IntArray,
+    first1: IntArray,
+    neighbour1: IntArray,
+    cost1: FloatArray,
+    first_child1: IntArray,
+    child1: IntArray,
     node_at: IntArray,
     parents: IntArray,
     blocks: IntArray,
@@ -1207,42 +1230,44 @@ def refine_step(
     k = level[s]
     lower = k - 1
     if index == 0:
-        source = _ancestor(start, 0, lower, parent0, parents, node_at)
+        source = _ancestor(start, 0, lower, parent0, parent1, parents, node_at)
         source_node, source_x, source_y = -1, 0.0, 0.0
     else:
         p = order[index - 1]
         if level[p] <= lower:
-            source = _ancestor(pool[end[p] - 1], level[p], lower, parent0, parents, node_at)
+            source = _ancestor(
+                pool[end[p] - 1], level[p], lower, parent0, parent1, parents, node_at
+            )
             source_node, source_x, source_y = -1, 0.0, 0.0
         else:
             toward = pool[begin[p] + max(end[p] - begin[p] - 2, 0)]
             source, source_node = -1, pool[begin[s]]
-            at = node_at[level[p]] + toward
-            source_x, source_y = centres[at, 0], centres[at, 1]
+            centre = _of_level(level[p], centre1, centres, node_at)
+            source_x, source_y = centre[toward, 0], centre[toward, 1]
     if index == count - 1:
-        target = _ancestor(goal, 0, lower, parent0, parents, node_at)
+        target = _ancestor(goal, 0, lower, parent0, parent1, parents, node_at)
         target_node, target_x, target_y = -1, 0.0, 0.0
     else:
         n = order[index + 1]
         if level[n] <= lower:
-            target = _ancestor(pool[begin[n]], level[n], lower, parent0, parents, node_at)
+            target = _ancestor(pool[begin[n]], level[n], lower, parent0, parent1, parents, node_at)
             target_node, target_x, target_y = -1, 0.0, 0.0
         else:
             toward = pool[begin[n] + min(1, end[n] - begin[n] - 1)]
             target, target_node = -1, pool[end[s] - 1]
-            at = node_at[level[n]] + toward
-            target_x, target_y = centres[at, 0], centres[at, 1]
+            centre = _of_level(level[n], centre1, centres, node_at)
+            target_x, target_y = centre[toward, 0], centre[toward, 1]
     o = obstacleness[s]
     rings = rings_by_level[k] if k < len(rings_by_level) else 1
     if k == 1 and o <= no_ring_when_open:
         rings = 0
     if k == 2 and o <= one_ring_when_open:
         rings = 1
-    up_nodes = scratches[node_at[k] : node_at[k + 1]]
-    up_first = firsts[first_at[k] : first_at[k + 1]]
-    up_neighbour = neighbours[edge_at[k] : edge_at[k + 1]]
-    first_child = first_children[first_at[k] : first_at[k + 1]]
-    child = children[child_at[k] : child_at[k + 1]]
+    up_nodes = _of_level(k, scratch1, scratches, node_at)
+    up_first = _of_level(k, first1, firsts, first_at)
+    up_neighbour = _of_level(k, neighbour1, neighbours, edge_at)
+    first_child = _of_level(k, first_child1, first_children, first_at)
+    child = _of_level(k, child1, children, child_at)
     route = pool[begin[s] : end[s]]
     if lower == 0:
         path, _, expansions = refinement(
@@ -1252,14 +1277,14 @@ def refine_step(
         )  # fmt: skip
         blocks_lower = block0
     else:
-        blocks_lower = blocks[node_at[lower] : node_at[lower + 1]]
+        blocks_lower = _of_level(lower, block1, blocks, node_at)
         path, _, expansions = refinement(
             up_first, up_neighbour, first_child, child, up_nodes, route, rings,
-            firsts[first_at[lower] : first_at[lower + 1]],
-            neighbours[edge_at[lower] : edge_at[lower + 1]],
-            costs[edge_at[lower] : edge_at[lower + 1]],
-            nothing, 0, blocks_lower, centres[node_at[lower] : node_at[lower + 1]], movement,
-            scratches[node_at[lower] : node_at[lower + 1]],
+            _of_level(lower, first1, firsts, first_at),
+            _of_level(lower, neighbour1, neighbours, edge_at),
+            _of_level(lower, cost1, costs, edge_at),
+            nothing, 0, blocks_lower, _of_level(lower, centre1, centres, node_at), movement,
+            _of_level(lower, scratch1, scratches, node_at),
             source, source_node, source_x, source_y, target, target_node, target_x, target_y,
         )  # fmt: skip
     if expansions > limit:  # checked first, as `Components.refinement` does

@@ -593,16 +593,35 @@ _last_map: tuple[weakref.ref[Components], weakref.ref[Pyramid], tuple[object, ..
 
 
 def _map_reads(components: Components, pyramid: Pyramid) -> tuple[object, ...]:
-    """The arguments of `corridor_search.refine_step` that are the map's: level 0's arrays and
-    the other levels' stacked (`Components.stacked`), the pyramid's stacked (`Pyramid.stacked`,
-    copied when its levels are apart), the movement, the pyramid's top (the estimate's) and
-    the rings of each level (`_RINGS`)."""
+    """The arguments of `corridor_search.refine_step` that are the map's: levels 0 and 1's
+    arrays and the other levels' stacked (`Components.stacked`), the pyramid's stacked
+    (`Pyramid.stacked`, copied when its levels are apart), the movement, the pyramid's top
+    (the estimate's) and the rings of each level (`_RINGS`)."""
     global _last_map
     last = _last_map
     if last is not None and last[0]() is components and last[1]() is pyramid:
         return last[2]
     base, stacked = components.levels[0], components.stacked()
-    none = np.zeros(0, dtype=np.int64)
+    none, no_floats = np.zeros(0, dtype=np.int64), np.zeros(0)
+    if components.top >= 1:
+        one = components.levels[1]
+        level_one = (
+            one.parent, one.block, one.centre, stacked.one_scratch, one.first, one.neighbour,
+            one.cost, one.first_child, one.child,
+        )  # fmt: skip
+    else:  # nothing to refine
+        no_pairs = np.zeros((0, 2), dtype=np.int64)
+        level_one = (
+            none,
+            no_pairs,
+            no_pairs.astype(float),
+            none,
+            none,
+            none,
+            no_floats,
+            none,
+            none,
+        )
     obstacleness = pyramid.stacked()
     if obstacleness is None:  # levels apart (an unpickled pyramid): copied into one array
         obstacleness = Pyramid(pyramid.levels).stacked()
@@ -611,6 +630,7 @@ def _map_reads(components: Components, pyramid: Pyramid) -> tuple[object, ...]:
         base.parent, base.block, base.centre, stacked.base_scratch,
         base.padded if base.padded is not None else none,
         base.grid.shape[1] + 2 if base.grid is not None else 0,
+        *level_one,
         stacked.node_at, stacked.parent, stacked.block, stacked.centre, stacked.scratch,
         stacked.first_at, stacked.first, stacked.edge_at, stacked.neighbour, stacked.cost,
         stacked.child_at, stacked.first_child, stacked.child,
