@@ -122,7 +122,7 @@ class Pyramid:
         n's obstacleness at (x, y) is `stacked[at[n] + y * side[n] + x]` (what compiled code
         reads any level from: `corridor_search.refine_step`); None when the levels are not
         views of one array (a pyramid unpickled: its levels are apart)."""
-        stacked = self.levels[0].base
+        stacked = self.levels[0].base if self.levels else None
         if not isinstance(stacked, np.ndarray) or stacked.ndim != 1:
             return None
         origin = stacked.__array_interface__["data"][0]
