@@ -444,7 +444,8 @@ def atp(
     def begin(path: NodePath) -> tuple[list[tuple[Segment, float]], MultiPath, float]:
         """The segments of a top-level route with their mean obstacleness, its plan and the
         estimate made for it (the sums in the order `_Steps` keeps them)."""
-        made = planner.segments(top, path.nodes, _runs(len(path.nodes) - 1, segment_moves))
+        runs = _runs(len(path.nodes) - 1, segment_moves)
+        made = planner.segments(top, path.nodes, runs, path.array)
         extent = credit = 0.0
         for segment, o in made:
             extent_, credit_ = _credit(segment, o, pyramid.top)
@@ -716,8 +717,11 @@ class _Planner:
         if found is None:
             raise AssertionError("no base route through the children of a path")
         self.ctx.tick(found.expansions)
-        ((segment, _),) = self.segments(0, found.nodes, [(0, len(found.nodes) - 1)])
-        return segment
+        # its cells (no mean obstacleness: nothing is left to refine)
+        assert found.array is not None  # a search's path
+        blocks = c.levels[0].block[found.array]
+        cells = tuple(zip(blocks[:, 0].tolist(), blocks[:, 1].tolist(), strict=True))
+        return Segment._made(0, cells, found.nodes)
 
     def width(self, level: int, path: NodePath) -> float:
         """The base cells of the nodes of `path` (at `level`) and of their neighbours per unit
