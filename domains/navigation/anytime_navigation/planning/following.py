@@ -125,11 +125,12 @@ _MEMORY, _MEANT, _CORRIDOR, _REACHED, _CLOSED = range(5)
 # `counters`: the epoch, the last search's number, the route's steps, the lengths of the two
 # logs (the cells seen blocked, the cells whose corridor was read, in order: what a resumed run
 # takes back), how many waypoints the last plan had.
-_EPOCH, _SEARCH, _STEPS, _SEEN, _READ, _COUNT = range(6)
+_EPOCH, _SEARCH, _STEPS, _SEEN, _READ, _COUNT, _EXPANDED, _JUDGED = range(8)
 # `checkpoints[i]`: the state before waypoint i of the last plan followed (its last row: at the
 # end): position, moves straight and diagonal, steps, the logs' lengths.
 _CHECKPOINT = 7
 _NEVER = np.iinfo(np.int64).max  # `read_at` of a cell not read
+_HEAP = 8 * 8192 + 8
 
 
 @_inlined
@@ -170,7 +171,7 @@ def _free(grids: IntArray, x: int, y: int) -> bool:
     return bool(0 <= y < grids.shape[0] and 0 <= x < grids.shape[1] and grids[y, x, 0] >= 0)
 
 
-@_inlined
+@_compiled
 def _in_corridor(
     grids: IntArray,
     held: NDArray[np.bool_],
@@ -265,6 +266,9 @@ def _passable(
         read_at[c] = waypoint
         logs[1, counters[_READ]] = c
         counters[_READ] += 1
+    if stamps[_CORRIDOR, c] == epoch:
+        return bool(corridor[c])
+    counters[_JUDGED] += 1  # once per cell, until its nodes flip: called, not inlined
     return _in_corridor(grids, held, offsets, ends, stamps, meant, corridor, epoch, corners, x, y)
 
 
@@ -288,6 +292,8 @@ def _astar(
     counters: IntArray,
     g: NDArray[np.float64],
     parent: IntArray,
+    keys: NDArray[np.float64],
+    items: IntArray,
     octile: bool,
     corners: bool,
 ) -> IntArray:
@@ -324,11 +330,13 @@ def _astar(
             break
     if not any_box:
         return empty
+    # the heap: every push lowers a cell's g, at most once per neighbour expanded
     capacity = 8 * (wx1 - wx0) * (wy1 - wy0) + 8
-    hf = np.empty(capacity)
-    hg = np.empty(capacity)
-    hc = np.empty(capacity, dtype=np.int64)
-    hn = np.empty(capacity, dtype=np.int64)
+    if capacity <= keys.shape[1]:
+        hf, hg, hc, hn = keys[0], keys[1], items[0], items[1]
+    else:  # a window wider than the follower's heap (a search widened far): its own
+        hf, hg = np.empty(capacity), np.empty(capacity)
+        hc, hn = np.empty(capacity, dtype=np.int64), np.empty(capacity, dtype=np.int64)
     tx1, ty1 = x1 - 1, y1 - 1
     unit = 1.0
     diagonal_unit = unit * (_SQRT2 - 1.0)
@@ -356,6 +364,7 @@ def _astar(
             found = node
             break
         stamps[_CLOSED, node] = search
+        counters[_EXPANDED] += 1
         g_node = g[node]
         for d in range(moves):
             ddx, ddy = _ASTAR_DX[d], _ASTAR_DY[d]
@@ -515,6 +524,8 @@ def _follow(
     checkpoints: IntArray,
     g: NDArray[np.float64],
     parent: IntArray,
+    keys: NDArray[np.float64],
+    items: IntArray,
     route: IntArray,
     octile: bool,
     corners: bool,
@@ -624,6 +635,8 @@ def _follow(
                     counters,
                     g,
                     parent,
+                    keys,
+                    items,
                     octile,
                     corners,
                 )
@@ -693,7 +706,11 @@ class Follower:
         self._logs = np.zeros((2, cells), dtype=np.int64)
         self._g = np.zeros(cells)
         self._parent = np.zeros(cells, dtype=np.int64)
-        self._counters = np.zeros(6, dtype=np.int64)
+        # obstacle avoidance's heap: (f, -g) and (order pushed, cell), for windows of up to
+        # 8,192 cells (a block of 16 x 16 and a margin of 8 around it and the robot)
+        self._keys = np.zeros((2, _HEAP))
+        self._items = np.zeros((2, _HEAP), dtype=np.int64)
+        self._counters = np.zeros(8, dtype=np.int64)
         self._counters[_EPOCH] = 1
         self._checkpoints = np.zeros((0, _CHECKPOINT), dtype=np.int64)
         self._route = np.zeros(0, dtype=np.int64)  # `route`'s
@@ -748,9 +765,13 @@ class Follower:
         counters[_EPOCH] += 1  # the memory, `_meant` and the corridor: none holds
         self._read_at[self._logs[1, : counters[_READ]]] = _NEVER
         counters[_SEEN] = counters[_READ] = counters[_COUNT] = 0
-        if self._described is not None:
-            self._described[3][:] = False
-            self._described[4][:] = 0
+        if self._described is not None:  # the last plan's nodes: no longer held
+            _, _, offsets, held, tally = self._described
+            rows = self._sequence[self._sequence[:, 3] >= 0]
+            flat = offsets[rows[:, 0]] + rows[:, 3]
+            held[flat] = False
+            tally[flat] = 0
+            tally[len(held) :] = 0
         self._cells.clear()
         self._ends = None
         self._sequence = np.zeros((0, 4), dtype=np.int64)
@@ -810,6 +831,8 @@ class Follower:
             self._checkpoints,
             self._g,
             self._parent,
+            self._keys,
+            self._items,
             self._route,
             self.movement == 8,
             plan.abstraction.movement == 8,
