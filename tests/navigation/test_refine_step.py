@@ -90,3 +90,22 @@ def test_a_pyramid_with_its_levels_apart_plans_the_same() -> None:
         results = list(atp(ctx, world.start, world.goal, planned_on, movement=8))
         runs.append(([(r.quality, r.value.parts) for r in results], ctx.ticks))
     assert runs[0] == runs[1]
+
+
+def test_the_arrays_kept_for_the_last_map_go_with_it() -> None:
+    """The step's arrays are kept for the last map planned on (`planner._map_reads`), and let
+    go when its abstraction or pyramid is."""
+    import gc
+
+    from anytime_navigation.planning import planner
+
+    world = random_world(64, seed=0, movement=8)
+    pyramid = Pyramid.build(world.blocked)
+    components = Components.build(world.blocked, 8, top=3)
+    for _ in range(2):  # the second plan on the map reads what the first made
+        list(atp(Context(), world.start, world.goal, pyramid, movement=8, components=components))
+        assert planner._last_map is not None
+        assert planner._last_map[0]() is components and planner._last_map[1]() is pyramid
+    del pyramid
+    gc.collect()
+    assert planner._last_map is None

@@ -638,8 +638,14 @@ def _map_reads(components: Components, pyramid: Pyramid) -> tuple[object, ...]:
         *obstacleness, components.movement, pyramid.top,
         np.array([_RINGS.get(k, 1) for k in range(components.top + 1)], dtype=np.int64),
     )  # fmt: skip
-    _last_map = (weakref.ref(components), weakref.ref(pyramid), reads)
+    _last_map = (weakref.ref(components, _forget), weakref.ref(pyramid, _forget), reads)
     return reads
+
+
+def _forget(_: object) -> None:
+    """The map's arrays let go with its abstraction or pyramid (`_map_reads` holds them)."""
+    global _last_map
+    _last_map = None
 
 
 def _runs(moves: int, most: int | None) -> list[tuple[int, int]]:
