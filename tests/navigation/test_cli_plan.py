@@ -7,14 +7,21 @@ import json
 import math
 import re
 from pathlib import Path
+from unittest.mock import ANY
 
 import pytest
-from anytime_navigation.movingai import load_scenarios
+from anytime_navigation.cli.plan import ATP_OPTIONS
+from anytime_navigation.movingai import load_map, load_scenarios
+from anytime_navigation.planning.abstraction import Pyramid
+from anytime_navigation.planning.planner import LARGE_MAP_OPTIONS, atp
 from anytime_navigation.resources import data_file
 from conftest import Cli
 
+from anytime.plugin import Context
+
 MAPS = Path(str(data_file("maps")))
 ARENA = str(MAPS / "arena.map")
+RANDOM = str(MAPS / "random512-10-0.map")
 KEYS = {
     "start",
     "goal",
@@ -30,8 +37,8 @@ KEYS = {
 SPLIT = "type octile\nheight 3\nwidth 5\nmap\n..@..\n..@..\n..@..\n"
 
 
-def _json(cli: Cli, *argv: str) -> dict:
-    code, out, err = cli("plan", "--map", ARENA, *argv, "--json")
+def _json(cli: Cli, *argv: str, map: str = ARENA) -> dict:
+    code, out, err = cli("plan", "--map", map, *argv, "--json")
     assert (code, err) == (0, "")
     return json.loads(out)
 
@@ -77,6 +84,35 @@ def test_atp_quality_is_optimal_over_executed_length(cli: Cli) -> None:
     assert summary["expansions"] == sum(p["expansions"] for p in problems) > 0
 
 
+@pytest.mark.parametrize("name", ["large-maps", "task"])
+def test_atp_options_are_atps_keyword_arguments(cli: Cli, name: str) -> None:
+    """`--atp-options` plans with `LARGE_MAP_OPTIONS` (the default) or with `atp`'s own defaults
+    (the navigation task's): the same plans and ticks as `atp` called with them."""
+    assert ATP_OPTIONS == {"large-maps": LARGE_MAP_OPTIONS, "task": {}}
+    default = _json(cli, "--planner", "atp", "--start", "489,1", "--goal", "33,493", map=RANDOM)
+    chosen = _json(
+        cli,
+        "--planner",
+        "atp",
+        "--start",
+        "489,1",
+        "--goal",
+        "33,493",
+        "--atp-options",
+        name,
+        map=RANDOM,
+    )
+    if name == "large-maps":
+        assert chosen["problems"] == [{**default["problems"][0], "seconds": ANY}]
+    assert chosen["summary"]["atp_options"] == name
+    blocked = load_map(MAPS / "random512-10-0.map")[0]
+    ctx = Context()
+    plans = list(
+        atp(ctx, (489, 1), (33, 493), Pyramid.build(blocked), movement=8, **ATP_OPTIONS[name])
+    )
+    assert plans and chosen["problems"][0]["expansions"] == ctx.ticks
+
+
 def test_one_explicit_problem(cli: Cli) -> None:
     astar = _json(cli, "--start", "1,11", "--goal", "45,40")
     atp = _json(cli, "--start", "1,11", "--goal", "45,40", "--planner", "atp")
@@ -119,7 +155,8 @@ def test_table_and_summary_line(cli: Cli) -> None:
     assert lines[1].split()[:5] == ["1", "1,11", "1,12", "1.0000", "1.0000"]
     assert len(lines) == 6
     assert lines[-2].startswith(
-        "3 problems, atp, 8-connected (optimal lengths from the .scen file): mean length /"
+        "3 problems, atp (large-maps options), 8-connected (optimal lengths from the .scen"
+        " file): mean length /"
         " optimal 1.0000, "
     )
     assert re.fullmatch(
@@ -141,6 +178,7 @@ SUMMARY = {
     "mean_final_quality",
     "load_seconds",
     "build_seconds",
+    "atp_options",
 }
 
 

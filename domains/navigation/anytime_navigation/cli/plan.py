@@ -18,7 +18,7 @@ import argparse
 import math
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -38,7 +38,7 @@ from anytime.plugin.cli import (
 from ..movingai import MapError, load_map, load_scenarios
 from ..planning.abstraction import Pyramid
 from ..planning.components import Components
-from ..planning.planner import DEFAULT_TOP, atp, compile_searches
+from ..planning.planner import DEFAULT_TOP, LARGE_MAP_OPTIONS, atp, compile_searches
 from ..planning.search import GridAstar
 from ..task.execution import execute, plan_quality
 from ..world import BoolGrid, Position, reachable
@@ -46,6 +46,9 @@ from ..world import BoolGrid, Position, reachable
 __all__ = ["Problem", "Solution", "add_command", "run_plan"]
 
 _T = TypeVar("_T")
+
+#: `--atp-options`: the keyword arguments of `atp` (and of its abstraction's build) by name.
+ATP_OPTIONS: dict[str, Mapping[str, Any]] = {"large-maps": LARGE_MAP_OPTIONS, "task": {}}
 
 #: Lengths this close (relative) to a `.scen` optimal count as optimal: old-style files such as
 #: `arena.map.scen` print the optimal lengths to 6 significant digits (11.8284 for 11.828427).
@@ -105,6 +108,14 @@ def add_command(commands: CommandGroup) -> None:
         help="A* (compiled: the optimal baseline) or the anytime abstract planner (astar)",
     )
     parser.add_argument(
+        "--atp-options",
+        choices=sorted(ATP_OPTIONS),
+        default="large-maps",
+        help="the ATP's options: those that measured best on 512 x 512 MovingAI maps (top=4, "
+        "direct=4, direct_width=12, no_ring_when_open=0.05, one_ring_when_open=0.1), or the "
+        "planner's defaults, as the navigation task plans its 128 x 128 worlds (large-maps)",
+    )
+    parser.add_argument(
         "--movement",
         type=int,
         choices=[4, 8],
@@ -150,9 +161,10 @@ def run_plan(args: argparse.Namespace) -> int:
     # planner's description of the map (once per map).
     load_seconds, _ = _timed(lambda: compile_searches((args.movement,)))
     astar: GridAstar | None = None
-    described: tuple[Pyramid, Components] | None = None
+    described: Described | None = None
     if args.planner == "atp":
-        build_seconds, described = _timed(lambda: _described(blocked, args.movement))
+        options = ATP_OPTIONS[args.atp_options]
+        build_seconds, described = _timed(lambda: _described(blocked, args.movement, options))
     else:
         build_seconds, astar = _timed(lambda: _astar(blocked, args.movement))
     reference = "scen" if problems[0].optimal is not None else "astar"
@@ -165,6 +177,7 @@ def run_plan(args: argparse.Namespace) -> int:
             solutions.append(_solve(problem, astar, blocked, described, args.movement))
             bar.update()
     summary = _summary(solutions, args.planner, args.movement, reference)
+    summary["atp_options"] = args.atp_options if args.planner == "atp" else None
     summary["load_seconds"] = load_seconds
     summary["build_seconds"] = build_seconds
     if args.json:
@@ -228,17 +241,28 @@ def _astar(blocked: BoolGrid, movement: int) -> GridAstar:
     return GridAstar(blocked, movement=movement, weight=0.0)
 
 
-def _described(blocked: BoolGrid, movement: int) -> tuple[Pyramid, Components]:
-    """The ATP's description of the map, built once for all its problems."""
+@frozen
+class Described:
+    """The ATP's description of a map, built once for all its problems, and its options."""
+
+    pyramid: Pyramid
+    components: Components
+    options: Mapping[str, Any]
+
+
+def _described(blocked: BoolGrid, movement: int, options: Mapping[str, Any]) -> Described:
     pyramid = Pyramid.build(blocked)
-    return pyramid, Components.build(blocked, movement, top=min(DEFAULT_TOP, pyramid.top))
+    # A map smaller than the options' first level plans from its pyramid's top.
+    top = min(options.get("top", DEFAULT_TOP), pyramid.top)
+    components = Components.build(blocked, movement, top=top)
+    return Described(pyramid, components, {**options, "top": top})
 
 
 def _solve(
     problem: Problem,
     astar: GridAstar | None,
     blocked: BoolGrid,
-    described: tuple[Pyramid, Components] | None,
+    described: Described | None,
     movement: int,
 ) -> Solution:
     """Plan, timing the planner alone; execute the ATP's first and final plans for quality.
@@ -264,8 +288,15 @@ def _solve(
         )
     ctx = Context()
     begin = time.perf_counter()
-    pyramid, components = described
-    plans = atp(ctx, problem.start, problem.goal, pyramid, movement=movement, components=components)
+    plans = atp(
+        ctx,
+        problem.start,
+        problem.goal,
+        described.pyramid,
+        movement=movement,
+        components=described.components,
+        **described.options,
+    )
     first = last = next(plans).value
     for result in plans:
         last = result.value
@@ -357,8 +388,11 @@ def _format(solutions: list[Solution], summary: dict[str, Any]) -> str:
     what = "abstraction" if summary["planner"] == "atp" else "padded grid"
     count = summary["problem_count"]
     problems = "problem" if count == 1 else "problems"
+    planner = summary["planner"]
+    if summary["atp_options"] is not None:
+        planner += f" ({summary['atp_options']} options)"
     line = (
-        f"{count} {problems}, {summary['planner']}, {summary['movement']}-connected"
+        f"{count} {problems}, {planner}, {summary['movement']}-connected"
         f" (optimal lengths from {source}): mean length / optimal"
         f" {summary['mean_length_ratio']:.4f}, {summary['expansions']} expansions,"
         f" {summary['seconds']:.3f} s planning, mean quality first"

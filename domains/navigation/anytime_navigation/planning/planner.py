@@ -36,7 +36,9 @@ from __future__ import annotations
 
 import math
 import weakref
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from types import MappingProxyType
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -62,9 +64,23 @@ from .search import (
 #: worse corridors; finer ones cost more to refine). Against the compiled A* (issue 36), `top=4`
 #: pays on the 512 x 512 maps (less time and fewer expansions on all 14 of the per-kind table,
 #: final plans within 0.001 but on random 10% and rooms of 8 and 32: 0.985-0.987 against
-#: 0.989-0.999) and not on the task's 128 x 128 worlds (docs/navigation.md); the default stays
-#: until the task's profiles and monitor are measured again.
+#: 0.989-0.999) and not on the task's 128 x 128 worlds (docs/navigation.md: with its profile and
+#: calibrations measured again, the monitor realised less), so the default stays and large maps
+#: are planned with `LARGE_MAP_OPTIONS`.
 DEFAULT_TOP = 3
+
+#: The options that measured best on the 512 x 512 MovingAI maps of every kind (issue 36; the
+#: per-kind table of benchmarks/bench_navigation.py): `anytime plan`'s by default. Not the
+#: navigation task's, whose 128 x 128 worlds are planned better with the defaults.
+LARGE_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
+    {
+        "top": 4,
+        "direct": 4,
+        "direct_width": 12,
+        "no_ring_when_open": 0.05,
+        "one_ring_when_open": 0.1,
+    }
+)
 
 #: How many rings of neighbouring nodes around a refined segment's nodes join its corridor, by
 #: the segment's level (one where not listed). Level 2 gets three: on dense random maps (20-30%
@@ -78,6 +94,7 @@ _RINGS = {2: 3}
 
 __all__ = [
     "DEFAULT_TOP",
+    "LARGE_MAP_OPTIONS",
     "MultiPath",
     "Segment",
     "atp",
