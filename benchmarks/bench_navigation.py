@@ -28,7 +28,9 @@ ATP's abstraction.
    plan a level higher, a direct search for short problems, one for narrow corridors after
    the first plan, open level-1 segments refined without a ring, and open level-2 segments
    with one ring instead of three; each with its own
-   abstraction's build), against A* on the longest problems
+   abstraction's build; and the last of them with `follow`, issue 36 item 3: a plan registered
+   only when the robot follows it no longer than the last one registered, `following.Follower`
+   in the ATP's time), against A* on the longest problems
    of 14 MovingAI maps, the shipped three and eleven
    more in benchmarks/data/movingai/ (random with 20% of cells blocked, rooms of 16, 32 and 64,
    mazes of corridor widths 2, 4 and 8, two street maps, a Baldur's Gate II and a Dragon Age
