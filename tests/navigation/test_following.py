@@ -138,6 +138,31 @@ def test_registered_plans_are_followed_no_worse(
     assert lengths == sorted(lengths, reverse=True)
 
 
+@settings(max_examples=40, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    size=st.sampled_from([32, 64]),
+    movement=st.sampled_from([4, 8]),
+    density=st.sampled_from([0.1, 0.2, 0.3]),
+    top=st.sampled_from([1, 2, 3]),
+)
+def test_direct_route_is_followed_no_longer_than_the_first_plan(
+    seed: int, size: int, movement: int, density: float, top: int
+) -> None:
+    """`Follower.planned_on_its_map`: a robot keeping to the first plan's corridor on the map
+    it was made on walks inside the cells the direct route is the shortest through (the first
+    plan's nodes and their neighbours'), so the direct route is never followed longer: the
+    planner may register it without following either plan."""
+    world = random_world(size, seed=seed, density=density, movement=movement)
+    first, direct = _plans(
+        world.blocked, world.start, world.goal, movement, top=top, direct_width=1e9
+    )
+    follower = Follower(world.blocked, movement)
+    assert follower.planned_on_its_map
+    assert not direct.refinable
+    assert follower(direct) <= follower(first)
+
+
 def test_plan_without_abstraction() -> None:
     world = random_world(16, seed=1)
     plan = _plans(world.blocked, world.start, world.goal, 4)[0]

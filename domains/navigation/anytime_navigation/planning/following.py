@@ -691,6 +691,13 @@ class Follower:
     followed: the route up to the first waypoint the two plans do not share, or the first whose
     searches read a corridor cell the change touched, is the same, and is not walked again."""
 
+    #: The plans it follows are made on the map it follows them on (`blocked`), and the robot
+    #: keeps to their corridor, which that map never cuts: a route that is the shortest through
+    #: cells holding a plan's corridor (`atp`'s `direct_width` route, through the first plan's
+    #: nodes and their neighbours') is followed no longer than that plan, without following
+    #: either (a planner may rely on it to skip the follower there).
+    planned_on_its_map = True
+
     def __init__(self, blocked: BoolGrid, movement: int = 8) -> None:
         from scipy import ndimage
 
