@@ -344,7 +344,12 @@ def atp(
             is registered only when it is followed no longer than the last one registered (the
             better is kept; the planner goes on refining from the new plan either way), so the
             quality executed never falls from one registered plan to the next; it is called
-            once per plan, and its time is the planner's.
+            once per plan after the first (the first is registered at once and followed when
+            the second is compared with it), and its time is the planner's.
+            `following.Follower(blocked, movement)` is `execute`'s length for plans made on
+            the map they are followed on, compiled; a `follow` whose `planned_on_its_map` is
+            true is not called for the `direct_width` route, never followed longer than the
+            first plan there.
         door_rings: the search through the doors keeps to the first plan's nodes and those up
             to this many edges from them (None, the default: the whole level, bounded by the
             first plan's cost alone). Issue 36: the door search is a fifth to a quarter of the
@@ -472,7 +477,9 @@ def atp(
         plan = MultiPath(start, goal, ends[0], route, ends[1], components)
         return made, plan, _clip(credit / extent)
 
-    kept = math.inf  # how long the last plan registered is followed (`follow`)
+    # How long the last plan registered is followed (`follow`), or that plan itself until a
+    # later one is compared with it: the first plan is registered without being followed.
+    kept: float | MultiPath = math.inf
 
     def better(plan: MultiPath) -> bool:
         """Whether to register `plan`: always without `follow`, else when it is followed no
@@ -480,6 +487,8 @@ def atp(
         nonlocal kept
         if follow is None:
             return True
+        if isinstance(kept, MultiPath):
+            kept = follow(kept)
         length = follow(plan)
         if length > kept:
             return False
@@ -487,8 +496,8 @@ def atp(
         return True
 
     made, plan, estimate = begin(found)
-    if better(plan):  # the first plan: always (nothing is registered before it)
-        yield Result(plan, share * estimate)
+    kept = plan  # the first plan: always registered (nothing is before it)
+    yield Result(plan, share * estimate)
     if direct_width is not None and top > 0 and planner.width(top, found) <= direct_width:
         try:
             route = planner.direct(top, found.nodes)
@@ -496,7 +505,11 @@ def atp(
             ctx.tick(stopped.expansions)
             return
         plan = MultiPath(start, goal, (), (route,), (), components)
-        if better(plan):
+        # Followed on the map it was made on, the first plan keeps to its corridor, inside the
+        # cells this route is the shortest through: it is never followed longer (not where
+        # walls were opened: then the map planned on is not the map followed).
+        trusted = share == 1.0 and getattr(follow, "planned_on_its_map", False)
+        if trusted or better(plan):
             yield Result(plan, share)
         return
     if doors and top > 0:
