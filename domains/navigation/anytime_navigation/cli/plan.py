@@ -159,7 +159,7 @@ def run_plan(args: argparse.Namespace) -> int:
         raise InputError(error.message, where=f"{error.filename}:{error.line}") from None
     # Paid once, timed apart: loading the compiled searches (once per process), then the
     # planner's description of the map (once per map).
-    load_seconds, _ = _timed(lambda: compile_searches((args.movement,)))
+    load_seconds, _ = _timed(lambda: compile_searches((args.movement,), follower=False))
     astar: GridAstar | None = None
     described: Described | None = None
     if args.planner == "atp":

@@ -810,17 +810,20 @@ def _mean_obstacleness(segment: Segment, pyramid: Pyramid) -> float:
     return float(pyramid.levels[segment.level][list(ys), list(xs)].mean())
 
 
-def compile_searches(movements: Sequence[int] = (4, 8)) -> None:
+def compile_searches(movements: Sequence[int] = (4, 8), *, follower: bool = True) -> None:
     """Plan once on a small world, with the planner and with the compiled A*
-    (`search.GridAstar`), so that numba compiles their searches (`corridor_search`) into its
+    (`search.GridAstar`), and follow its plans with `following.Follower` (unless `follower` is
+    false), so that numba compiles their searches (`corridor_search`, `following`) into its
     on-disk cache, or loads them from it: otherwise the first plan of a process pays that (tens
     of seconds the first time after an install, about a second from the cache). `make` runs it
     once after installing; `anytime plan` and the benchmarks run it before timing anything."""
     from ..world import random_world
+    from .following import Follower  # it imports this module
 
     for movement in movements:
         world = random_world(64, seed=0, movement=movement)
         pyramid = Pyramid.build(world.blocked)
-        for _ in atp(Context(), world.start, world.goal, pyramid, movement=movement):
+        follow = Follower(world.blocked, movement) if follower else None
+        for _ in atp(Context(), world.start, world.goal, pyramid, movement=movement, follow=follow):
             pass
         GridAstar(world.blocked, movement=movement, weight=0.0).find_path(world.start, world.goal)
