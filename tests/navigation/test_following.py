@@ -6,6 +6,7 @@ executed lengths never increase."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -27,7 +28,7 @@ def _plans(
     start: tuple[int, int],
     goal: tuple[int, int],
     movement: int,
-    **options: object,
+    **options: Any,
 ) -> list[MultiPath]:
     pyramid = Pyramid.build(blocked)
     return [r.value for r in atp(Context(), start, goal, pyramid, movement=movement, **options)]
@@ -71,7 +72,7 @@ def test_follower_is_execute(
     if noisy:  # plans on a map that is not the one followed: the corridor may be cut
         planned = _noisy(world.blocked, world.start, world.goal, movement, seed)
     follower = Follower(world.blocked, movement)
-    for plan in _plans(planned, world.start, world.goal, movement, **options):  # type: ignore[arg-type]
+    for plan in _plans(planned, world.start, world.goal, movement, **options):
         expected = execute(plan, world.blocked, movement=movement, keep_to_plan=True).length
         assert follower(plan) == expected
 
@@ -102,7 +103,7 @@ def test_follower_is_execute_on_a_movingai_map() -> None:
     follower = Follower(blocked, 8)
     options = {"top": 4, "direct": 4, "direct_width": 12, "no_ring_when_open": 0.05}
     for scenario in sorted(scenarios, key=lambda s: -s.optimal)[:2]:
-        for plan in _plans(blocked, scenario.start, scenario.goal, 8, **options):  # type: ignore[arg-type]
+        for plan in _plans(blocked, scenario.start, scenario.goal, 8, **options):
             expected = execute(plan, blocked, movement=8, keep_to_plan=True).length
             assert follower(plan) == expected
 
