@@ -701,7 +701,11 @@ class Follower:
     def __init__(self, blocked: BoolGrid, movement: int = 8) -> None:
         from scipy import ndimage
 
-        self.blocked = np.ascontiguousarray(blocked, dtype=bool)
+        # Its own writable copy: numba compiles (or loads) a function once per argument type,
+        # and a read-only array (a `World`'s map) is another type than a writable one (a
+        # MovingAI map's): `compile_searches` warms the follower on a world, and the first map
+        # followed would otherwise pay for `_follow` again.
+        self.blocked = np.array(blocked, dtype=bool, order="C", copy=True)
         self.movement = movement
         four = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
         labels, _ = ndimage.label(~self.blocked, structure=four)  # `world.reachable`'s

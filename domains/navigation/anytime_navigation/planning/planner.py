@@ -824,6 +824,13 @@ def compile_searches(movements: Sequence[int] = (4, 8), *, follower: bool = True
         world = random_world(64, seed=0, movement=movement)
         pyramid = Pyramid.build(world.blocked)
         follow = Follower(world.blocked, movement) if follower else None
-        for _ in atp(Context(), world.start, world.goal, pyramid, movement=movement, follow=follow):
-            pass
+        # the options whose searches the default's plans do not reach: the door search kept
+        # near the first plan (`neighbourhood`) and the direct route (`widened_children`)
+        for options in ({}, {"door_rings": 1}, {"direct_width": math.inf}):
+            plans = atp(
+                Context(), world.start, world.goal, pyramid, movement=movement, follow=follow,
+                **options,
+            )  # fmt: skip
+            for _ in plans:
+                pass
         GridAstar(world.blocked, movement=movement, weight=0.0).find_path(world.start, world.goal)
