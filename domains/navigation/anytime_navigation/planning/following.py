@@ -124,15 +124,23 @@ def _pop(
 # row holds while it carries the current epoch's number (a new problem starts a new epoch), or
 # the search's for the last two, so nothing map-sized is cleared between plans or searches.
 # _MEMORY: the robot has seen the cell blocked; _MEANT, _CORRIDOR: `meant` and `corridor` hold
-# the cell's (dropped when a node of its or of a neighbour's flips in or out of the plan).
-_MEMORY, _MEANT, _CORRIDOR, _REACHED, _CLOSED = range(5)
+# the cell's (dropped when a node of its or of a neighbour's flips in or out of the plan);
+# _TOUCHED: the cell is in the touched log for the current waypoint (its visit's number);
+# _LAST: `marks[0]` holds the last waypoint of the last run that touched the cell (the run's
+# number); _PREVIOUS: `marks[1]` holds its place among the last run's cells seen after the
+# point this run resumes from (this run's number).
+_MEMORY, _MEANT, _CORRIDOR, _REACHED, _CLOSED, _TOUCHED, _LAST, _PREVIOUS = range(8)
 # `counters`: the epoch, the last search's number, the route's steps, the lengths of the two
 # logs (the cells seen blocked, the cells whose corridor was read, in order: what a resumed run
-# takes back), how many waypoints the last plan had.
+# takes back), how many waypoints the last plan had; statistics; the touched log's length (the
+# cells each waypoint's searches read or its robot saw, once per waypoint), the run's number,
+# the waypoint visit's, whether the last run's touched log is whole (its end reusable), and
+# how many waypoints were taken over from the last run (statistics).
 _EPOCH, _SEARCH, _STEPS, _SEEN, _READ, _COUNT, _EXPANDED, _JUDGED = range(8)
+_LOGGED, _RUN, _VISIT, _WHOLE, _REUSED = range(8, 13)
 # `checkpoints[i]`: the state before waypoint i of the last plan followed (its last row: at the
-# end): position, moves straight and diagonal, steps, the logs' lengths.
-_CHECKPOINT = 7
+# end): position, moves straight and diagonal, steps, the three logs' lengths.
+_CHECKPOINT = 8
 _NEVER = np.iinfo(np.int64).max  # `read_at` of a cell not read
 _HEAP = 8 * 8192 + 8
 
@@ -218,24 +226,40 @@ def _in_corridor(
 
 
 @_inlined
+def _touch(stamps: IntArray, touched: IntArray, counters: IntArray, visit: int, c: int) -> None:
+    """Log cell `c` as touched by the current waypoint (once): its memory or corridor read, or
+    seen. A log longer than its array is counted, not kept (the run's end is then not reused)."""
+    if stamps[_TOUCHED, c] != visit:
+        stamps[_TOUCHED, c] = visit
+        if counters[_LOGGED] < touched.shape[0]:
+            touched[counters[_LOGGED]] = c
+        counters[_LOGGED] += 1
+
+
+@_inlined
 def _see(
     blocked: NDArray[np.bool_],
     stamps: IntArray,
     logs: IntArray,
+    touched: IntArray,
     counters: IntArray,
     epoch: int,
+    visit: int,
     x: int,
     y: int,
 ) -> None:
-    """The robot sees the cells around it: the blocked ones enter its memory (and the log)."""
+    """The robot sees the cells around it: the blocked ones enter its memory (and the log), and
+    the touched log (whether its memory held them or not)."""
     height, width = blocked.shape
     for yy in range(max(0, y - 1), min(height, y + 2)):
         for xx in range(max(0, x - 1), min(width, x + 2)):
             c = xx + yy * width
-            if blocked[yy, xx] and stamps[_MEMORY, c] != epoch:
-                stamps[_MEMORY, c] = epoch
-                logs[0, counters[_SEEN]] = c
-                counters[_SEEN] += 1
+            if blocked[yy, xx]:
+                _touch(stamps, touched, counters, visit, c)
+                if stamps[_MEMORY, c] != epoch:
+                    stamps[_MEMORY, c] = epoch
+                    logs[0, counters[_SEEN]] = c
+                    counters[_SEEN] += 1
 
 
 @_inlined
@@ -249,8 +273,10 @@ def _passable(
     corridor: NDArray[np.bool_],
     read_at: IntArray,
     logs: IntArray,
+    touched: IntArray,
     counters: IntArray,
     epoch: int,
+    visit: int,
     corners: bool,
     keep: bool,
     robot: int,
@@ -260,8 +286,10 @@ def _passable(
 ) -> bool:
     """Whether obstacle avoidance's search may enter (x, y): not in the memory, and with `keep`
     in the plan's corridor (or the robot's own cell). A corridor cell read for the first time
-    is logged with its waypoint: a later plan whose corridor differs there resumes before it."""
+    is logged with its waypoint: a later plan whose corridor differs there resumes before it;
+    every cell read is touched (`_touch`)."""
     c = x + y * grids.shape[1]
+    _touch(stamps, touched, counters, visit, c)
     if stamps[_MEMORY, c] == epoch:
         return False
     if not keep or c == robot:
@@ -284,6 +312,7 @@ def _astar(
     target: NDArray[np.bool_],
     keep: bool,
     waypoint: int,
+    visit: int,
     grids: IntArray,
     held: NDArray[np.bool_],
     offsets: IntArray,
@@ -293,6 +322,7 @@ def _astar(
     corridor: NDArray[np.bool_],
     read_at: IntArray,
     logs: IntArray,
+    touched: IntArray,
     counters: IntArray,
     g: NDArray[np.float64],
     parent: IntArray,
@@ -317,16 +347,16 @@ def _astar(
     search = counters[_SEARCH]
     empty = np.empty(0, dtype=np.int64)
     if not _passable(
-        grids, held, offsets, ends, stamps, meant, corridor, read_at, logs, counters,
-        epoch, corners, keep, me, waypoint, rx, ry,
+        grids, held, offsets, ends, stamps, meant, corridor, read_at, logs, touched,
+        counters, epoch, visit, corners, keep, me, waypoint, rx, ry,
     ):  # fmt: skip
         return empty
     any_box = False
     for yy in range(y0, y1):
         for xx in range(x0, x1):
             if _passable(
-                grids, held, offsets, ends, stamps, meant, corridor, read_at, logs, counters,
-                epoch, corners, keep, me, waypoint, xx, yy,
+                grids, held, offsets, ends, stamps, meant, corridor, read_at, logs, touched,
+                counters, epoch, visit, corners, keep, me, waypoint, xx, yy,
             ):  # fmt: skip
                 any_box = True
                 break
@@ -376,23 +406,39 @@ def _astar(
             if not (wx0 <= nx < wx1 and wy0 <= ny < wy1):
                 continue
             neighbour = nx + ny * width
-            if stamps[_CLOSED, neighbour] == search or not _passable(
-                grids, held, offsets, ends, stamps, meant, corridor, read_at, logs, counters,
-                epoch, corners, keep, me, waypoint, nx, ny,
-            ):  # fmt: skip
+            if stamps[_CLOSED, neighbour] == search:
                 continue
-            if d >= 4:
-                if not _passable(
-                    grids, held, offsets, ends, stamps, meant, corridor, read_at, logs, counters,
-                    epoch, corners, keep, me, waypoint, nx, y,
-                ) or not _passable(
-                    grids, held, offsets, ends, stamps, meant, corridor, read_at, logs, counters,
-                    epoch, corners, keep, me, waypoint, x, ny,
-                ):  # fmt: skip
-                    continue
-                g_new = g_node + _SQRT2 * 1.0
-            else:
-                g_new = g_node + 1.0
+            # the neighbour, then a diagonal move's two corner cells, as `_passable` judges
+            # them; written out for a cell this waypoint touched already and whose corridor is
+            # known: an inlined call binds each array it is passed, counting a reference to
+            # it, which cost more than the search itself (most cells are judged again and
+            # again, as neighbours of several cells)
+            passable = True
+            for probe in range(3 if d >= 4 else 1):
+                px = nx if probe < 2 else x
+                py = ny if probe != 1 else y
+                c = px + py * width
+                if stamps[_TOUCHED, c] != visit:
+                    passable = _passable(
+                        grids, held, offsets, ends, stamps, meant, corridor, read_at, logs,
+                        touched, counters, epoch, visit, corners, keep, me, waypoint, px, py,
+                    )  # fmt: skip
+                elif stamps[_MEMORY, c] == epoch:
+                    passable = False
+                elif not keep or c == me:
+                    passable = True
+                elif read_at[c] <= waypoint and stamps[_CORRIDOR, c] == epoch:
+                    passable = corridor[c]
+                else:
+                    passable = _passable(
+                        grids, held, offsets, ends, stamps, meant, corridor, read_at, logs,
+                        touched, counters, epoch, visit, corners, keep, me, waypoint, px, py,
+                    )  # fmt: skip
+                if not passable:
+                    break
+            if not passable:
+                continue
+            g_new = g_node + (_SQRT2 * 1.0 if d >= 4 else 1.0)
             if stamps[_REACHED, neighbour] != search or g_new < g[neighbour]:
                 stamps[_REACHED, neighbour] = search
                 g[neighbour] = g_new
@@ -469,12 +515,15 @@ def _flip(
     offsets: IntArray,
     stamps: IntArray,
     read_at: IntArray,
-) -> int:
+    marks: IntArray,
+    run: int,
+) -> tuple[int, int]:
     """The plan's nodes from `before`'s to `after`'s (rows level, x, y, node or -1): `tally`
     counts each node's rows (the first `len(offsets)` entries past the nodes': each level's
     nodes held), `held` says which are; the cells of a node that flips, and their neighbours,
     lose their corridor and `_meant`. Returns the first waypoint that read one of those cells'
-    corridor (`_NEVER`: none)."""
+    corridor (`_NEVER`: none), and the last waypoint of the last run (number `run`) that
+    touched one of them (-1: none)."""
     levels = offsets.shape[0]
     nodes = tally.shape[0] - levels
     height, width = grids.shape[0], grids.shape[1]
@@ -484,7 +533,7 @@ def _flip(
     for i in range(after.shape[0]):
         if after[i, 3] >= 0:
             tally[offsets[after[i, 0]] + after[i, 3]] += 1
-    first = _NEVER
+    first, latest = _NEVER, -1
     for rows in (before, after):
         for i in range(rows.shape[0]):
             level, node = rows[i, 0], rows[i, 3]
@@ -504,7 +553,9 @@ def _flip(
                     stamps[_MEANT, c] = 0
                     stamps[_CORRIDOR, c] = 0
                     first = min(first, read_at[c])
-    return first
+                    if stamps[_LAST, c] == run:
+                        latest = max(latest, marks[0, c])
+    return first, latest
 
 
 @_compiled
@@ -524,6 +575,9 @@ def _follow(
     corridor: NDArray[np.bool_],
     read_at: IntArray,
     logs: IntArray,
+    touched: IntArray,
+    marks: IntArray,
+    latest: int,
     counters: IntArray,
     checkpoints: IntArray,
     g: NDArray[np.float64],
@@ -539,10 +593,20 @@ def _follow(
     (the last plan's waypoints `before`; the two plans agree up to it, and no corridor cell
     read before it differs): the logs are taken back to that point, then waypoint after
     waypoint as `execute` (`offsets`: the levels' first entries in `held`, -1 for a level of
-    no node)."""
+    no node), until the robot stands where the last plan's run stood before a waypoint from
+    which the two plans' waypoints are the same to the goal, and nothing the last run touched
+    from there (`latest`: the last waypoint that touched a cell whose corridor changed) differs
+    between the two runs' memories: from there on the route is the last run's, taken over
+    (`_take_over`)."""
     height, width = blocked.shape
     epoch = counters[_EPOCH]
     count = kept.shape[0]
+    # the last run's end is reusable when it ran to the goal with its touched log whole (and
+    # no route is asked for: the end's steps are not kept)
+    reusable = counters[_WHOLE] == 1 and route.shape[0] == 0
+    counters[_WHOLE] = 0
+    counters[_RUN] += 1
+    run = counters[_RUN]
     resume = min(resume, count, counters[_COUNT], before.shape[0])
     for i in range(resume):  # the waypoints the two plans share
         for k in range(4):
@@ -556,18 +620,72 @@ def _follow(
     else:
         x, y, straight, diagonal, steps = ends[0], ends[1], 0, 0, 0
     seen = checkpoints[resume, 5] if resume > 0 else 0
+    read = checkpoints[resume, 6] if resume > 0 else 0
+    # the last run from the checkpoint on (its checkpoints, the cells it saw and touched), kept
+    # before the logs are taken back: its end may be taken over
+    last_count = before.shape[0]
+    if reusable:
+        previous = checkpoints[resume : last_count + 1].copy()
+        previous[0, 0], previous[0, 1], previous[0, 2] = x, y, straight
+        previous[0, 3], previous[0, 4], previous[0, 5], previous[0, 6] = diagonal, steps, seen, read
+        if resume == 0:
+            previous[0, 7] = 0
+        seen_before = logs[0, seen : counters[_SEEN]].copy()
+        touched_before = touched[previous[0, 7] : counters[_LOGGED]].copy()
+        for k in range(seen_before.shape[0]):
+            stamps[_PREVIOUS, seen_before[k]] = run
+            marks[1, seen_before[k]] = k
+    else:
+        previous = np.zeros((1, _CHECKPOINT), dtype=np.int64)
+        seen_before = np.zeros(0, dtype=np.int64)
+        touched_before = np.zeros(0, dtype=np.int64)
+    counters[_LOGGED] = checkpoints[resume, 7] if resume > 0 else 0
     while counters[_SEEN] > seen:  # what the robot saw after the checkpoint: unseen
         counters[_SEEN] -= 1
         stamps[_MEMORY, logs[0, counters[_SEEN]]] = 0
-    read = checkpoints[resume, 6] if resume > 0 else 0
     while counters[_READ] > read:
         counters[_READ] -= 1
         read_at[logs[1, counters[_READ]]] = _NEVER
+    # the waypoints from which the last run's end may be taken over: the two plans' the same to
+    # the goal, none before `resume` (the last run's state kept starts there) or before the
+    # last one whose cells changed corridor
+    shift = count - last_count
+    same = 0
+    while reusable and same < min(count, last_count) - 1:
+        a, b = count - 1 - same, last_count - 1 - same
+        if not (
+            kept[a, 0] == before[b, 0]
+            and kept[a, 1] == before[b, 1]
+            and kept[a, 2] == before[b, 2]
+            and kept[a, 3] == before[b, 3]
+        ):
+            break
+        same += 1
+    first_taken = max(resume, count - same, resume + shift, latest + 1 + shift)
     start_label = labels[ends[1], ends[0]]
     for i in range(resume, count):
         checkpoints[i, 0], checkpoints[i, 1] = x, y
         checkpoints[i, 2], checkpoints[i, 3], checkpoints[i, 4] = straight, diagonal, steps
         checkpoints[i, 5], checkpoints[i, 6] = counters[_SEEN], counters[_READ]
+        checkpoints[i, 7] = counters[_LOGGED]
+        if reusable and i >= first_taken:
+            j = i - shift - resume  # the last run's row in `previous`
+            if (
+                previous[j, 0] == x
+                and previous[j, 1] == y
+                and _same_memory(
+                    stamps, marks, logs, seen_before, previous, counters, epoch, run, j, j + resume
+                )
+                and _take_over(
+                    stamps, read_at, logs, touched, counters, checkpoints, previous,
+                    seen_before, touched_before, epoch, i, j,
+                )
+            ):  # fmt: skip
+                x, y = previous[-1, 0], previous[-1, 1]
+                straight, diagonal, steps = checkpoints[count, 2:5]
+                break
+        counters[_VISIT] += 1
+        visit = counters[_VISIT]
         level, node = kept[i, 0], kept[i, 3]
         x0, y0 = max(0, boxes[i, 0]), max(0, boxes[i, 1])
         x1, y1 = min(width, boxes[i, 2]), min(height, boxes[i, 3])
@@ -613,7 +731,7 @@ def _follow(
             continue
         # execution._feel_into, with the plan's corridor until the true map cuts it
         keep = True
-        _see(blocked, stamps, logs, counters, epoch, x, y)
+        _see(blocked, stamps, logs, touched, counters, epoch, visit, x, y)
         while not (x0 <= x < x1 and y0 <= y < y1 and target[y - y0, x - x0]):
             margin = 8
             while True:
@@ -627,6 +745,7 @@ def _follow(
                     target,
                     keep,
                     i,
+                    visit,
                     grids,
                     held,
                     offsets,
@@ -636,6 +755,7 @@ def _follow(
                     corridor,
                     read_at,
                     logs,
+                    touched,
                     counters,
                     g,
                     parent,
@@ -672,13 +792,101 @@ def _follow(
                 if steps < route.shape[0]:
                     route[steps] = x + y * width
                 steps += 1
-                _see(blocked, stamps, logs, counters, epoch, x, y)
+                _see(blocked, stamps, logs, touched, counters, epoch, visit, x, y)
     checkpoints[count, 0], checkpoints[count, 1] = x, y
     checkpoints[count, 2], checkpoints[count, 3], checkpoints[count, 4] = straight, diagonal, steps
     checkpoints[count, 5], checkpoints[count, 6] = counters[_SEEN], counters[_READ]
+    checkpoints[count, 7] = counters[_LOGGED]
     counters[_STEPS] = steps
     counters[_COUNT] = count
+    if counters[_LOGGED] <= touched.shape[0]:  # the last waypoint touching each cell
+        for i in range(count):
+            for k in range(checkpoints[i, 7], checkpoints[i + 1, 7]):
+                stamps[_LAST, touched[k]] = run
+                marks[0, touched[k]] = i
+        counters[_WHOLE] = 1
     return float(straight + _SQRT2 * diagonal)
+
+
+@_compiled
+def _same_memory(
+    stamps: IntArray,
+    marks: IntArray,
+    logs: IntArray,
+    seen_before: IntArray,
+    previous: IntArray,
+    counters: IntArray,
+    epoch: int,
+    run: int,
+    j: int,
+    waypoint: int,
+) -> bool:
+    """Whether the robot's memory now and the last run's before its waypoint `waypoint` (row `j`
+    of `previous`) differ in no cell that run touched from there on (both runs resumed from
+    `previous[0]`: the cells each saw since, `logs[0]` from `previous[0, 5]` and
+    `seen_before`)."""
+    last_run = run - 1
+    for k in range(previous[0, 5], counters[_SEEN]):  # seen now, maybe not then
+        c = logs[0, k]
+        then = stamps[_PREVIOUS, c] == run and marks[1, c] < previous[j, 5] - previous[0, 5]
+        if not then and stamps[_LAST, c] == last_run and marks[0, c] >= waypoint:
+            return False
+    for k in range(previous[j, 5] - previous[0, 5]):  # seen then, maybe not now
+        c = seen_before[k]
+        if stamps[_MEMORY, c] != epoch and stamps[_LAST, c] == last_run and marks[0, c] >= waypoint:
+            return False
+    return True
+
+
+@_compiled
+def _take_over(
+    stamps: IntArray,
+    read_at: IntArray,
+    logs: IntArray,
+    touched: IntArray,
+    counters: IntArray,
+    checkpoints: IntArray,
+    previous: IntArray,
+    seen_before: IntArray,
+    touched_before: IntArray,
+    epoch: int,
+    i: int,
+    j: int,
+) -> bool:
+    """The last run's end from row `j` of `previous` as this run's from waypoint `i` (the robot
+    where that run's was, the same waypoints to the goal, the same memory and corridor wherever
+    that run looked): its checkpoints with this run's moves before, and its logs (the cells
+    it saw, those it touched, as corridor reads: a superset, so a later plan resumes no later
+    than it must). False when the touched log would not fit (nothing changed but the logs past
+    their lengths)."""
+    base = previous[0, 7]
+    if counters[_LOGGED] + previous[-1, 7] - previous[j, 7] > touched.shape[0]:
+        return False
+    moved = checkpoints[i, 2:5] - previous[j, 2:5]
+    for row in range(j, previous.shape[0]):
+        n = i + row - j
+        checkpoints[n, 0], checkpoints[n, 1] = previous[row, 0], previous[row, 1]
+        checkpoints[n, 2:5] = previous[row, 2:5] + moved
+        checkpoints[n, 5], checkpoints[n, 6] = counters[_SEEN], counters[_READ]
+        checkpoints[n, 7] = counters[_LOGGED]
+        if row == previous.shape[0] - 1:
+            break
+        for k in range(previous[row, 5] - previous[0, 5], previous[row + 1, 5] - previous[0, 5]):
+            c = seen_before[k]
+            if stamps[_MEMORY, c] != epoch:
+                stamps[_MEMORY, c] = epoch
+                logs[0, counters[_SEEN]] = c
+                counters[_SEEN] += 1
+        for k in range(previous[row, 7] - base, previous[row + 1, 7] - base):
+            c = touched_before[k]
+            if read_at[c] > n:
+                read_at[c] = n
+                logs[1, counters[_READ]] = c
+                counters[_READ] += 1
+            touched[counters[_LOGGED]] = c
+            counters[_LOGGED] += 1
+    counters[_REUSED] += previous.shape[0] - 1 - j
+    return True
 
 
 class Follower:
@@ -714,18 +922,22 @@ class Follower:
         self._described = None
         self._cells: dict[int, tuple[Segment, IntArray]] = {}
         cells = self.blocked.size
-        self._stamps = np.zeros((5, cells), dtype=np.int64)
+        self._stamps = np.zeros((8, cells), dtype=np.int64)
         self._meant = np.zeros(cells, dtype=bool)
         self._corridor = np.zeros(cells, dtype=bool)
         self._read_at = np.full(cells, _NEVER, dtype=np.int64)
         self._logs = np.zeros((2, cells), dtype=np.int64)
+        # the touched log: a cell once per waypoint (a longer log is not kept, `_touch`), and
+        # per cell the last waypoint that touched it and its place among the cells last seen
+        self._touched = np.zeros(4 * cells, dtype=np.int64)
+        self._marks = np.zeros((2, cells), dtype=np.int64)
         self._g = np.zeros(cells)
         self._parent = np.zeros(cells, dtype=np.int64)
         # obstacle avoidance's heap: (f, -g) and (order pushed, cell), for windows of up to
         # 8,192 cells (a block of 16 x 16 and a margin of 8 around it and the robot)
         self._keys = np.zeros((2, _HEAP))
         self._items = np.zeros((2, _HEAP), dtype=np.int64)
-        self._counters = np.zeros(8, dtype=np.int64)
+        self._counters = np.zeros(13, dtype=np.int64)
         self._counters[_EPOCH] = 1
         self._checkpoints = np.zeros((0, _CHECKPOINT), dtype=np.int64)
         self._route = np.zeros(0, dtype=np.int64)  # `route`'s
@@ -779,7 +991,8 @@ class Follower:
         counters = self._counters
         counters[_EPOCH] += 1  # the memory, `_meant` and the corridor: none holds
         self._read_at[self._logs[1, : counters[_READ]]] = _NEVER
-        counters[_SEEN] = counters[_READ] = counters[_COUNT] = 0
+        counters[_SEEN] = counters[_READ] = counters[_COUNT] = counters[_LOGGED] = 0
+        counters[_WHOLE] = 0  # nothing of the last run is taken over
         if self._described is not None:  # the last plan's nodes: no longer held
             _, _, offsets, held, tally = self._described
             rows = self._sequence[self._sequence[:, 3] >= 0]
@@ -821,8 +1034,17 @@ class Follower:
             grown = np.zeros((2 * len(kept) + 1, _CHECKPOINT), dtype=np.int64)
             grown[: len(self._checkpoints)] = self._checkpoints
             self._checkpoints = grown
-        resume = _flip(
-            self._sequence, sequence, grids, held, tally, offsets, self._stamps, self._read_at
+        resume, latest = _flip(
+            self._sequence,
+            sequence,
+            grids,
+            held,
+            tally,
+            offsets,
+            self._stamps,
+            self._read_at,
+            self._marks,
+            self._counters[_RUN],
         )
         # the levels of no node are not read (`_meant`)
         used = np.where(tally[len(held) :] > 0, offsets, -1)
@@ -842,6 +1064,9 @@ class Follower:
             self._corridor,
             self._read_at,
             self._logs,
+            self._touched,
+            self._marks,
+            latest,
             self._counters,
             self._checkpoints,
             self._g,
