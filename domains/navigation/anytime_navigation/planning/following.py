@@ -389,7 +389,24 @@ def _astar(
     moves = 8 if octile else 4
     while heap > 0:
         node = hn[0]
-        heap = _pop(hf, hg, hc, hn, heap)
+        # `_pop`, written out (like the neighbour test below: no arrays bound)
+        heap -= 1
+        f, gg, cc, nn = hf[heap], hg[heap], hc[heap], hn[heap]
+        i = 0
+        while True:
+            child = 2 * i + 1
+            if child >= heap:
+                break
+            if child + 1 < heap and _less(
+                hf[child + 1], hg[child + 1], hc[child + 1], hf[child], hg[child], hc[child]
+            ):
+                child += 1
+            if not _less(hf[child], hg[child], hc[child], f, gg, cc):
+                break
+            hf[i], hg[i], hc[i], hn[i] = hf[child], hg[child], hc[child], hn[child]
+            i = child
+        if heap > 0:
+            hf[i], hg[i], hc[i], hn[i] = f, gg, cc, nn
         if stamps[_CLOSED, node] == search:
             continue
         y = node // width
@@ -408,32 +425,35 @@ def _astar(
             neighbour = nx + ny * width
             if stamps[_CLOSED, neighbour] == search:
                 continue
-            # the neighbour, then a diagonal move's two corner cells, as `_passable` judges
-            # them; written out for a cell this waypoint touched already and whose corridor is
-            # known: an inlined call binds each array it is passed, counting a reference to
-            # it, which cost more than the search itself (most cells are judged again and
-            # again, as neighbours of several cells)
+            # the neighbour, then a diagonal move's two corner cells: `_passable` written out
+            # (an inlined call binds each array it is passed, counting a reference to it,
+            # which cost more than the search itself: a cell is judged as the neighbour of
+            # several cells)
             passable = True
             for probe in range(3 if d >= 4 else 1):
                 px = nx if probe < 2 else x
                 py = ny if probe != 1 else y
                 c = px + py * width
                 if stamps[_TOUCHED, c] != visit:
-                    passable = _passable(
-                        grids, held, offsets, ends, stamps, meant, corridor, read_at, logs,
-                        touched, counters, epoch, visit, corners, keep, me, waypoint, px, py,
-                    )  # fmt: skip
-                elif stamps[_MEMORY, c] == epoch:
+                    stamps[_TOUCHED, c] = visit
+                    if counters[_LOGGED] < touched.shape[0]:
+                        touched[counters[_LOGGED]] = c
+                    counters[_LOGGED] += 1
+                if stamps[_MEMORY, c] == epoch:
                     passable = False
-                elif not keep or c == me:
-                    passable = True
-                elif read_at[c] <= waypoint and stamps[_CORRIDOR, c] == epoch:
-                    passable = corridor[c]
-                else:
-                    passable = _passable(
-                        grids, held, offsets, ends, stamps, meant, corridor, read_at, logs,
-                        touched, counters, epoch, visit, corners, keep, me, waypoint, px, py,
-                    )  # fmt: skip
+                elif keep and c != me:
+                    if read_at[c] > waypoint:
+                        read_at[c] = waypoint
+                        logs[1, counters[_READ]] = c
+                        counters[_READ] += 1
+                    if stamps[_CORRIDOR, c] == epoch:
+                        passable = corridor[c]
+                    else:
+                        counters[_JUDGED] += 1
+                        passable = _in_corridor(
+                            grids, held, offsets, ends, stamps, meant, corridor, epoch, corners,
+                            px, py,
+                        )  # fmt: skip
                 if not passable:
                     break
             if not passable:
@@ -454,7 +474,17 @@ def _astar(
                 else:
                     hh = unit * (dx + dy)
                 counter += 1
-                heap = _push(hf, hg, hc, hn, heap, g_new + hh, -g_new, counter, neighbour)
+                # `_push`, written out
+                f, gg = g_new + hh, -g_new
+                i = heap
+                while i > 0:
+                    up = (i - 1) >> 1
+                    if not _less(f, gg, counter, hf[up], hg[up], hc[up]):
+                        break
+                    hf[i], hg[i], hc[i], hn[i] = hf[up], hg[up], hc[up], hn[up]
+                    i = up
+                hf[i], hg[i], hc[i], hn[i] = f, gg, counter, neighbour
+                heap += 1
     if found < 0:
         return empty
     count = 1
