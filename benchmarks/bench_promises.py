@@ -17,7 +17,9 @@ is scored as the profiles score it: the papers' plan quality on the true map. Co
 compiled expectation, the realised mean and its standard error, |difference| / standard error
 (within 2 in about 95% of rows when the promise holds; where every run scored the same, so the
 standard error is 0, the difference is divided by 1 / runs instead), how many runs used more
-than T, and how many ended without a plan.
+than T, and how many ended without a plan. For a program with a best-of, `if dependent`: what
+the compiled program says a dependence between its alternatives could make of the promise, at
+worst and at best (`CompiledProgram.dependence`).
 """
 
 from __future__ import annotations
@@ -131,10 +133,13 @@ def promise_table(compiled: CompiledProgram, trial: Trial, runs: int) -> tuple[s
         ratio = gap / (se if se > 0 else 1.0 / runs)
         worst = max(worst, ratio)
         within += ratio <= 2.0
+        bounds = compiled.dependence  # a best-of: what a dependence between alternatives gives
+        ranged = [] if bounds is None else [f"{bounds[0][j]:.3f}-{bounds[1][j]:.3f}"]
         rows.append(
             [
                 f"{total:g}",
                 f"{promised:.3f}",
+                *ranged,
                 f"{mean:.3f}",
                 f"{se:.3f}",
                 f"{ratio:.2f}",
@@ -142,7 +147,9 @@ def promise_table(compiled: CompiledProgram, trial: Trial, runs: int) -> tuple[s
                 f"{empty}/{runs}",
             ]
         )
-    header = ["T (ticks)", "compiled", "realised", "se", "|diff| / se", "over T", "no result"]
+    ranged_header = [] if compiled.dependence is None else ["if dependent"]
+    header = ["T (ticks)", "compiled", *ranged_header, "realised", "se", "|diff| / se"]
+    header += ["over T", "no result"]
     summary = (
         f"within 2 standard errors at {within} of {len(rows)} budgets; largest |diff| / se:"
         f" {worst:.2f}"

@@ -156,7 +156,7 @@ def test_the_result_as_data(fair: Verification) -> None:
     assert list(data["budgets"][1]) == [
         "budget", "expected_quality", "realised_quality", "se", "realised_quality_se",
         "expected_quality_se", "z", "tolerance", "runs", "overruns", "no_result", "failures",
-        "passed",
+        "passed", "expected_quality_if_dependent",
     ]  # fmt: skip
     assert data["passed"] is True and len(data["budgets"]) == len(lab.TOTALS)
     assert isinstance(fair.budgets[0], BudgetCheck)

@@ -39,7 +39,14 @@ from anytime.compiler.grids import (
     memory_bytes,
 )
 from anytime.compiler.loops import loop_profiles
-from anytime.compiler.model import CompileError, CompileModel, ModuleNode, Timed
+from anytime.compiler.model import (
+    ChoiceNode,
+    CompileError,
+    CompileModel,
+    IfNode,
+    ModuleNode,
+    Timed,
+)
 from anytime.compiler.outcomes import Code, Note
 from anytime.compiler.resolve import build_model
 from anytime.compiler.result import CompiledProgram
@@ -201,6 +208,14 @@ def compile_program(
         for name, split in _baselines(model, u_rows, dt).items()
     }
     gap = 0.0 if chosen == "exhaustive" else _gap(evaluator, q_rows, u_rows, dt, cap, output)
+    dependence = None
+    if has_best_of(model):
+        dependence = np.stack(
+            [
+                expected_in_chunks(Evaluator(model, bound), q_rows, allocation * dt, cap)
+                for bound in ("least", "most")
+            ]
+        ).reshape(2, *cell_shape)
     profile = _compiled_profile(model, output, q_grid, time, cell_shape)
     return CompiledProgram(
         name=program.name,
@@ -216,7 +231,24 @@ def compile_program(
         exhaustive_gap=gap,
         resolution=dt,
         warnings=warnings,
+        dependence=dependence,
     )
+
+
+def has_best_of(model: CompileModel) -> bool:
+    """Whether the program has a best-of of several alternatives judged by their quality,
+    itself or in a schema it calls or a branch of its ifs (those whose results a dependence
+    between the alternatives moves: `CompiledProgram.dependence`)."""
+    for node in model.nodes:
+        if isinstance(node, ChoiceNode) and len(node.slots) > 1 and not any(node.estimated):
+            return True
+        if isinstance(node, ModuleNode) and node.callee is not None:
+            if node.callee.dependence is not None:
+                return True
+        if isinstance(node, IfNode):
+            if any(plan.compiled.dependence is not None for plan in node.branches):
+                return True
+    return False
 
 
 def evaluate_in_chunks(

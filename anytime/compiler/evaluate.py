@@ -26,6 +26,16 @@ qualities and nothing else): that is the profiles' model, and the evaluation is 
   the profile's exact mean where it has one, never a bin midpoint.
 - An elementary function combines the input qualities (min by default). A `best-of` is one:
   its quality is the maximum of its alternatives' (independent given the shared results).
+- **Dependent alternatives.** Alternatives run on one problem are rarely independent: a problem
+  hard for one is often hard for all, which no profile conditioned on input qualities can say.
+  An evaluator made with `coupling="least"` or `"most"` takes the alternatives of every
+  best-of judged by quality as coupled as unfavourably (their maximum stochastically smallest:
+  comonotone, CDF `min_i F_i`) or as favourably (CDF `max(0, sum_i F_i - (n - 1))`) as their
+  marginal distributions allow -- the Frechet-Hoeffding bounds, sharp for the best-of itself
+  -- and carries that through the rest of the program (callees included): where the
+  program's later modules are monotone in their inputs' qualities, the two evaluations bound
+  what any dependence between the alternatives can do (`CompiledProgram.dependence`). A
+  best-of with alternatives judged by their predicted mean stays independent in both.
 - An `if` is the mixture of its branches, and a called schema is its callee: each is evaluated
   as the program it is, at the allocation its compiled table gives for the qualities that reach
   it (what the runtime runs), never by interpolating its compiled profile between input grid
@@ -42,7 +52,7 @@ calls read, the evaluation samples it instead (folding would move the qualities 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -171,11 +181,18 @@ def read_nodes(model: CompileModel) -> frozenset[int]:
     return frozenset(s.index for node in model.nodes for s in node.slots if s.kind == "node")
 
 
-class Evaluator:
-    """Evaluates batches of allocations of one compiled model."""
+#: How the alternatives of a best-of are coupled: independent given their inputs (the
+#: profiles' model), or as unfavourably / favourably as their marginals allow.
+Coupling = Literal["independent", "least", "most"]
 
-    def __init__(self, model: CompileModel) -> None:
+
+class Evaluator:
+    """Evaluates batches of allocations of one compiled model (`coupling`: see the module's
+    doc, "Dependent alternatives")."""
+
+    def __init__(self, model: CompileModel, coupling: Coupling = "independent") -> None:
         self.model = model
+        self.coupling = coupling
         self.shared = shared_nodes(model)
         self.read = read_nodes(model)
 
@@ -260,13 +277,15 @@ class Evaluator:
             return Dist.point(q[:, slot.index])
         return Dist.point(np.full(batch, slot.value))
 
-    @staticmethod
-    def _node(node: CompileNode, inputs: list[Dist], alloc: Array, rows: _Rows) -> Dist:
+    def _node(self, node: CompileNode, inputs: list[Dist], alloc: Array, rows: _Rows) -> Dist:
         batch = rows.count
         if isinstance(node, IfNode):
-            return _conditional(node, inputs, alloc, rows)
+            return _conditional(node, inputs, alloc, rows, self.coupling)
         if isinstance(node, TestNode):  # its quality flows nowhere
             return Dist.point(np.ones(batch))
+        if isinstance(node, ChoiceNode) and self.coupling != "independent":
+            if len(inputs) > 1 and not any(node.estimated):
+                return _coupled_maximum(inputs, self.coupling)
         q, p = _combinations(inputs, batch)  # (B, C1..Cm, m), (B, C1..Cm)
         if isinstance(node, ChoiceNode):
             return _choice(node, inputs, q, p, batch)
@@ -289,7 +308,7 @@ class Evaluator:
                 present = np.where(node.starts(t), present, 0.0)
                 run = node.run_time(t)
                 if isinstance(node, ModuleNode) and node.callee is not None:
-                    out = _from_program(node.callee, q, run, present, rows)
+                    out = _from_program(node.callee, q, run, present, rows, self.coupling)
                 else:
                     out = _from_profile(node.profile, node.deterministic, q, run, present, batch)
                 gone = (p - present).reshape(batch, -1).sum(axis=1)
@@ -300,6 +319,25 @@ class Evaluator:
                     )
                 return out
         raise AssertionError(node)
+
+
+def _coupled_maximum(inputs: list[Dist], coupling: Coupling) -> Dist:
+    """The maximum of the inputs coupled as unfavourably ("least": comonotone, the CDF the
+    least of theirs) or as favourably ("most": the CDF `max(0, sum - (n - 1))`) as their
+    marginals allow; no result is the lowest outcome, as in a best-of."""
+    support = np.sort(np.concatenate([dist.values for dist in inputs], axis=1), axis=1)
+    cdfs = np.stack(
+        [
+            np.einsum("bsk,bk->bs", dist.values[:, None, :] <= support[:, :, None], dist.probs)
+            for dist in inputs
+        ]
+    )
+    if coupling == "least":
+        cdf = cdfs.min(axis=0)
+    else:
+        cdf = np.clip(cdfs.sum(axis=0) - (len(inputs) - 1), 0.0, None)
+    probs = np.diff(cdf, axis=1, prepend=0.0)
+    return Dist(support, np.clip(probs, 0.0, None))
 
 
 def _choice(node: ChoiceNode, inputs: list[Dist], q: Array, p: Array, batch: int) -> Dist:
@@ -404,7 +442,9 @@ def _binned(
     return Dist(np.clip(values, 0.0, 1.0), probs)
 
 
-def _conditional(node: IfNode, inputs: list[Dist], alloc: Array, rows: _Rows) -> Dist:
+def _conditional(
+    node: IfNode, inputs: list[Dist], alloc: Array, rows: _Rows, coupling: Coupling
+) -> Dist:
     """An if: each branch run as its program, with the if's time, on the qualities that reach
     it, weighted by the branch's probability; the supports are concatenated (a mixture)."""
     batch = rows.count
@@ -414,13 +454,15 @@ def _conditional(node: IfNode, inputs: list[Dist], alloc: Array, rows: _Rows) ->
         t = np.broadcast_to(
             alloc[:, node.time_index].reshape((batch,) + (1,) * (p.ndim - 1)), p.shape
         )
-        branch = _from_program(plan.compiled, q, t, plan.probability * p, rows)
+        branch = _from_program(plan.compiled, q, t, plan.probability * p, rows, coupling)
         values.append(branch.values)
         probs.append(branch.probs)
     return Dist(np.concatenate(values, axis=1), np.concatenate(probs, axis=1))
 
 
-def _from_program(compiled: Any, q: Array, t: Array, weight: Array, rows: _Rows) -> Dist:
+def _from_program(
+    compiled: Any, q: Array, t: Array, weight: Array, rows: _Rows, coupling: Coupling
+) -> Dist:
     """A compiled program (a called schema, an if's branch) for every input combination
     (qualities `q` (B, C.., m), time `t`, probabilities `weight` (B, C..)): the mixture of its
     output distributions, each evaluated at the allocation its table gives for that
@@ -430,7 +472,7 @@ def _from_program(compiled: Any, q: Array, t: Array, weight: Array, rows: _Rows)
     w = weight.reshape(-1)
     live = w > 0
     qf = q.reshape(len(w), -1)[live]
-    out = _run_compiled(compiled, qf, t.reshape(-1)[live])
+    out = _run_compiled(compiled, qf, t.reshape(-1)[live], coupling)
     k = out.values.shape[1]
     values, probs = np.zeros((len(w), k)), np.zeros((len(w), k))
     values[live] = out.values
@@ -442,7 +484,7 @@ def _from_program(compiled: Any, q: Array, t: Array, weight: Array, rows: _Rows)
     return Dist(values.reshape(batch, -1), probs.reshape(batch, -1))
 
 
-def _run_compiled(compiled: Any, q: Array, t: Array) -> Dist:
+def _run_compiled(compiled: Any, q: Array, t: Array, coupling: Coupling) -> Dist:
     """A compiled program's output at input qualities `q` (N, m) and totals `t` (N,): its
     model evaluated at `allocation_at` of each (an input without a result is looked up as
     the runtime does, at quality 1, and reaches the program as no result)."""
@@ -450,7 +492,7 @@ def _run_compiled(compiled: Any, q: Array, t: Array) -> Dist:
         return Dist(np.zeros((0, 1)), np.zeros((0, 1)))
     looked = np.where(q == NO_RESULT, 1.0, q)
     split = compiled.profile.interpolate(compiled.allocation, looked, t)
-    out: Dist = Evaluator(compiled.model).evaluate(q, split)
+    out: Dist = Evaluator(compiled.model, coupling).evaluate(q, split)
     return out
 
 

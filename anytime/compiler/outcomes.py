@@ -13,7 +13,8 @@ The codes, by what they say:
   `DP_FALLBACK` (dp was asked for where it is not exact: hill-climbing ran);
 - why dp would not be exact (`CompiledProgram.dp_obstacle`): `DAG`, `IF_MIXTURE`,
   `UNKNOWN_MONOTONICITY`, `CALLEE_READS_RESULT`, `STOCHASTIC`, `NOT_INPUT_MONOTONE`;
-- what the table's expectations approximate: `SAMPLED`;
+- what the table's expectations approximate: `SAMPLED`, and how far a dependence between a
+  best-of's alternatives could move them: `DEPENDENCE`;
 - where the table leaves time unused: `KEPT_SMALLER`;
 - what the table cannot vouch for (`CompiledProgram.warnings`): `OUTSIDE_INPUT_GRID`;
 - a module's margin in an explanation (`anytime.compiler.explain`): `AT_CEILING`,
@@ -48,6 +49,7 @@ class Code(StrEnum):
     STOCHASTIC = "stochastic"
     NOT_INPUT_MONOTONE = "not-input-monotone"
     SAMPLED = "sampled"
+    DEPENDENCE = "dependence"
     KEPT_SMALLER = "kept-smaller"
     OUTSIDE_INPUT_GRID = "outside-input-grid"
     AT_CEILING = "at-ceiling"
@@ -98,6 +100,12 @@ MESSAGES: dict[Code, str] = {
         "the shared results' joint outcomes were sampled ({draws} draws) at"
         " {sampled} of {cells} cells of the table: their expected"
         " quality has a standard error of up to {error:.2g}"
+    ),
+    Code.DEPENDENCE: (
+        "a best-of's alternatives are taken as independent given their inputs' qualities;"
+        " if they depend on each other (a problem hard for one is hard for all), the"
+        " expected quality is up to {below:.3f} lower or {above:.3f} higher than the table's"
+        " (the bounds over every dependence: dependence)"
     ),
     Code.KEPT_SMALLER: (
         "at {totals} of the table's totals a smaller total does better:"

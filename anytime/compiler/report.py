@@ -37,6 +37,7 @@ def compiled_to_dict(compiled: CompiledProgram) -> dict[str, Any]:
     grids = [grid.tolist() for grid in profile.input_grids]
     expected = compiled.expected
     error = compiled.standard_error
+    bounds = compiled.dependence
     rows = []
     for cell in np.ndindex(*(len(grid) for grid in grids)):
         for j, budget in enumerate(profile.time.tolist()):
@@ -53,6 +54,11 @@ def compiled_to_dict(compiled: CompiledProgram) -> dict[str, Any]:
                     "baselines": {
                         name: float(value[at]) for name, value in compiled.baselines.items()
                     },
+                    "expected_quality_if_dependent": (
+                        None
+                        if bounds is None
+                        else [float(bounds[(0, *at)]), float(bounds[(1, *at)])]
+                    ),
                 }
             )
     report: dict[str, Any] = {
@@ -87,7 +93,11 @@ def format_report(compiled: CompiledProgram, rows: int = MAX_ROWS) -> str:
     n = len(profile.time)
     shown = n if rows <= 0 else min(rows, n)
     rows_at = np.unique(np.linspace(0, n - 1, shown).round().astype(int))
-    header = [f"T ({profile.time_unit})", "compiled", *baselines, "allocation"]
+    bounds = None
+    if compiled.dependence is not None:
+        bounds = np.stack([compiled.dependence[0][best], compiled.dependence[1][best]])
+    ranged = ["if dependent"] if bounds is not None else []
+    header = [f"T ({profile.time_unit})", "compiled", *ranged, *baselines, "allocation"]
     header[-1] += " (" + ", ".join(compiled.modules) + ")" if compiled.modules else ""
     table = [header]
     for j in rows_at:
@@ -96,6 +106,7 @@ def format_report(compiled: CompiledProgram, rows: int = MAX_ROWS) -> str:
             [
                 f"{profile.time[j]:g}",
                 f"{expected[j]:.3f}",
+                *([] if bounds is None else [f"{bounds[0, j]:.3f}-{bounds[1, j]:.3f}"]),
                 *(f"{value[j]:.3f}" for value in baselines.values()),
                 shares,
             ]

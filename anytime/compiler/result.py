@@ -44,8 +44,15 @@ class CompiledProgram:
         warnings: what the table cannot vouch for, one `Note` each: a module fed input
             qualities outside the grid its profile was measured on (`OUTSIDE_INPUT_GRID`: its
             profile is clamped there, and the allocator may exploit it).
+        dependence: for a program with a best-of (itself or in what it calls), shape
+            (2, *cells): the expected quality at the table's allocation if the alternatives
+            of its best-ofs depended on each other as unfavourably, then as favourably, as
+            their profiles allow (`anytime.compiler.evaluate`, "Dependent alternatives").
+            The table takes them independent given their inputs' qualities, which a problem
+            hard for every alternative breaks: what a run delivers lies between the two
+            where the later modules are monotone in their inputs. None: no best-of.
 
-    `exact`, `notes` and `note` are made from these fields.
+    `exact` (under the profiles' model), `notes` and `note` are made from these fields.
     """
 
     name: str
@@ -61,6 +68,7 @@ class CompiledProgram:
     standard_error: Array | None = None
     kept_smaller: tuple[float, ...] = ()
     warnings: tuple[Note, ...] = ()
+    dependence: Array | None = None
 
     @property
     def exact(self) -> bool:
@@ -112,7 +120,16 @@ class CompiledProgram:
         kept: tuple[Note, ...] = ()
         if self.kept_smaller:
             kept = (Note.of(Code.KEPT_SMALLER, totals=len(self.kept_smaller)),)
-        return (self.allocator_note, *self.approximations, *kept)
+        return (self.allocator_note, *self.approximations, *self.dependence_notes, *kept)
+
+    @property
+    def dependence_notes(self) -> tuple[Note, ...]:
+        """How far a dependence between a best-of's alternatives could move the table."""
+        if self.dependence is None:
+            return ()
+        below = float(np.max(self.expected - self.dependence[0], initial=0.0))
+        above = float(np.max(self.dependence[1] - self.expected, initial=0.0))
+        return (Note.of(Code.DEPENDENCE, below=below, above=above),)
 
     @property
     def codes(self) -> tuple[Code, ...]:

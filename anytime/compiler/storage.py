@@ -17,9 +17,9 @@ sentence is kept as it was written (`Code.TEXT`).
 Everything loaded is checked with the rules `anytime plot` reads a compiled file by, each
 error a `CompileError` whose `where` is the file and whose message names the field (and the
 first bad cell): tables of the program's shape, of numbers (not ragged), allocations finite
-and >= 0, baselines qualities in [0, 1], standard errors finite and >= 0, the resolution a
-finite number > 0 whose lattice up to the largest total has at most `MAX_LATTICE` points, the
-allocators among the known ones. A tampered file is refused, never run.
+and >= 0, baselines and dependence bounds qualities in [0, 1], standard errors finite and
+>= 0, the resolution a finite number > 0 whose lattice up to the largest total has at most
+`MAX_LATTICE` points, the allocators among the known ones. A tampered file is refused, never run.
 """
 
 from __future__ import annotations
@@ -132,6 +132,8 @@ def _document(compiled: CompiledProgram) -> dict[str, Any]:
     document["baselines"] = {k: _plain(v) for k, v in compiled.baselines.items()}
     if compiled.standard_error is not None:
         document["standard_error"] = _plain(compiled.standard_error)
+    if compiled.dependence is not None:
+        document["dependence"] = _plain(compiled.dependence)
     document["profiles"] = {
         node.name: fingerprint(node.profile)
         for node in _modules_of(compiled.model.anytime_nodes)
@@ -269,6 +271,7 @@ class _Loader:
             standard_error=self.standard_error(document, field, profile),
             kept_smaller=self.kept_smaller(values["kept_smaller"], field),
             warnings=warnings,
+            dependence=self.dependence(document, field, cells),
         )
 
     # --- the checks of the plain fields ------------------------------------------------------
@@ -406,6 +409,25 @@ class _Loader:
             )
         self.check(where, error, _bad_time, "a finite number >= 0")
         return error
+
+    def dependence(
+        self, document: Mapping[str, Any], field: str, cells: tuple[int, ...]
+    ) -> np.ndarray | None:
+        """The expected qualities over the dependences of the best-ofs' alternatives (None:
+        no best-of), the least then the most, each shaped like the table's cells, in [0, 1]."""
+        value = document.get("dependence")
+        if value is None:
+            return None
+        where = f"{field}.dependence"
+        bounds = self.numbers(where, value)
+        if bounds.shape != (2, *cells):
+            raise self.fail(
+                where,
+                f"expected shape {[2, *cells]} (least and most, input grids, time), got"
+                f" {list(bounds.shape)}",
+            )
+        self.check(where, bounds, _bad_quality, "a quality in [0, 1]")
+        return bounds
 
     def nested(self, program: Program, document: Any, field: str) -> CompiledProgram:
         if not isinstance(document, Mapping):

@@ -146,7 +146,7 @@ def test_proportional_is_romanenkos_rule() -> None:
     result = compiled(BEST_OF, allocator="proportional")
     # T* = least time with positive expected quality: steady 1, gamble 2 -> shares 1/3, 2/3.
     np.testing.assert_allclose(result.allocation[9], [3.0, 6.0])
-    assert result.codes == (Code.PROPORTIONAL,)
+    assert result.codes == (Code.PROPORTIONAL, Code.DEPENDENCE)
     optimum = compiled(BEST_OF).expected
     assert np.all(result.expected <= optimum + 1e-12)
 

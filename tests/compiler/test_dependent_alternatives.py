@@ -1,0 +1,152 @@
+"""A best-of's alternatives run on one problem: the table takes them independent given their
+inputs, and `CompiledProgram.dependence` bounds what any dependence between them delivers --
+checked against every joint distribution of given marginals (hypothesis), against runs whose
+modules sample from their profiles with one shared draw (the worst case, reached) or opposite
+draws (the best), and through a called schema, storage and the reports."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from choice_modules import BEST_OF, MID, TIME, compiled, gamble, library, steady
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from anytime.compiler import Code, compile_file, load_compiled, save_compiled
+from anytime.compiler.dist import NO_RESULT, Dist
+from anytime.compiler.evaluate import _coupled_maximum
+from anytime.compiler.report import compiled_to_dict, format_report
+from anytime.dsl import parse_schemas
+
+VALUES = np.array([NO_RESULT, 0.0, 0.3, 0.7, 1.0])
+
+
+@st.composite
+def joints(draw: st.DrawFn) -> np.ndarray:
+    """A joint distribution of 2 or 3 alternatives over `VALUES`, any dependence."""
+    n = draw(st.integers(2, 3))
+    cells = len(VALUES) ** n
+    weights = np.array(draw(st.lists(st.integers(0, 9), min_size=cells, max_size=cells)))
+    if weights.sum() == 0:
+        weights[0] = 1
+    joint: np.ndarray = (weights / weights.sum()).reshape((len(VALUES),) * n)
+    return joint
+
+
+def marginals(joint: np.ndarray) -> list[Dist]:
+    n = joint.ndim
+    return [
+        Dist(VALUES[None, :], joint.sum(axis=tuple(a for a in range(n) if a != i))[None, :])
+        for i in range(n)
+    ]
+
+
+@settings(max_examples=200, deadline=None)
+@given(joints())
+def test_the_bounds_hold_for_every_joint_distribution_of_the_marginals(joint: np.ndarray) -> None:
+    grids = np.meshgrid(*([VALUES] * joint.ndim), indexing="ij")
+    maximum = float((np.maximum(np.maximum.reduce(grids), 0.0) * joint).sum())  # none: 0
+    least, most = (_coupled_maximum(marginals(joint), c) for c in ("least", "most"))
+    assert least.probs.sum() == pytest.approx(1.0) and most.probs.sum() == pytest.approx(1.0)
+    assert least.expected()[0] - 1e-12 <= maximum <= most.expected()[0] + 1e-12
+
+
+@settings(max_examples=100, deadline=None)
+@given(joints())
+def test_one_shared_draw_reaches_the_least_and_opposite_draws_the_most(joint: np.ndarray) -> None:
+    dists = marginals(joint)
+    u = (np.arange(20_000) + 0.5) / 20_000
+    cdfs = [np.cumsum(d.probs[0]) for d in dists]
+
+    def quantile(cdf: np.ndarray, u: np.ndarray) -> np.ndarray:
+        return VALUES[np.minimum(np.searchsorted(cdf, u), len(VALUES) - 1)]
+
+    shared = np.maximum(np.maximum.reduce([quantile(c, u) for c in cdfs]), 0.0).mean()
+    assert shared == pytest.approx(_coupled_maximum(dists, "least").expected()[0], abs=1e-3)
+    if len(dists) == 2:  # countermonotone: sharp for two alternatives
+        opposite = np.maximum.reduce([quantile(cdfs[0], u), quantile(cdfs[1], 1 - u), 0 * u]).mean()
+        most = _coupled_maximum(dists, "most").expected()[0]
+        assert opposite == pytest.approx(most, abs=1e-3)
+
+
+def test_runs_that_sample_one_draw_for_both_alternatives_deliver_the_least() -> None:
+    result = compiled(BEST_OF)
+    assert result.dependence is not None and result.dependence.shape == (2, len(TIME))
+    least, most = result.dependence
+    assert np.all(least <= result.expected + 1e-12) and np.all(result.expected <= most + 1e-12)
+    rng = np.random.default_rng(3)
+    u = rng.random(100_000)
+    for j, split in enumerate(result.allocation):
+        cdfs = [
+            np.cumsum(p.distribution([], t))
+            for p, t in ((steady(), split[0]), (gamble(), split[1]))
+        ]
+        a, b = (MID[np.minimum(np.searchsorted(c, u * c[-1]), len(MID) - 1)] for c in cdfs)
+        same = np.maximum(a, b)  # one draw: a hard problem for one is hard for both
+        se = same.std() / np.sqrt(len(u))
+        assert abs(same.mean() - least[j]) <= 4 * se + 1e-9, j
+        assert least[j] <= np.maximum(a, rng.permutation(b)).mean() + 4 * se
+
+
+def test_the_note_and_the_reports_say_by_how_much() -> None:
+    result = compiled(BEST_OF)
+    assert result.dependence is not None
+    below = float(np.max(result.expected - result.dependence[0]))
+    above = float(np.max(result.dependence[1] - result.expected))
+    (note,) = [n for n in result.notes if n.code is Code.DEPENDENCE]
+    assert note.message == (
+        "a best-of's alternatives are taken as independent given their inputs' qualities; if"
+        " they depend on each other (a problem hard for one is hard for all), the expected"
+        f" quality is up to {below:.3f} lower or {above:.3f} higher than the table's (the"
+        " bounds over every dependence: dependence)"
+    )
+    assert "if dependent" in format_report(result).splitlines()[1]
+    row = compiled_to_dict(result)["budgets"][6]
+    assert row["expected_quality_if_dependent"] == [
+        result.dependence[0, 6],
+        result.dependence[1, 6],
+    ]
+
+
+def test_a_program_without_a_best_of_has_no_bounds() -> None:
+    result = compiled("(defschema one () (steady))")
+    assert result.dependence is None
+    assert Code.DEPENDENCE not in result.codes
+
+
+FILE = """(defschema pick (w)
+  (best-of (when (left-clear? w) (steady)) (when (right-clear? w) (gamble))))
+
+(defschema outer (w)
+  (pick w))
+"""
+
+
+def test_a_caller_carries_its_callees_bounds_and_storage_keeps_them(tmp_path: Path) -> None:
+    lib = library()
+    pick, outer = compile_file(parse_schemas(FILE, "f.any"), lib, TIME, schema="outer")[-2:]
+    assert outer.dependence is not None and pick.dependence is not None
+    # the caller runs the callee's table: its bounds are the callee's at the totals it gives
+    np.testing.assert_allclose(outer.expected, pick.expected)
+    np.testing.assert_allclose(outer.dependence, pick.dependence)
+    path = tmp_path / "outer.yaml"
+    save_compiled(outer, path)
+    loaded = load_compiled(path, lib)
+    assert loaded.dependence is not None
+    np.testing.assert_array_equal(loaded.dependence, outer.dependence)
+    assert loaded.note == outer.note
+
+
+def test_the_bounds_are_checked_when_a_saved_program_is_loaded(tmp_path: Path) -> None:
+    import yaml
+
+    lib = library()
+    path = tmp_path / "pick.yaml"
+    save_compiled(compile_file(parse_schemas(FILE, "f.any"), lib, TIME, schema="pick")[-1], path)
+    document = yaml.safe_load(path.read_text())
+    document["compiled"]["dependence"][0][3] = 1.5
+    path.write_text(yaml.safe_dump(document))
+    with pytest.raises(Exception, match=r"dependence.*a quality in \[0, 1\]"):
+        load_compiled(path, lib)
