@@ -96,6 +96,58 @@ def test_follower_in_any_order(seed: int, movement: int, data: st.DataObject) ->
     )
 
 
+@settings(max_examples=40, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    size=st.sampled_from([32, 64]),
+    movement=st.sampled_from([4, 8]),
+    noisy=st.booleans(),
+    log=st.sampled_from([None, 0, 7, 60]),
+    data=st.data(),
+)
+def test_taken_over_end_is_the_walked_one(
+    seed: int, size: int, movement: int, noisy: bool, log: int | None, data: st.DataObject
+) -> None:
+    """A plan's route taken over from the last plan's run (the robot where that run's stood,
+    the same waypoints to the goal, nothing it touched from there different) is the route a
+    follower walking it from the start walks, and so is every later plan's: called on the
+    plans in order, some left out (a longer change from plan to plan), on a map the plans
+    were made on or not (the corridor cut: the memory decides), and with a touched log too
+    short for some runs (`log` entries: those runs' ends are not taken over)."""
+    world = random_world(size, seed=seed, density=0.2, movement=movement)
+    planned = world.blocked
+    if noisy:
+        planned = _noisy(world.blocked, world.start, world.goal, movement, seed)
+    plans = _plans(planned, world.start, world.goal, movement, segment_moves=3)
+    chosen = [p for p in plans if data.draw(st.integers(0, 3)) > 0]
+    follower = Follower(world.blocked, movement)
+    walked = Follower(world.blocked, movement)
+    if log is not None:
+        follower._touched = np.zeros(log, dtype=np.int64)
+    for plan in chosen:
+        walked.reset()  # nothing to take over: every plan followed from the start
+        length = walked(plan)
+        assert follower(plan) == length
+        assert length == execute(plan, world.blocked, movement=movement, keep_to_plan=True).length
+    if log == 0:
+        assert follower.taken_over == 0
+    assert walked.taken_over == 0
+
+
+def test_follower_takes_over_on_a_movingai_map() -> None:
+    """The longest problem of random512-10-0, every plan of the large-map options in order: most
+    of each plan's route is taken over from the last plan's, and each length is a walk's."""
+    blocked, _, _, scenarios = load_problems(Path(str(data_file("maps"))) / "random512-10-0.map")
+    scenario = max(scenarios, key=lambda s: s.optimal)
+    options = {"top": 4, "direct": 4, "direct_width": 12, "no_ring_when_open": 0.05}
+    plans = _plans(blocked, scenario.start, scenario.goal, 8, **options)
+    follower, walked = Follower(blocked, 8), Follower(blocked, 8)
+    for plan in plans:
+        walked.reset()
+        assert follower(plan) == walked(plan)
+    assert follower.taken_over > 0
+
+
 def test_follower_is_execute_on_a_movingai_map() -> None:
     """A 512 x 512 map (random, 10% blocked), two long problems, every plan of the best
     options of issue 36's per-kind table."""

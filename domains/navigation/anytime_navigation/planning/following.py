@@ -120,8 +120,9 @@ def _pop(
     return size
 
 
-# The follower's state, map-sized rows of `stamps` (index x + y * width): a cell's entry in a
-# row holds while it carries the current epoch's number (a new problem starts a new epoch), or
+# The follower's state, map-sized columns of `stamps` (rows x + y * width: a cell's stamps side
+# by side, in one cache line): a cell's entry in a
+# column holds while it carries the current epoch's number (a new problem starts a new epoch), or
 # the search's for the last two, so nothing map-sized is cleared between plans or searches.
 # _MEMORY: the robot has seen the cell blocked; _MEANT, _CORRIDOR: `meant` and `corridor` hold
 # the cell's (dropped when a node of its or of a neighbour's flips in or out of the plan);
@@ -164,7 +165,7 @@ def _meant(
     if not (0 <= y < height and 0 <= x < width):
         return False
     c = x + y * width
-    if stamps[_MEANT, c] == epoch:
+    if stamps[c, _MEANT] == epoch:
         return bool(meant[c])
     value = bool((x == ends[0] and y == ends[1]) or (x == ends[2] and y == ends[3]))
     if not value:
@@ -173,7 +174,7 @@ def _meant(
             if offsets[k] >= 0 and node >= 0 and held[offsets[k] + node]:
                 value = True
                 break
-    stamps[_MEANT, c] = epoch
+    stamps[c, _MEANT] = epoch
     meant[c] = value
     return value
 
@@ -201,7 +202,7 @@ def _in_corridor(
     cell of a diagonal move between two of them. Worked out once, until a node of the cell's
     or of a neighbour's flips (`_flip`)."""
     c = x + y * grids.shape[1]
-    if stamps[_CORRIDOR, c] == epoch:
+    if stamps[c, _CORRIDOR] == epoch:
         return bool(corridor[c])
     value = _meant(grids, held, offsets, ends, stamps, meant, epoch, x, y)
     if not value and corners and _free(grids, x, y):
@@ -220,7 +221,7 @@ def _in_corridor(
             or (left and up and _free(grids, x - 1, y - 1))
             or (down and right and _free(grids, x + 1, y + 1))
         )
-    stamps[_CORRIDOR, c] = epoch
+    stamps[c, _CORRIDOR] = epoch
     corridor[c] = value
     return value
 
@@ -229,8 +230,8 @@ def _in_corridor(
 def _touch(stamps: IntArray, touched: IntArray, counters: IntArray, visit: int, c: int) -> None:
     """Log cell `c` as touched by the current waypoint (once): its memory or corridor read, or
     seen. A log longer than its array is counted, not kept (the run's end is then not reused)."""
-    if stamps[_TOUCHED, c] != visit:
-        stamps[_TOUCHED, c] = visit
+    if stamps[c, _TOUCHED] != visit:
+        stamps[c, _TOUCHED] = visit
         if counters[_LOGGED] < touched.shape[0]:
             touched[counters[_LOGGED]] = c
         counters[_LOGGED] += 1
@@ -256,8 +257,8 @@ def _see(
             c = xx + yy * width
             if blocked[yy, xx]:
                 _touch(stamps, touched, counters, visit, c)
-                if stamps[_MEMORY, c] != epoch:
-                    stamps[_MEMORY, c] = epoch
+                if stamps[c, _MEMORY] != epoch:
+                    stamps[c, _MEMORY] = epoch
                     logs[0, counters[_SEEN]] = c
                     counters[_SEEN] += 1
 
@@ -290,7 +291,7 @@ def _passable(
     every cell read is touched (`_touch`)."""
     c = x + y * grids.shape[1]
     _touch(stamps, touched, counters, visit, c)
-    if stamps[_MEMORY, c] == epoch:
+    if stamps[c, _MEMORY] == epoch:
         return False
     if not keep or c == robot:
         return True
@@ -298,7 +299,7 @@ def _passable(
         read_at[c] = waypoint
         logs[1, counters[_READ]] = c
         counters[_READ] += 1
-    if stamps[_CORRIDOR, c] == epoch:
+    if stamps[c, _CORRIDOR] == epoch:
         return bool(corridor[c])
     counters[_JUDGED] += 1  # once per cell, until its nodes flip: called, not inlined
     return _in_corridor(grids, held, offsets, ends, stamps, meant, corridor, epoch, corners, x, y)
@@ -375,7 +376,7 @@ def _astar(
     unit = 1.0
     diagonal_unit = unit * (_SQRT2 - 1.0)
     g[me] = 0.0
-    stamps[_REACHED, me] = search
+    stamps[me, _REACHED] = search
     parent[me] = -1
     dx = x0 - rx if rx < x0 else rx - tx1 if rx > tx1 else 0
     dy = y0 - ry if ry < y0 else ry - ty1 if ry > ty1 else 0
@@ -407,14 +408,14 @@ def _astar(
             i = child
         if heap > 0:
             hf[i], hg[i], hc[i], hn[i] = f, gg, cc, nn
-        if stamps[_CLOSED, node] == search:
+        if stamps[node, _CLOSED] == search:
             continue
         y = node // width
         x = node - y * width
         if x0 <= x < x1 and y0 <= y < y1 and target[y - y0, x - x0]:
             found = node
             break
-        stamps[_CLOSED, node] = search
+        stamps[node, _CLOSED] = search
         counters[_EXPANDED] += 1
         g_node = g[node]
         for d in range(moves):
@@ -423,7 +424,7 @@ def _astar(
             if not (wx0 <= nx < wx1 and wy0 <= ny < wy1):
                 continue
             neighbour = nx + ny * width
-            if stamps[_CLOSED, neighbour] == search:
+            if stamps[neighbour, _CLOSED] == search:
                 continue
             # the neighbour, then a diagonal move's two corner cells: `_passable` written out
             # (an inlined call binds each array it is passed, counting a reference to it,
@@ -434,19 +435,19 @@ def _astar(
                 px = nx if probe < 2 else x
                 py = ny if probe != 1 else y
                 c = px + py * width
-                if stamps[_TOUCHED, c] != visit:
-                    stamps[_TOUCHED, c] = visit
+                if stamps[c, _TOUCHED] != visit:
+                    stamps[c, _TOUCHED] = visit
                     if counters[_LOGGED] < touched.shape[0]:
                         touched[counters[_LOGGED]] = c
                     counters[_LOGGED] += 1
-                if stamps[_MEMORY, c] == epoch:
+                if stamps[c, _MEMORY] == epoch:
                     passable = False
                 elif keep and c != me:
                     if read_at[c] > waypoint:
                         read_at[c] = waypoint
                         logs[1, counters[_READ]] = c
                         counters[_READ] += 1
-                    if stamps[_CORRIDOR, c] == epoch:
+                    if stamps[c, _CORRIDOR] == epoch:
                         passable = corridor[c]
                     else:
                         counters[_JUDGED] += 1
@@ -459,8 +460,8 @@ def _astar(
             if not passable:
                 continue
             g_new = g_node + (_SQRT2 * 1.0 if d >= 4 else 1.0)
-            if stamps[_REACHED, neighbour] != search or g_new < g[neighbour]:
-                stamps[_REACHED, neighbour] = search
+            if stamps[neighbour, _REACHED] != search or g_new < g[neighbour]:
+                stamps[neighbour, _REACHED] = search
                 g[neighbour] = g_new
                 parent[neighbour] = node
                 dx = x0 - nx if nx < x0 else nx - tx1 if nx > tx1 else 0
@@ -580,10 +581,10 @@ def _flip(
             for y in range(max(0, by - 1), min(height, by + side + 1)):
                 for x in range(max(0, bx - 1), min(width, bx + side + 1)):
                     c = x + y * width
-                    stamps[_MEANT, c] = 0
-                    stamps[_CORRIDOR, c] = 0
+                    stamps[c, _MEANT] = 0
+                    stamps[c, _CORRIDOR] = 0
                     first = min(first, read_at[c])
-                    if stamps[_LAST, c] == run:
+                    if stamps[c, _LAST] == run:
                         latest = max(latest, marks[0, c])
     return first, latest
 
@@ -663,7 +664,7 @@ def _follow(
         seen_before = logs[0, seen : counters[_SEEN]].copy()
         touched_before = touched[previous[0, 7] : counters[_LOGGED]].copy()
         for k in range(seen_before.shape[0]):
-            stamps[_PREVIOUS, seen_before[k]] = run
+            stamps[seen_before[k], _PREVIOUS] = run
             marks[1, seen_before[k]] = k
     else:
         previous = np.zeros((1, _CHECKPOINT), dtype=np.int64)
@@ -672,7 +673,7 @@ def _follow(
     counters[_LOGGED] = checkpoints[resume, 7] if resume > 0 else 0
     while counters[_SEEN] > seen:  # what the robot saw after the checkpoint: unseen
         counters[_SEEN] -= 1
-        stamps[_MEMORY, logs[0, counters[_SEEN]]] = 0
+        stamps[logs[0, counters[_SEEN]], _MEMORY] = 0
     while counters[_READ] > read:
         counters[_READ] -= 1
         read_at[logs[1, counters[_READ]]] = _NEVER
@@ -805,12 +806,12 @@ def _follow(
             for j in range(1, path.shape[0]):
                 ny = path[j] // width
                 nx = path[j] - ny * width
-                if stamps[_MEMORY, path[j]] == epoch or (
+                if stamps[path[j], _MEMORY] == epoch or (
                     nx != x
                     and ny != y
                     and (
-                        stamps[_MEMORY, nx + y * width] == epoch
-                        or stamps[_MEMORY, x + ny * width] == epoch
+                        stamps[nx + y * width, _MEMORY] == epoch
+                        or stamps[x + ny * width, _MEMORY] == epoch
                     )
                 ):
                     break  # seen blocked since the path was planned: plan again from here
@@ -832,7 +833,7 @@ def _follow(
     if counters[_LOGGED] <= touched.shape[0]:  # the last waypoint touching each cell
         for i in range(count):
             for k in range(checkpoints[i, 7], checkpoints[i + 1, 7]):
-                stamps[_LAST, touched[k]] = run
+                stamps[touched[k], _LAST] = run
                 marks[0, touched[k]] = i
         counters[_WHOLE] = 1
     return float(straight + _SQRT2 * diagonal)
@@ -858,12 +859,12 @@ def _same_memory(
     last_run = run - 1
     for k in range(previous[0, 5], counters[_SEEN]):  # seen now, maybe not then
         c = logs[0, k]
-        then = stamps[_PREVIOUS, c] == run and marks[1, c] < previous[j, 5] - previous[0, 5]
-        if not then and stamps[_LAST, c] == last_run and marks[0, c] >= waypoint:
+        then = stamps[c, _PREVIOUS] == run and marks[1, c] < previous[j, 5] - previous[0, 5]
+        if not then and stamps[c, _LAST] == last_run and marks[0, c] >= waypoint:
             return False
     for k in range(previous[j, 5] - previous[0, 5]):  # seen then, maybe not now
         c = seen_before[k]
-        if stamps[_MEMORY, c] != epoch and stamps[_LAST, c] == last_run and marks[0, c] >= waypoint:
+        if stamps[c, _MEMORY] != epoch and stamps[c, _LAST] == last_run and marks[0, c] >= waypoint:
             return False
     return True
 
@@ -903,8 +904,8 @@ def _take_over(
             break
         for k in range(previous[row, 5] - previous[0, 5], previous[row + 1, 5] - previous[0, 5]):
             c = seen_before[k]
-            if stamps[_MEMORY, c] != epoch:
-                stamps[_MEMORY, c] = epoch
+            if stamps[c, _MEMORY] != epoch:
+                stamps[c, _MEMORY] = epoch
                 logs[0, counters[_SEEN]] = c
                 counters[_SEEN] += 1
         for k in range(previous[row, 7] - base, previous[row + 1, 7] - base):
@@ -952,14 +953,14 @@ class Follower:
         self._described = None
         self._cells: dict[int, tuple[Segment, IntArray]] = {}
         cells = self.blocked.size
-        self._stamps = np.zeros((8, cells), dtype=np.int64)
+        self._stamps = np.zeros((cells, 8), dtype=np.int64)
         self._meant = np.zeros(cells, dtype=bool)
         self._corridor = np.zeros(cells, dtype=bool)
         self._read_at = np.full(cells, _NEVER, dtype=np.int64)
         self._logs = np.zeros((2, cells), dtype=np.int64)
         # the touched log: a cell once per waypoint (a longer log is not kept, `_touch`), and
         # per cell the last waypoint that touched it and its place among the cells last seen
-        self._touched = np.zeros(4 * cells, dtype=np.int64)
+        self._touched = np.zeros(cells, dtype=np.int64)
         self._marks = np.zeros((2, cells), dtype=np.int64)
         self._g = np.zeros(cells)
         self._parent = np.zeros(cells, dtype=np.int64)
@@ -1034,6 +1035,12 @@ class Follower:
         self._ends = None
         self._sequence = np.zeros((0, 4), dtype=np.int64)
         self._kept = np.zeros((0, 4), dtype=np.int64)
+
+    @property
+    def taken_over(self) -> int:
+        """How many waypoints' routes were taken over from the last plan's run so far (not
+        walked again), over every plan followed (statistics)."""
+        return int(self._counters[_REUSED])
 
     def route(self, plan: MultiPath) -> tuple[tuple[int, int], ...]:
         """The route itself, `execute(...).route`, followed from the start (for tests:
