@@ -27,6 +27,16 @@ linear in the free cells, each level's edges sorted by counting. The top level
 also gets its *doors* (`doors`: where a route crosses from node to node, for searching the
 first plan's level again by the way through the nodes rather than their centres).
 
+Landmarks. On request (`landmarks`), a level gets the distances from a few of its nodes to every
+other, over its edges, for the ALT heuristic of the searches over the whole level (the first
+plan): by the triangle inequality, |d(L, goal) - d(L, node)| is at most the distance from node
+to goal, a bound that sees the walls the straight line cannot. The landmarks are chosen
+farthest first in the level's largest connected region (the first one farthest from node 0).
+On a maze, where the straight line says little, the first plan's search over the level
+expands a fifth to a sixth of the nodes it did with the distance as the robot moves alone
+(MovingAI's mazes of widths 1 and 2, level 4, the 16 longest problems, 8 landmarks: 17,646 of
+91,478 and 13,815 of 79,045), on the other maps a quarter.
+
 Arrays are indexed [y, x]; positions are (x, y).
 """
 
@@ -250,6 +260,10 @@ def _stack(levels: Sequence[Level], scratch: Sequence[IntArray]) -> Stacked:
 # Each abstraction's `Stacked`, made when a plan is first refined: kept apart from its fields, so
 # that a plan's pickle, which holds its abstraction, is the same before and after.
 _STACKED: weakref.WeakKeyDictionary[Components, Stacked] = weakref.WeakKeyDictionary()
+# Each abstraction's landmark distances by (level, count), made when first asked for (as above).
+_LANDMARKS: weakref.WeakKeyDictionary[Components, dict[tuple[int, int], FloatArray]] = (
+    weakref.WeakKeyDictionary()
+)
 
 
 @frozen(eq=False)
@@ -280,6 +294,16 @@ class Components:
         if stacked is None:
             stacked = _STACKED[self] = _stack(self.levels, self._scratch)
         return stacked
+
+    def landmarks(self, level: int, count: int) -> FloatArray:
+        """The distances over `level`'s edges from `count` landmark nodes to every node of the
+        level, shape (count, nodes) (inf where unreachable), made once: the landmarks chosen
+        farthest first in the level's largest connected region (see the module's doc)."""
+        made = _LANDMARKS.setdefault(self, {})
+        key = (level, count)
+        if key not in made:
+            made[key] = _landmark_distances(self.levels[level], count)
+        return made[key]
 
     @property
     def cell(self) -> IntArray:
@@ -457,15 +481,18 @@ class Components:
         )
         return near
 
-    def path(self, level: int, source: int, target: int, *, limit: float = math.inf) -> NodePath:
+    def path(
+        self, level: int, source: int, target: int, *, limit: float = math.inf, landmarks: int = 0
+    ) -> NodePath:
         """A cheapest path of neighbouring nodes at `level` between two nodes over the whole
-        level, from centre to centre: `corridor` over every node.
+        level, from centre to centre: `corridor` over every node (with `landmarks`, its
+        heuristic bounded by theirs).
 
         Raises:
             SearchLimit: its work, counted as `corridor` counts it, is more than `limit`.
         """
         every = np.arange(len(self.levels[level]))
-        found = self.corridor(level, every, [source], [target], limit=limit)
+        found = self.corridor(level, every, [source], [target], limit=limit, landmarks=landmarks)
         if found is None:
             raise AssertionError(f"no path at level {level} between nodes {source} and {target}")
         return found
@@ -526,10 +553,13 @@ class Components:
         source_costs: Sequence[float] | None = None,
         target_costs: Sequence[float] | None = None,
         limit: float = math.inf,
+        landmarks: int = 0,
     ) -> NodePath | None:
         """A cheapest path of neighbouring nodes at `level` from any of `sources` to any of
         `targets` through the `allowed` nodes (sources and targets among them), with the extra
-        costs of starting and ending at each; None when no target can be reached.
+        costs of starting and ending at each; None when no target can be reached. With
+        `landmarks` (a level above 0), the heuristic is also bounded by that many landmarks'
+        distances (`landmarks`): a path as cheap, fewer nodes expanded.
 
         A* over the corridor, compiled (`corridor_search`), stopped once the cheapest way to a
         target is known. Its work is counted as the nodes an A* search for the
@@ -562,12 +592,39 @@ class Components:
             np.zeros(len(sources_)) if source_costs is None else np.asarray(source_costs, float),
             targets_,
             np.zeros(len(targets_)) if target_costs is None else np.asarray(target_costs, float),
+            self.landmarks(level, landmarks) if landmarks and level else np.zeros((0, 0)),
         )
         if expansions > limit:
             raise SearchLimit(int(limit))
         if not len(path):
             return None
         return NodePath(level, tuple(path.tolist()), best, expansions, path)
+
+
+def _landmark_distances(at: Level, count: int) -> FloatArray:
+    """`Components.landmarks` of one level above level 0: Dijkstra's (scipy's, in C) from each
+    landmark in turn, the next the node of the largest region farthest from those chosen."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import connected_components, dijkstra
+
+    n = len(at)
+    if at.k == 0 or n == 0 or count <= 0:
+        return np.zeros((0, n))
+    graph = csr_matrix((at.cost, at.neighbour, at.first), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    largest = label == np.argmax(np.bincount(label))
+    nearest = np.where(largest, np.inf, -np.inf)  # distance to the nearest landmark chosen
+    rows = []
+    # The first landmark: the node farthest from the largest region's first node.
+    seed = dijkstra(graph, indices=int(np.argmax(largest)))
+    candidate = int(np.argmax(np.where(largest, seed, -np.inf)))
+    for _ in range(min(count, int(largest.sum()))):
+        row = dijkstra(graph, indices=candidate)
+        rows.append(row)
+        nearest = np.minimum(nearest, row)
+        candidate = int(np.argmax(np.where(largest, nearest, -np.inf)))
+    distances: FloatArray = np.vstack(rows)
+    return distances
 
 
 def _rows(first: IntArray, nodes: IntArray) -> IntArray:

@@ -97,10 +97,12 @@ def search(
     source_costs: FloatArray,
     targets: IntArray,
     target_costs: FloatArray,
+    landmarks: FloatArray,
 ) -> tuple[IntArray, float, int]:
     """A* from `sources` (each starting at its cost) to any of `targets` (each adding its cost at
     the end) through `nodes` (level node numbers; duplicates are fine), with `_nearest` as the
-    heuristic (admissible: a target's cost is never negative).
+    heuristic (admissible: a target's cost is never negative), bounded by the `landmarks`'
+    distances (one row per landmark, one column per node of the level; none: no rows).
 
     The level's edges are its compressed rows (`first`, `neighbour`, `cost`) above level 0; at
     level 0 (`padded` not empty: the level-0 node of each cell, ravelled with a border of -1,
@@ -150,6 +152,7 @@ def search(
         if source_costs[j] < distance[s]:
             if estimate[s] < 0.0:
                 estimate[s] = _nearest(x[s], y[s], target_x, target_y, movement)
+                estimate[s] = _landmark_bound(estimate[s], sources[j], targets, landmarks)
             distance[s] = source_costs[j]
             size = _push(keys, items, size, source_costs[j] + estimate[s], s)
     best, end = np.inf, -1
@@ -189,6 +192,10 @@ def search(
                 if v >= 0 and d + cost[e] < distance[v]:
                     if estimate[v] < 0.0:
                         estimate[v] = _nearest(x[v], y[v], target_x, target_y, movement)
+                        if len(landmarks):
+                            estimate[v] = _landmark_bound(
+                                estimate[v], neighbour[e], targets, landmarks
+                            )
                     distance[v], previous[v] = d + cost[e], u
                     if size == len(keys):
                         keys, items = _grown(keys, items)
@@ -223,6 +230,25 @@ def _traced(previous: IntArray, end: int, expanded: NDArray[np.bool_]) -> IntArr
             expanded[u] = True
         u = previous[u]
     return path
+
+
+@_compiled
+def _landmark_bound(estimate: float, node: int, targets: IntArray, landmarks: FloatArray) -> float:
+    """`estimate` (a distance to the nearest target) raised to the landmarks' bound where that
+    is higher for every target: the distance from `node` to a target is at least
+    |d(L, target) - d(L, node)| for each landmark L (the triangle inequality over the level's
+    edges; consistent, as the landmarks' distances are exact)."""
+    if len(landmarks) == 0:
+        return estimate
+    nearest = np.inf
+    for t in range(len(targets)):
+        bound = 0.0
+        for k in range(landmarks.shape[0]):
+            a, b = landmarks[k, targets[t]], landmarks[k, node]
+            if a < np.inf and b < np.inf:
+                bound = max(bound, abs(a - b))
+        nearest = min(nearest, bound)
+    return max(estimate, nearest)
 
 
 @_compiled
@@ -450,7 +476,7 @@ def refinement(
     )
     return search(
         allowed, local, first, neighbour, cost, padded, wide, block, centre, movement,
-        sources, source_costs, targets, target_costs,
+        sources, source_costs, targets, target_costs, np.zeros((0, 0)),
     )  # fmt: skip
 
 
