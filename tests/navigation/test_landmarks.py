@@ -8,13 +8,18 @@ import math
 
 import numpy as np
 from anytime_navigation.movingai import load_map
+from anytime_navigation.planning.abstraction import Pyramid
 from anytime_navigation.planning.components import Components
+from anytime_navigation.planning.planner import atp
 from anytime_navigation.resources import data_file
+from anytime_navigation.world import random_world
 from grid_moves import draw_free_pair  # tests/navigation/grid_moves.py
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
+
+from anytime.modules import Context
 
 maps = st.builds(
     lambda seed, density, side: np.random.default_rng(seed).random((side, side)) < density,
@@ -102,3 +107,23 @@ def test_on_a_maze_the_first_plans_search_expands_a_fraction() -> None:
         assert math.isclose(one.cost, other.cost, rel_tol=1e-9)
         plain, alt = plain + one.expansions, alt + other.expansions
     assert alt < 0.25 * plain
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(0, 10_000), st.sampled_from([4, 8]), st.sampled_from([2, 3]))
+def test_atp_with_landmarks_makes_its_first_plan_in_no_more_ticks(
+    seed: int, movement: int, top: int
+) -> None:
+    world = random_world(64, seed=seed, movement=movement)
+    pyramid = Pyramid.build(world.blocked)
+    ticks = []
+    for landmarks in (None, 8):
+        ctx = Context()
+        plans = atp(
+            ctx, world.start, world.goal, pyramid, movement=movement, top=top, landmarks=landmarks
+        )
+        first = next(plans)
+        ticks.append(ctx.elapsed)
+        assert first.value.start == world.start and first.value.goal == world.goal
+        assert list(plans)  # and it refines on to the end
+    assert ticks[1] <= ticks[0]

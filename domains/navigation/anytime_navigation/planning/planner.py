@@ -294,6 +294,7 @@ def atp(
     direct_width: float | None = None,
     no_ring_when_open: float | None = None,
     one_ring_when_open: float | None = None,
+    landmarks: int | None = None,
 ) -> Iterator[Result]:
     """The anytime abstract planner: yields `Result(MultiPath, quality_estimate)` after the first
     plan and after every refinement (with `follow`, each that is followed no worse than the last
@@ -384,6 +385,13 @@ def atp(
             expansions to 19.3% and its time with the abstraction's build from 30% to 24%, at
             the same final quality; random512-10-0's final plans 0.983 -> 0.977, rooms of 16
             0.995 -> 0.990, the other maps' unchanged; 0.05 changes no map's quality).
+        landmarks: the first plan's search over the top level bounds its heuristic by this many
+            landmarks' distances (`Components.landmarks`, made once per abstraction: pass
+            `components` to plan many times on one map), the ALT heuristic: a first plan as
+            cheap, fewer nodes expanded (None, the default: the distance as the robot moves
+            alone). Issue 36: on MovingAI's mazes that search was most of the first plan's
+            time, over most of level 4's nodes; 8 landmarks expand 6% as many of them, and a
+            quarter on the other maps.
 
     REFINE re-plans the chosen level-k segment one level lower, through the children of its
     nodes only (they are connected: see `components`), so the search is local and always finds
@@ -435,6 +443,7 @@ def atp(
         ("direct_width", direct_width),
         ("no_ring_when_open", no_ring_when_open),
         ("one_ring_when_open", one_ring_when_open),
+        ("landmarks", landmarks),
     ):
         if option is not None and option < 0:
             raise ValueError(f"{name} must be >= 0 or None, got {option}")
@@ -447,6 +456,7 @@ def atp(
         door_rings=door_rings,
         no_ring_when_open=no_ring_when_open,
         one_ring_when_open=one_ring_when_open,
+        landmarks=landmarks or 0,
     )
     try:
         found = planner.first(top)
@@ -717,8 +727,10 @@ class _Planner:
         door_rings: int | None = None,
         no_ring_when_open: float | None = None,
         one_ring_when_open: float | None = None,
+        landmarks: int = 0,
     ) -> None:
         self.components, self.pyramid = components, pyramid
+        self.landmarks = landmarks
         self.start, self.goal, self.ctx = start, goal, ctx
         self.door_rings = door_rings
         self.no_ring_when_open = no_ring_when_open
@@ -730,7 +742,7 @@ class _Planner:
         c = self.components
         start, goal = c.node(self.start, level), c.node(self.goal, level)
         if level > 0:
-            found = c.path(level, start, goal, limit=self.ctx.remaining)
+            found = c.path(level, start, goal, limit=self.ctx.remaining, landmarks=self.landmarks)
         else:  # the cells: a corridor over all of them
             every = np.arange(len(c.levels[0]))
             at_base = c.corridor(0, every, [start], [goal], limit=self.ctx.remaining)
