@@ -147,39 +147,6 @@ _HEAP = 8 * 8192 + 8
 
 
 @_inlined
-def _meant(
-    grids: IntArray,
-    held: NDArray[np.bool_],
-    offsets: IntArray,
-    ends: IntArray,
-    stamps: IntArray,
-    meant: NDArray[np.bool_],
-    epoch: int,
-    x: int,
-    y: int,
-) -> bool:
-    """Whether base cell (x, y) is of the plan's nodes, or the start or the goal:
-    `MultiPath.corridor` before its corner cells (`grids` [y, x, level]: the levels of a cell
-    side by side). Worked out once, until a node of the cell's flips (`_flip`)."""
-    height, width, levels = grids.shape
-    if not (0 <= y < height and 0 <= x < width):
-        return False
-    c = x + y * width
-    if stamps[c, _MEANT] == epoch:
-        return bool(meant[c])
-    value = bool((x == ends[0] and y == ends[1]) or (x == ends[2] and y == ends[3]))
-    if not value:
-        for k in range(levels):
-            node = grids[y, x, k]
-            if offsets[k] >= 0 and node >= 0 and held[offsets[k] + node]:
-                value = True
-                break
-    stamps[c, _MEANT] = epoch
-    meant[c] = value
-    return value
-
-
-@_inlined
 def _free(grids: IntArray, x: int, y: int) -> bool:
     return bool(0 <= y < grids.shape[0] and 0 <= x < grids.shape[1] and grids[y, x, 0] >= 0)
 
@@ -201,20 +168,43 @@ def _in_corridor(
     """`MultiPath.corridor()[y, x]`: a cell of the plan's nodes, or with 8 moves a free corner
     cell of a diagonal move between two of them. Worked out once, until a node of the cell's
     or of a neighbour's flips (`_flip`)."""
-    c = x + y * grids.shape[1]
+    height, width, levels = grids.shape
+    c = x + y * width
     if stamps[c, _CORRIDOR] == epoch:
         return bool(corridor[c])
-    value = _meant(grids, held, offsets, ends, stamps, meant, epoch, x, y)
-    if not value and corners and _free(grids, x, y):
+    # whether the cell is of the plan's nodes, or the start or the goal (`MultiPath.corridor`
+    # before its corner cells), and for a free cell with 8 moves whether its four neighbours
+    # (left, right, up, down) are: each worked out once into `meant`, until a node of the
+    # cell's flips; written out, not a function called five times (an inlined call binds each
+    # array it is passed, counting a reference to it, which cost more than the lookups)
+    free = 0 <= y < height and 0 <= x < width and grids[y, x, 0] >= 0
+    bits = 0
+    for k in range(5 if corners and free else 1):
+        xx = x + (0, -1, 1, 0, 0)[k]
+        yy = y + (0, 0, 0, -1, 1)[k]
+        if not (0 <= yy < height and 0 <= xx < width):
+            continue
+        cc = xx + yy * width
+        if stamps[cc, _MEANT] == epoch:
+            held_here = bool(meant[cc])
+        else:
+            held_here = (xx == ends[0] and yy == ends[1]) or (xx == ends[2] and yy == ends[3])
+            if not held_here:
+                for level in range(levels):
+                    node = grids[yy, xx, level]
+                    if offsets[level] >= 0 and node >= 0 and held[offsets[level] + node]:
+                        held_here = True
+                        break
+            stamps[cc, _MEANT] = epoch
+            meant[cc] = held_here
+        if held_here:
+            bits |= 1 << k
+        if k == 0 and held_here:
+            break
+    value = bits & 1 == 1
+    if not value and bits:
         # the four diagonal moves that have (x, y) as a corner cell (`MultiPath.corridor`)
-        left, right = (
-            _meant(grids, held, offsets, ends, stamps, meant, epoch, x - 1, y),
-            _meant(grids, held, offsets, ends, stamps, meant, epoch, x + 1, y),
-        )
-        up, down = (
-            _meant(grids, held, offsets, ends, stamps, meant, epoch, x, y - 1),
-            _meant(grids, held, offsets, ends, stamps, meant, epoch, x, y + 1),
-        )
+        left, right, up, down = bits & 2 > 0, bits & 4 > 0, bits & 8 > 0, bits & 16 > 0
         value = (
             (left and down and _free(grids, x - 1, y + 1))
             or (up and right and _free(grids, x + 1, y - 1))
@@ -552,7 +542,7 @@ def _flip(
     """The plan's nodes from `before`'s to `after`'s (rows level, x, y, node or -1): `tally`
     counts each node's rows (the first `len(offsets)` entries past the nodes': each level's
     nodes held), `held` says which are; the cells of a node that flips, and their neighbours,
-    lose their corridor and `_meant`. Returns the first waypoint that read one of those cells'
+    lose their corridor and `meant`. Returns the first waypoint that read one of those cells'
     corridor (`_NEVER`: none), and the last waypoint of the last run (number `run`) that
     touched one of them (-1: none)."""
     levels = offsets.shape[0]
@@ -1020,7 +1010,7 @@ class Follower:
     def reset(self) -> None:
         """Forget the plans followed so far: the next call follows its plan from the start."""
         counters = self._counters
-        counters[_EPOCH] += 1  # the memory, `_meant` and the corridor: none holds
+        counters[_EPOCH] += 1  # the memory, `meant` and the corridor: none holds
         self._read_at[self._logs[1, : counters[_READ]]] = _NEVER
         counters[_SEEN] = counters[_READ] = counters[_COUNT] = counters[_LOGGED] = 0
         counters[_WHOLE] = 0  # nothing of the last run is taken over
@@ -1083,7 +1073,7 @@ class Follower:
             self._marks,
             self._counters[_RUN],
         )
-        # the levels of no node are not read (`_meant`)
+        # the levels of no node are not read (`_in_corridor`)
         used = np.where(tally[len(held) :] > 0, offsets, -1)
         length = _follow(
             self.blocked,
