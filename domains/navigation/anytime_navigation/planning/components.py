@@ -297,8 +297,9 @@ class Components:
 
     def landmarks(self, level: int, count: int) -> FloatArray:
         """The distances over `level`'s edges from `count` landmark nodes to every node of the
-        level, shape (count, nodes) (inf where unreachable), made once: the landmarks chosen
-        farthest first in the level's largest connected region (see the module's doc)."""
+        level, shape (nodes, count) (a node's distances side by side, as a search reads them;
+        inf where unreachable), made once: the landmarks chosen farthest first in the level's
+        largest connected region (see the module's doc)."""
         made = _LANDMARKS.setdefault(self, {})
         key = (level, count)
         if key not in made:
@@ -609,7 +610,7 @@ def _landmark_distances(at: Level, count: int) -> FloatArray:
 
     n = len(at)
     if at.k == 0 or n == 0 or count <= 0:
-        return np.zeros((0, n))
+        return np.zeros((n, 0))
     graph = csr_matrix((at.cost, at.neighbour, at.first), shape=(n, n))
     _, label = connected_components(graph, directed=False)
     largest = label == np.argmax(np.bincount(label))
@@ -623,7 +624,7 @@ def _landmark_distances(at: Level, count: int) -> FloatArray:
         rows.append(row)
         nearest = np.minimum(nearest, row)
         candidate = int(np.argmax(np.where(largest, nearest, -np.inf)))
-    distances: FloatArray = np.vstack(rows)
+    distances: FloatArray = np.ascontiguousarray(np.vstack(rows).T)
     return distances
 
 

@@ -102,7 +102,7 @@ def search(
     """A* from `sources` (each starting at its cost) to any of `targets` (each adding its cost at
     the end) through `nodes` (level node numbers; duplicates are fine), with `_nearest` as the
     heuristic (admissible: a target's cost is never negative), bounded by the `landmarks`'
-    distances (one row per landmark, one column per node of the level; none: no rows).
+    distances (one row per node of the level, one column per landmark; none: no rows).
 
     The level's edges are its compressed rows (`first`, `neighbour`, `cost`) above level 0; at
     level 0 (`padded` not empty: the level-0 node of each cell, ravelled with a border of -1,
@@ -135,6 +135,11 @@ def search(
     target_y = np.empty(len(targets))
     for j in range(len(targets)):
         target_x[j], target_y[j] = centre[targets[j], 0], centre[targets[j], 1]
+    # The targets' distances from the landmarks, read for every node reached
+    to_targets = np.empty((len(targets), landmarks.shape[1]))
+    if landmarks.shape[1]:
+        for j in range(len(targets)):
+            to_targets[j] = landmarks[targets[j]]
     distance = np.full(n, np.inf)
     estimate = np.full(n, -1.0)  # the heuristic, made when the node is first reached
     previous = np.full(n, -1, dtype=np.int64)
@@ -152,7 +157,7 @@ def search(
         if source_costs[j] < distance[s]:
             if estimate[s] < 0.0:
                 estimate[s] = _nearest(x[s], y[s], target_x, target_y, movement)
-                estimate[s] = _landmark_bound(estimate[s], sources[j], targets, landmarks)
+                estimate[s] = _landmark_bound(estimate[s], sources[j], to_targets, landmarks)
             distance[s] = source_costs[j]
             size = _push(keys, items, size, source_costs[j] + estimate[s], s)
     best, end = np.inf, -1
@@ -192,9 +197,9 @@ def search(
                 if v >= 0 and d + cost[e] < distance[v]:
                     if estimate[v] < 0.0:
                         estimate[v] = _nearest(x[v], y[v], target_x, target_y, movement)
-                        if len(landmarks):
+                        if landmarks.shape[1]:
                             estimate[v] = _landmark_bound(
-                                estimate[v], neighbour[e], targets, landmarks
+                                estimate[v], neighbour[e], to_targets, landmarks
                             )
                     distance[v], previous[v] = d + cost[e], u
                     if size == len(keys):
@@ -233,18 +238,21 @@ def _traced(previous: IntArray, end: int, expanded: NDArray[np.bool_]) -> IntArr
 
 
 @_compiled
-def _landmark_bound(estimate: float, node: int, targets: IntArray, landmarks: FloatArray) -> float:
+def _landmark_bound(
+    estimate: float, node: int, to_targets: FloatArray, landmarks: FloatArray
+) -> float:
     """`estimate` (a distance to the nearest target) raised to the landmarks' bound where that
     is higher for every target: the distance from `node` to a target is at least
     |d(L, target) - d(L, node)| for each landmark L (the triangle inequality over the level's
-    edges; consistent, as the landmarks' distances are exact)."""
-    if len(landmarks) == 0:
+    edges; consistent, as the landmarks' distances are exact). `to_targets[t]`: the targets'
+    distances from the landmarks; `landmarks[node]`: the node's."""
+    if landmarks.shape[1] == 0:
         return estimate
     nearest = np.inf
-    for t in range(len(targets)):
+    for t in range(len(to_targets)):
         bound = 0.0
-        for k in range(landmarks.shape[0]):
-            a, b = landmarks[k, targets[t]], landmarks[k, node]
+        for k in range(landmarks.shape[1]):
+            a, b = to_targets[t, k], landmarks[node, k]
             if a < np.inf and b < np.inf:
                 bound = max(bound, abs(a - b))
         nearest = min(nearest, bound)
