@@ -112,7 +112,8 @@ def add_command(commands: CommandGroup) -> None:
         choices=sorted(ATP_OPTIONS),
         default="large-maps",
         help="the ATP's options: those that measured best on 512 x 512 MovingAI maps (top=4, "
-        "direct=4, direct_width=12, no_ring_when_open=0.05, one_ring_when_open=0.1), or the "
+        "direct=4, direct_width=12, no_ring_when_open=0.05, one_ring_when_open=0.1, "
+        "landmarks=8), or the "
         "planner's defaults, as the navigation task plans its 128 x 128 worlds (large-maps)",
     )
     parser.add_argument(
@@ -255,6 +256,8 @@ def _described(blocked: BoolGrid, movement: int, options: Mapping[str, Any]) -> 
     # A map smaller than the options' first level plans from its pyramid's top.
     top = min(options.get("top", DEFAULT_TOP), pyramid.top)
     components = Components.build(blocked, movement, top=top)
+    if options.get("landmarks") and top > 0:  # made with the abstraction, once per map
+        components.landmarks(top, options["landmarks"])
     return Described(pyramid, components, {**options, "top": top})
 
 

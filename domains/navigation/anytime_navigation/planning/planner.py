@@ -79,6 +79,7 @@ LARGE_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
         "direct_width": 12,
         "no_ring_when_open": 0.05,
         "one_ring_when_open": 0.1,
+        "landmarks": 8,
     }
 )
 
