@@ -148,12 +148,13 @@ _HEAP = 8 * 8192 + 8
 
 @_inlined
 def _free(grids: IntArray, x: int, y: int) -> bool:
-    return bool(0 <= y < grids.shape[0] and 0 <= x < grids.shape[1] and grids[y, x, 0] >= 0)
+    return bool(0 <= y < grids.shape[0] and 0 <= x < grids.shape[1] and grids[y, x] >= 0)
 
 
 @_compiled
 def _in_corridor(
     grids: IntArray,
+    ancestors: IntArray,
     held: NDArray[np.bool_],
     offsets: IntArray,
     ends: IntArray,
@@ -168,7 +169,8 @@ def _in_corridor(
     """`MultiPath.corridor()[y, x]`: a cell of the plan's nodes, or with 8 moves a free corner
     cell of a diagonal move between two of them. Worked out once, until a node of the cell's
     or of a neighbour's flips (`_flip`)."""
-    height, width, levels = grids.shape
+    height, width = grids.shape
+    levels = ancestors.shape[1]
     c = x + y * width
     if stamps[c, _CORRIDOR] == epoch:
         return bool(corridor[c])
@@ -177,7 +179,7 @@ def _in_corridor(
     # (left, right, up, down) are: each worked out once into `meant`, until a node of the
     # cell's flips; written out, not a function called five times (an inlined call binds each
     # array it is passed, counting a reference to it, which cost more than the lookups)
-    free = 0 <= y < height and 0 <= x < width and grids[y, x, 0] >= 0
+    free = 0 <= y < height and 0 <= x < width and grids[y, x] >= 0
     bits = 0
     for k in range(5 if corners and free else 1):
         xx = x + (0, -1, 1, 0, 0)[k]
@@ -189,9 +191,10 @@ def _in_corridor(
             held_here = bool(meant[cc])
         else:
             held_here = (xx == ends[0] and yy == ends[1]) or (xx == ends[2] and yy == ends[3])
-            if not held_here:
+            base = grids[yy, xx]
+            if not held_here and base >= 0:
                 for level in range(levels):
-                    node = grids[yy, xx, level]
+                    node = ancestors[base, level]
                     if offsets[level] >= 0 and node >= 0 and held[offsets[level] + node]:
                         held_here = True
                         break
@@ -256,6 +259,7 @@ def _see(
 @_inlined
 def _passable(
     grids: IntArray,
+    ancestors: IntArray,
     held: NDArray[np.bool_],
     offsets: IntArray,
     ends: IntArray,
@@ -292,7 +296,9 @@ def _passable(
     if stamps[c, _CORRIDOR] == epoch:
         return bool(corridor[c])
     counters[_JUDGED] += 1  # once per cell, until its nodes flip: called, not inlined
-    return _in_corridor(grids, held, offsets, ends, stamps, meant, corridor, epoch, corners, x, y)
+    return _in_corridor(
+        grids, ancestors, held, offsets, ends, stamps, meant, corridor, epoch, corners, x, y
+    )
 
 
 @_compiled
@@ -305,6 +311,7 @@ def _astar(
     waypoint: int,
     visit: int,
     grids: IntArray,
+    ancestors: IntArray,
     held: NDArray[np.bool_],
     offsets: IntArray,
     ends: IntArray,
@@ -338,16 +345,16 @@ def _astar(
     search = counters[_SEARCH]
     empty = np.empty(0, dtype=np.int64)
     if not _passable(
-        grids, held, offsets, ends, stamps, meant, corridor, read_at, logs, touched,
-        counters, epoch, visit, corners, keep, me, waypoint, rx, ry,
+        grids, ancestors, held, offsets, ends, stamps, meant, corridor, read_at, logs,
+        touched, counters, epoch, visit, corners, keep, me, waypoint, rx, ry,
     ):  # fmt: skip
         return empty
     any_box = False
     for yy in range(y0, y1):
         for xx in range(x0, x1):
             if _passable(
-                grids, held, offsets, ends, stamps, meant, corridor, read_at, logs, touched,
-                counters, epoch, visit, corners, keep, me, waypoint, xx, yy,
+                grids, ancestors, held, offsets, ends, stamps, meant, corridor, read_at, logs,
+                touched, counters, epoch, visit, corners, keep, me, waypoint, xx, yy,
             ):  # fmt: skip
                 any_box = True
                 break
@@ -442,8 +449,8 @@ def _astar(
                     else:
                         counters[_JUDGED] += 1
                         passable = _in_corridor(
-                            grids, held, offsets, ends, stamps, meant, corridor, epoch, corners,
-                            px, py,
+                            grids, ancestors, held, offsets, ends, stamps, meant, corridor,
+                            epoch, corners, px, py,
                         )  # fmt: skip
                 if not passable:
                     break
@@ -531,6 +538,7 @@ def _flip(
     before: IntArray,
     after: IntArray,
     grids: IntArray,
+    ancestors: IntArray,
     held: NDArray[np.bool_],
     tally: IntArray,
     offsets: IntArray,
@@ -584,6 +592,7 @@ def _follow(
     blocked: NDArray[np.bool_],
     labels: IntArray,
     grids: IntArray,
+    ancestors: IntArray,
     held: NDArray[np.bool_],
     offsets: IntArray,
     kept: IntArray,
@@ -720,12 +729,14 @@ def _follow(
                 if labels[y0 + yy, x0 + xx] == start_label:
                     target[yy, xx] = True
                     reachable = True
-                    if node >= 0 and level > 0 and grids[y0 + yy, x0 + xx, level] == node:
+                    base = grids[y0 + yy, x0 + xx]
+                    if node >= 0 and level > 0 and base >= 0 and ancestors[base, level] == node:
                         aimed = True
         if aimed:
             for yy in range(bh):
                 for xx in range(bw):
-                    if grids[y0 + yy, x0 + xx, level] != node:
+                    base = grids[y0 + yy, x0 + xx]
+                    if base < 0 or ancestors[base, level] != node:
                         target[yy, xx] = False
         if x0 <= x < x1 and y0 <= y < y1 and target[y - y0, x - x0]:
             continue
@@ -768,6 +779,7 @@ def _follow(
                     i,
                     visit,
                     grids,
+                    ancestors,
                     held,
                     offsets,
                     ends,
@@ -939,7 +951,9 @@ class Follower:
         four = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
         labels, _ = ndimage.label(~self.blocked, structure=four)  # `world.reachable`'s
         self.labels = np.asarray(labels, dtype=np.int64)
-        self._described: tuple[Components, IntArray, IntArray, NDArray[np.bool_], IntArray] | None
+        self._described: (
+            tuple[Components, IntArray, IntArray, IntArray, NDArray[np.bool_], IntArray] | None
+        )
         self._described = None
         self._cells: dict[int, tuple[Segment, IntArray]] = {}
         cells = self.blocked.size
@@ -968,31 +982,31 @@ class Follower:
 
     def _abstraction(
         self, components: Components
-    ) -> tuple[IntArray, IntArray, NDArray[np.bool_], IntArray]:
+    ) -> tuple[IntArray, IntArray, IntArray, NDArray[np.bool_], IntArray]:
         if self._described is None or self._described[0] is not components:
             if components.grids[0].shape != self.blocked.shape:
                 raise ValueError(
                     f"the plan's abstraction is of a {components.grids[0].shape} map, the"
                     f" follower's is {self.blocked.shape}"
                 )
-            # [y, x, level]: the levels of a cell side by side, read together
-            grids = np.stack(
-                [np.asarray(components.grids[k]) for k in range(len(components.grids))], axis=-1
-            )
+            # a cell's level-k node is its level-0 node's ancestor k levels up: a table per
+            # level-0 node (a row per free cell's node, its levels side by side), not a grid
+            # per level (on a 1,024 x 1,024 map the levels' grids stacked were 40 MB, written
+            # by the first plan followed on the map: 0.1-0.2 s)
+            grids = np.ascontiguousarray(components.grids[0], dtype=np.int64)
+            levels = len(components.levels)
+            ancestors = np.empty((len(components.levels[0]), levels), dtype=np.int64)
+            ancestors[:, 0] = np.arange(len(components.levels[0]))
+            for k in range(1, levels):
+                ancestors[:, k] = components.levels[k - 1].parent[ancestors[:, k - 1]]
             sizes = [len(level) for level in components.levels]
             offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
             held = np.zeros(sum(sizes), dtype=bool)
             tally = np.zeros(sum(sizes) + len(sizes), dtype=np.int64)
-            self._described = (
-                components,
-                np.ascontiguousarray(grids, dtype=np.int64),
-                offsets,
-                held,
-                tally,
-            )
+            self._described = (components, grids, ancestors, offsets, held, tally)
             self.reset()
-        _, grids, offsets, held, tally = self._described
-        return grids, offsets, held, tally
+        _, grids, ancestors, offsets, held, tally = self._described
+        return grids, ancestors, offsets, held, tally
 
     def _segment(self, segment: Segment) -> IntArray:
         """A segment's cells as rows (level, x, y, node or -1), kept while the segment is
@@ -1015,7 +1029,7 @@ class Follower:
         counters[_SEEN] = counters[_READ] = counters[_COUNT] = counters[_LOGGED] = 0
         counters[_WHOLE] = 0  # nothing of the last run is taken over
         if self._described is not None:  # the last plan's nodes: no longer held
-            _, _, offsets, held, tally = self._described
+            _, _, _, offsets, held, tally = self._described
             rows = self._sequence[self._sequence[:, 3] >= 0]
             flat = offsets[rows[:, 0]] + rows[:, 3]
             held[flat] = False
@@ -1048,7 +1062,7 @@ class Follower:
     def __call__(self, plan: MultiPath) -> float:
         if plan.abstraction is None:
             raise ValueError("a plan without its abstraction has no corridor to keep to")
-        grids, offsets, held, tally = self._abstraction(plan.abstraction)
+        grids, ancestors, offsets, held, tally = self._abstraction(plan.abstraction)
         ends = (*plan.start, *plan.goal)
         if ends != self._ends:  # another problem: nothing of the last one's holds
             self.reset()
@@ -1065,6 +1079,7 @@ class Follower:
             self._sequence,
             sequence,
             grids,
+            ancestors,
             held,
             tally,
             offsets,
@@ -1079,6 +1094,7 @@ class Follower:
             self.blocked,
             self.labels,
             grids,
+            ancestors,
             held,
             used,
             kept,
