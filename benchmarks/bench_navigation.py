@@ -87,7 +87,13 @@ from anytime_navigation.movingai import MapError, Scenario, load_problems
 from anytime_navigation.planning.abstraction import Pyramid
 from anytime_navigation.planning.components import Components
 from anytime_navigation.planning.following import Follower
-from anytime_navigation.planning.planner import DEFAULT_TOP, MultiPath, atp, compile_searches
+from anytime_navigation.planning.planner import (
+    DEFAULT_TOP,
+    LARGE_MAP_OPTIONS,
+    MultiPath,
+    atp,
+    compile_searches,
+)
 from anytime_navigation.planning.search import GridAstar, find_path
 from anytime_navigation.task.execution import Execution, execute, plan_quality, waypoints
 from anytime_navigation.world import SQRT2, BoolGrid, Position, random_world
@@ -159,14 +165,8 @@ KIND_CONFIGS: dict[str, dict[str, Any]] = {
         "no_ring_when_open": 0.05,
         "one_ring_when_open": 0.1,
     },
-    "... and follow (compiled)": {
-        "top": 4,
-        "direct": 4,
-        "direct_width": 12,
-        "no_ring_when_open": 0.05,
-        "one_ring_when_open": 0.1,
-        "follow": FOLLOW,
-    },
+    "... and landmarks=8": dict(LARGE_MAP_OPTIONS),  # `anytime plan`'s options
+    "... and follow (compiled)": {**LARGE_MAP_OPTIONS, "follow": FOLLOW},
 }
 
 #: The papers' result when run to completion, and the issue's target on 512 x 512 maps.
@@ -246,12 +246,17 @@ def timed(measure: Callable[[], Any]) -> tuple[float, Any]:
 
 
 def abstraction(
-    blocked: BoolGrid, movement: int, top: int | None = None
+    blocked: BoolGrid, movement: int, top: int | None = None, landmarks: int = 0
 ) -> tuple[Pyramid, Components]:
     """The ATP's description of a map, built once per map: the obstacleness pyramid and the
-    connectivity-aware abstraction up to the first-plan level `top` (default: the planner's)."""
+    connectivity-aware abstraction up to the first-plan level `top` (default: the planner's),
+    with that level's `landmarks` (`atp(landmarks=...)`) when asked for."""
     pyramid = Pyramid.build(blocked)
-    return pyramid, Components.build(blocked, movement, top=first_level(top, pyramid))
+    level = first_level(top, pyramid)
+    components = Components.build(blocked, movement, top=level)
+    if landmarks and level:
+        components.landmarks(level, landmarks)
+    return pyramid, components
 
 
 def first_level(top: int | None, pyramid: Pyramid) -> int:
@@ -473,6 +478,10 @@ def measure_suite(
             pyramid = Pyramid.build(problem.blocked)
             tops = {first_level(options.get("top"), pyramid) for options in configs.values()}
             built = {top: abstraction(problem.blocked, suite.movement, top)[1] for top in tops}
+            for options in configs.values():  # the landmarks too, like the abstraction
+                level = first_level(options.get("top"), pyramid)
+                if options.get("landmarks") and level:
+                    built[level].landmarks(level, options["landmarks"])
             follows = any(options.get("follow") == FOLLOW for options in configs.values())
             follower = Follower(problem.blocked, suite.movement) if follows else None
             described[key] = (astar, pyramid, built, follower)
@@ -880,12 +889,13 @@ def bench_kinds(
             raced = race_peer(make, blocked, longest(scenarios, problems), repeats)
             others.append("-" if raced is None else f"{raced[0]:.2f} ({raced[1]}/{problems})")
         pyramid = Pyramid.build(blocked)
-        builds: dict[int, float] = {}
+        builds: dict[tuple[int, int], float] = {}
         for index, (name, options) in enumerate(configs.items()):
             top = first_level(options.get("top"), pyramid)
-            if top not in builds:  # the abstraction up to the first plan's level, once per map
-                builds[top] = best_of(repeats, partial(abstraction, blocked, 8, top))[0]
-            build = builds[top]
+            key = (top, options.get("landmarks") or 0)
+            if key not in builds:  # the abstraction up to the first plan's level, once per map
+                builds[key] = best_of(repeats, partial(abstraction, blocked, 8, *key))[0]
+            build = builds[key]
             if options.get("follow") == FOLLOW:  # and the follower's, once per map
                 build += best_of(repeats, partial(Follower, blocked, 8))[0]
             runs = measured.runs[name]
@@ -967,7 +977,10 @@ def bench_kinds(
         " row above's options): a level-1 segment of mean obstacleness at most T is refined\n"
         " through its own nodes' cells, without a ring of neighbours; one_ring_when_open=T\n"
         " (with the row above's options): a level-2 segment of mean obstacleness at most T is\n"
-        " refined with one ring of neighbouring nodes, not three; follow (with the row above's\n"
+        " refined with one ring of neighbouring nodes, not three; landmarks=N (with the row\n"
+        " above's options: planner.LARGE_MAP_OPTIONS, anytime plan's): the first plan's search\n"
+        " bounded by N landmarks' distances (ALT; made with the abstraction, in its build);\n"
+        " follow (with the row above's\n"
         " options): a plan is registered only when the robot follows it no longer than the\n"
         " last one registered (following.Follower: execute's length, compiled; its calls in the\n"
         " ATP's time, its build, once per map, with the abstraction's); the\n"
