@@ -9,12 +9,20 @@ path whenever several are equally short) and the same re-plans. What differs is 
 `execute` runs in Python and materialises the corridor and the reachable cells once per call
 (10-20 ms per plan on a 512 x 512 MovingAI map, five to nine times the compiled A*'s time for
 the ATP's 15 or 16 plans of a long problem); here the map's connected cells are labelled once
-per map, each plan's nodes are marked in a table per level, the corridor is judged cell by
-cell as obstacle avoidance's searches reach it, and a plan is followed from where the last
-one's route stops being its own (a refinement changes one segment: the route before it, up to
-a corridor cell the change touched, is the same). All of it compiled: 0.05-1 ms per plan,
-5-10 ms for a long problem's plans (27 on maze512-8-0), which is still 0.3-0.9 times the
-compiled A*'s time on the problem (brc202d more: its A* is fast).
+per map, each plan's nodes are marked in a table per level (a cell's node at each level is its
+level-0 node's ancestor), the corridor is judged cell by cell as obstacle avoidance's searches
+reach it, and a plan is followed from where the last one's route stops being its own (a
+refinement changes one segment: the route before it, up to a corridor cell the change touched,
+is the same) up to where it is the last one's again: once the robot stands where the last
+plan's run stood before a waypoint from which the two plans' waypoints are the same to the
+goal, and no cell that run touched from there on (read by its searches, or seen) differs in
+the robot's memory or in the corridor, the rest of the route is that run's, taken over. All of
+it compiled, the search's inner loop written out (numba counts a reference for each array an
+inlined call is passed, which cost more than the search itself): on random512-10-0's 16
+longest problems, every plan of the large-map options followed in order, about 0.25 ms per
+plan and 4 ms per problem, a fifth of the compiled A*'s time (a quarter of it the first plan's
+walk from the start; after it, three fifths of the waypoints a plan would walk again are taken
+over).
 
 With it, `atp(..., follow=follower)` registers a plan only when the robot would walk no farther
 following it than following the last plan registered: the executed quality never falls from
@@ -926,11 +934,13 @@ class Follower:
     """The length of the route `execution.execute(plan, blocked, movement=movement,
     keep_to_plan=True)` follows, compiled (see the module docstring): pass it to `planner.atp`
     as `follow`. Build it once per map: it labels the map's connected cells and keeps, per
-    abstraction, its node grids stacked.
+    abstraction, each level-0 node's ancestors.
 
     Called plan after plan (a refinement changes one segment), it resumes from the last plan
     followed: the route up to the first waypoint the two plans do not share, or the first whose
-    searches read a corridor cell the change touched, is the same, and is not walked again."""
+    searches read a corridor cell the change touched, is the same, and is not walked again; nor
+    is the route from where the robot stands as it stood in the last plan's run, the waypoints
+    to the goal the same and nothing that run touched from there different (`taken_over`)."""
 
     #: The plans it follows are made on the map it follows them on (`blocked`), and the robot
     #: keeps to their corridor, which that map never cuts: a route that is the shortest through
