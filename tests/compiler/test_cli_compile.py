@@ -132,8 +132,9 @@ def test_json_report_fields_and_shapes(cli: Cli, setup: tuple[Path, Path]) -> No
     ]
     assert list(rows[0]) == [
         "budget", "input_quality", "expected_quality", "expected_quality_se", "allocation",
-        "baselines",
+        "baselines", "expected_quality_if_dependent",
     ]  # fmt: skip
+    assert all(row["expected_quality_if_dependent"] is None for row in rows)  # no best-of
     expected = np.array([row["expected_quality"] for row in rows]).reshape(3, 5)
     assert all(list(row["allocation"]) == ["sense", "plan"] for row in rows)
     allocation = np.array([list(row["allocation"].values()) for row in rows]).reshape(3, 5, 2)
