@@ -204,6 +204,7 @@ def plot_compiled(
         path,
         baselines=compiled.baselines,
         title=title,
+        dependence=compiled.dependence,
     )
 
 
@@ -215,16 +216,18 @@ def plot_allocation(
     *,
     baselines: Mapping[str, Array] | None = None,
     title: str | None = None,
+    dependence: Array | None = None,
 ) -> None:
     """Two panels saved at `path` (7 x 7 inches): the compiled expected quality against the
-    total time with the `baselines` (`draw_compiled`), and the time each module gets
+    total time with the `baselines` and the `dependence` bounds (`draw_compiled`), and the
+    time each module gets
     (`draw_allocation`). The tables are those of a `CompiledProgram` or of the file it saves
     (`allocation` shaped (*input grids, time, len(modules))); a program with quality-carrying
     inputs is drawn at their highest grid quality, as the compile report does."""
     _check_allocation(profile, modules, allocation)
     figure = new_figure(7, 7)
     top, bottom = figure.subplots(2, 1, sharex=True, height_ratios=(3, 2))
-    draw_compiled(top, profile, baselines, modules=modules, title=title)
+    draw_compiled(top, profile, baselines, modules=modules, title=title, dependence=dependence)
     draw_allocation(bottom, profile, modules, allocation)
     top.set_xlabel("")
     save_figure(figure, path)
@@ -237,12 +240,26 @@ def draw_compiled(
     *,
     modules: Sequence[str] = (),
     title: str | None = None,
+    dependence: Array | None = None,
 ) -> None:
     """The compiled profile's expected quality against total time, with the baselines (tables
     shaped like the profile's mean: equal split, MIN and MAX, the first module given its least
-    or most useful time), at the highest grid quality of every input."""
+    or most useful time) and, for a program with a best-of, the band its expected quality
+    spans if the alternatives depend on each other (`CompiledProgram.dependence`), at the
+    highest grid quality of every input."""
     best = (-1,) * profile.n_inputs
     time = profile.time
+    if dependence is not None:
+        low, high = (np.asarray(bound)[best] for bound in dependence)
+        ax.fill_between(
+            time,
+            low,
+            high,
+            color="tab:blue",
+            alpha=0.15,
+            lw=0,
+            label="compiled, if the best-of's alternatives depend on each other",
+        )
     ax.plot(
         time, _expected_table(profile)[best], color="tab:blue", lw=2.5, label="compiled (optimal)"
     )

@@ -150,3 +150,19 @@ def test_the_bounds_are_checked_when_a_saved_program_is_loaded(tmp_path: Path) -
     path.write_text(yaml.safe_dump(document))
     with pytest.raises(Exception, match=r"dependence.*a quality in \[0, 1\]"):
         load_compiled(path, lib)
+
+
+def test_the_compiled_plot_draws_the_band_between_the_bounds() -> None:
+    pytest.importorskip("matplotlib")
+    from anytime.plot import draw_compiled, new_figure
+
+    result = compiled(BEST_OF)
+    assert result.dependence is not None
+    ax = new_figure(7, 5).subplots()
+    draw_compiled(ax, result.profile, result.baselines, dependence=result.dependence)
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert labels[0] == "compiled, if the best-of's alternatives depend on each other"
+    (band,) = ax.collections
+    path = band.get_paths()[0].vertices  # the lower edge, then the upper one back
+    assert np.min(path[:, 1]) == pytest.approx(np.min(result.dependence[0]))
+    assert np.max(path[:, 1]) == pytest.approx(np.max(result.dependence[1]))
