@@ -103,31 +103,6 @@ def _push(
     return size + 1
 
 
-@_inlined
-def _pop(
-    hf: NDArray[np.float64], hg: NDArray[np.float64], hc: IntArray, hn: IntArray, size: int
-) -> int:
-    """Remove the least entry (read it from index 0 first); the new size."""
-    size -= 1
-    f, g, c, n = hf[size], hg[size], hc[size], hn[size]
-    i = 0
-    while True:
-        child = 2 * i + 1
-        if child >= size:
-            break
-        if child + 1 < size and _less(
-            hf[child + 1], hg[child + 1], hc[child + 1], hf[child], hg[child], hc[child]
-        ):
-            child += 1
-        if not _less(hf[child], hg[child], hc[child], f, g, c):
-            break
-        hf[i], hg[i], hc[i], hn[i] = hf[child], hg[child], hc[child], hn[child]
-        i = child
-    if size > 0:
-        hf[i], hg[i], hc[i], hn[i] = f, g, c, n
-    return size
-
-
 # The follower's state, map-sized columns of `stamps` (rows x + y * width: a cell's stamps side
 # by side, in one cache line): a cell's entry in a
 # column holds while it carries the current epoch's number (a new problem starts a new epoch), or
@@ -395,7 +370,7 @@ def _astar(
     moves = 8 if octile else 4
     while heap > 0:
         node = hn[0]
-        # `_pop`, written out (like the neighbour test below: no arrays bound)
+        # the heap's pop, written out (like the neighbour test below: no arrays bound)
         heap -= 1
         f, gg, cc, nn = hf[heap], hg[heap], hc[heap], hn[heap]
         i = 0
