@@ -3,8 +3,9 @@
 - A profile file (`anytime-profile/1`): its performance profile, or its conditional profile as
   one curve per input quality (the papers' Figures 4, 5, 7, 9).
 - A compiled program written by `anytime compile -o` (a profile file that also carries
-  `modules` and `allocation`): its expected quality against total time over the allocation of
-  that time among its modules. The file has no baselines; plotting the schema has them.
+  `modules` and `allocation`): its expected quality against total time, with the baselines and
+  a best-of's dependence band the file holds (as a schema's), over the allocation of that time
+  among its modules.
 - A schema file (`.any`): the schema is compiled as `anytime compile` does, and drawn against
   equal split, MIN and MAX (Figures 8, 10), over its allocation.
 """
@@ -32,6 +33,7 @@ from anytime.cli.schemas import (
     compile_options,
     compile_schemas,
 )
+from anytime.compiler.storage import stored_curves
 from anytime.dsl import load_schemas
 from anytime.plot import (
     MissingMatplotlibError,
@@ -56,7 +58,9 @@ def add_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "FILE is a profile file (its expected quality against time, one curve per input "
         "quality), a compiled program written by `anytime compile -o` (its expected quality "
         "and its time allocation per module), or a schema file (.any), compiled as `anytime "
-        "compile` does and drawn against the baselines equal split, MIN and MAX.",
+        "compile` does; a compiled program is drawn against the baselines equal split, MIN and "
+        "MAX and, with a best-of, the band its expected quality spans if the alternatives "
+        "depend on each other.",
     )
     plot.add_argument("file", metavar="FILE", help="a profile file (.yaml) or a schema file (.any)")
     plot.add_argument(
@@ -122,7 +126,16 @@ def _plot_profile_file(filename: str, output: Path, title: str | None) -> None:
         plot_profile(profile, output, title=title)
     else:
         modules, allocation = table
-        plot_allocation(profile, modules, allocation, output, title=title)
+        baselines, dependence = stored_curves(filename, profile, fields)
+        plot_allocation(
+            profile,
+            modules,
+            allocation,
+            output,
+            baselines=baselines or None,
+            title=title,
+            dependence=dependence,
+        )
 
 
 def _plot_schema(args: argparse.Namespace, output: Path) -> None:

@@ -180,6 +180,27 @@ def _schema_text(compiled: CompiledProgram) -> str:
     return "\n\n".join(format_program(p) for p in programs.values()) + "\n"
 
 
+def stored_curves(
+    filename: str, profile: ConditionalPerformanceProfile, data: Mapping[str, Any]
+) -> tuple[dict[str, np.ndarray], np.ndarray | None]:
+    """The baselines and the best-ofs' dependence bounds a compiled program's file holds
+    (`save_compiled`; `data` the file's mapping, `profile` its profile), checked as
+    `load_compiled` checks them but without the library: what `anytime plot` draws with the
+    program's curve. A file without a compiled program (a profile) has neither: ({}, None).
+
+    Raises:
+        CompileError: a table of the wrong shape, or not of qualities in [0, 1].
+    """
+    document = data.get("compiled")
+    if not isinstance(document, Mapping):
+        return {}, None
+    fields, cells = _Fields(filename), profile.probability.shape[:-1]
+    return (
+        fields.baselines(document, "compiled", cells),
+        fields.dependence(document, "compiled", cells),
+    )
+
+
 def fingerprint(profile: ConditionalPerformanceProfile) -> str:
     """A short digest of a profile's contents, to tell a changed profile."""
     text = yaml.safe_dump(profile_to_dict(profile), sort_keys=True)
@@ -190,14 +211,81 @@ def _plain(array: Any) -> Any:
     return np.asarray(array, dtype=np.float64).tolist()
 
 
-class _Loader:
-    """Rebuilds a compiled program and, through it, the ones it calls and its branches."""
+class _Fields:
+    """The checks of a compiled program's plain fields, each error naming the file and the field:
+    what reading its tables needs, without the library."""
 
-    def __init__(self, filename: str, library: AnytimeLibrary, schemas: SchemaFile) -> None:
-        self.filename, self.library, self.schemas = filename, library, schemas
+    def __init__(self, filename: str) -> None:
+        self.filename = filename
 
     def fail(self, field: str, problem: str) -> CompileError:
         return CompileError(f"{field}: {problem}", where=self.filename)
+
+    def numbers(self, field: str, value: Any) -> np.ndarray:
+        """`value` as a table of numbers (any shape): a ragged or non-numeric one is an error."""
+        try:
+            array = np.asarray(value)
+        except ValueError:  # ragged
+            array = None
+        if array is None or array.dtype.kind not in "iuf" or array.ndim == 0:
+            got = "nothing" if value is None else "a ragged or non-numeric table"
+            raise self.fail(field, f"expected a table of numbers, got {got}")
+        return array.astype(np.float64)
+
+    def check(self, field: str, table: np.ndarray, bad: Callable[[Any], Any], what: str) -> None:
+        """An error naming the first cell of `table` where `bad` holds (vectorised)."""
+        wrong = np.asarray(bad(table))
+        if np.any(wrong):
+            index = tuple(int(i) for i in np.argwhere(wrong)[0])
+            where = field + "".join(f"[{i}]" for i in index)
+            raise self.fail(where, f"expected {what}, got {format_number(float(table[index]))}")
+
+    def baselines(
+        self, document: Mapping[str, Any], field: str, cells: tuple[int, ...]
+    ) -> dict[str, np.ndarray]:
+        """The baselines' expected qualities, each shaped like the table's cells, in [0, 1]."""
+        value = document.get("baselines", {})
+        if not isinstance(value, Mapping):
+            raise self.fail(f"{field}.baselines", f"expected a mapping, got {value!r}")
+        baselines = {}
+        for key, table in value.items():
+            where = f"{field}.baselines.{key}"
+            array = self.numbers(where, table)
+            if array.shape != cells:
+                raise self.fail(
+                    where,
+                    f"expected shape {list(cells)} (input grids, time), got {list(array.shape)}",
+                )
+            self.check(where, array, _bad_quality, "a quality in [0, 1]")
+            baselines[str(key)] = array
+        return baselines
+
+    def dependence(
+        self, document: Mapping[str, Any], field: str, cells: tuple[int, ...]
+    ) -> np.ndarray | None:
+        """The expected qualities over the dependences of the best-ofs' alternatives (None:
+        no best-of), the least then the most, each shaped like the table's cells, in [0, 1]."""
+        value = document.get("dependence")
+        if value is None:
+            return None
+        where = f"{field}.dependence"
+        bounds = self.numbers(where, value)
+        if bounds.shape != (2, *cells):
+            raise self.fail(
+                where,
+                f"expected shape {[2, *cells]} (least and most, input grids, time), got"
+                f" {list(bounds.shape)}",
+            )
+        self.check(where, bounds, _bad_quality, "a quality in [0, 1]")
+        return bounds
+
+
+class _Loader(_Fields):
+    """Rebuilds a compiled program and, through it, the ones it calls and its branches."""
+
+    def __init__(self, filename: str, library: AnytimeLibrary, schemas: SchemaFile) -> None:
+        super().__init__(filename)
+        self.library, self.schemas = library, schemas
 
     def program(
         self,
@@ -276,25 +364,6 @@ class _Loader:
 
     # --- the checks of the plain fields ------------------------------------------------------
 
-    def numbers(self, field: str, value: Any) -> np.ndarray:
-        """`value` as a table of numbers (any shape): a ragged or non-numeric one is an error."""
-        try:
-            array = np.asarray(value)
-        except ValueError:  # ragged
-            array = None
-        if array is None or array.dtype.kind not in "iuf" or array.ndim == 0:
-            got = "nothing" if value is None else "a ragged or non-numeric table"
-            raise self.fail(field, f"expected a table of numbers, got {got}")
-        return array.astype(np.float64)
-
-    def check(self, field: str, table: np.ndarray, bad: Callable[[Any], Any], what: str) -> None:
-        """An error naming the first cell of `table` where `bad` holds (vectorised)."""
-        wrong = np.asarray(bad(table))
-        if np.any(wrong):
-            index = tuple(int(i) for i in np.argwhere(wrong)[0])
-            where = field + "".join(f"[{i}]" for i in index)
-            raise self.fail(where, f"expected {what}, got {format_number(float(table[index]))}")
-
     def resolution(self, value: Any, field: str, largest: float) -> float:
         """The allocations' time step: a finite number > 0 (1 in a file without one) whose
         lattice up to the largest total has at most `MAX_LATTICE` points."""
@@ -327,26 +396,6 @@ class _Loader:
                 f"{field}.requested", f"expected one of {['auto', *names]}, got {requested!r}"
             )
         return str(allocator), str(requested)
-
-    def baselines(
-        self, document: Mapping[str, Any], field: str, cells: tuple[int, ...]
-    ) -> dict[str, np.ndarray]:
-        """The baselines' expected qualities, each shaped like the table's cells, in [0, 1]."""
-        value = document.get("baselines", {})
-        if not isinstance(value, Mapping):
-            raise self.fail(f"{field}.baselines", f"expected a mapping, got {value!r}")
-        baselines = {}
-        for key, table in value.items():
-            where = f"{field}.baselines.{key}"
-            array = self.numbers(where, table)
-            if array.shape != cells:
-                raise self.fail(
-                    where,
-                    f"expected shape {list(cells)} (input grids, time), got {list(array.shape)}",
-                )
-            self.check(where, array, _bad_quality, "a quality in [0, 1]")
-            baselines[str(key)] = array
-        return baselines
 
     def gap(self, value: Any, field: str) -> float | None:
         """The gap to the exhaustive optimum: a finite number, or None (not computed)."""
@@ -409,25 +458,6 @@ class _Loader:
             )
         self.check(where, error, _bad_time, "a finite number >= 0")
         return error
-
-    def dependence(
-        self, document: Mapping[str, Any], field: str, cells: tuple[int, ...]
-    ) -> np.ndarray | None:
-        """The expected qualities over the dependences of the best-ofs' alternatives (None:
-        no best-of), the least then the most, each shaped like the table's cells, in [0, 1]."""
-        value = document.get("dependence")
-        if value is None:
-            return None
-        where = f"{field}.dependence"
-        bounds = self.numbers(where, value)
-        if bounds.shape != (2, *cells):
-            raise self.fail(
-                where,
-                f"expected shape {[2, *cells]} (least and most, input grids, time), got"
-                f" {list(bounds.shape)}",
-            )
-        self.check(where, bounds, _bad_quality, "a quality in [0, 1]")
-        return bounds
 
     def nested(self, program: Program, document: Any, field: str) -> CompiledProgram:
         if not isinstance(document, Mapping):

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from choice_modules import BEST_OF, MID, TIME, compiled, gamble, library, steady
+from conftest import Cli
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -166,3 +167,37 @@ def test_the_compiled_plot_draws_the_band_between_the_bounds() -> None:
     path = band.get_paths()[0].vertices  # the lower edge, then the upper one back
     assert np.min(path[:, 1]) == pytest.approx(np.min(result.dependence[0]))
     assert np.max(path[:, 1]) == pytest.approx(np.max(result.dependence[1]))
+
+
+def test_plotting_a_saved_program_draws_the_baselines_and_the_band_it_holds(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, cli: Cli
+) -> None:
+    """`anytime plot` of a file written by `compile -o` draws what plotting the schema draws:
+    the baselines and the dependence band are read off the file, checked as loading checks
+    them, without the library."""
+    pytest.importorskip("matplotlib")
+    import yaml
+
+    import anytime.cli.plot as plot_command
+
+    pick = compile_file(parse_schemas(FILE, "f.any"), library(), TIME, schema="pick")[-1]
+    assert pick.dependence is not None
+    path = tmp_path / "pick.yaml"
+    save_compiled(pick, path)
+    drawn: dict[str, object] = {}
+    monkeypatch.setattr(plot_command, "plot_allocation", lambda *a, **k: drawn.update(k))
+    assert cli("plot", str(path), "-o", str(tmp_path / "pick.png"))[0] == 0
+    baselines = drawn["baselines"]
+    assert isinstance(baselines, dict) and baselines.keys() == pick.baselines.keys()
+    for name, table in pick.baselines.items():
+        np.testing.assert_array_equal(baselines[name], table)
+    np.testing.assert_array_equal(drawn["dependence"], pick.dependence)
+
+    document = yaml.safe_load(path.read_text())
+    document["compiled"]["dependence"][1][3] = -0.5  # (least and most, time): no input
+    path.write_text(yaml.safe_dump(document))
+    assert cli("plot", str(path), "-o", str(tmp_path / "pick.png")) == (
+        1,
+        "",
+        f"{path}: error: compiled.dependence[1][3]: expected a quality in [0, 1], got -0.5\n",
+    )
