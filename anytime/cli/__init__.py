@@ -87,6 +87,9 @@ def _main(argv: Sequence[str] | None) -> int:
         _drop_stdout()
         return EXIT_OK
     except Exception as error:
+        behind = _interrupt_behind(error)
+        if behind is not None:
+            return interrupted(behind)
         internal = not isinstance(error, AnytimeError | OSError | MemoryError)
         if internal and os.environ.get("ANYTIME_TRACEBACK"):
             raise
@@ -94,6 +97,21 @@ def _main(argv: Sequence[str] | None) -> int:
             _drop_stdout()  # writing standard output failed: a full disk, a closed terminal
         print(describe(error, command), file=sys.stderr)
         return EXIT_USAGE if isinstance(error, UsageError) else EXIT_INPUT
+
+
+def _interrupt_behind(error: BaseException) -> KeyboardInterrupt | None:
+    """The Ctrl-C (or SIGTERM) an error stands for, if it was raised because of one: a signal
+    handled while compiled code was calling back into Python surfaces as a `SystemError`
+    ("... returned a result with an exception set") whose cause is the interrupt (seen with
+    numba's dispatcher under `anytime navigate`)."""
+    seen: set[int] = set()
+    cause: BaseException | None = error
+    while cause is not None and id(cause) not in seen:
+        if isinstance(cause, KeyboardInterrupt):
+            return cause
+        seen.add(id(cause))
+        cause = cause.__cause__ or cause.__context__
+    return None
 
 
 def describe(error: Exception, command: str | None = None) -> str:

@@ -18,6 +18,7 @@ import pytest
 
 import anytime.files
 import anytime.library
+from anytime.launch import Terminated
 from anytime.measure.builder import Instance, register_problems
 from anytime.modules import Context, Registry, Result, interruptible
 
@@ -95,6 +96,37 @@ def test_a_plugin_command_interrupted(
     code, stdout, err = cli("navigate", "--size", "16", "--out", str(tmp_path))
     assert (code, stdout, err) == (130, "", INTERRUPTED)
     assert (tmp_path / "events.jsonl").read_text() == "old\n"
+
+
+@pytest.mark.parametrize(
+    ("signal_raised", "said", "status"),
+    [(KeyboardInterrupt, INTERRUPTED, 130), (Terminated, "anytime: terminated\n", 143)],
+)
+def test_an_interrupt_compiled_code_reports_as_an_error_still_ends_as_one(
+    cli: Cli,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    signal_raised: type[KeyboardInterrupt],
+    said: str,
+    status: int,
+) -> None:
+    """A signal handled while compiled code calls back into Python surfaces as a SystemError
+    caused by the interrupt (CI saw it once under `anytime navigate`, from numba's dispatcher):
+    still one line and the interrupt's status, not an internal error."""
+    import anytime_navigation.cli.navigate as navigate
+
+    def run_task(*args: object, **kwargs: object) -> None:
+        try:
+            raise signal_raised
+        except KeyboardInterrupt as interrupt:
+            message = (
+                "CPUDispatcher(<function refine_step>) returned a result with an exception set"
+            )
+            raise SystemError(message) from interrupt
+
+    monkeypatch.setattr(navigate, "run_task", run_task)
+    code, stdout, err = cli("navigate", "--size", "16", "--out", str(tmp_path))
+    assert (code, stdout, err) == (status, "", said)
 
 
 def _interrupt(
