@@ -127,3 +127,20 @@ class InputError(AnytimeError):
 class UsageError(InputError):
     """Options that do not go together, found after parsing (argparse cannot check them):
     exit status 2, and the prefix names the command, like argparse's own usage errors."""
+
+
+def interrupt_behind(error: BaseException) -> KeyboardInterrupt | None:
+    """The Ctrl-C (or SIGTERM) an error stands for, if it was raised because of one, else None.
+    A signal is handled at the next call into Python code, and compiled code that calls back
+    into Python there turns the interrupt into a `SystemError` ("... returned a result with an
+    exception set") whose cause is the interrupt: numba does, boxing every array a compiled
+    function returns (it unpickles the array class), so a Ctrl-C during a numba module's call
+    surfaces so far more often than as itself."""
+    seen: set[int] = set()
+    cause: BaseException | None = error
+    while cause is not None and id(cause) not in seen:
+        if isinstance(cause, KeyboardInterrupt):
+            return cause
+        seen.add(id(cause))
+        cause = cause.__cause__ or cause.__context__
+    return None

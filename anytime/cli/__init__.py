@@ -33,7 +33,7 @@ from anytime.cli.common import (
     InputError,
     UsageError,
 )
-from anytime.errors import AnytimeError, SchemaError
+from anytime.errors import AnytimeError, SchemaError, interrupt_behind
 from anytime.launch import interrupted, sigterm_interrupts
 from anytime.library import Plugin, PluginSource, discover_plugins
 from anytime.text import did_you_mean
@@ -87,7 +87,7 @@ def _main(argv: Sequence[str] | None) -> int:
         _drop_stdout()
         return EXIT_OK
     except Exception as error:
-        behind = _interrupt_behind(error)
+        behind = interrupt_behind(error)
         if behind is not None:
             return interrupted(behind)
         internal = not isinstance(error, AnytimeError | OSError | MemoryError)
@@ -97,21 +97,6 @@ def _main(argv: Sequence[str] | None) -> int:
             _drop_stdout()  # writing standard output failed: a full disk, a closed terminal
         print(describe(error, command), file=sys.stderr)
         return EXIT_USAGE if isinstance(error, UsageError) else EXIT_INPUT
-
-
-def _interrupt_behind(error: BaseException) -> KeyboardInterrupt | None:
-    """The Ctrl-C (or SIGTERM) an error stands for, if it was raised because of one: a signal
-    handled while compiled code was calling back into Python surfaces as a `SystemError`
-    ("... returned a result with an exception set") whose cause is the interrupt (seen with
-    numba's dispatcher under `anytime navigate`)."""
-    seen: set[int] = set()
-    cause: BaseException | None = error
-    while cause is not None and id(cause) not in seen:
-        if isinstance(cause, KeyboardInterrupt):
-            return cause
-        seen.add(id(cause))
-        cause = cause.__cause__ or cause.__context__
-    return None
 
 
 def describe(error: Exception, command: str | None = None) -> str:

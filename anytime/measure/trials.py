@@ -20,6 +20,7 @@ from attrs import field, frozen
 from numpy.typing import NDArray
 
 from anytime.clocks import Clock, WallClock, WorkClock
+from anytime.errors import interrupt_behind
 from anytime.isolation import interrupt_signals
 from anytime.modules import AnytimeModule, Result
 from anytime.problems import BuildError, Grid, Instance, ProblemSet
@@ -202,11 +203,13 @@ class Trial:
 
 
 def _raise_interrupt(exc: BaseException, signals: int) -> None:
-    """Raise `exc` again if it is the user's interrupt: a KeyboardInterrupt while a SIGINT or
-    SIGTERM reached this process (`signals` was the count before). Anything else a plugin's
-    code raises, its own KeyboardInterrupt and `sys.exit()` included, is its fault."""
-    if isinstance(exc, KeyboardInterrupt) and interrupt_signals() != signals:
-        raise exc
+    """Raise the user's interrupt if `exc` is one: a KeyboardInterrupt (or an error compiled code
+    raised for one, `interrupt_behind`) while a SIGINT or SIGTERM reached this process
+    (`signals` was the count before). Anything else a plugin's code raises, its own
+    KeyboardInterrupt and `sys.exit()` included, is its fault."""
+    behind = interrupt_behind(exc)
+    if behind is not None and interrupt_signals() != signals:
+        raise behind
 
 
 def run_trial(

@@ -19,6 +19,7 @@ from typing import Any
 from attrs import frozen
 
 from anytime.clocks import Clock
+from anytime.errors import interrupt_behind
 from anytime.modules import AnytimeModule, Context, Result
 from anytime.runtime.observe import Decision, Observer, PolicyError
 from anytime.runtime.records import RunInterrupted, RunRecord, Status
@@ -237,7 +238,7 @@ def drive(
             return _returned(value, ctx, slot, watcher, elementary=True)
         value = module(ctx, *args, **kwargs)
     except (Exception, SystemExit) as exc:
-        return failure(exc)
+        return raised(exc)
     except KeyboardInterrupt as exc:
         return interrupted(exc)
     except BaseException as exc:  # any other the module raised: a failed run
@@ -281,7 +282,7 @@ def _interruptible(
     try:
         generator: Generator[Any, None, None] = module(ctx, *args, **kwargs)
     except (Exception, SystemExit) as exc:
-        return failure(exc)
+        return raised(exc)
     except KeyboardInterrupt as exc:
         return interrupted(exc)
     except BaseException as exc:  # any other the module raised: a failed run
@@ -311,7 +312,7 @@ def _interruptible(
                     return Outcome(Status.INTERRUPTED)  # it finished after its deadline
                 return Outcome(Status.COMPLETED)
             except (Exception, SystemExit) as exc:
-                return failure(exc)
+                return raised(exc)
             except KeyboardInterrupt as exc:
                 return interrupted(exc)
             except BaseException as exc:  # any other the module raised: a failed run
@@ -367,6 +368,14 @@ def _quality_of(arg: Any) -> float:
 def failure(exc: BaseException, where: str = "") -> Outcome:
     trace = "".join(traceback.format_exception(exc))
     return Outcome(Status.FAILED, where + headline(exc), trace)
+
+
+def raised(exc: BaseException) -> Outcome:
+    """How a run ends that the module ended with `exc` (not a KeyboardInterrupt): failed, unless
+    it stands for a Ctrl-C that compiled code reported as an error (`interrupt_behind`), which
+    ends it as the interrupt does."""
+    behind = interrupt_behind(exc)
+    return failure(exc) if behind is None else interrupted(behind)
 
 
 def interrupted(exc: KeyboardInterrupt) -> Outcome:

@@ -37,6 +37,22 @@ def presses_ctrl_c(ctx: Context) -> Iterator[Result]:
     yield from _after_one_result(ctx, KeyboardInterrupt())
 
 
+def _reported_by_compiled_code() -> SystemError:
+    """What a Ctrl-C during a numba function's call usually surfaces as: the signal is handled
+    when the call, boxing an array it returns, calls back into Python."""
+    try:
+        raise KeyboardInterrupt
+    except KeyboardInterrupt as interrupt:
+        error = SystemError("CPUDispatcher(<function f>) returned a result with an exception set")
+        error.__cause__ = interrupt
+        return error
+
+
+@interruptible("ctrl-c-in-compiled-code", registry=MODULES)
+def ctrl_c_in_compiled_code(ctx: Context) -> Iterator[Result]:
+    yield from _after_one_result(ctx, _reported_by_compiled_code())
+
+
 @interruptible("ticks", registry=MODULES)
 def ticks(ctx: Context, work: float) -> Iterator[Result]:
     yield from _after_one_result(ctx, work)
@@ -126,6 +142,20 @@ def test_a_keyboard_interrupt_keeps_the_record_then_reaches_the_caller(
     with pytest.raises(RunInterrupted) as raised:
         _run("contract-presses-ctrl-c", hard, clock)
     assert (raised.value.record.status, raised.value.record.result) == (Status.INTERRUPTED, None)
+
+
+@pytest.mark.parametrize(("hard", "clock"), MODES)
+def test_a_ctrl_c_compiled_code_reported_as_an_error_is_an_interrupt(
+    hard: bool, clock: type
+) -> None:
+    """Not a failed run the caller goes on from: the Ctrl-C reaches the caller, the best result
+    kept (`anytime.errors.interrupt_behind`)."""
+    with pytest.raises(RunInterrupted) as raised:
+        _run("ctrl-c-in-compiled-code", hard, clock)
+    record = raised.value.record
+    assert (record.status, record.result, record.error) == (
+        Status.INTERRUPTED, Result("first", 0.4), "KeyboardInterrupt",
+    )  # fmt: skip
 
 
 @pytest.mark.parametrize(("hard", "clock"), MODES)
