@@ -34,6 +34,7 @@ if TYPE_CHECKING:
         ProfileError,
         SchemaError,
         SchemaSyntaxError,
+        interrupt_behind,
     )
     from anytime.library import (
         AnytimeLibrary,
@@ -143,6 +144,7 @@ __all__ = [
     "elementary",
     "explain",
     "format_program",
+    "interrupt_behind",
     "interruptible",
     "load_compiled",
     "load_profile",
@@ -183,6 +185,7 @@ _WHERE = {
     "ProfileError": "anytime.errors",
     "SchemaError": "anytime.errors",
     "SchemaSyntaxError": "anytime.errors",
+    "interrupt_behind": "anytime.errors",
     "AnytimeLibrary": "anytime.library",
     "LibraryEntry": "anytime.library",
     "LibraryError": "anytime.library",

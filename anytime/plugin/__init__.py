@@ -38,7 +38,7 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 from anytime.clocks import Clock, Unit, WallClock, WorkClock
-from anytime.errors import AnytimeError, InputError
+from anytime.errors import AnytimeError, InputError, interrupt_behind
 from anytime.library import Plugin
 from anytime.modules import (
     MISSING,
@@ -85,6 +85,7 @@ __all__ = [
     # errors
     "AnytimeError",
     "InputError",
+    "interrupt_behind",
 ]
 
 #: The names defined in the runtime, imported on first use (PEP 562): the runtime brings the
