@@ -14,8 +14,11 @@ from __future__ import annotations
 
 import re
 from collections.abc import Sequence
+from typing import TypeVar
 
 from attrs import frozen
+
+_E = TypeVar("_E", bound=BaseException)
 
 
 class AnytimeError(Exception):
@@ -129,6 +132,19 @@ class UsageError(InputError):
     exit status 2, and the prefix names the command, like argparse's own usage errors."""
 
 
+def first_in_chain(error: BaseException, kind: type[_E]) -> _E | None:
+    """The first exception of `kind` in `error`'s chain: `error` itself, then what it was
+    raised from or while handling, and so on; None when there is none."""
+    seen: set[int] = set()
+    link: BaseException | None = error
+    while link is not None and id(link) not in seen:
+        if isinstance(link, kind):
+            return link
+        seen.add(id(link))
+        link = link.__cause__ or link.__context__
+    return None
+
+
 def interrupt_behind(error: BaseException) -> KeyboardInterrupt | None:
     """The Ctrl-C (or SIGTERM) an error stands for, if it was raised because of one, else None.
     A signal is handled at the next call into Python code, and compiled code that calls back
@@ -136,11 +152,4 @@ def interrupt_behind(error: BaseException) -> KeyboardInterrupt | None:
     exception set") whose cause is the interrupt: numba does, boxing every array a compiled
     function returns (it unpickles the array class), so a Ctrl-C during a numba module's call
     surfaces so far more often than as itself."""
-    seen: set[int] = set()
-    cause: BaseException | None = error
-    while cause is not None and id(cause) not in seen:
-        if isinstance(cause, KeyboardInterrupt):
-            return cause
-        seen.add(id(cause))
-        cause = cause.__cause__ or cause.__context__
-    return None
+    return first_in_chain(error, KeyboardInterrupt)

@@ -30,6 +30,7 @@ import threading
 from collections.abc import Callable, Generator
 from typing import Any, Protocol
 
+from anytime.errors import first_in_chain
 from anytime.modules import Context, Result
 
 __all__ = ["Report", "Resumable", "on_improvement", "resume"]
@@ -213,13 +214,8 @@ class Report:
         """Whether an exception out of `solve` is the stop the adapter asked for: ours, wrapped
         by the solver (it is in the chain), or a `StopIteration` raised after an answer of
         True (the callback's way to stop a solver that lets it through)."""
-        seen: set[int] = set()
-        link: BaseException | None = exc
-        while link is not None and id(link) not in seen:
-            if isinstance(link, _Stopped):
-                return True
-            seen.add(id(link))
-            link = link.__cause__ or link.__context__
+        if first_in_chain(exc, _Stopped) is not None:
+            return True
         return self._told_to_stop and isinstance(exc, StopIteration)
 
 

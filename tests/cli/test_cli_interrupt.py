@@ -111,8 +111,8 @@ def test_an_interrupt_compiled_code_reports_as_an_error_still_ends_as_one(
     status: int,
 ) -> None:
     """A signal handled while compiled code calls back into Python surfaces as a SystemError
-    caused by the interrupt (CI saw it once under `anytime navigate`, from numba's dispatcher):
-    still one line and the interrupt's status, not an internal error."""
+    caused by the interrupt (numba's, as a compiled call returns; CI saw it under `anytime
+    navigate`): still one line and the interrupt's status, not an internal error."""
     import anytime_navigation.cli.navigate as navigate
 
     def run_task(*args: object, **kwargs: object) -> None:
