@@ -53,6 +53,13 @@ _HEADER = struct.Struct("<Q")  # the length of each pickled message
 # Held from making a child's pipe until the caller has closed its write end: a child forked
 # meanwhile by another thread would hold that end open, and its pipe would not end with it.
 _FORKING = threading.Lock()
+#: The signals that stop the caller (`counting_interrupts`), held while a child is forked.
+_INTERRUPTS = {signal.SIGINT, signal.SIGTERM}
+
+
+def _deliver_held() -> None:
+    """Nothing: a call of Python code, where Python raises what a signal's handler raises (a
+    signal unblocked in C is only handled at such a point)."""
 
 
 def _new_forking_lock() -> None:
@@ -134,26 +141,41 @@ class Child:
         for stream in (sys.stdout, sys.stderr):  # else the child would print the caller's buffer
             with suppress(Exception):
                 stream.flush()
-        with _FORKING:
-            read, write = os.pipe()
-            parent = os.getpid()
-            pid = os.fork()
-            if pid == 0:  # the child: never returns into the caller's code
-                _run_child(target, limits, read, write, parent)
-            with suppress(OSError):  # as the child does: whichever runs first makes the group
-                os.setpgid(pid, pid)
-            os.close(write)
-        os.set_blocking(read, False)
-        self.pid = pid
-        self.exit_code: int | None = None  # once it has gone: its exit code, or -signal
-        self._read: int | None = read
-        self._eof = False  # the pipe has ended: every process holding its write end is gone
-        self._buffer = bytearray()
-        self._reaped = False
-        self._pidfd: int | None = None
-        self.unsent: str | None = None  # why a message of the child's did not pickle
-        with suppress(AttributeError, OSError):
-            self._pidfd = os.pidfd_open(pid)
+        # A Ctrl-C during the fork would be raised in an at-fork hook (logging's), which Python
+        # ignores: the caller would go on as if it had not come. Held until the child is set up,
+        # then raised here, the child ended with it.
+        mask = signal.pthread_sigmask(signal.SIG_BLOCK, _INTERRUPTS)
+        try:
+            with _FORKING:
+                read, write = os.pipe()
+                parent = os.getpid()
+                pid = os.fork()
+                if pid == 0:  # the child: never returns into the caller's code
+                    signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+                    _run_child(target, limits, read, write, parent)
+                with suppress(OSError):  # as the child does: whichever runs first makes the group
+                    os.setpgid(pid, pid)
+                os.close(write)
+            os.set_blocking(read, False)
+            self.pid = pid
+            self.exit_code: int | None = None  # once it has gone: its exit code, or -signal
+            self._read: int | None = read
+            self._eof = False  # the pipe has ended: every process holding its write end is gone
+            self._buffer = bytearray()
+            self._reaped = False
+            self._pidfd: int | None = None
+            self.unsent: str | None = None  # why a message of the child's did not pickle
+            with suppress(AttributeError, OSError):
+                self._pidfd = os.pidfd_open(pid)
+        except BaseException:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+            raise
+        try:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+            _deliver_held()  # a Ctrl-C held meanwhile: raised here, not in the caller's code
+        except BaseException:
+            self.end()
+            raise
 
     @property
     def gone(self) -> bool:

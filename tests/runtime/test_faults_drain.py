@@ -84,3 +84,31 @@ def test_many_isolated_runs_of_a_well_behaved_module_never_crash(clock: type | N
         ("well-behaved", Status.COMPLETED, None): 1000,
         ("well-behaved-contract", Status.COMPLETED, None): 1000,
     }
+
+
+def test_an_interrupt_during_the_fork_is_raised_once_the_child_is_set_up(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A Ctrl-C (here a SIGTERM, which the `anytime` command turns into one) that comes while a
+    child is forked is held, not lost in an at-fork hook that Python ignores, then raised by the
+    constructor, which ends the child first."""
+    import signal
+
+    from anytime.launch import Terminated, sigterm_interrupts
+
+    forked: list[int] = []
+    fork = os.fork
+
+    def fork_under_a_signal() -> int:
+        os.kill(os.getpid(), signal.SIGTERM)  # arrives now: held until the child is set up
+        pid = fork()
+        if pid:
+            forked.append(pid)
+        return pid
+
+    monkeypatch.setattr(os, "fork", fork_under_a_signal)
+    with sigterm_interrupts(), pytest.raises(Terminated):
+        Child(lambda channel: time.sleep(30))
+    (pid,) = forked
+    with pytest.raises(ChildProcessError):  # ended and reaped
+        os.waitpid(pid, os.WNOHANG)
