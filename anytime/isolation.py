@@ -54,7 +54,26 @@ _HEADER = struct.Struct("<Q")  # the length of each pickled message
 # meanwhile by another thread would hold that end open, and its pipe would not end with it.
 _FORKING = threading.Lock()
 #: The signals that stop the caller (`counting_interrupts`), held while a child is forked.
-_INTERRUPTS = {signal.SIGINT, signal.SIGTERM}
+_INTERRUPTS = (signal.SIGINT, signal.SIGTERM)
+
+
+@contextmanager
+def _holding_interrupts() -> Iterator[list[int]]:
+    """While the block runs, a SIGINT or SIGTERM is noted in the list yielded instead of handled
+    (in the main thread, where Python runs every handler; elsewhere nothing changes). The
+    earlier handlers are put back after: the caller raises the signals noted."""
+    held: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield held
+        return
+    earlier = {
+        sig: signal.signal(sig, lambda signum, frame: held.append(signum)) for sig in _INTERRUPTS
+    }
+    try:
+        yield held
+    finally:
+        for sig, handler in earlier.items():
+            signal.signal(sig, handler)
 
 
 def _deliver_held() -> None:
@@ -144,14 +163,12 @@ class Child:
         # A Ctrl-C during the fork would be raised in an at-fork hook (logging's), which Python
         # ignores: the caller would go on as if it had not come. Held until the child is set up,
         # then raised here, the child ended with it.
-        mask = signal.pthread_sigmask(signal.SIG_BLOCK, _INTERRUPTS)
-        try:
+        with _holding_interrupts() as held:
             with _FORKING:
                 read, write = os.pipe()
                 parent = os.getpid()
                 pid = os.fork()
                 if pid == 0:  # the child: never returns into the caller's code
-                    signal.pthread_sigmask(signal.SIG_SETMASK, mask)
                     _run_child(target, limits, read, write, parent)
                 with suppress(OSError):  # as the child does: whichever runs first makes the group
                     os.setpgid(pid, pid)
@@ -167,12 +184,10 @@ class Child:
             self.unsent: str | None = None  # why a message of the child's did not pickle
             with suppress(AttributeError, OSError):
                 self._pidfd = os.pidfd_open(pid)
-        except BaseException:
-            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
-            raise
         try:
-            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
-            _deliver_held()  # a Ctrl-C held meanwhile: raised here, not in the caller's code
+            for signum in held:  # raised by the caller's handlers, as they would have been
+                signal.raise_signal(signum)
+            _deliver_held()
         except BaseException:
             self.end()
             raise
