@@ -387,19 +387,24 @@ def test_a_refinement_in_one_call_is_its_steps_one_by_one(
 
 
 @settings(max_examples=50, deadline=None)
-@given(st.integers(0, 2**31), st.integers(1, 50), st.integers(0, 300), st.booleans())
-def test_the_counting_sorts_are_numpys_sorts(seed: int, count: int, n: int, unique: bool) -> None:
-    """The build's edges ordered in one counting pass (`corridor_search.counting_order`,
-    `sorted_pairs`) as numpy's sorts ordered them."""
+@given(st.integers(0, 2**31), st.integers(1, 50), st.integers(1, 60), st.integers(0, 300))
+def test_the_counting_sorts_are_numpys_sorts(seed: int, count: int, below: int, n: int) -> None:
+    """The build's edges ordered in counting passes (`corridor_search.counting_order`,
+    `lifted_pairs`) as numpy's sorts ordered them: the lifted edges are the pairs of different
+    parents, lesser first, once each, ascending."""
     from anytime_navigation.planning.search import compiled
 
     rng = np.random.default_rng(seed)
     low, high = rng.integers(0, count, n), rng.integers(0, count, n)
     order = compiled().counting_order(high, count)
     assert np.array_equal(order, np.argsort(high, kind="stable"))
+    # edges of `below` nodes, each node's parent one of `count`; some buckets long (> 32)
+    low, high = rng.integers(0, below, n), rng.integers(0, below, n)
+    parent = rng.integers(0, count, below)
+    a, b = parent[low], parent[high]
+    between = a != b
     bits = count.bit_length()
-    keys = np.sort(low << bits | high)
-    if unique:
-        keys = np.unique(keys)
-    a, b = compiled().sorted_pairs(low, high, count, unique)
-    assert np.array_equal(a, keys >> bits) and np.array_equal(b, keys & ((1 << bits) - 1))
+    keys = np.unique(np.minimum(a, b)[between] << bits | np.maximum(a, b)[between])
+    lifted_low, lifted_high = compiled().lifted_pairs(low, high, parent, count)
+    assert np.array_equal(lifted_low, keys >> bits)
+    assert np.array_equal(lifted_high, keys & ((1 << bits) - 1))

@@ -51,7 +51,7 @@ import numpy as np
 from attrs import field, frozen
 from numpy.typing import NDArray
 
-from ..world import BoolGrid, Position, is_power_of_two, move_distance
+from ..world import BoolGrid, Position, is_power_of_two
 from .doors import Doors
 from .search import SearchLimit, compiled
 
@@ -151,7 +151,7 @@ class _Grids(Sequence[IntArray]):
         # each level-0 node's ancestor at the top (itself at top 0)
         self.up = np.arange(len(parents[0]) if parents else 0, dtype=np.int64)
         for parent in parents:
-            self.up = parent[self.up]
+            compiled().lift(self.up, parent)
         self._regions: IntArray | None = None
 
     def __reduce__(self) -> tuple[object, ...]:
@@ -340,9 +340,7 @@ class Components:
         if not 0 <= top <= highest:
             raise ValueError(f"top must be in [0, {highest}], got {top}")
         free = ~grid
-        cells = np.flatnonzero(free)  # level 0's nodes, in raster order
-        nodes = np.full(side * side, -1, dtype=np.int64)
-        nodes[cells] = np.arange(len(cells))
+        cells, nodes = compiled().cell_nodes(free)  # level 0's nodes, in raster order
         grids = [nodes.reshape(side, side)]
         # A level in the making: each node's first cell in raster order (y * side + x), its
         # number of cells, the sums of their x and of their y (exact, in any order), and the
@@ -723,20 +721,11 @@ def _level(
     """Level k from its making (`Components.build`), the parents of the level below and its
     nodes' children, ascending, when known (level 1's); `base` is level 0's grid."""
     side, count = base.shape[0], len(size)
-    block = np.zeros((count, 2), dtype=np.int64)
-    block[:, 0] = (first_cell & (side - 1)) >> k
-    block[:, 1] = (first_cell >> (side.bit_length() - 1)) >> k
-    centre: FloatArray
-    if k == 0:  # one cell each: (x + 0.5) / 1
-        centre = np.add(block, 0.5, dtype=np.float64)
-    else:
-        centre = np.zeros((count, 2))
-        for i, total in enumerate(sums):
-            np.divide(total + 0.5 * size, np.maximum(size, 1), out=centre[:, i])
+    block, centre = compiled().level_geometry(first_cell, size, *sums, k, side)
     first_child, child = np.zeros(count + 1, dtype=np.int64), np.zeros(0, dtype=np.int64)
     if below is not None:
         first_child, child = _grouped(below, count, children)
-    first, neighbour, cost = _compressed(edges, centre[:, 0], centre[:, 1], movement)
+    first, neighbour, cost = _compressed(edges, centre, movement)
     return Level(
         k,
         block,
@@ -793,12 +782,8 @@ def _components(
 
 def _lifted(edges: Edges, parent: IntArray, count: int) -> Edges:
     """The edges one level up: the parents of the ends of the edges between blocks, once
-    each."""
-    a, b = parent[edges[0]], parent[edges[1]]
-    between = a != b
-    lifted: Edges = compiled().sorted_pairs(
-        np.minimum(a, b)[between], np.maximum(a, b)[between], count, True
-    )
+    each (compiled: `corridor_search.lifted_pairs`)."""
+    lifted: Edges = compiled().lifted_pairs(*edges, parent, count)
     return lifted
 
 
@@ -816,15 +801,15 @@ def _grouped(
 
 
 def _compressed(
-    edges: Edges, x: FloatArray, y: FloatArray, movement: int
+    edges: Edges, centre: FloatArray, movement: int
 ) -> tuple[IntArray, IntArray, FloatArray]:
     """The edges as compressed rows (first, neighbour, cost), each costing the distance between
-    the centres (x, y) of its ends: a node's row holds its higher neighbours, then its lower
-    ones, each ascending."""
+    the centres (row i: node i's x, y) of its ends: a node's row holds its higher neighbours,
+    then its lower ones, each ascending."""
     low, high = edges
-    count, n = len(x), len(low)
-    if n == 0:  # none (at level 0 a node's neighbours are the moves from its cell)
-        return np.zeros(count + 1, dtype=np.int64), low, np.zeros(0, dtype=np.float64)
-    step = move_distance(np.abs(x[low] - x[high]), np.abs(y[low] - y[high]), movement)
-    rows: tuple[IntArray, IntArray, FloatArray] = compiled().compressed_rows(low, high, step, count)
+    if len(low) == 0:  # none (at level 0 a node's neighbours are the moves from its cell)
+        return np.zeros(len(centre) + 1, dtype=np.int64), low, np.zeros(0, dtype=np.float64)
+    rows: tuple[IntArray, IntArray, FloatArray] = compiled().compressed_rows(
+        low, high, centre, movement
+    )
     return rows

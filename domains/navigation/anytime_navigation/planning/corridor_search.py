@@ -559,39 +559,129 @@ def counting_order(keys: IntArray, count: int) -> IntArray:
 
 
 @_compiled
-def sorted_pairs(
-    low: IntArray, high: IntArray, count: int, unique: bool
+def lifted_pairs(
+    low: IntArray, high: IntArray, parent: IntArray, count: int
 ) -> tuple[IntArray, IntArray]:
-    """The pairs (low[i], high[i]), each entry in [0, count), in ascending order (by low, then
-    high), once each when `unique`."""
-    order = counting_order(high, count)
-    order = order[counting_order(low[order], count)]
-    a, b = low[order], high[order]
-    if not unique or len(a) == 0:
-        return a, b
-    keep = np.ones(len(a), dtype=np.bool_)
-    for i in range(1, len(a)):
-        keep[i] = a[i] != a[i - 1] or b[i] != b[i - 1]
-    return a[keep], b[keep]
+    """The edges one level up (`components._lifted`): for each edge (low, high) whose ends have
+    different parents, the pair (lesser parent, greater parent), each pair once, in ascending
+    order (by low, then high). One counting pass buckets the pairs by their lesser end; each
+    bucket (a node's few higher neighbours, with repeats) is then sorted where it lies: no sort
+    of the whole level, no temporary the size of its edges but the buckets."""
+    start = np.zeros(count + 1, dtype=np.int64)
+    for e in range(len(low)):
+        a, b = parent[low[e]], parent[high[e]]
+        if a != b:
+            start[min(a, b) + 1] += 1
+    for u in range(count):
+        start[u + 1] += start[u]
+    slot = start[:-1].copy()
+    other = np.empty(start[count], dtype=np.int64)
+    for e in range(len(low)):
+        a, b = parent[low[e]], parent[high[e]]
+        if a != b:
+            u = min(a, b)
+            other[slot[u]] = max(a, b)
+            slot[u] += 1
+    lifted_low = np.empty(len(other), dtype=np.int64)
+    lifted_high = np.empty(len(other), dtype=np.int64)
+    m = 0
+    for u in range(count):
+        s, t = start[u], start[u + 1]
+        if t - s > 32:  # a long bucket (a block of many regions): a library sort
+            other[s:t] = np.sort(other[s:t])
+        else:  # insertion sort: a bucket holds a few entries
+            for i in range(s + 1, t):
+                v = other[i]
+                j = i - 1
+                while j >= s and other[j] > v:
+                    other[j + 1] = other[j]
+                    j -= 1
+                other[j + 1] = v
+        for i in range(s, t):
+            if i == s or other[i] != other[i - 1]:
+                lifted_low[m], lifted_high[m] = u, other[i]
+                m += 1
+    return lifted_low[:m].copy(), lifted_high[:m].copy()
+
+
+@_compiled
+def level_geometry(
+    first_cell: IntArray, size: IntArray, sum_x: FloatArray, sum_y: FloatArray, k: int, side: int
+) -> tuple[IntArray, FloatArray]:
+    """Each node's block (x, y) at level k, from its first cell (y * side + x), and its centre:
+    the mean of its cells' (x + 0.5, y + 0.5), from their number and the sums of their x and y
+    (level 0, no sums: the cell's own), by the operations the vectorised build used (the same
+    bits)."""
+    count = len(first_cell)
+    shift = 0
+    while 1 << shift < side:
+        shift += 1
+    block = np.empty((count, 2), dtype=np.int64)
+    centre = np.empty((count, 2), dtype=np.float64)
+    for i in range(count):
+        x, y = first_cell[i] & (side - 1), first_cell[i] >> shift
+        block[i, 0], block[i, 1] = x >> k, y >> k
+        if len(sum_x) == 0:
+            centre[i, 0], centre[i, 1] = block[i, 0] + 0.5, block[i, 1] + 0.5
+        else:
+            n = max(size[i], 1)
+            centre[i, 0] = (sum_x[i] + 0.5 * size[i]) / n
+            centre[i, 1] = (sum_y[i] + 0.5 * size[i]) / n
+    return block, centre
+
+
+@_compiled
+def cell_nodes(free: NDArray[np.bool_]) -> tuple[IntArray, IntArray]:
+    """Level 0 of the abstraction: the free cells' indices (y * side + x) in raster order, and
+    each cell's node (its rank among them; -1 where blocked), ravelled."""
+    flat = free.ravel()
+    node = np.empty(len(flat), dtype=np.int64)
+    count = 0
+    for c in range(len(flat)):
+        if flat[c]:
+            node[c] = count
+            count += 1
+        else:
+            node[c] = -1
+    cells = np.empty(count, dtype=np.int64)
+    for c in range(len(flat)):
+        if node[c] >= 0:
+            cells[node[c]] = c
+    return cells, node
+
+
+@_compiled
+def lift(nodes: IntArray, parent: IntArray) -> None:
+    """Each of `nodes` replaced by its `parent` (one level up), in place."""
+    for i in range(len(nodes)):
+        nodes[i] = parent[nodes[i]]
 
 
 @_compiled
 def compressed_rows(
-    low: IntArray, high: IntArray, step: FloatArray, count: int
+    low: IntArray, high: IntArray, centre: FloatArray, movement: int
 ) -> tuple[IntArray, IntArray, FloatArray]:
-    """A level's edges (low < high, sorted by low, then high; edge i costing `step[i]`) as
-    compressed rows over its `count` nodes (first, neighbour, cost): a node's row holds its
-    higher neighbours, then its lower ones, each ascending."""
-    n = len(low)
+    """A level's edges (low < high, sorted by low, then high) as compressed rows over its nodes
+    (first, neighbour, cost), each edge costing the distance between its ends' centres (row i:
+    node i's x, y) as the robot moves (`world.move_distance`, by the same operations): a node's
+    row holds its higher neighbours, then its lower ones, each ascending."""
+    n, count = len(low), len(centre)
     first = np.zeros(count + 1, dtype=np.int64)
+    step = np.empty(n, dtype=np.float64)
     for i in range(n):
-        first[low[i] + 1] += 1
-        first[high[i] + 1] += 1
+        u, v = low[i], high[i]
+        first[u + 1] += 1
+        first[v + 1] += 1
+        dx, dy = abs(centre[u, 0] - centre[v, 0]), abs(centre[u, 1] - centre[v, 1])
+        if movement == 8:
+            step[i] = max(dx, dy) + (_SQRT2 - 1.0) * min(dx, dy)
+        else:
+            step[i] = dx + dy
     for u in range(count):
         first[u + 1] += first[u]
     slot = first[:-1].copy()
-    neighbour = np.zeros(2 * n, dtype=np.int64)
-    cost = np.zeros(2 * n, dtype=np.float64)
+    neighbour = np.empty(2 * n, dtype=np.int64)
+    cost = np.empty(2 * n, dtype=np.float64)
     for i in range(n):  # each node's higher neighbours, ascending: the edges' order
         u = low[i]
         neighbour[slot[u]], cost[slot[u]] = high[i], step[i]
