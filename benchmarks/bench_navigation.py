@@ -168,7 +168,10 @@ KIND_CONFIGS: dict[str, dict[str, Any]] = {
         "no_ring_when_open": 0.05,
         "one_ring_when_open": 0.1,
     },
-    "... and landmarks=8": dict(LARGE_MAP_OPTIONS),  # `anytime plan`'s options
+    "... and landmarks=8": {
+        key: value for key, value in LARGE_MAP_OPTIONS.items() if key != "no_ring_when_clear"
+    },
+    "... and no_ring_when_clear=0.7": dict(LARGE_MAP_OPTIONS),  # `anytime plan`'s options
     "... and follow (compiled)": {**LARGE_MAP_OPTIONS, "follow": FOLLOW},
 }
 
@@ -981,8 +984,11 @@ def bench_kinds(
         " through its own nodes' cells, without a ring of neighbours; one_ring_when_open=T\n"
         " (with the row above's options): a level-2 segment of mean obstacleness at most T is\n"
         " refined with one ring of neighbouring nodes, not three; landmarks=N (with the row\n"
-        " above's options: planner.LARGE_MAP_OPTIONS, anytime plan's): the first plan's search\n"
+        " above's options): the first plan's search\n"
         " bounded by N landmarks' distances (ALT; made with the abstraction, in its build);\n"
+        " no_ring_when_clear=S (with the row above's options: planner.LARGE_MAP_OPTIONS,\n"
+        " anytime plan's): a level-2 segment at least S of whose nodes are clear 4 x 4 blocks\n"
+        " is refined through its own nodes' children, without rings;\n"
         " follow (with the row above's\n"
         " options): a plan is registered only when the robot follows it no longer than the\n"
         " last one registered (following.Follower: execute's length, compiled; its calls in the\n"

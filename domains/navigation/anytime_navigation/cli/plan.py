@@ -113,7 +113,7 @@ def add_command(commands: CommandGroup) -> None:
         default="large-maps",
         help="the ATP's options: those that measured best on 512 x 512 MovingAI maps (top=4, "
         "direct=4, direct_width=12, no_ring_when_open=0.05, one_ring_when_open=0.1, "
-        "landmarks=8), or the "
+        "landmarks=8, no_ring_when_clear=0.7), or the "
         "planner's defaults, as the navigation task plans its 128 x 128 worlds (large-maps)",
     )
     parser.add_argument(

@@ -1278,6 +1278,27 @@ def _of_level(k: int, one: Any, stacked: Any, at: IntArray) -> Any:
 
 
 @_compiled
+def _clear_share(
+    route: IntArray,
+    k: int,
+    block1: IntArray,
+    blocks: IntArray,
+    node_at: IntArray,
+    pyramid: FloatArray,
+    pyramid_at: IntArray,
+    pyramid_side: IntArray,
+) -> float:
+    """The share of a level-k route's nodes whose blocks are clear (no blocked cell: the node is
+    its whole block)."""
+    block = _of_level(k, block1, blocks, node_at)
+    side = pyramid_side[k]
+    clear = 0
+    for node in route:
+        clear += pyramid[pyramid_at[k] + block[node, 1] * side + block[node, 0]] == 0.0
+    return clear / len(route)
+
+
+@_compiled
 def refine_step(
     level: IntArray,
     begin: IntArray,
@@ -1327,12 +1348,15 @@ def refine_step(
     goal: int,
     no_ring_when_open: float,
     one_ring_when_open: float,
+    no_ring_when_clear: float,
     limit: float,
 ) -> tuple[int, int, int, int, int, float, IntArray, IntArray, IntArray]:
     """REFINE(WORST-SEGMENT(plan)) (`planner._Planner.refine`, the same choices): the worst
     segment's nodes searched one level lower through the children of its nodes and of
     `rings_by_level[k]` rings of neighbours (none or one when its mean obstacleness is at most
-    `no_ring_when_open` at level 1 or `one_ring_when_open` at level 2; NaN: never), its ends
+    `no_ring_when_open` at level 1 or `one_ring_when_open` at level 2, and none at level 2
+    when at least the share `no_ring_when_clear` of its nodes are clear blocks; NaN: never), its
+    ends
     the start's and goal's nodes (`start`, `goal`: level 0's) or a finer neighbour's end, else
     any child of its end node, costed toward the coarser neighbour's next node; the path found
     cut at its middle into two segments (one when it has fewer than two moves) in its place.
@@ -1387,12 +1411,16 @@ def refine_step(
         rings = 0
     if k == 2 and o <= one_ring_when_open:
         rings = 1
+    route = pool[begin[s] : end[s]]
+    if k == 2 and no_ring_when_clear <= 1.0:  # NaN: never
+        clear = _clear_share(route, k, block1, blocks, node_at, pyramid, pyramid_at, pyramid_side)
+        if clear >= no_ring_when_clear:
+            rings = 0
     up_nodes = _of_level(k, scratch1, scratches, node_at)
     up_first = _of_level(k, first1, firsts, first_at)
     up_neighbour = _of_level(k, neighbour1, neighbours, edge_at)
     first_child = _of_level(k, first_child1, first_children, first_at)
     child = _of_level(k, child1, children, child_at)
-    route = pool[begin[s] : end[s]]
     if lower == 0:
         path, _, expansions = refinement(
             up_first, up_neighbour, first_child, child, up_nodes, route, rings,
