@@ -261,6 +261,29 @@ def _stack(levels: Sequence[Level], scratch: Sequence[IntArray]) -> Stacked:
 # that a plan's pickle, which holds its abstraction, is the same before and after.
 _STACKED: weakref.WeakKeyDictionary[Components, Stacked] = weakref.WeakKeyDictionary()
 # Each abstraction's landmark distances by (level, count), made when first asked for (as above).
+# Each level's room for `Components.path`'s searches over the whole level, made when first
+# searched: distance, estimate, previous (one entry per node), their stamps (one row per node
+# and one for the search's number) and the heap's keys and items.
+_LEVEL_ROOM: weakref.WeakKeyDictionary[Components, dict[int, list[Any]]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+def _level_room(components: Components, level: int) -> list[Any]:
+    made = _LEVEL_ROOM.setdefault(components, {})
+    if level not in made:
+        n = len(components.levels[level])
+        made[level] = [
+            np.empty(n),
+            np.empty(n),
+            np.empty(n, dtype=np.int64),
+            np.zeros((n + 1, 2), dtype=np.int64),
+            np.empty(1024),
+            np.empty(1024, dtype=np.int64),
+        ]
+    return made[level]
+
+
 _LANDMARKS: weakref.WeakKeyDictionary[Components, dict[tuple[int, int], FloatArray]] = (
     weakref.WeakKeyDictionary()
 )
@@ -490,8 +513,28 @@ class Components:
         Raises:
             SearchLimit: its work, counted as `corridor` counts it, is more than `limit`.
         """
-        every = np.arange(len(self.levels[level]))
-        found = self.corridor(level, every, [source], [target], limit=limit, landmarks=landmarks)
+        if level == 0:
+            every = np.arange(len(self.levels[0]))
+            found = self.corridor(0, every, [source], [target], limit=limit)
+        else:  # the same search, its scratch kept per level (`corridor_search.level_search`)
+            at, room = self.levels[level], _level_room(self, level)
+            path, best, expansions, *heap = compiled().level_search(
+                at.first,
+                at.neighbour,
+                at.cost,
+                at.centre,
+                self.movement,
+                source,
+                target,
+                self.landmarks(level, landmarks) if landmarks else np.zeros((0, 0)),
+                *room,
+            )
+            room[-2:] = heap  # grown when it ran out
+            if expansions > limit:
+                raise SearchLimit(int(limit))
+            found = (
+                NodePath(level, tuple(path.tolist()), best, expansions, path) if len(path) else None
+            )
         if found is None:
             raise AssertionError(f"no path at level {level} between nodes {source} and {target}")
         return found

@@ -218,6 +218,100 @@ def search(
 
 
 @_compiled
+def level_search(
+    first: IntArray,
+    neighbour: IntArray,
+    cost: FloatArray,
+    centre: FloatArray,
+    movement: int,
+    source: int,
+    target: int,
+    landmarks: FloatArray,
+    distance: FloatArray,
+    estimate: FloatArray,
+    previous: IntArray,
+    stamp: IntArray,
+    heap_keys: FloatArray,
+    heap_items: IntArray,
+) -> tuple[IntArray, float, int, FloatArray, IntArray]:
+    """`search` over every node of a level above level 0 from one node to another (the first
+    plan): the same path, cost and expansions (the same pushes in the same order: its local
+    numbers are the level's own when every node is allowed), at the cost of the nodes it
+    reaches rather than of the level's. `distance`, `estimate` and `previous` (one entry per
+    node) hold a node's only while `stamp[node, 0]` is the search's number, `stamp[-1, 0]`,
+    which it advances, and the node is settled while `stamp[node, 1]` is: nothing the size of
+    the level is made or cleared per search. `heap_keys`, `heap_items` are the heap's room.
+
+    Returns (the path's nodes, source first; empty when the target is not reached), its cost
+    (inf when none), the expansions, and the heap's room (grown when it ran out)."""
+    stamp[-1, 0] += 1
+    now = stamp[-1, 0]
+    target_x = np.empty(1)
+    target_y = np.empty(1)
+    target_x[0], target_y[0] = centre[target, 0], centre[target, 1]
+    to_targets = np.empty((1, landmarks.shape[1]))
+    if landmarks.shape[1]:
+        to_targets[0] = landmarks[target]
+    keys, items = heap_keys, heap_items
+    closed = np.empty(64, dtype=np.int64)  # the settled nodes, in order
+    settled = 0
+    stamp[source, 0] = now
+    distance[source], previous[source] = 0.0, -1
+    h = _nearest(centre[source, 0], centre[source, 1], target_x, target_y, movement)
+    estimate[source] = _landmark_bound(h, source, to_targets, landmarks)
+    size = _push(keys, items, 0, estimate[source], source)
+    best, end = np.inf, -1
+    while size > 0:
+        f, u = keys[0], items[0]
+        size = _pop(keys, items, size)
+        if stamp[u, 1] == now or f > distance[u] + estimate[u]:
+            continue
+        if f >= best:  # no way through a node left is cheaper than the path found
+            break
+        stamp[u, 1] = now
+        if settled == len(closed):
+            closed = np.concatenate((closed, np.empty(len(closed), dtype=np.int64)))
+        closed[settled] = u
+        settled += 1
+        d = distance[u]
+        if u == target and d < best:
+            best, end = d, u
+        for e in range(first[u], first[u + 1]):
+            v = neighbour[e]
+            if stamp[v, 0] != now:  # first reached: its heuristic made now
+                stamp[v, 0] = now
+                distance[v], previous[v] = np.inf, -1
+                h = _nearest(centre[v, 0], centre[v, 1], target_x, target_y, movement)
+                estimate[v] = _landmark_bound(h, v, to_targets, landmarks)
+            g = d + cost[e]
+            if g < distance[v]:
+                distance[v], previous[v] = g, u
+                if size == len(keys):
+                    keys, items = _grown(keys, items)
+                size = _push(keys, items, size, g + estimate[v], v)
+    tolerance = 1e-9 * max(1.0, best) if best < np.inf else 0.0
+    expansions = 0
+    for i in range(settled):
+        u = closed[i]
+        expansions += distance[u] + estimate[u] < best - tolerance
+    # the path back from the end; its nodes but the last count as expanded (A* pops them too)
+    # where the count above left them out
+    count = 0
+    u = end
+    while u >= 0:
+        count += 1
+        u = previous[u]
+    path = np.empty(count, dtype=np.int64)
+    u = end
+    for i in range(count - 1, -1, -1):
+        path[i] = u
+        if i < count - 1 and not distance[u] + estimate[u] < best - tolerance:
+            expansions += 1
+        u = previous[u]
+    return path, best, expansions, keys, items
+
+
+@_compiled
 def _traced(previous: IntArray, end: int, expanded: NDArray[np.bool_]) -> IntArray:
     """The path back from `end` by `previous` (-1 before its first), first to last (empty when
     `end` is -1); its entries but the last marked `expanded` (A* pops them too; the last ends
