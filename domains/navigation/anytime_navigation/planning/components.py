@@ -260,7 +260,6 @@ def _stack(levels: Sequence[Level], scratch: Sequence[IntArray]) -> Stacked:
 # Each abstraction's `Stacked`, made when a plan is first refined: kept apart from its fields, so
 # that a plan's pickle, which holds its abstraction, is the same before and after.
 _STACKED: weakref.WeakKeyDictionary[Components, Stacked] = weakref.WeakKeyDictionary()
-# Each abstraction's landmark distances by (level, count), made when first asked for (as above).
 # Each level's room for `Components.path`'s searches over the whole level, made when first
 # searched: distance, estimate, previous (one entry per node), their stamps (one row per node
 # and one for the search's number) and the heap's keys and items.
@@ -284,6 +283,7 @@ def _level_room(components: Components, level: int) -> list[Any]:
     return made[level]
 
 
+# Each abstraction's landmark distances by (level, count), made when first asked for (as above).
 _LANDMARKS: weakref.WeakKeyDictionary[Components, dict[tuple[int, int], FloatArray]] = (
     weakref.WeakKeyDictionary()
 )
@@ -508,7 +508,8 @@ class Components:
     ) -> NodePath:
         """A cheapest path of neighbouring nodes at `level` between two nodes over the whole
         level, from centre to centre: `corridor` over every node (with `landmarks`, its
-        heuristic bounded by theirs).
+        heuristic bounded by theirs), the same path and work; above level 0 without the cost of
+        the level's size (`corridor_search.level_search`: the first plan's search).
 
         Raises:
             SearchLimit: its work, counted as `corridor` counts it, is more than `limit`.
