@@ -173,6 +173,14 @@ def test_no_path_of_nodes_is_cheaper_through_its_doors_than_the_route(
         for a, b in zip(points, points[1:], strict=False)
     )
     assert cost <= (own + CROSSING * (len(nodes) - 1)) * (1 + 1e-12)
+    assert math.isclose(c.doors.cost_of(nodes, start, goal), own + CROSSING * (len(nodes) - 1))
+    # Bounded by the centres' path, or by the route itself (the cut at exactly its cost through
+    # its doors, `corridor_search.door_route`), the search finds a route as cheap (of several,
+    # the cut may leave another), costing what `cost_of` says it does.
+    for bound in (nodes, c.doors.route(start, goal)[0]):
+        bounded, bounded_cost, _ = c.doors.route(start, goal, bound=bound)
+        assert bounded_cost == cost
+        assert math.isclose(c.doors.cost_of(bounded, start, goal), cost, rel_tol=1e-12)
 
 
 def test_the_doors_of_a_map_with_blocked_margins_are_where_its_moves_are() -> None:

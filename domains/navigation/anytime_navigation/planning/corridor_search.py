@@ -381,6 +381,93 @@ def _grown(keys: FloatArray, items: IntArray) -> tuple[FloatArray, IntArray]:
 
 
 @_compiled
+def door_route(
+    grid: IntArray,
+    up: IntArray,
+    first: IntArray,
+    keys: IntArray,
+    order: IntArray,
+    point: FloatArray,
+    after_first: IntArray,
+    after: IntArray,
+    length: FloatArray,
+    head_block: IntArray,
+    head: IntArray,
+    level: int,
+    movement: int,
+    crossing: float,
+    start_x: int,
+    start_y: int,
+    goal_x: int,
+    goal_y: int,
+    bound: IntArray,
+    within: NDArray[np.bool_],
+) -> tuple[int, IntArray, float, int]:
+    """`doors.Doors.route` in one call (the doors' arrays as `Doors` holds them): the start's
+    and goal's nodes, the states leaving the start's node with their cost from the start, the
+    cut at `bound`'s cost through its doors (`Doors.cost_of`, the same operations and the same
+    sum, none when `bound` is empty), then `door_search`. Returns (the start's node; the route's
+    nodes, start's first, empty when none is found and the start's node alone when the goal is
+    in it; its cost, 0 then; its expansions)."""
+    source = up[grid[start_y, start_x]]
+    target = up[grid[goal_y, goal_x]]
+    if source == target:
+        alone = np.empty(1, dtype=np.int64)
+        alone[0] = source
+        return source, alone, 0.0, 0
+    sx, sy, gx, gy = start_x + 0.5, start_y + 0.5, goal_x + 0.5, goal_y + 0.5
+    leaving = np.arange(first[source], first[source + 1])
+    to_first = np.empty(len(leaving))
+    for i in range(len(leaving)):
+        dx, dy = abs(point[leaving[i], 0] - sx), abs(point[leaving[i], 1] - sy)
+        to_first[i] = _move_distance(dx, dy, movement) + crossing
+    cut = np.inf
+    if len(bound):  # what is dearer than the bound's route is not searched
+        count = len(first) - 1
+        doors = len(bound) - 1
+        steps = np.empty(doors + 1)
+        x, y = sx, sy
+        for i in range(doors):
+            state = order[_first_at_least(keys, bound[i] * count + bound[i + 1])]
+            steps[i] = _move_distance(abs(point[state, 0] - x), abs(point[state, 1] - y), movement)
+            x, y = point[state, 0], point[state, 1]
+        steps[doors] = _move_distance(abs(gx - x), abs(gy - y), movement)
+        dearest = pairwise_sum(steps, 0, doors + 1) + crossing * doors
+        cut = dearest + 1e-9 * max(1.0, dearest)
+    states, cost, expansions = door_search(
+        after_first, after, length, point, head_block, head, level, movement, crossing, leaving,
+        to_first, target, gx, gy, cut, within,
+    )  # fmt: skip
+    nodes = np.empty(len(states) + 1 if len(states) else 0, dtype=np.int64)
+    if len(states):
+        nodes[0] = source
+        for i in range(len(states)):
+            nodes[i + 1] = head[states[i]]
+    return source, nodes, cost, expansions
+
+
+@_compiled
+def _first_at_least(ascending: IntArray, key: int) -> int:
+    """The first index of `ascending` whose entry is at least `key` (`np.searchsorted`'s)."""
+    low, high = 0, len(ascending)
+    while low < high:
+        middle = (low + high) >> 1
+        if ascending[middle] < key:
+            low = middle + 1
+        else:
+            high = middle
+    return low
+
+
+@_compiled
+def _move_distance(dx: float, dy: float, movement: int) -> float:
+    """`world.move_distance` of one offset (dx, dy >= 0), by the same operations."""
+    if movement == 4:
+        return dx + dy
+    return max(dx, dy) + (_SQRT2 - 1.0) * min(dx, dy)
+
+
+@_compiled
 def door_search(
     after_first: IntArray,
     after: IntArray,
@@ -1229,27 +1316,68 @@ def grid_astar(
 def pairwise_sum(values: FloatArray, lo: int, n: int) -> float:
     """The sum of `values[lo:lo + n]` exactly as numpy's `np.add.reduce` makes it (pairwise, by
     blocks of 128 in eight lanes): the means the planner keeps match those made in Python to
-    the last bit."""
+    the last bit. numpy halves a longer run (the first half a multiple of 8) and adds the two
+    sums; here that tree is walked with a stack of its pending halves rather than by recursion
+    (a recursive function compiled into a caller that numba caches is left unresolved when the
+    caller is loaded from the cache: the process crashed)."""
+    if n <= 128:
+        return _block_sum(values, lo, n)
+    starts = np.empty(64, dtype=np.int64)  # the runs being summed, outermost first
+    sizes = np.empty(64, dtype=np.int64)
+    left = np.empty(64)  # each run's first half's sum, once it is made
+    done_left = np.zeros(64, dtype=np.bool_)
+    top = 0
+    starts[0], sizes[0] = lo, n
+    made = 0.0  # the sum of the run just finished
+    returning = False
+    while top >= 0:
+        if returning:  # `made` is a half of the run on top of the stack
+            if not done_left[top]:
+                left[top], done_left[top] = made, True
+                half = sizes[top] // 2
+                half -= half % 8
+                top += 1
+                starts[top], sizes[top], done_left[top] = (
+                    starts[top - 1] + half,
+                    sizes[top - 1] - half,
+                    False,
+                )
+                returning = False
+            else:
+                made = left[top] + made
+                top -= 1
+            continue
+        if sizes[top] <= 128:
+            made = _block_sum(values, starts[top], sizes[top])
+            top -= 1
+            returning = True
+            continue
+        half = sizes[top] // 2
+        half -= half % 8
+        top += 1
+        starts[top], sizes[top], done_left[top] = starts[top - 1], half, False
+    return float(made)
+
+
+@_compiled
+def _block_sum(values: FloatArray, lo: int, n: int) -> float:
+    """numpy's sum of a run of at most 128: in order below 8, else in eight lanes."""
     if n < 8:
         total = 0.0
         for i in range(lo, lo + n):
             total += values[i]
         return total
-    if n <= 128:
-        r = values[lo : lo + 8].copy()
-        i = 8
-        while i < n - (n % 8):
-            for j in range(8):
-                r[j] += values[lo + i + j]
-            i += 8
-        total = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
-        while i < n:
-            total += values[lo + i]
-            i += 1
-        return float(total)
-    half = n // 2
-    half -= half % 8
-    return pairwise_sum(values, lo, half) + pairwise_sum(values, lo + half, n - half)
+    r = values[lo : lo + 8].copy()
+    i = 8
+    while i < n - (n % 8):
+        for j in range(8):
+            r[j] += values[lo + i + j]
+        i += 8
+    total = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+    while i < n:
+        total += values[lo + i]
+        i += 1
+    return float(total)
 
 
 @_compiled

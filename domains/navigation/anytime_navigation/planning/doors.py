@@ -141,39 +141,23 @@ class Doors:
             SearchLimit: that work is more than `limit`.
         """
         (sx, sy), (gx, gy) = start, goal
-        source, target = int(self.up[self.grid[sy, sx]]), int(self.up[self.grid[gy, gx]])
-        if source == target:
-            return (source,), float(self._distance_to(np.array([[sx + 0.5, sy + 0.5]]), goal)[0]), 0
-        leaving = np.arange(self.first[source], self.first[source + 1])
-        out = self.point[leaving] - (sx + 0.5, sy + 0.5)
-        to_first = move_distance(np.abs(out[:, 0]), np.abs(out[:, 1]), self.movement) + CROSSING
-        cut = math.inf
-        if bound is not None:  # what is dearer than the bound's route is not searched
-            dearest = self.cost_of(bound, start, goal)
-            cut = dearest + 1e-9 * max(1.0, dearest)
-        states, cost, expansions = compiled().door_search(
-            self.after_first,
-            self.after,
-            self.length,
-            self.point,
-            self.head_block,
-            self.head,
-            self.level,
-            self.movement,
-            CROSSING,
-            leaving,
-            to_first,
-            target,
-            gx + 0.5,
-            gy + 0.5,
-            cut,
+        # one compiled call (`corridor_search.door_route`): the glue around the search was most
+        # of its time when caches are cold, as the first search after a plan begins finds them
+        source, nodes, cost, expansions = compiled().door_route(
+            self.grid, self.up, self.first, self.keys, self.order, self.point, self.after_first,
+            self.after, self.length, self.head_block, self.head, self.level, self.movement,
+            CROSSING, sx, sy, gx, gy,
+            np.zeros(0, dtype=np.int64) if bound is None else np.asarray(bound, dtype=np.int64),
             np.zeros(0, dtype=np.bool_) if within is None else within,
-        )
-        if not len(states):
+        )  # fmt: skip
+        if len(nodes) == 1:  # the goal in the start's node
+            return (source,), float(self._distance_to(np.array([[sx + 0.5, sy + 0.5]]), goal)[0]), 0
+        if not len(nodes):
+            target = int(self.up[self.grid[gy, gx]])
             raise AssertionError(f"no route from node {source} to node {target}")
         if expansions > limit:
             raise SearchLimit(int(limit))
-        return (source, *self.head[states].tolist()), cost, expansions
+        return tuple(nodes.tolist()), cost, expansions
 
     def cost_of(self, nodes: Sequence[int], start: Position, goal: Position) -> float:
         """What a route of neighbouring nodes from the start's to the goal's costs through
