@@ -218,6 +218,29 @@ def search(
 
 
 @_compiled
+def path_reads(
+    block: IntArray, obstacleness: FloatArray, path: IntArray, bounds: IntArray
+) -> tuple[IntArray, IntArray, FloatArray]:
+    """What the planner reads of a path of nodes to make its segments (`planner._Planner.
+    segments`), in one call: each node's block (x, y) at its level, and the mean obstacleness
+    of those blocks (`obstacleness`, the level's, indexed [y, x]) over each run of nodes
+    `bounds[i]`..`bounds[i + 1]` (inclusive: consecutive runs share their junction), summed as
+    `np.add.reduce` sums them (`pairwise_sum`)."""
+    n = len(path)
+    xs = np.empty(n, dtype=np.int64)
+    ys = np.empty(n, dtype=np.int64)
+    values = np.empty(n)
+    for i in range(n):
+        xs[i], ys[i] = block[path[i], 0], block[path[i], 1]
+        values[i] = obstacleness[ys[i], xs[i]]
+    means = np.empty(len(bounds) - 1)
+    for r in range(len(bounds) - 1):
+        count = bounds[r + 1] + 1 - bounds[r]
+        means[r] = pairwise_sum(values, bounds[r], count) / count
+    return xs, ys, means
+
+
+@_compiled
 def level_search(
     first: IntArray,
     neighbour: IntArray,

@@ -824,16 +824,18 @@ class _Planner:
         for the whole path (a refinement makes two segments per step)."""
         if array is None:  # `nodes` as an array (the search's own, when given)
             array = np.array(nodes, dtype=np.int64)
-        blocks = self.components.levels[level].block[array]
-        xs, ys = blocks[:, 0], blocks[:, 1]
-        obstacleness = self.pyramid.levels[level][ys, xs]
+        # one compiled call, not a few numpy ones: the first plan's, whose caches are cold
+        xs, ys, means = compiled().path_reads(
+            self.components.levels[level].block,
+            self.pyramid.levels[level],
+            array,
+            np.array([first for first, _ in runs] + [runs[-1][1]], dtype=np.int64),
+        )
         cells = tuple(zip(xs.tolist(), ys.tolist(), strict=True))  # at once, not cell by cell
-        made = []
-        for first, last in runs:
-            mean = float(np.add.reduce(obstacleness[first : last + 1])) / (last + 1 - first)
-            segment = Segment._made(level, cells[first : last + 1], tuple(nodes[first : last + 1]))
-            made.append((segment, mean))
-        return made
+        return [
+            (Segment._made(level, cells[first : last + 1], tuple(nodes[first : last + 1])), mean)
+            for (first, last), mean in zip(runs, means.tolist(), strict=True)
+        ]
 
 
 def _mean_obstacleness(segment: Segment, pyramid: Pyramid) -> float:
