@@ -47,6 +47,14 @@ _STEP = np.array([1.0, 1.0, 1.0, 1.0, _SQRT2, _SQRT2, _SQRT2, _SQRT2])
 
 
 @_compiled
+def _move_distance(dx: float, dy: float, movement: int) -> float:
+    """`world.move_distance` of one offset (dx, dy >= 0), by the same operations."""
+    if movement == 4:
+        return dx + dy
+    return max(dx, dy) + (_SQRT2 - 1.0) * min(dx, dy)
+
+
+@_compiled
 def _push(keys: FloatArray, items: IntArray, size: int, key: float, item: int) -> int:
     """Push (key, item) on the binary heap of the first `size` entries; the new size."""
     i = size
@@ -317,20 +325,11 @@ def level_search(
     for i in range(settled):
         u = closed[i]
         expansions += distance[u] + estimate[u] < best - tolerance
-    # the path back from the end; its nodes but the last count as expanded (A* pops them too)
-    # where the count above left them out
-    count = 0
-    u = end
-    while u >= 0:
-        count += 1
-        u = previous[u]
-    path = np.empty(count, dtype=np.int64)
-    u = end
-    for i in range(count - 1, -1, -1):
-        path[i] = u
-        if i < count - 1 and not distance[u] + estimate[u] < best - tolerance:
-            expansions += 1
-        u = previous[u]
+    # the path's nodes but the last count as expanded (A* pops them too) where the count above
+    # left them out
+    path = _path_back(previous, end)
+    for u in path[:-1]:
+        expansions += not distance[u] + estimate[u] < best - tolerance
     return path, best, expansions, keys, items
 
 
@@ -339,6 +338,16 @@ def _traced(previous: IntArray, end: int, expanded: NDArray[np.bool_]) -> IntArr
     """The path back from `end` by `previous` (-1 before its first), first to last (empty when
     `end` is -1); its entries but the last marked `expanded` (A* pops them too; the last ends
     it)."""
+    path = _path_back(previous, end)
+    for u in path[:-1]:
+        expanded[u] = True
+    return path
+
+
+@_compiled
+def _path_back(previous: IntArray, end: int) -> IntArray:
+    """The path back from `end` by `previous` (-1 before its first), first to last (empty when
+    `end` is -1)."""
     count = 0
     u = end
     while u >= 0:
@@ -348,8 +357,6 @@ def _traced(previous: IntArray, end: int, expanded: NDArray[np.bool_]) -> IntArr
     u = end
     for i in range(count - 1, -1, -1):
         path[i] = u
-        if i < count - 1:
-            expanded[u] = True
         u = previous[u]
     return path
 
@@ -385,11 +392,7 @@ def _nearest(
     level's edges)."""
     nearest = np.inf
     for t in range(len(target_x)):
-        dx, dy = abs(x - target_x[t]), abs(y - target_y[t])
-        if movement == 8:
-            h = max(dx, dy) + (_SQRT2 - 1.0) * min(dx, dy)
-        else:
-            h = dx + dy
+        h = _move_distance(abs(x - target_x[t]), abs(y - target_y[t]), movement)
         nearest = min(nearest, h)
     return float(nearest)
 
@@ -451,7 +454,7 @@ def door_route(
         steps = np.empty(doors + 1)
         x, y = sx, sy
         for i in range(doors):
-            state = order[_first_at_least(keys, bound[i] * count + bound[i + 1])]
+            state = order[np.searchsorted(keys, bound[i] * count + bound[i + 1])]
             steps[i] = _move_distance(abs(point[state, 0] - x), abs(point[state, 1] - y), movement)
             x, y = point[state, 0], point[state, 1]
         steps[doors] = _move_distance(abs(gx - x), abs(gy - y), movement)
@@ -467,27 +470,6 @@ def door_route(
         for i in range(len(states)):
             nodes[i + 1] = head[states[i]]
     return source, nodes, cost, expansions
-
-
-@_compiled
-def _first_at_least(ascending: IntArray, key: int) -> int:
-    """The first index of `ascending` whose entry is at least `key` (`np.searchsorted`'s)."""
-    low, high = 0, len(ascending)
-    while low < high:
-        middle = (low + high) >> 1
-        if ascending[middle] < key:
-            low = middle + 1
-        else:
-            high = middle
-    return low
-
-
-@_compiled
-def _move_distance(dx: float, dy: float, movement: int) -> float:
-    """`world.move_distance` of one offset (dx, dy >= 0), by the same operations."""
-    if movement == 4:
-        return dx + dy
-    return max(dx, dy) + (_SQRT2 - 1.0) * min(dx, dy)
 
 
 @_compiled
@@ -587,11 +569,7 @@ def _door_heuristic(
     movement: int,
     crossing: float,
 ) -> float:
-    dx, dy = abs(point[j, 0] - goal_x), abs(point[j, 1] - goal_y)
-    if movement == 8:
-        h = max(dx, dy) + (_SQRT2 - 1.0) * min(dx, dy)
-    else:
-        h = dx + dy
+    h = _move_distance(abs(point[j, 0] - goal_x), abs(point[j, 1] - goal_y), movement)
     away = max(abs(head_block[0, j] - gbx), abs(head_block[1, j] - gby))
     return float(h + crossing * away)
 
@@ -877,10 +855,7 @@ def compressed_rows(
         first[u + 1] += 1
         first[v + 1] += 1
         dx, dy = abs(centre[u, 0] - centre[v, 0]), abs(centre[u, 1] - centre[v, 1])
-        if movement == 8:
-            step[i] = max(dx, dy) + (_SQRT2 - 1.0) * min(dx, dy)
-        else:
-            step[i] = dx + dy
+        step[i] = _move_distance(dx, dy, movement)
     for u in range(count):
         first[u + 1] += first[u]
     slot = first[:-1].copy()
