@@ -30,7 +30,8 @@ ATP's abstraction.
    with one ring instead of three; each with its own
    abstraction's build; and the last of them with `follow`, issue 36 item 3: a plan registered
    only when the robot follows it no longer than the last one registered, `following.Follower`
-   in the ATP's time), against A* on the longest problems
+   in the ATP's time; and the options `anytime plan` chooses by the map's shape,
+   `planner.map_options`, reading it timed with the build), against A* on the longest problems
    of 14 MovingAI maps, the shipped three and eleven
    more in benchmarks/data/movingai/ (random with 20% of cells blocked, rooms of 16, 32 and 64,
    mazes of corridor widths 2, 4 and 8, two street maps, a Baldur's Gate II and a Dragon Age
@@ -66,9 +67,10 @@ problem).
 Plans are executed keeping to their corridor (`execute(..., keep_to_plan=True)`): they are made
 on the map they are followed on.
 
-Run: .venv/bin/python benchmarks/bench_navigation.py [--quick] [--repeats N] [--maps MAP ...]
-(--maps: the per-kind table alone, quick settings, on any MovingAI maps with their .scen files,
-and the compiled A* on every problem of their files).
+Run: .venv/bin/python benchmarks/bench_navigation.py [--quick] [--repeats N]
+[--maps MAP ... [--configs NAME ...]] (--maps: the per-kind table alone, quick settings, on any
+MovingAI maps with their .scen files, its rows `--configs` or all, and the compiled A* on every
+problem of their files, or on 200 of each with --quick).
 """
 
 from __future__ import annotations
@@ -93,9 +95,11 @@ from anytime_navigation.planning.following import Follower
 from anytime_navigation.planning.planner import (
     DEFAULT_TOP,
     LARGE_MAP_OPTIONS,
+    SCATTERED_MAP_OPTIONS,
     MultiPath,
     atp,
     compile_searches,
+    map_options,
 )
 from anytime_navigation.planning.search import GridAstar, find_path
 from anytime_navigation.task.execution import Execution, execute, plan_quality, waypoints
@@ -145,6 +149,10 @@ CONFIGS: dict[str, dict[str, Any]] = {
 #: follows it no longer than the last registered one (issue 36 item 3: a monotone curve).
 FOLLOW = "the map's Follower"
 
+#: A configuration `{"options": BY_MAP}` stands for `planner.map_options` of the map planned on
+#: (`anytime plan`'s default: read once per map, its time with the abstraction's build).
+BY_MAP = "the map's options"
+
 #: The per-kind table's ATP configurations, each a row per map beside the default, measured in
 #: the same run (issue 36 item 2: every new option of `atp` is kept only if this shows it pays):
 #: name -> keyword arguments of `atp`. `top` needs the abstraction built up to that level: each
@@ -173,6 +181,7 @@ KIND_CONFIGS: dict[str, dict[str, Any]] = {
     },
     "... and no_ring_when_clear=0.7": dict(LARGE_MAP_OPTIONS),  # `anytime plan`'s options
     "... and follow (compiled)": {**LARGE_MAP_OPTIONS, "follow": FOLLOW},
+    "options by map (map_options)": {"options": BY_MAP},  # `anytime plan`'s default
 }
 
 #: The papers' result when run to completion, and the issue's target on 512 x 512 maps.
@@ -856,6 +865,22 @@ def random_problems(scenarios: list[Scenario], count: int) -> list[Scenario]:
     return [scenarios[i] for i in sorted(chosen.tolist())]
 
 
+def for_map(configs: dict[str, dict[str, Any]], blocked: BoolGrid) -> dict[str, dict[str, Any]]:
+    """`configs` on the map `blocked`: a `BY_MAP` configuration made `planner.map_options`'."""
+    return {
+        name: dict(map_options(blocked)) if options.get("options") == BY_MAP else options
+        for name, options in configs.items()
+    }
+
+
+def shown(name: str, options: dict[str, Any], blocked: BoolGrid) -> str:
+    """A configuration's name in a table; a `BY_MAP` one's says which options the map chose."""
+    if options.get("options") != BY_MAP:
+        return name
+    which = "scattered" if map_options(blocked) is SCATTERED_MAP_OPTIONS else "large"
+    return f"{name}: {which}-map options"
+
+
 def bench_kinds(
     count: int,
     repeats: int,
@@ -873,10 +898,11 @@ def bench_kinds(
     first_quality, first_time = FIRST_TARGET
     rows = []
     for kind, path in kinds:
-        suite = movingai_suite(path, count, repeats)
-        measured = measure_suite(suite, repeats, configs, budget, every_plan=True)
-        astar_total = sum(measured.astar_times)
         blocked, width, height, scenarios = load_problems(path)
+        chosen = for_map(configs, blocked)
+        suite = movingai_suite(path, count, repeats)
+        measured = measure_suite(suite, repeats, chosen, budget, every_plan=True)
+        astar_total = sum(measured.astar_times)
         short = Suite(
             suite.name,
             8,
@@ -884,7 +910,7 @@ def bench_kinds(
             True,
             0.0,
         )
-        shorts = measure_suite(short, repeats, configs, budget, executed=False)  # times only
+        shorts = measure_suite(short, repeats, chosen, budget, executed=False)  # times only
         python = sum(measured.python_times) / astar_total
         peer_ratio = "-"
         if peer is not None:
@@ -896,12 +922,14 @@ def bench_kinds(
             others.append("-" if raced is None else f"{raced[0]:.2f} ({raced[1]}/{problems})")
         pyramid = Pyramid.build(blocked)
         builds: dict[tuple[int, int], float] = {}
-        for index, (name, options) in enumerate(configs.items()):
+        for index, (name, options) in enumerate(chosen.items()):
             top = first_level(options.get("top"), pyramid)
             key = (top, options.get("landmarks") or 0)
             if key not in builds:  # the abstraction up to the first plan's level, once per map
                 builds[key] = best_of(repeats, partial(abstraction, blocked, 8, *key))[0]
             build = builds[key]
+            if configs[name].get("options") == BY_MAP:  # and reading the map's shape
+                build += best_of(repeats, partial(map_options, blocked))[0]
             if options.get("follow") == FOLLOW:  # and the follower's, once per map
                 build += best_of(repeats, partial(Follower, blocked, 8))[0]
             runs = measured.runs[name]
@@ -927,7 +955,7 @@ def bench_kinds(
                 [
                     path.stem if index == 0 else "",
                     kind if index == 0 else "",
-                    name,
+                    shown(name, configs[name], blocked),
                     str(len(runs)),
                     summary.first_quality,
                     f"{summary.first_time:.1%}",
@@ -1066,7 +1094,17 @@ def main() -> None:
         metavar="MAP",
         help="only the per-kind table, on these MovingAI .map files (each with its .scen beside)",
     )
+    parser.add_argument(
+        "--configs",
+        nargs="+",
+        choices=list(KIND_CONFIGS),
+        metavar="NAME",
+        help="with --maps: only these rows of the per-kind table (default: all of "
+        f"{', '.join(repr(name) for name in KIND_CONFIGS)})",
+    )
     args = parser.parse_args()
+    if args.configs and not args.maps:
+        parser.error("--configs goes with --maps")
     began = time.perf_counter()
     print(compiled_searches())
     if args.maps:  # maps of the user's: the per-kind table alone, on those that load
@@ -1078,9 +1116,10 @@ def main() -> None:
                 print(f"{path}: left out, {error}")
             else:
                 given.append(("given", path))
-        print(bench_kinds(16, args.repeats or 3, 2, tuple(given)))
+        configs = {name: KIND_CONFIGS[name] for name in args.configs or KIND_CONFIGS}
+        print(bench_kinds(16, args.repeats or 3, 2, tuple(given), configs))
         print()
-        print(check_scenarios([path for _, path in given], None))
+        print(check_scenarios([path for _, path in given], 200 if args.quick else None))
         print(f"\n(the whole run took {time.perf_counter() - began:.0f} s)")
         return
     small, large, count, per_kind = (5, 2, 2, 16) if args.quick else (20, 10, 12, 16)

@@ -9,11 +9,12 @@ import re
 from pathlib import Path
 from unittest.mock import ANY
 
+import numpy as np
 import pytest
 from anytime_navigation.cli.plan import ATP_OPTIONS
 from anytime_navigation.movingai import load_map, load_scenarios
 from anytime_navigation.planning.abstraction import Pyramid
-from anytime_navigation.planning.planner import LARGE_MAP_OPTIONS, atp
+from anytime_navigation.planning.planner import LARGE_MAP_OPTIONS, SCATTERED_MAP_OPTIONS, atp
 from anytime_navigation.resources import data_file
 from conftest import Cli
 
@@ -84,12 +85,20 @@ def test_atp_quality_is_optimal_over_executed_length(cli: Cli) -> None:
     assert summary["expansions"] == sum(p["expansions"] for p in problems) > 0
 
 
-@pytest.mark.parametrize("name", ["large-maps", "task"])
+@pytest.mark.parametrize("name", ["large-maps", "scattered-maps", "task"])
 def test_atp_options_are_atps_keyword_arguments(cli: Cli, name: str) -> None:
-    """`--atp-options` plans with `LARGE_MAP_OPTIONS` (the default) or with `atp`'s own defaults
-    (the navigation task's): the same plans and ticks as `atp` called with them."""
-    assert ATP_OPTIONS == {"large-maps": LARGE_MAP_OPTIONS, "task": {}}
+    """`--atp-options` plans with `LARGE_MAP_OPTIONS`, `SCATTERED_MAP_OPTIONS` or `atp`'s own
+    defaults (the navigation task's): the same plans and ticks as `atp` called with them. By
+    default they are chosen by the map: random512-10-0's obstacles are scattered but not dense
+    enough for the scattered-map options."""
+    assert ATP_OPTIONS == {
+        "large-maps": LARGE_MAP_OPTIONS,
+        "scattered-maps": SCATTERED_MAP_OPTIONS,
+        "task": {},
+    }
     default = _json(cli, "--planner", "atp", "--start", "489,1", "--goal", "33,493", map=RANDOM)
+    assert default["summary"]["atp_options"] == "large-maps"
+    assert default["summary"]["atp_options_by_map"] is True
     chosen = _json(
         cli,
         "--planner",
@@ -105,12 +114,35 @@ def test_atp_options_are_atps_keyword_arguments(cli: Cli, name: str) -> None:
     if name == "large-maps":
         assert chosen["problems"] == [{**default["problems"][0], "seconds": ANY}]
     assert chosen["summary"]["atp_options"] == name
+    assert chosen["summary"]["atp_options_by_map"] is False
     blocked = load_map(MAPS / "random512-10-0.map")[0]
     ctx = Context()
     plans = list(
         atp(ctx, (489, 1), (33, 493), Pyramid.build(blocked), movement=8, **ATP_OPTIONS[name])
     )
     assert plans and chosen["problems"][0]["expansions"] == ctx.ticks
+
+
+def test_options_chosen_by_the_map(cli: Cli, tmp_path: Path) -> None:
+    """On a map of scattered obstacles, 30% of its cells blocked, the default options are the
+    scattered-map ones: the same plans and ticks as `--atp-options scattered-maps`; the table
+    says they were chosen by the map."""
+    rng = np.random.default_rng(4)  # a seed whose corners are connected
+    rows = np.where(rng.random((64, 64)) < 0.3, "@", ".")
+    rows[0, 0] = rows[63, 63] = "."
+    path = tmp_path / "scattered.map"
+    path.write_text(
+        "type octile\nheight 64\nwidth 64\nmap\n" + "".join("".join(row) + "\n" for row in rows)
+    )
+    argv = ("--planner", "atp", "--start", "0,0", "--goal", "63,63")
+    by_map = _json(cli, *argv, map=str(path))
+    named = _json(cli, *argv, "--atp-options", "scattered-maps", map=str(path))
+    assert by_map["summary"]["atp_options"] == "scattered-maps"
+    assert by_map["summary"]["atp_options_by_map"] is True
+    assert by_map["problems"] == [{**named["problems"][0], "seconds": ANY}]
+    code, out, err = cli("plan", "--map", str(path), *argv)
+    assert (code, err) == (0, "")
+    assert "atp (scattered-maps options, chosen by the map), 8-connected" in out
 
 
 def test_one_explicit_problem(cli: Cli) -> None:
@@ -155,7 +187,8 @@ def test_table_and_summary_line(cli: Cli) -> None:
     assert lines[1].split()[:5] == ["1", "1,11", "1,12", "1.0000", "1.0000"]
     assert len(lines) == 6
     assert lines[-2].startswith(
-        "3 problems, atp (large-maps options), 8-connected (optimal lengths from the .scen"
+        "3 problems, atp (large-maps options, chosen by the map), 8-connected (optimal lengths"
+        " from the .scen"
         " file): mean length /"
         " optimal 1.0000, "
     )
@@ -179,6 +212,7 @@ SUMMARY = {
     "load_seconds",
     "build_seconds",
     "atp_options",
+    "atp_options_by_map",
 }
 
 

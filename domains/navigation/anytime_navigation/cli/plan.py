@@ -38,7 +38,14 @@ from anytime.plugin.cli import (
 from ..movingai import MapError, load_map, load_scenarios
 from ..planning.abstraction import Pyramid
 from ..planning.components import Components
-from ..planning.planner import DEFAULT_TOP, LARGE_MAP_OPTIONS, atp, compile_searches
+from ..planning.planner import (
+    DEFAULT_TOP,
+    LARGE_MAP_OPTIONS,
+    SCATTERED_MAP_OPTIONS,
+    atp,
+    compile_searches,
+    map_options,
+)
 from ..planning.search import GridAstar
 from ..task.execution import execute, plan_quality
 from ..world import BoolGrid, Position, reachable
@@ -47,8 +54,14 @@ __all__ = ["Problem", "Solution", "add_command", "run_plan"]
 
 _T = TypeVar("_T")
 
-#: `--atp-options`: the keyword arguments of `atp` (and of its abstraction's build) by name.
-ATP_OPTIONS: dict[str, Mapping[str, Any]] = {"large-maps": LARGE_MAP_OPTIONS, "task": {}}
+#: `--atp-options`: the keyword arguments of `atp` (and of its abstraction's build) by name;
+#: `BY_MAP`, the default, is one of them chosen by the map's shape (`planner.map_options`).
+ATP_OPTIONS: dict[str, Mapping[str, Any]] = {
+    "large-maps": LARGE_MAP_OPTIONS,
+    "scattered-maps": SCATTERED_MAP_OPTIONS,
+    "task": {},
+}
+BY_MAP = "by-map"
 
 #: Lengths this close (relative) to a `.scen` optimal count as optimal: old-style files such as
 #: `arena.map.scen` print the optimal lengths to 6 significant digits (11.8284 for 11.828427).
@@ -109,12 +122,14 @@ def add_command(commands: CommandGroup) -> None:
     )
     parser.add_argument(
         "--atp-options",
-        choices=sorted(ATP_OPTIONS),
-        default="large-maps",
-        help="the ATP's options: those that measured best on 512 x 512 MovingAI maps (top=4, "
+        choices=[BY_MAP, *sorted(ATP_OPTIONS)],
+        default=BY_MAP,
+        help="the ATP's options: those that measured best on MovingAI maps (large-maps: top=4, "
         "direct=4, direct_width=12, no_ring_when_open=0.05, one_ring_when_open=0.1, "
-        "landmarks=8, no_ring_when_clear=0.7), or the "
-        "planner's defaults, as the navigation task plans its 128 x 128 worlds (large-maps)",
+        "landmarks=8, no_ring_when_clear=0.7), the same with top=3 and direct_width=8 for "
+        "maps of scattered, dense obstacles (scattered-maps), one of those two chosen by the "
+        "map's shape (by-map), or the planner's defaults, as the navigation task plans its "
+        "128 x 128 worlds (task) (by-map)",
     )
     parser.add_argument(
         "--movement",
@@ -163,9 +178,15 @@ def run_plan(args: argparse.Namespace) -> int:
     load_seconds, _ = _timed(lambda: compile_searches((args.movement,), follower=False))
     astar: GridAstar | None = None
     described: Described | None = None
+    chosen: str | None = None
     if args.planner == "atp":
-        options = ATP_OPTIONS[args.atp_options]
-        build_seconds, described = _timed(lambda: _described(blocked, args.movement, options))
+
+        def describe() -> Described:
+            nonlocal chosen
+            chosen = _chosen_options(args.atp_options, blocked)  # the map's shape: read once
+            return _described(blocked, args.movement, ATP_OPTIONS[chosen])
+
+        build_seconds, described = _timed(describe)
     else:
         build_seconds, astar = _timed(lambda: _astar(blocked, args.movement))
     reference = "scen" if problems[0].optimal is not None else "astar"
@@ -178,7 +199,8 @@ def run_plan(args: argparse.Namespace) -> int:
             solutions.append(_solve(problem, astar, blocked, described, args.movement))
             bar.update()
     summary = _summary(solutions, args.planner, args.movement, reference)
-    summary["atp_options"] = args.atp_options if args.planner == "atp" else None
+    summary["atp_options"] = chosen
+    summary["atp_options_by_map"] = args.atp_options == BY_MAP if chosen is not None else None
     summary["load_seconds"] = load_seconds
     summary["build_seconds"] = build_seconds
     if args.json:
@@ -249,6 +271,14 @@ class Described:
     pyramid: Pyramid
     components: Components
     options: Mapping[str, Any]
+
+
+def _chosen_options(name: str, blocked: BoolGrid) -> str:
+    """The name of the options `--atp-options NAME` plans `blocked` with."""
+    if name != BY_MAP:
+        return name
+    options = map_options(blocked)
+    return next(key for key, value in ATP_OPTIONS.items() if value is options)
 
 
 def _described(blocked: BoolGrid, movement: int, options: Mapping[str, Any]) -> Described:
@@ -393,7 +423,8 @@ def _format(solutions: list[Solution], summary: dict[str, Any]) -> str:
     problems = "problem" if count == 1 else "problems"
     planner = summary["planner"]
     if summary["atp_options"] is not None:
-        planner += f" ({summary['atp_options']} options)"
+        how = ", chosen by the map" if summary["atp_options_by_map"] else ""
+        planner += f" ({summary['atp_options']} options{how})"
     line = (
         f"{count} {problems}, {planner}, {summary['movement']}-connected"
         f" (optimal lengths from {source}): mean length / optimal"

@@ -84,6 +84,72 @@ LARGE_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
     }
 )
 
+#: The options of maps whose obstacles are scattered and dense (`MapShape.scattered_dense`):
+#: `LARGE_MAP_OPTIONS` with the first plan one level lower (blocks of 8 x 8) and the direct
+#: route kept for narrower corridors (8 cells per unit of length, not 12: a level-3 corridor of
+#: the same width is half as many cells). With 16 x 16 blocks the top level's centres choose
+#: blindly among many ways of about equal length around the scattered obstacles, and the finer
+#: levels cannot undo it (issue 36, MovingAI's random512 maps, 16 longest problems, final plans
+#: against the optimal length, large-map options -> these: 25% blocked 0.965 -> 0.981, 30%
+#: 0.957 (min 0.925) -> 0.975 (min 0.951), 35% 0.967 -> 0.981, at 21-25% of the compiled A*'s
+#: time with the build against 17-18%; the same held on each map's twin, -1, not tuned on; at
+#: 10-20% blocked the large-map options hold 0.975-0.981 and are faster).
+SCATTERED_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
+    {**LARGE_MAP_OPTIONS, "top": 3, "direct_width": 8}
+)
+
+
+@frozen
+class MapShape:
+    """What `map_options` reads of a map: how scattered its obstacles are, and how dense they
+    are where the robot can go. On MovingAI's random maps (10-40% blocked) 0.065-0.098 lone
+    blocked cells (no blocked cell beside them) per free cell; on every other kind of the
+    benchmark (rooms, mazes, streets, games, caves) 0.001 or fewer."""
+
+    #: blocked cells none of whose four neighbours is blocked, per free cell
+    lone_obstacles_per_free_cell: float
+    #: the blocked share of the cells one move or less from a free cell
+    blocked_near_free: float
+
+    #: Scattered: at least this many lone blocked cells per free cell.
+    SCATTERED = 0.01
+    #: Dense: at least this share blocked near free cells (0.22: between MovingAI's random maps
+    #: of 20%, which the large-map options plan at 0.975, and 25%, at 0.965).
+    DENSE = 0.22
+
+    @classmethod
+    def of(cls, blocked: BoolGrid) -> MapShape:
+        """The shape of a map (True: blocked); outside it counts as blocked. Shifted views
+        only: half a millisecond on 512 x 512."""
+        free = ~np.pad(np.asarray(blocked, dtype=bool), 1, constant_values=True)
+        free_cells = int(free.sum())
+        if free_cells == 0:
+            return cls(0.0, 1.0)
+        middle = free[1:-1, 1:-1]
+        sides = (free[:-2, 1:-1], free[2:, 1:-1], free[1:-1, :-2], free[1:-1, 2:])
+        corners = (free[:-2, :-2], free[:-2, 2:], free[2:, :-2], free[2:, 2:])
+        lone = ~middle & np.logical_and.reduce(sides)
+        near = middle | np.logical_or.reduce(sides + corners)
+        blocked_near = int(np.count_nonzero(near & ~middle))
+        return cls(int(lone.sum()) / free_cells, blocked_near / int(near.sum()))
+
+    @property
+    def scattered_dense(self) -> bool:
+        return (
+            self.lone_obstacles_per_free_cell >= self.SCATTERED
+            and self.blocked_near_free >= self.DENSE
+        )
+
+
+def map_options(blocked: BoolGrid) -> Mapping[str, Any]:
+    """The options of `atp` (and of its abstraction's build) chosen by the map's shape:
+    `SCATTERED_MAP_OPTIONS` on maps of scattered, dense obstacles, else `LARGE_MAP_OPTIONS`
+    (`anytime plan`'s by default; on MovingAI's maps of 194 x 194 to 512 x 512 of every kind
+    they measured better than the planner's defaults, made for the navigation task's 128 x 128
+    worlds)."""
+    return SCATTERED_MAP_OPTIONS if MapShape.of(blocked).scattered_dense else LARGE_MAP_OPTIONS
+
+
 #: How many rings of neighbouring nodes around a refined segment's nodes join its corridor, by
 #: the segment's level (one where not listed). Level 2 gets three: on dense random maps (20-30%
 #: of cells blocked, scattered) the centres of 4 x 4 blocks choose blindly among ways of about
@@ -97,10 +163,13 @@ _RINGS = {2: 3}
 __all__ = [
     "DEFAULT_TOP",
     "LARGE_MAP_OPTIONS",
+    "SCATTERED_MAP_OPTIONS",
+    "MapShape",
     "MultiPath",
     "Segment",
     "atp",
     "compile_searches",
+    "map_options",
     "quality_estimate",
     "segmentize",
 ]

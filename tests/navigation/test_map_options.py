@@ -1,0 +1,108 @@
+"""The ATP's options chosen by the map's shape (issue 36): `MapShape` reads how scattered and
+how dense a map's obstacles are, and `map_options` plans maps of scattered, dense obstacles with
+`SCATTERED_MAP_OPTIONS`, every other with `LARGE_MAP_OPTIONS`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from anytime_navigation.movingai import load_map
+from anytime_navigation.planning.abstraction import Pyramid
+from anytime_navigation.planning.planner import (
+    LARGE_MAP_OPTIONS,
+    SCATTERED_MAP_OPTIONS,
+    MapShape,
+    atp,
+    map_options,
+)
+from anytime_navigation.resources import data_file
+from anytime_navigation.task.execution import execute
+from hypothesis import given
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from anytime.modules import Context
+
+
+def _grid(rows: str) -> np.ndarray:
+    return np.array([[c == "@" for c in row] for row in rows.split()], dtype=bool)
+
+
+def test_one_lone_obstacle() -> None:
+    """One blocked cell among free ones: lone (no blocked neighbour), and every cell is beside
+    a free one."""
+    shape = MapShape.of(_grid(".... .@.. .... ...."))
+    assert shape == MapShape(1 / 15, 1 / 16)
+
+
+def test_obstacles_that_touch_are_not_lone() -> None:
+    """Two blocked cells side by side are not lone; touching by a corner, both are (4-neighbours
+    only); the outside counts as blocked, so a cell at the edge is not lone."""
+    assert MapShape.of(_grid("..... .@@.. .....")).lone_obstacles_per_free_cell == 0.0
+    assert MapShape.of(_grid("..... .@... ..@.. .....")) == MapShape(2 / 18, 2 / 20)
+    assert MapShape.of(_grid("@.... ..... .....")).lone_obstacles_per_free_cell == 0.0
+
+
+def test_blocked_far_from_free_cells_is_not_counted() -> None:
+    """A thick wall's inside is not beside any free cell: only its rim counts as blocked near
+    free cells."""
+    blocked = np.zeros((6, 6), dtype=bool)
+    blocked[:, 2:] = True  # columns 2-5 blocked: column 2 is beside a free cell, 3-5 are not
+    assert MapShape.of(blocked) == MapShape(0.0, 6 / 18)
+
+
+def test_a_map_without_free_cells() -> None:
+    assert MapShape.of(np.ones((3, 3), dtype=bool)) == MapShape(0.0, 1.0)
+
+
+@given(arrays(np.bool_, st.tuples(st.integers(1, 12), st.integers(1, 12))))
+def test_the_shape_is_the_same_turned_or_mirrored(blocked: np.ndarray) -> None:
+    shape = MapShape.of(blocked)
+    assert shape.lone_obstacles_per_free_cell >= 0.0
+    assert 0.0 <= shape.blocked_near_free <= 1.0
+    for turned in (blocked.T, blocked[::-1], blocked[:, ::-1], np.rot90(blocked)):
+        assert MapShape.of(turned) == shape
+
+
+def _random(share: float, seed: int = 0) -> np.ndarray:
+    return np.random.default_rng(seed).random((128, 128)) < share
+
+
+@pytest.mark.parametrize(
+    ("blocked", "options"),
+    [
+        (_random(0.10), LARGE_MAP_OPTIONS),  # scattered, not dense
+        (_random(0.20), LARGE_MAP_OPTIONS),
+        (_random(0.25), SCATTERED_MAP_OPTIONS),
+        (_random(0.35), SCATTERED_MAP_OPTIONS),
+        (np.zeros((64, 64), dtype=bool), LARGE_MAP_OPTIONS),  # open ground
+    ],
+)
+def test_scattered_dense_maps_get_the_scattered_options(
+    blocked: np.ndarray, options: object
+) -> None:
+    assert map_options(blocked) is options
+
+
+@pytest.mark.parametrize("name", ["random512-10-0", "8room_000", "maze512-1-0", "arena"])
+def test_the_shipped_maps_get_the_large_map_options(name: str) -> None:
+    """Random 10% is scattered but not dense (0.100 blocked near free cells); rooms of 8, the
+    maze and the arena have no lone obstacles."""
+    blocked = load_map(Path(str(data_file("maps", f"{name}.map"))))[0]
+    assert map_options(blocked) is LARGE_MAP_OPTIONS
+
+
+def test_the_scattered_options_plan_to_the_goal() -> None:
+    """Planned with the scattered-map options to completion, a dense random map's plan is
+    followed to the goal, no shorter than the straight line."""
+    blocked = _random(0.3, seed=4)
+    blocked[2, 2] = blocked[125, 125] = False
+    plans = list(
+        atp(Context(), (2, 2), (125, 125), Pyramid.build(blocked), movement=8,
+            **SCATTERED_MAP_OPTIONS)
+    )  # fmt: skip
+    run = execute(plans[-1].value, blocked, movement=8, keep_to_plan=True)
+    assert run.reached
+    assert run.length >= 123 * np.sqrt(2)
