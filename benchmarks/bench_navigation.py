@@ -32,8 +32,9 @@ ATP's abstraction.
    only when the robot follows it no longer than the last one registered, `following.Follower`
    in the ATP's time; and the options `anytime plan` chooses by the map's shape,
    `planner.map_options`, reading it timed with the build), against A* on the longest problems
-   of 14 MovingAI maps, the shipped three and eleven
-   more in benchmarks/data/movingai/ (random with 20% of cells blocked, rooms of 16, 32 and 64,
+   of 15 MovingAI maps, the shipped three and twelve
+   more in benchmarks/data/movingai/ (random with 20% and 30% of cells blocked, rooms of 16,
+   32 and 64,
    mazes of corridor widths 2, 4 and 8, two street maps, a Baldur's Gate II and a Dragon Age
    map): first plan quality and time, final quality mean (min), time and expansions as fractions
    of A*'s, the time with the abstraction's one-off build added, the falls of the anytime curve
@@ -42,7 +43,7 @@ ATP's abstraction.
    networkx and tcod, where installed: the `bench` extra), and issue 36's targets. Optimal
    lengths are A*'s: the old-style `.scen` files round theirs to 5 digits (all agree with A*'s
    to that).
-4. The compiled A*'s lengths against the `.scen` optimal lengths of the 14 maps: every problem
+4. The compiled A*'s lengths against the `.scen` optimal lengths of the 15 maps: every problem
    in a full run, 200 per map spread over the file with --quick.
 
 Timing: `time.perf_counter`, the garbage collector paused, the sides interleaved per problem
@@ -124,6 +125,7 @@ MOVINGAI = tuple(MAPS / f"{name}.map" for name in ("8room_000", "maze512-1-0", "
 KINDS: tuple[tuple[str, Path], ...] = (
     ("random 10%", MAPS / "random512-10-0.map"),
     ("random 20%", MORE_MAPS / "random512-20-0.map"),
+    ("random 30%", MORE_MAPS / "random512-30-0.map"),  # `map_options`' scattered, dense kind
     ("rooms of 8", MAPS / "8room_000.map"),
     ("rooms of 16", MORE_MAPS / "16room_000.map"),
     ("rooms of 32", MORE_MAPS / "32room_000.map"),

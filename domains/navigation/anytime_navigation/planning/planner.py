@@ -70,8 +70,9 @@ from .search import (
 DEFAULT_TOP = 3
 
 #: The options that measured best on the 512 x 512 MovingAI maps of every kind (issue 36; the
-#: per-kind table of benchmarks/bench_navigation.py): `anytime plan`'s by default. Not the
-#: navigation task's, whose 128 x 128 worlds are planned better with the defaults.
+#: per-kind table of benchmarks/bench_navigation.py): `anytime plan`'s by default on every map
+#: but those of scattered, dense obstacles (`map_options`). Not the navigation task's, whose
+#: 128 x 128 worlds are planned better with the defaults.
 LARGE_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
     {
         "top": 4,
