@@ -92,8 +92,8 @@ LARGE_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
 #: blindly among many ways of about equal length around the scattered obstacles, and the finer
 #: levels cannot undo it (issue 36, MovingAI's random512 maps, 16 longest problems, final plans
 #: against the optimal length, large-map options -> these: 25% blocked 0.965 -> 0.981, 30%
-#: 0.957 (min 0.925) -> 0.975 (min 0.951), 35% 0.967 -> 0.981, at 21-25% of the compiled A*'s
-#: time with the build against 17-18%; the same held on each map's twin, -1, not tuned on; at
+#: 0.957 (min 0.925) -> 0.975 (min 0.951), 35% 0.967 -> 0.981, at 21-27% of the compiled A*'s
+#: time with the build against 16-20%; the same held on each map's twin, -1, not tuned on; at
 #: 10-20% blocked the large-map options hold 0.975-0.981 and are faster).
 SCATTERED_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
     {**LARGE_MAP_OPTIONS, "top": 3, "direct_width": 8}
