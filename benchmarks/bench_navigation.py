@@ -97,6 +97,7 @@ from anytime_navigation.planning.planner import (
     DEFAULT_TOP,
     LARGE_MAP_OPTIONS,
     SCATTERED_MAP_OPTIONS,
+    SOLID_MAP_OPTIONS,
     MultiPath,
     atp,
     compile_searches,
@@ -182,6 +183,7 @@ KIND_CONFIGS: dict[str, dict[str, Any]] = {
         key: value for key, value in LARGE_MAP_OPTIONS.items() if key != "no_ring_when_clear"
     },
     "... and no_ring_when_clear=0.7": dict(LARGE_MAP_OPTIONS),  # `anytime plan`'s options
+    "... and skip_level_1": dict(SOLID_MAP_OPTIONS),  # the options of solid maps
     "... and follow (compiled)": {**LARGE_MAP_OPTIONS, "follow": FOLLOW},
     "options by map (map_options)": {"options": BY_MAP},  # `anytime plan`'s default
 }
@@ -879,8 +881,9 @@ def shown(name: str, options: dict[str, Any], blocked: BoolGrid) -> str:
     """A configuration's name in a table; a `BY_MAP` one's says which options the map chose."""
     if options.get("options") != BY_MAP:
         return name
-    which = "scattered" if map_options(blocked) is SCATTERED_MAP_OPTIONS else "large"
-    return f"{name}: {which}-map options"
+    chosen = map_options(blocked)
+    which = {id(SCATTERED_MAP_OPTIONS): "scattered", id(SOLID_MAP_OPTIONS): "solid"}
+    return f"{name}: {which.get(id(chosen), 'large')}-map options"
 
 
 def bench_kinds(
@@ -1019,7 +1022,10 @@ def bench_kinds(
         " no_ring_when_clear=S (with the row above's options: planner.LARGE_MAP_OPTIONS,\n"
         " anytime plan's): a level-2 segment at least S of whose nodes are clear 4 x 4 blocks\n"
         " is refined through its own nodes' children, without rings;\n"
-        " follow (with the row above's\n"
+        " skip_level_1 (with the no_ring_when_clear row's options: planner.SOLID_MAP_OPTIONS,\n"
+        " anytime plan's on maps of solid obstacles): a level-2 segment is refined straight to\n"
+        " the base cells, through its own nodes' cells;\n"
+        " follow (with the no_ring_when_clear row's\n"
         " options): a plan is registered only when the robot follows it no longer than the\n"
         " last one registered (following.Follower: execute's length, compiled; its calls in the\n"
         " ATP's time, its build, once per map, with the abstraction's); the\n"

@@ -14,7 +14,12 @@ import pytest
 from anytime_navigation.cli.plan import ATP_OPTIONS
 from anytime_navigation.movingai import load_map, load_scenarios
 from anytime_navigation.planning.abstraction import Pyramid
-from anytime_navigation.planning.planner import LARGE_MAP_OPTIONS, SCATTERED_MAP_OPTIONS, atp
+from anytime_navigation.planning.planner import (
+    LARGE_MAP_OPTIONS,
+    SCATTERED_MAP_OPTIONS,
+    SOLID_MAP_OPTIONS,
+    atp,
+)
 from anytime_navigation.resources import data_file
 from conftest import Cli
 
@@ -85,15 +90,17 @@ def test_atp_quality_is_optimal_over_executed_length(cli: Cli) -> None:
     assert summary["expansions"] == sum(p["expansions"] for p in problems) > 0
 
 
-@pytest.mark.parametrize("name", ["large-maps", "scattered-maps", "task"])
+@pytest.mark.parametrize("name", ["large-maps", "scattered-maps", "solid-maps", "task"])
 def test_atp_options_are_atps_keyword_arguments(cli: Cli, name: str) -> None:
-    """`--atp-options` plans with `LARGE_MAP_OPTIONS`, `SCATTERED_MAP_OPTIONS` or `atp`'s own
+    """`--atp-options` plans with `LARGE_MAP_OPTIONS`, `SCATTERED_MAP_OPTIONS`,
+    `SOLID_MAP_OPTIONS` or `atp`'s own
     defaults (the navigation task's): the same plans and ticks as `atp` called with them. By
     default they are chosen by the map: random512-10-0's obstacles are scattered but not dense
     enough for the scattered-map options."""
     assert ATP_OPTIONS == {
         "large-maps": LARGE_MAP_OPTIONS,
         "scattered-maps": SCATTERED_MAP_OPTIONS,
+        "solid-maps": SOLID_MAP_OPTIONS,
         "task": {},
     }
     default = _json(cli, "--planner", "atp", "--start", "489,1", "--goal", "33,493", map=RANDOM)
@@ -187,7 +194,7 @@ def test_table_and_summary_line(cli: Cli) -> None:
     assert lines[1].split()[:5] == ["1", "1,11", "1,12", "1.0000", "1.0000"]
     assert len(lines) == 6
     assert lines[-2].startswith(
-        "3 problems, atp (large-maps options, chosen by the map), 8-connected (optimal lengths"
+        "3 problems, atp (solid-maps options, chosen by the map), 8-connected (optimal lengths"
         " from the .scen"
         " file): mean length /"
         " optimal 1.0000, "

@@ -42,6 +42,7 @@ from ..planning.planner import (
     DEFAULT_TOP,
     LARGE_MAP_OPTIONS,
     SCATTERED_MAP_OPTIONS,
+    SOLID_MAP_OPTIONS,
     atp,
     compile_searches,
     map_options,
@@ -59,6 +60,7 @@ _T = TypeVar("_T")
 ATP_OPTIONS: dict[str, Mapping[str, Any]] = {
     "large-maps": LARGE_MAP_OPTIONS,
     "scattered-maps": SCATTERED_MAP_OPTIONS,
+    "solid-maps": SOLID_MAP_OPTIONS,
     "task": {},
 }
 BY_MAP = "by-map"
@@ -127,9 +129,11 @@ def add_command(commands: CommandGroup) -> None:
         help="the ATP's options: those that measured best on MovingAI maps (large-maps: top=4, "
         "direct=4, direct_width=12, no_ring_when_open=0.05, one_ring_when_open=0.1, "
         "landmarks=8, no_ring_when_clear=0.7), the same with top=3 and direct_width=8 for "
-        "maps of scattered, dense obstacles (scattered-maps), one of those two chosen by the "
-        "map's shape (by-map), or the planner's defaults, as the navigation task plans its "
-        "128 x 128 worlds (task) (by-map)",
+        "maps of scattered, dense obstacles (scattered-maps), the same with level-2 segments "
+        "refined straight to the cells (skip_level_1) for maps of solid obstacles such as "
+        "streets and caves (solid-maps), one of those three chosen by the map's shape "
+        "(by-map), or the planner's defaults, as the navigation task plans its 128 x 128 "
+        "worlds (task) (by-map)",
     )
     parser.add_argument(
         "--movement",

@@ -573,7 +573,7 @@ class Components:
         none = np.zeros(0, dtype=np.int64)
         path, best, expansions = compiled().refinement(
             up.first, up.neighbour, up.first_child, up.child, self._scratch[level],
-            np.asarray(route, dtype=np.int64), rings,
+            np.asarray(route, dtype=np.int64), rings, none, none,
             at.first if at.k else none,
             at.neighbour if at.k else none,
             at.cost if at.k else np.zeros(0),

@@ -608,14 +608,21 @@ def widened_children(
                     n += 1
         begin = end
     around = np.sort(around[:n])  # children in node order, as the level stores them
-    total = 0
     for i in range(n):
-        total += first_child[around[i] + 1] - first_child[around[i]]
+        mark[around[i]] = -1
+    return children_of(around, first_child, child)
+
+
+@_compiled
+def children_of(nodes: IntArray, first_child: IntArray, child: IntArray) -> IntArray:
+    """The children of `nodes` (node i's are `child[first_child[i]:first_child[i + 1]]`), each
+    node's in turn."""
+    total = 0
+    for u in nodes:
+        total += first_child[u + 1] - first_child[u]
     children = np.empty(total, dtype=np.int64)
     k = 0
-    for i in range(n):
-        u = around[i]
-        mark[u] = -1
+    for u in nodes:
         for c in range(first_child[u], first_child[u + 1]):
             children[k] = child[c]
             k += 1
@@ -631,6 +638,8 @@ def refinement(
     mark: IntArray,
     route: IntArray,
     rings: int,
+    grand_first_child: IntArray,
+    grand_child: IntArray,
     first: IntArray,
     neighbour: IntArray,
     cost: FloatArray,
@@ -656,14 +665,20 @@ def refinement(
     (`target`) when it is >= 0, else any child of `source_node` (`target_node`), each costing
     how much farther its centre is from (`source_x`, `source_y`) than the nearest child's;
     then `search` one level down (its rows, or at level 0 `padded` and `wide`; `local` its
-    scratch). Returns what `search` returns."""
+    scratch). With `grand_first_child` not empty, the search is two levels down: the corridor
+    and the ends are the children's children (`grand_first_child`, `grand_child`: the rows of
+    the level one down). Returns what `search` returns."""
     allowed = widened_children(up_first, up_neighbour, first_child, child, route, rings, mark)
+    if len(grand_first_child):
+        allowed = children_of(allowed, grand_first_child, grand_child)
     sources, source_costs = _ends(
-        first_child, child, centre, source, source_node, source_x, source_y
-    )
+        first_child, child, grand_first_child, grand_child, centre,
+        source, source_node, source_x, source_y,
+    )  # fmt: skip
     targets, target_costs = _ends(
-        first_child, child, centre, target, target_node, target_x, target_y
-    )
+        first_child, child, grand_first_child, grand_child, centre,
+        target, target_node, target_x, target_y,
+    )  # fmt: skip
     return search(
         allowed, local, first, neighbour, cost, padded, wide, block, centre, movement,
         sources, source_costs, targets, target_costs, np.zeros((0, 0)),
@@ -674,20 +689,24 @@ def refinement(
 def _ends(
     first_child: IntArray,
     child: IntArray,
+    grand_first_child: IntArray,
+    grand_child: IntArray,
     centre: FloatArray,
     fixed: int,
     node: int,
     x: float,
     y: float,
 ) -> tuple[IntArray, FloatArray]:
-    """A refined segment's end: the node `fixed` (>= 0) at no cost, or the children of `node`,
-    each at its centre's distance from (x, y) less the nearest one's (the planner's
-    `_approach`)."""
+    """A refined segment's end: the node `fixed` (>= 0) at no cost, or the children of `node`
+    (their children when `grand_first_child` is not empty), each at its centre's distance from
+    (x, y) less the nearest one's (the planner's `_approach`)."""
     if fixed >= 0:
         ends = np.empty(1, dtype=np.int64)
         ends[0] = fixed
         return ends, np.zeros(1)
     ends = child[first_child[node] : first_child[node + 1]].copy()
+    if len(grand_first_child):
+        ends = children_of(ends, grand_first_child, grand_child)
     d = np.empty(len(ends))
     for i in range(len(ends)):
         d[i] = math.hypot(centre[ends[i], 0] - x, centre[ends[i], 1] - y)
@@ -1569,13 +1588,16 @@ def refine_step(
     no_ring_when_open: float,
     one_ring_when_open: float,
     no_ring_when_clear: float,
+    skip_level_1: bool,
     limit: float,
 ) -> tuple[int, int, int, int, int, float, IntArray, IntArray, IntArray]:
     """REFINE(WORST-SEGMENT(plan)) (`planner._Planner.refine`, the same choices): the worst
     segment's nodes searched one level lower through the children of its nodes and of
     `rings_by_level[k]` rings of neighbours (none or one when its mean obstacleness is at most
     `no_ring_when_open` at level 1 or `one_ring_when_open` at level 2, and none at level 2
-    when at least the share `no_ring_when_clear` of its nodes are clear blocks; NaN: never), its
+    when at least the share `no_ring_when_clear` of its nodes are clear blocks; NaN: never); a
+    level-2 segment is searched at level 0 instead with `skip_level_1`, through its own nodes'
+    cells (no rings: `refinement`'s two levels down); its
     ends
     the start's and goal's nodes (`start`, `goal`: level 0's) or a finer neighbour's end, else
     any child of its end node, costed toward the coarser neighbour's next node; the path found
@@ -1596,7 +1618,10 @@ def refine_step(
     while order[index] != s:
         index += 1
     k = level[s]
-    lower = k - 1
+    # Straight to the base level (then no segment is ever of level 1: the plan's segments are
+    # of level 2 or above until refined, and then of level 0)
+    to_base = skip_level_1 and k == 2
+    lower = 0 if to_base else k - 1
     if index == 0:
         source = _ancestor(start, 0, lower, parent0, parent1, parents, node_at)
         source_node, source_x, source_y = -1, 0.0, 0.0
@@ -1636,14 +1661,18 @@ def refine_step(
         clear = _clear_share(route, k, block1, blocks, node_at, pyramid, pyramid_at, pyramid_side)
         if clear >= no_ring_when_clear:
             rings = 0
+    if to_base:
+        rings = 0
     up_nodes = _of_level(k, scratch1, scratches, node_at)
     up_first = _of_level(k, first1, firsts, first_at)
     up_neighbour = _of_level(k, neighbour1, neighbours, edge_at)
     first_child = _of_level(k, first_child1, first_children, first_at)
     child = _of_level(k, child1, children, child_at)
     if lower == 0:
+        grand_first_child, grand_child = (first_child1, child1) if to_base else (nothing, nothing)
         path, _, expansions = refinement(
             up_first, up_neighbour, first_child, child, up_nodes, route, rings,
+            grand_first_child, grand_child,
             nothing, nothing, np.zeros(0), padded, wide, block0, centre0, movement, scratch0,
             source, source_node, source_x, source_y, target, target_node, target_x, target_y,
         )  # fmt: skip
@@ -1651,7 +1680,7 @@ def refine_step(
     else:
         blocks_lower = _of_level(lower, block1, blocks, node_at)
         path, _, expansions = refinement(
-            up_first, up_neighbour, first_child, child, up_nodes, route, rings,
+            up_first, up_neighbour, first_child, child, up_nodes, route, rings, nothing, nothing,
             _of_level(lower, first1, firsts, first_at),
             _of_level(lower, neighbour1, neighbours, edge_at),
             _of_level(lower, cost1, costs, edge_at),

@@ -100,6 +100,18 @@ SCATTERED_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
 )
 
 
+#: The options of maps whose obstacles are solid masses (`MapShape.solid`: streets, buildings,
+#: the games' caves and halls): `LARGE_MAP_OPTIONS` with level-2 segments refined straight to
+#: the base cells (`skip_level_1`). There the walls are thick, a 4 x 4 block's free region is
+#: the way through it, and the level-1 step with its three rings of neighbours changes little
+#: (issue 36, the 16 longest problems, final plans against the optimal length: Dragon Age's
+#: ost003d, lak303d, ht_chantry, brc202d and BG II's AR0603SR, AR0011SR within 0.006 of the
+#: large-map options' (0.99 or more), the streets' unchanged, at 10-25% less time). Where
+#: walls are one cell thick (rooms, mazes) or obstacles scattered (random maps), that step is
+#: what finds the doors and the ways round: rooms of 8 lost 0.024, random 20% 0.049.
+SOLID_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType({**LARGE_MAP_OPTIONS, "skip_level_1": True})
+
+
 @frozen
 class MapShape:
     """What `map_options` reads of a map: how scattered its obstacles are, and how dense they
@@ -111,12 +123,18 @@ class MapShape:
     lone_obstacles_per_free_cell: float
     #: the blocked share of the cells one move or less from a free cell
     blocked_near_free: float
+    #: the share of blocked cells with no free cell one move or less from them
+    solid_obstacles: float
 
     #: Scattered: at least this many lone blocked cells per free cell.
     SCATTERED = 0.01
     #: Dense: at least this share blocked near free cells (0.22: between MovingAI's random maps
     #: of 20%, which the large-map options plan at 0.975, and 25%, at 0.965).
     DENSE = 0.22
+    #: Solid: at least this share of the blocked cells inside a mass of them. On MovingAI's
+    #: streets, Baldur's Gate II and Dragon Age maps 0.74-0.99; rooms, mazes and random maps
+    #: of up to 30% 0.50 or less (rooms of 64: 0.50, of 32: 0.27, the others 0.03 or less).
+    SOLID = 0.6
 
     @classmethod
     def of(cls, blocked: BoolGrid) -> MapShape:
@@ -125,14 +143,16 @@ class MapShape:
         free = ~np.pad(np.asarray(blocked, dtype=bool), 1, constant_values=True)
         free_cells = int(free.sum())
         if free_cells == 0:
-            return cls(0.0, 1.0)
+            return cls(0.0, 1.0, 1.0)
         middle = free[1:-1, 1:-1]
         sides = (free[:-2, 1:-1], free[2:, 1:-1], free[1:-1, :-2], free[1:-1, 2:])
         corners = (free[:-2, :-2], free[:-2, 2:], free[2:, :-2], free[2:, 2:])
         lone = ~middle & np.logical_and.reduce(sides)
         near = middle | np.logical_or.reduce(sides + corners)
         blocked_near = int(np.count_nonzero(near & ~middle))
-        return cls(int(lone.sum()) / free_cells, blocked_near / int(near.sum()))
+        blocked_cells = middle.size - free_cells
+        solid = (blocked_cells - blocked_near) / blocked_cells if blocked_cells else 0.0
+        return cls(int(lone.sum()) / free_cells, blocked_near / int(near.sum()), solid)
 
     @property
     def scattered_dense(self) -> bool:
@@ -141,14 +161,21 @@ class MapShape:
             and self.blocked_near_free >= self.DENSE
         )
 
+    @property
+    def solid(self) -> bool:
+        return self.solid_obstacles >= self.SOLID
+
 
 def map_options(blocked: BoolGrid) -> Mapping[str, Any]:
     """The options of `atp` (and of its abstraction's build) chosen by the map's shape:
-    `SCATTERED_MAP_OPTIONS` on maps of scattered, dense obstacles, else `LARGE_MAP_OPTIONS`
-    (`anytime plan`'s by default; on MovingAI's maps of 194 x 194 to 512 x 512 of every kind
-    they measured better than the planner's defaults, made for the navigation task's 128 x 128
-    worlds)."""
-    return SCATTERED_MAP_OPTIONS if MapShape.of(blocked).scattered_dense else LARGE_MAP_OPTIONS
+    `SCATTERED_MAP_OPTIONS` on maps of scattered, dense obstacles, `SOLID_MAP_OPTIONS` on maps
+    of solid ones, else `LARGE_MAP_OPTIONS` (`anytime plan`'s by default; on MovingAI's maps of
+    194 x 194 to 512 x 512 of every kind they measured better than the planner's defaults, made
+    for the navigation task's 128 x 128 worlds)."""
+    shape = MapShape.of(blocked)
+    if shape.scattered_dense:
+        return SCATTERED_MAP_OPTIONS
+    return SOLID_MAP_OPTIONS if shape.solid else LARGE_MAP_OPTIONS
 
 
 #: How many rings of neighbouring nodes around a refined segment's nodes join its corridor, by
@@ -368,6 +395,7 @@ def atp(
     one_ring_when_open: float | None = None,
     landmarks: int | None = None,
     no_ring_when_clear: float | None = None,
+    skip_level_1: bool = False,
 ) -> Iterator[Result]:
     """The anytime abstract planner: yields `Result(MultiPath, quality_estimate)` after the first
     plan and after every refinement (with `follow`, each that is followed no worse than the last
@@ -475,6 +503,14 @@ def atp(
             random 10%, rooms of 8 and 16 unchanged: their segments are seldom that clear).
             The price is the blocks' staircase: across an open 64 x 64 map the route keeps to
             the level-2 plan's blocks and is followed at 0.9855 of the optimum, not 1.0.
+        skip_level_1: a level-2 segment is refined straight to the base cells, through its own
+            nodes' cells (no rings), not to level 1 (False, the default), so no segment is ever
+            of level 1. Half as many refinements below level 2, each searching the
+            cells the two levels below would have searched through; where walls are thick, the
+            finer level's rings changed little (issue 36: with it on MovingAI's
+            Dragon Age caves 10-25% less time, final plans within 0.006; `SOLID_MAP_OPTIONS`),
+            where they are one cell thick or obstacles scattered, much (rooms of 8: 0.985 ->
+            0.962, random 20%: 0.975 -> 0.926 of the optimal length).
 
     REFINE re-plans the chosen level-k segment one level lower, through the children of its
     nodes only (they are connected: see `components`), so the search is local and always finds
@@ -542,6 +578,7 @@ def atp(
         one_ring_when_open=one_ring_when_open,
         no_ring_when_clear=no_ring_when_clear,
         landmarks=landmarks or 0,
+        skip_level_1=skip_level_1,
     )
     try:
         found = planner.first(top)
@@ -642,8 +679,10 @@ def atp(
             Segment._made(lower, cells[first : last + 1], nodes[first : last + 1])
             for first, last in halves
         ]
-        head = plan.head[:-1] if index == 0 else plan.head
-        tail = plan.tail[1:] if index == len(segments) - len(halves) else plan.tail
+        # the start's (goal's) one-cell segments below the first (last) segment's new level
+        head = plan.head[:lower] if index == 0 else plan.head
+        last = index == len(segments) - len(halves)
+        tail = plan.tail[len(plan.tail) - lower :] if last else plan.tail
         plan = MultiPath(start, goal, head, tuple(segments), tail, components)
         if better(plan):
             yield Result(plan, share * estimate)
@@ -670,6 +709,7 @@ class _Steps:
             math.nan if no_ring is None else no_ring,  # NaN: no segment is that open
             math.nan if one_ring is None else one_ring,
             math.nan if clear is None else clear,
+            bool(planner.skip_level_1),
         )
 
     def begin(self, made: list[tuple[Segment, float]]) -> float:
@@ -816,6 +856,7 @@ class _Planner:
         one_ring_when_open: float | None = None,
         no_ring_when_clear: float | None = None,
         landmarks: int = 0,
+        skip_level_1: bool = False,
     ) -> None:
         self.components, self.pyramid = components, pyramid
         self.landmarks = landmarks
@@ -824,6 +865,7 @@ class _Planner:
         self.no_ring_when_open = no_ring_when_open
         self.one_ring_when_open = one_ring_when_open
         self.no_ring_when_clear = no_ring_when_clear
+        self.skip_level_1 = skip_level_1
 
     def first(self, level: int) -> NodePath:
         """The first plan: a path of nodes at `level` from the start's node to the goal's, the
