@@ -98,9 +98,7 @@ def _blocks(seed: int = 0) -> np.ndarray:
         (_blocks() | _random(0.02), SOLID_MAP_OPTIONS),  # a few scattered among them
     ],
 )
-def test_maps_get_the_options_of_their_shape(
-    blocked: np.ndarray, options: object
-) -> None:
+def test_maps_get_the_options_of_their_shape(blocked: np.ndarray, options: object) -> None:
     assert map_options(blocked) is options
 
 
@@ -143,7 +141,9 @@ def test_the_solid_options_plan_to_the_goal() -> None:
     blocked = _blocks(seed=1)
     start, goal = (1, 126), (126, 1)
     blocked[start[1], start[0]] = blocked[goal[1], goal[0]] = False
-    plans = list(atp(Context(), start, goal, Pyramid.build(blocked), movement=8, **SOLID_MAP_OPTIONS))
+    plans = list(
+        atp(Context(), start, goal, Pyramid.build(blocked), movement=8, **SOLID_MAP_OPTIONS)
+    )
     run = execute(plans[-1].value, blocked, movement=8, keep_to_plan=True)
     assert run.reached
     assert run.length >= 125 * np.sqrt(2)
