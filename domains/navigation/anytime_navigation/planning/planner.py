@@ -114,10 +114,10 @@ SOLID_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType({**LARGE_MAP_OPTIONS, "s
 
 @frozen
 class MapShape:
-    """What `map_options` reads of a map: how scattered its obstacles are, and how dense they
-    are where the robot can go. On MovingAI's random maps (10-40% blocked) 0.065-0.098 lone
-    blocked cells (no blocked cell beside them) per free cell; on every other kind of the
-    benchmark (rooms, mazes, streets, games, caves) 0.001 or fewer."""
+    """What `map_options` reads of a map: how scattered its obstacles are, how dense they are
+    where the robot can go, and how solid they are. On MovingAI's random maps (10-40% blocked)
+    0.065-0.098 lone blocked cells (no blocked cell beside them) per free cell; on every other
+    kind of the benchmark (rooms, mazes, streets, games, caves) 0.001 or fewer."""
 
     #: blocked cells none of whose four neighbours is blocked, per free cell
     lone_obstacles_per_free_cell: float
