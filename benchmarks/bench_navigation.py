@@ -882,8 +882,13 @@ def shown(name: str, options: dict[str, Any], blocked: BoolGrid) -> str:
     if options.get("options") != BY_MAP:
         return name
     chosen = map_options(blocked)
-    which = {id(SCATTERED_MAP_OPTIONS): "scattered", id(SOLID_MAP_OPTIONS): "solid"}
-    return f"{name}: {which.get(id(chosen), 'large')}-map options"
+    kinds = (
+        (SCATTERED_MAP_OPTIONS, "scattered"),
+        (SOLID_MAP_OPTIONS, "solid"),
+        (LARGE_MAP_OPTIONS, "large"),
+    )
+    which = next(kind for named, kind in kinds if named is chosen)
+    return f"{name}: {which}-map options"
 
 
 def bench_kinds(

@@ -1657,12 +1657,12 @@ def refine_step(
     if k == 2 and o <= one_ring_when_open:
         rings = 1
     route = pool[begin[s] : end[s]]
-    if k == 2 and no_ring_when_clear <= 1.0:  # NaN: never
+    if to_base:  # through the route's own nodes' cells
+        rings = 0
+    elif k == 2 and no_ring_when_clear <= 1.0:  # NaN: never
         clear = _clear_share(route, k, block1, blocks, node_at, pyramid, pyramid_at, pyramid_side)
         if clear >= no_ring_when_clear:
             rings = 0
-    if to_base:
-        rings = 0
     up_nodes = _of_level(k, scratch1, scratches, node_at)
     up_first = _of_level(k, first1, firsts, first_at)
     up_neighbour = _of_level(k, neighbour1, neighbours, edge_at)

@@ -71,8 +71,8 @@ DEFAULT_TOP = 3
 
 #: The options that measured best on the 512 x 512 MovingAI maps of every kind (issue 36; the
 #: per-kind table of benchmarks/bench_navigation.py): `anytime plan`'s by default on every map
-#: but those of scattered, dense obstacles (`map_options`). Not the navigation task's, whose
-#: 128 x 128 worlds are planned better with the defaults.
+#: but those of scattered, dense obstacles or solid ones (`map_options`). Not the navigation
+#: task's, whose 128 x 128 worlds are planned better with the defaults.
 LARGE_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
     {
         "top": 4,
@@ -139,7 +139,7 @@ class MapShape:
     @classmethod
     def of(cls, blocked: BoolGrid) -> MapShape:
         """The shape of a map (True: blocked); outside it counts as blocked. Shifted views
-        only, combined in place: about a millisecond on 1024 x 1024."""
+        only, combined in place: about 2 ms on 1024 x 1024."""
         grid = np.asarray(blocked, dtype=bool)
         free = np.zeros((grid.shape[0] + 2, grid.shape[1] + 2), dtype=bool)  # a blocked border
         np.logical_not(grid, out=free[1:-1, 1:-1])
@@ -688,8 +688,8 @@ def atp(
         ]
         # the start's (goal's) one-cell segments below the first (last) segment's new level
         head = plan.head[:lower] if index == 0 else plan.head
-        last = index == len(segments) - len(halves)
-        tail = plan.tail[len(plan.tail) - lower :] if last else plan.tail
+        at_end = index == len(segments) - len(halves)
+        tail = plan.tail[len(plan.tail) - lower :] if at_end else plan.tail
         plan = MultiPath(start, goal, head, tuple(segments), tail, components)
         if better(plan):
             yield Result(plan, share * estimate)
