@@ -579,7 +579,7 @@ class Components:
             at.cost if at.k else np.zeros(0),
             at.padded if at.padded is not None else none,
             at.grid.shape[1] + 2 if at.grid is not None else 0,
-            at.block, at.centre, self.movement, self._scratch[level - 1],
+            at.block, at.centre, self.movement, False, self._scratch[level - 1],
             *source, *target,
         )  # fmt: skip
         if expansions > limit:
@@ -597,6 +597,7 @@ class Components:
         target_costs: Sequence[float] | None = None,
         limit: float = math.inf,
         landmarks: int = 0,
+        jump_points: bool = False,
     ) -> NodePath | None:
         """A cheapest path of neighbouring nodes at `level` from any of `sources` to any of
         `targets` through the `allowed` nodes (sources and targets among them), with the extra
@@ -608,7 +609,9 @@ class Components:
         target is known. Its work is counted as the nodes an A* search for the
         same path expands, those whose cost from a source plus the heuristic (the distance to the
         nearest target, consistent with the edges' costs) is below the path's cost: a measure
-        of the search, not of how it is computed.
+        of the search, not of how it is computed. With `jump_points` at level 0 and octile
+        moves, a jump point search (`corridor_search.jump_search`): a path as cheap, its work
+        the jump points expanded.
 
         Raises:
             SearchLimit: that work is more than `limit`.
@@ -620,23 +623,32 @@ class Components:
         wide = at.grid.shape[1] + 2 if at.grid is not None else 0
         sources_ = np.asarray(sources, dtype=np.int64)
         targets_ = np.asarray(targets, dtype=np.int64)
-        path, best, expansions = compiled().search(
-            np.asarray(allowed, dtype=np.int64),
-            local,
-            at.first if at.k else none,
-            at.neighbour if at.k else none,
-            at.cost if at.k else np.zeros(0),
-            padded,
-            wide,
-            at.block,
-            at.centre,
-            self.movement,
-            sources_,
-            np.zeros(len(sources_)) if source_costs is None else np.asarray(source_costs, float),
-            targets_,
-            np.zeros(len(targets_)) if target_costs is None else np.asarray(target_costs, float),
-            self.landmarks(level, landmarks) if landmarks and level else np.zeros((0, 0)),
-        )
+        no_costs = source_costs is None, target_costs is None
+        source_costs_ = np.zeros(len(sources_)) if no_costs[0] else np.asarray(source_costs, float)
+        target_costs_ = np.zeros(len(targets_)) if no_costs[1] else np.asarray(target_costs, float)
+        if jump_points and level == 0 and self.movement == 8:
+            path, best, expansions = compiled().jump_search(
+                np.asarray(allowed, dtype=np.int64), local, padded, wide, at.block, at.centre,
+                sources_, source_costs_, targets_, target_costs_,
+            )  # fmt: skip
+        else:
+            path, best, expansions = compiled().search(
+                np.asarray(allowed, dtype=np.int64),
+                local,
+                at.first if at.k else none,
+                at.neighbour if at.k else none,
+                at.cost if at.k else np.zeros(0),
+                padded,
+                wide,
+                at.block,
+                at.centre,
+                self.movement,
+                sources_,
+                source_costs_,
+                targets_,
+                target_costs_,
+                self.landmarks(level, landmarks) if landmarks and level else np.zeros((0, 0)),
+            )
         if expansions > limit:
             raise SearchLimit(int(limit))
         if not len(path):

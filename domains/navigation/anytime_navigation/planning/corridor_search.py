@@ -226,6 +226,261 @@ def search(
 
 
 @_compiled
+def _walkable(padded: IntArray, local: IntArray, at: int) -> bool:
+    """Whether the padded cell `at` is in the corridor (free, `local` >= 0 for its node)."""
+    head = padded[at]
+    return head >= 0 and local[head] >= 0
+
+
+@_compiled
+def _ended(padded: IntArray, local: IntArray, finish: FloatArray, at: int) -> bool:
+    """Whether the padded cell `at` (in the corridor) is a target."""
+    return finish[local[padded[at]]] < np.inf
+
+
+@_compiled
+def _straight_forced(padded: IntArray, local: IntArray, at: int, step: int, side: int) -> bool:
+    """Whether the cell `at`, entered by the straight move `step`, has a neighbour toward
+    `side` that no shortest path reaches but through it: the side cell when the cell behind it
+    is blocked (no diagonal past it: no corner cutting), or the diagonal ahead toward the side
+    when that cell behind is blocked or the side cell is outside the corridor."""
+    beside, behind = at + side, at + side - step
+    if padded[behind] < 0 and _walkable(padded, local, beside):
+        return True
+    ahead = at + side + step
+    return (
+        _walkable(padded, local, ahead)
+        and padded[at + step] >= 0
+        and padded[beside] >= 0
+        and (padded[behind] < 0 or not _walkable(padded, local, beside))
+    )
+
+
+@_compiled
+def _diagonal_forced(padded: IntArray, local: IntArray, at: int, dx: int, dy: int) -> bool:
+    """Whether the cell `at`, entered by the diagonal move (dx, dy) (`dy` a padded row's
+    step), has a neighbour no shortest path reaches but through it: the diagonal back across
+    one component, (-dx, dy) or (dx, -dy), when the cell between is free but outside the
+    corridor (the corner may be passed, the cell not entered)."""
+    for ax, ay in ((-dx, dy), (dx, -dy)):
+        across = ax if ax == -dx else ay  # the component turned back: the cell between
+        if (
+            _walkable(padded, local, at + ax + ay)
+            and padded[at + ax] >= 0
+            and padded[at + ay] >= 0
+            and not _walkable(padded, local, at + across)
+        ):
+            return True
+    return False
+
+
+@_compiled
+def _straight_jump(
+    padded: IntArray, local: IntArray, finish: FloatArray, at: int, step: int, side: int
+) -> int:
+    """The first jump point moving straight by `step` from the padded cell `at` (not `at`
+    itself): a target or a cell with a forced neighbour (`_straight_forced`, toward either
+    side), or -1 when the corridor ends first."""
+    cur = at
+    while True:
+        cur += step
+        if not _walkable(padded, local, cur):
+            return -1
+        if _ended(padded, local, finish, cur):
+            return cur
+        if _straight_forced(padded, local, cur, step, side) or _straight_forced(
+            padded, local, cur, step, -side
+        ):
+            return cur
+
+
+@_compiled
+def _jump(
+    padded: IntArray, local: IntArray, finish: FloatArray, wide: int, at: int, dx: int, dy: int
+) -> int:
+    """The jump point from the padded cell `at` in direction (dx, dy), or -1. Diagonally: the
+    first cell reached by legal diagonal moves (both straight cells free: no corner cutting)
+    that is a target, has a forced neighbour (`_diagonal_forced`), or from which a straight
+    scan along either component finds a jump point."""
+    if dy == 0:
+        return _straight_jump(padded, local, finish, at, dx, wide)
+    if dx == 0:
+        return _straight_jump(padded, local, finish, at, dy * wide, 1)
+    row = dy * wide
+    cur = at
+    while True:
+        if padded[cur + dx] < 0 or padded[cur + row] < 0:
+            return -1
+        cur += row + dx
+        if not _walkable(padded, local, cur):
+            return -1
+        if _ended(padded, local, finish, cur) or _diagonal_forced(padded, local, cur, dx, row):
+            return cur
+        if (
+            _straight_jump(padded, local, finish, cur, dx, wide) >= 0
+            or _straight_jump(padded, local, finish, cur, row, 1) >= 0
+        ):
+            return cur
+
+
+@_compiled
+def _kept(
+    padded: IntArray, local: IntArray, wide: int, at: int, px: int, py: int, dx: int, dy: int
+) -> bool:
+    """Whether a jump point entered moving (px, py) ((0, 0): a source) goes on in direction
+    (dx, dy): the natural directions (ahead, and a diagonal's components) and those toward a
+    forced neighbour (`_straight_forced`, `_diagonal_forced`); every other neighbour has a
+    shortest path that does not pass through the cell."""
+    if px == 0 and py == 0:
+        return True
+    if px != 0 and py != 0:
+        if (dx == px and dy in (0, py)) or (dx == 0 and dy == py):
+            return True
+        if dx == -px and dy == py:  # back across x: the cell between outside the corridor
+            return not _walkable(padded, local, at - px)
+        if dx == px and dy == -py:
+            return not _walkable(padded, local, at - py * wide)
+        return False
+    step = px + py * wide
+    if dx == px and dy == py:
+        return True
+    if px != 0:  # along x: a side (0, s) or the diagonal (px, s) toward it
+        if dx == -px or dy == 0:
+            return False
+        side = dy * wide
+    else:
+        if dy == -py or dx == 0:
+            return False
+        side = dx
+    behind_blocked = padded[at + side - step] < 0
+    if dx == 0 or dy == 0:  # the side cell
+        return behind_blocked
+    return behind_blocked or not _walkable(padded, local, at + side)
+
+
+@_compiled
+def jump_search(
+    nodes: IntArray,
+    local: IntArray,
+    padded: IntArray,
+    wide: int,
+    block: IntArray,
+    centre: FloatArray,
+    sources: IntArray,
+    source_costs: FloatArray,
+    targets: IntArray,
+    target_costs: FloatArray,
+) -> tuple[IntArray, float, int]:
+    """`search` at level 0 with octile moves and no corner cutting, by jump points (Harabor and
+    Grastien's JPS, the rules without corner cutting): the corridor `nodes` is the walkable
+    set, each source starts in all eight directions, and a node reached moving in one
+    direction goes on only in the directions no other shortest path covers (diagonally: its
+    two components and the diagonal; straight: ahead, and a side cell and the diagonal toward
+    it where the cell behind that side is not walkable). Between jump points a scan moves
+    straight or diagonally over cells without pushing them, and it stops at every target.
+
+    Returns what `search` returns: a cheapest path (its cells, every one, source first), its
+    cost, and the expansions: the jump points expanded below the path's cost and the path's
+    own but the last (each scanned cell is not counted)."""
+    n = 0
+    for node in nodes:
+        if local[node] < 0:
+            local[node] = n
+            n += 1
+    members = np.empty(n, dtype=np.int64)
+    for node in nodes:
+        members[local[node]] = node
+    distance = np.full(n, np.inf)
+    estimate = np.full(n, -1.0)
+    previous = np.full(n, -1, dtype=np.int64)
+    settled = np.zeros(n, dtype=np.bool_)
+    finish = np.full(n, np.inf)
+    for j in range(len(targets)):
+        t = local[targets[j]]
+        finish[t] = min(finish[t], target_costs[j])
+    target_x = np.empty(len(targets))
+    target_y = np.empty(len(targets))
+    for j in range(len(targets)):
+        target_x[j], target_y[j] = centre[targets[j], 0], centre[targets[j], 1]
+    capacity = 8 * n + len(sources) + 1
+    keys = np.empty(capacity, dtype=np.float64)
+    items = np.empty(capacity, dtype=np.int64)
+    size = 0
+    for j in range(len(sources)):
+        s = local[sources[j]]
+        if source_costs[j] < distance[s]:
+            if estimate[s] < 0.0:
+                node = sources[j]
+                estimate[s] = _nearest(centre[node, 0], centre[node, 1], target_x, target_y, 8)
+            distance[s] = source_costs[j]
+            size = _push(keys, items, size, source_costs[j] + estimate[s], s)
+    best, end = np.inf, -1
+    while size > 0:
+        f, u = keys[0], items[0]
+        size = _pop(keys, items, size)
+        if settled[u] or f > distance[u] + estimate[u]:
+            continue
+        if f >= best:
+            break
+        settled[u] = True
+        d = distance[u]
+        if finish[u] < np.inf and d + finish[u] < best:
+            best, end = d + finish[u], u
+        node = members[u]
+        ux, uy = block[node, 0], block[node, 1]
+        at = (uy + 1) * wide + ux + 1
+        p = previous[u]
+        px, py = 0, 0  # the direction u was reached in (none at a source)
+        if p >= 0:
+            pn = members[p]
+            px, py = np.sign(ux - block[pn, 0]), np.sign(uy - block[pn, 1])
+        for m in range(8):
+            dx, dy = _DX[m], _DY[m]
+            if not _kept(padded, local, wide, at, px, py, dx, dy):
+                continue
+            found = _jump(padded, local, finish, wide, at, dx, dy)
+            if found < 0:
+                continue
+            v = local[padded[found]]
+            vx, vy = found % wide - 1, found // wide - 1
+            steps = max(abs(vx - ux), abs(vy - uy))
+            g = d + steps * (_SQRT2 if dx != 0 and dy != 0 else 1.0)
+            if g < distance[v]:
+                if estimate[v] < 0.0:
+                    head = padded[found]
+                    estimate[v] = _nearest(centre[head, 0], centre[head, 1], target_x, target_y, 8)
+                distance[v], previous[v] = g, u
+                if size == len(keys):
+                    keys, items = _grown(keys, items)
+                size = _push(keys, items, size, g + estimate[v], v)
+    expanded = np.zeros(n, dtype=np.bool_)
+    tolerance = 1e-9 * max(1.0, best) if best < np.inf else 0.0
+    for u in range(n):
+        expanded[u] = settled[u] and distance[u] + estimate[u] < best - tolerance
+    jumps = _traced(previous, end, expanded)
+    expansions = int(np.count_nonzero(expanded))
+    # Every cell between consecutive jump points: one straight or diagonal line each
+    count = 1 if len(jumps) else 0
+    for i in range(1, len(jumps)):
+        a, b = members[jumps[i - 1]], members[jumps[i]]
+        count += max(abs(block[b, 0] - block[a, 0]), abs(block[b, 1] - block[a, 1]))
+    path = np.empty(count, dtype=np.int64)
+    if len(jumps):
+        path[0] = members[jumps[0]]
+    k = 1
+    for i in range(1, len(jumps)):
+        a, b = members[jumps[i - 1]], members[jumps[i]]
+        ax, ay = block[a, 0], block[a, 1]
+        sx, sy = np.sign(block[b, 0] - ax), np.sign(block[b, 1] - ay)
+        for j in range(1, max(abs(block[b, 0] - ax), abs(block[b, 1] - ay)) + 1):
+            path[k] = padded[(ay + j * sy + 1) * wide + ax + j * sx + 1]
+            k += 1
+    for node in nodes:
+        local[node] = -1
+    return path, best, expansions
+
+
+@_compiled
 def path_reads(
     block: IntArray, obstacleness: FloatArray, path: IntArray, bounds: IntArray
 ) -> tuple[IntArray, IntArray, FloatArray]:
@@ -648,6 +903,7 @@ def refinement(
     block: IntArray,
     centre: FloatArray,
     movement: int,
+    jump: bool,
     local: IntArray,
     source: int,
     source_node: int,
@@ -665,9 +921,10 @@ def refinement(
     (`target`) when it is >= 0, else any child of `source_node` (`target_node`), each costing
     how much farther its centre is from (`source_x`, `source_y`) than the nearest child's;
     then `search` one level down (its rows, or at level 0 `padded` and `wide`; `local` its
-    scratch). With `grand_first_child` not empty, the search is two levels down: the corridor
-    and the ends are the children's children (`grand_first_child`, `grand_child`: the rows of
-    the level one down). Returns what `search` returns."""
+    scratch; at level 0 with octile moves `jump_search` instead when `jump`). With
+    `grand_first_child` not empty, the search is two levels down: the corridor and the ends are
+    the children's children (`grand_first_child`, `grand_child`: the rows of the level one
+    down). Returns what `search` returns."""
     allowed = widened_children(up_first, up_neighbour, first_child, child, route, rings, mark)
     if len(grand_first_child):
         allowed = children_of(allowed, grand_first_child, grand_child)
@@ -679,6 +936,11 @@ def refinement(
         first_child, child, grand_first_child, grand_child, centre,
         target, target_node, target_x, target_y,
     )  # fmt: skip
+    if jump and len(padded) and movement == 8:
+        return jump_search(
+            allowed, local, padded, wide, block, centre,
+            sources, source_costs, targets, target_costs,
+        )  # fmt: skip
     return search(
         allowed, local, first, neighbour, cost, padded, wide, block, centre, movement,
         sources, source_costs, targets, target_costs, np.zeros((0, 0)),
@@ -1589,6 +1851,7 @@ def refine_step(
     one_ring_when_open: float,
     no_ring_when_clear: float,
     skip_level_1: bool,
+    jump_points: bool,
     limit: float,
 ) -> tuple[int, int, int, int, int, float, IntArray, IntArray, IntArray]:
     """REFINE(WORST-SEGMENT(plan)) (`planner._Planner.refine`, the same choices): the worst
@@ -1673,7 +1936,8 @@ def refine_step(
         path, _, expansions = refinement(
             up_first, up_neighbour, first_child, child, up_nodes, route, rings,
             grand_first_child, grand_child,
-            nothing, nothing, np.zeros(0), padded, wide, block0, centre0, movement, scratch0,
+            nothing, nothing, np.zeros(0), padded, wide, block0, centre0, movement,
+            jump_points, scratch0,
             source, source_node, source_x, source_y, target, target_node, target_x, target_y,
         )  # fmt: skip
         blocks_lower = block0
@@ -1685,7 +1949,7 @@ def refine_step(
             _of_level(lower, neighbour1, neighbours, edge_at),
             _of_level(lower, cost1, costs, edge_at),
             nothing, 0, blocks_lower, _of_level(lower, centre1, centres, node_at), movement,
-            _of_level(lower, scratch1, scratches, node_at),
+            False, _of_level(lower, scratch1, scratches, node_at),
             source, source_node, source_x, source_y, target, target_node, target_x, target_y,
         )  # fmt: skip
     if expansions > limit:  # checked first, as `Components.refinement` does

@@ -403,6 +403,7 @@ def atp(
     landmarks: int | None = None,
     no_ring_when_clear: float | None = None,
     skip_level_1: bool = False,
+    jump_points: bool = False,
 ) -> Iterator[Result]:
     """The anytime abstract planner: yields `Result(MultiPath, quality_estimate)` after the first
     plan and after every refinement (with `follow`, each that is followed no worse than the last
@@ -518,6 +519,11 @@ def atp(
             Dragon Age caves 10-25% less time, final plans within 0.006; `SOLID_MAP_OPTIONS`),
             where they are one cell thick or obstacles scattered, much (rooms of 8: 0.985 ->
             0.962, random 20%: 0.975 -> 0.926 of the optimal length).
+        jump_points: the refinements' searches over the base cells (octile moves) are jump
+            point searches (`corridor_search.jump_search`), not A* over every cell (False,
+            the default): the same cheapest costs through the same corridors, a path of
+            equal length (ties may go another way), fewer nodes pushed and expanded; the
+            expansions reported are the jump points expanded.
 
     REFINE re-plans the chosen level-k segment one level lower, through the children of its
     nodes only (they are connected: see `components`), so the search is local and always finds
@@ -586,6 +592,7 @@ def atp(
         no_ring_when_clear=no_ring_when_clear,
         landmarks=landmarks or 0,
         skip_level_1=skip_level_1,
+        jump_points=jump_points,
     )
     try:
         found = planner.first(top)
@@ -717,6 +724,7 @@ class _Steps:
             math.nan if one_ring is None else one_ring,
             math.nan if clear is None else clear,
             bool(planner.skip_level_1),
+            bool(planner.jump_points),
         )
 
     def begin(self, made: list[tuple[Segment, float]]) -> float:
@@ -864,6 +872,7 @@ class _Planner:
         no_ring_when_clear: float | None = None,
         landmarks: int = 0,
         skip_level_1: bool = False,
+        jump_points: bool = False,
     ) -> None:
         self.components, self.pyramid = components, pyramid
         self.landmarks = landmarks
@@ -873,6 +882,7 @@ class _Planner:
         self.one_ring_when_open = one_ring_when_open
         self.no_ring_when_clear = no_ring_when_clear
         self.skip_level_1 = skip_level_1
+        self.jump_points = jump_points
 
     def first(self, level: int) -> NodePath:
         """The first plan: a path of nodes at `level` from the start's node to the goal's, the
@@ -898,8 +908,9 @@ class _Planner:
         for k in range(level - 1, 0, -1):  # down to the cells, every child
             allowed = c.widened(k, allowed, 0)
         found = c.corridor(
-            0, allowed, [c.node(self.start, 0)], [c.node(self.goal, 0)], limit=self.ctx.remaining
-        )
+            0, allowed, [c.node(self.start, 0)], [c.node(self.goal, 0)],
+            limit=self.ctx.remaining, jump_points=self.jump_points,
+        )  # fmt: skip
         if found is None:
             raise AssertionError("no base route through the children of a path")
         self.ctx.tick(found.expansions)

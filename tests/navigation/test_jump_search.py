@@ -1,0 +1,181 @@
+"""Jump point search over a corridor of base cells (`corridor_search.jump_search`, issue 36):
+the refinement's level-0 search with the cheapest costs of A* over every cell
+(`corridor_search.search`), on the same moves (octile, no corner cutting: a diagonal needs both
+straight cells free on the map, in the corridor or not), and `atp(jump_points=True)`."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from anytime_navigation.planning import corridor_search
+from anytime_navigation.planning.abstraction import Pyramid
+from anytime_navigation.planning.components import Components
+from anytime_navigation.planning.planner import atp
+from anytime_navigation.task.execution import execute
+from anytime_navigation.world import random_world
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from anytime.modules import Context
+
+NONE = np.zeros(0, dtype=np.int64)
+
+
+def _searches(
+    components: Components, corridor: Any, sources: Any, source_costs: Any, targets: Any,
+    target_costs: Any,
+) -> tuple[tuple[Any, float, int], tuple[Any, float, int]]:  # fmt: skip
+    """(A* over every cell, jump point search) over `corridor` (level-0 nodes)."""
+    base = components.levels[0]
+    assert base.grid is not None and base.padded is not None
+    wide = base.grid.shape[1] + 2
+    local = components._scratch[0]
+    args = (np.asarray(sources), np.asarray(source_costs, dtype=float))
+    ends = (np.asarray(targets), np.asarray(target_costs, dtype=float))
+    every = corridor_search.search(
+        corridor, local, NONE, NONE, np.zeros(0), base.padded, wide, base.block, base.centre, 8,
+        *args, *ends, np.zeros((0, 0)),
+    )  # fmt: skip
+    jumps = corridor_search.jump_search(
+        corridor, local, base.padded, wide, base.block, base.centre, *args, *ends
+    )
+    assert (local == -1).all()  # the scratch left as it was
+    return every, jumps
+
+
+@st.composite
+def corridors(draw: Any) -> tuple[Any, ...]:
+    """A map, a corridor of its free cells (every one, or a random part, some twice), sources
+    and targets in it with costs (zero or not)."""
+    side = draw(st.sampled_from([8, 16, 32]))
+    seed = draw(st.integers(0, 2**32 - 1))
+    rng = np.random.default_rng(seed)
+    blocked = rng.random((side, side)) < draw(st.floats(0.0, 0.45))
+    components = Components.build(blocked, 8, top=2)
+    count = len(components.levels[0])
+    if count < 2:
+        corridor = np.arange(count, dtype=np.int64)
+    elif draw(st.booleans()):
+        corridor = np.arange(count, dtype=np.int64)
+    else:
+        corridor = np.flatnonzero(rng.random(count) < draw(st.floats(0.4, 1.0)))
+    if len(corridor) < 1:
+        corridor = np.arange(count, dtype=np.int64)
+    corridor = np.concatenate([corridor, corridor[: draw(st.integers(0, 3))]])
+    ends = []
+    for _ in range(2):
+        chosen = rng.choice(corridor, size=draw(st.integers(1, 4)))
+        costs = rng.uniform(0.0, 2.0, len(chosen)) * draw(st.sampled_from([0.0, 1.0]))
+        ends.append((chosen, costs))
+    return blocked, components, corridor, *ends[0], *ends[1]
+
+
+@settings(max_examples=300, deadline=None)
+@given(corridors())
+def test_jump_points_find_the_cheapest_cost_by_a_legal_path(case: tuple[Any, ...]) -> None:
+    """The same cost as A* over every cell (inf with no path, then no path); the path found runs
+    from a source to a target by legal moves between cells of the corridor, and its cost (its
+    ends' costs and its moves) is the cost returned."""
+    blocked, components, corridor, sources, source_costs, targets, target_costs = case
+    if not len(components.levels[0]):
+        return
+    (_, every_cost, _), (path, cost, expansions) = _searches(
+        components, corridor, sources, source_costs, targets, target_costs
+    )
+    # the same to rounding: equal paths may add their moves in another order
+    assert math.isclose(cost, every_cost, rel_tol=1e-12) or cost == every_cost
+    if cost == math.inf:
+        assert len(path) == 0
+        return
+    block = components.levels[0].block
+    assert expansions <= len(set(corridor.tolist()))
+    walked = min(c for s, c in zip(sources, source_costs, strict=True) if s == path[0])
+    walked += min(c for t, c in zip(targets, target_costs, strict=True) if t == path[-1])
+    inside = set(corridor.tolist())
+    assert set(path.tolist()) <= inside
+    for a, b in zip(path[:-1], path[1:], strict=True):
+        (ax, ay), (bx, by) = block[a], block[b]
+        dx, dy = bx - ax, by - ay
+        assert max(abs(dx), abs(dy)) == 1
+        if dx and dy:  # no corner cutting, judged on the map
+            assert not blocked[ay, bx] and not blocked[by, ax]
+        walked += math.sqrt(2.0) if dx and dy else 1.0
+    assert math.isclose(walked, cost, rel_tol=1e-12)
+
+
+def _open_components(side: int) -> Components:
+    return Components.build(np.zeros((side, side), dtype=bool), 8, top=2)
+
+
+def test_an_open_diagonal_is_one_jump() -> None:
+    """Across an open 8 x 8 map from corner to corner: the diagonal, every cell of it; one
+    expansion (the start: the scan meets the goal), where A* over every cell expands the
+    diagonal's cells but the last."""
+    components = _open_components(8)
+    grid = components.cell
+    corridor = np.arange(64, dtype=np.int64)
+    every, (path, cost, expansions) = _searches(
+        components, corridor, [grid[0, 0]], [0.0], [grid[7, 7]], [0.0]
+    )
+    assert path.tolist() == [grid[i, i] for i in range(8)]
+    assert math.isclose(cost, every[1]) and math.isclose(cost, 7 * math.sqrt(2.0))
+    assert (expansions, every[2]) == (1, 7)
+
+
+def test_a_corner_outside_the_corridor_may_be_passed() -> None:
+    """A free cell outside the corridor is not entered, but a diagonal passes its corner: from
+    (0, 1) to (1, 0) with (0, 0) and (1, 1) free but outside it, one diagonal move."""
+    components = _open_components(8)
+    grid = components.cell
+    corridor = np.array([grid[1, 0], grid[0, 1]], dtype=np.int64)
+    _, (path, cost, _) = _searches(components, corridor, [grid[1, 0]], [0.0], [grid[0, 1]], [0.0])
+    assert path.tolist() == [grid[1, 0], grid[0, 1]]
+    assert cost == math.sqrt(2.0)
+
+
+def test_no_path_through_the_corridor() -> None:
+    """Two cells of the corridor apart, with no corridor cell between: no path, cost inf."""
+    components = _open_components(8)
+    grid = components.cell
+    corridor = np.array([grid[0, 0], grid[0, 5]], dtype=np.int64)
+    _, (path, cost, _) = _searches(components, corridor, [grid[0, 0]], [0.0], [grid[0, 5]], [0.0])
+    assert len(path) == 0 and cost == math.inf
+
+
+def _plans(seed: int, **options: Any) -> tuple[list[Any], Any]:
+    world = random_world(64, seed=seed, movement=8)
+    pyramid = Pyramid.build(world.blocked)
+    components = Components.build(world.blocked, 8, top=3)
+    ctx = Context()
+    plans = [
+        r.value
+        for r in atp(
+            ctx, world.start, world.goal, pyramid, movement=8, components=components, top=3,
+            **options,
+        )
+    ]  # fmt: skip
+    return plans, (world, ctx.elapsed)
+
+
+def _length(route: tuple[tuple[int, int], ...]) -> float:
+    return sum(
+        math.hypot(b[0] - a[0], b[1] - a[1]) for a, b in zip(route[:-1], route[1:], strict=True)
+    )
+
+
+def test_the_planner_with_jump_points_plans_as_long_for_less_work() -> None:
+    """`atp(jump_points=True)` (with `skip_level_1`, its refinements to the base cells at every
+    level-2 segment): as many plans, each fully refined route as long as without it (ties may
+    go another way), every plan followed to the goal, and fewer expansions over the run."""
+    for seed in (1, 4, 7):
+        usual, (world, usual_work) = _plans(seed, skip_level_1=True)
+        jumped, (_, work) = _plans(seed, skip_level_1=True, jump_points=True)
+        assert len(jumped) == len(usual)
+        final, usual_final = jumped[-1].base_route(), usual[-1].base_route()
+        assert final is not None and usual_final is not None
+        assert math.isclose(_length(final), _length(usual_final), rel_tol=1e-9)
+        assert work < usual_work
+        for plan in jumped:
+            assert execute(plan, world.blocked, movement=8).reached
