@@ -186,6 +186,7 @@ KIND_CONFIGS: dict[str, dict[str, Any]] = {
     "... and skip_level_1": dict(SOLID_MAP_OPTIONS),  # the options of solid maps
     "... and follow (compiled)": {**LARGE_MAP_OPTIONS, "follow": FOLLOW},
     "options by map (map_options)": {"options": BY_MAP},  # `anytime plan`'s default
+    "options by map and jump_points": {"options": BY_MAP, "jump_points": True},
 }
 
 #: The papers' result when run to completion, and the issue's target on 512 x 512 maps.
@@ -870,9 +871,12 @@ def random_problems(scenarios: list[Scenario], count: int) -> list[Scenario]:
 
 
 def for_map(configs: dict[str, dict[str, Any]], blocked: BoolGrid) -> dict[str, dict[str, Any]]:
-    """`configs` on the map `blocked`: a `BY_MAP` configuration made `planner.map_options`'."""
+    """`configs` on the map `blocked`: a `BY_MAP` configuration made `planner.map_options`'
+    (with its other options on top)."""
     return {
-        name: dict(map_options(blocked)) if options.get("options") == BY_MAP else options
+        name: {**map_options(blocked), **{k: v for k, v in options.items() if k != "options"}}
+        if options.get("options") == BY_MAP
+        else options
         for name, options in configs.items()
     }
 
@@ -1030,6 +1034,8 @@ def bench_kinds(
         " skip_level_1 (with the no_ring_when_clear row's options: planner.SOLID_MAP_OPTIONS,\n"
         " anytime plan's on maps of solid obstacles): a level-2 segment is refined straight to\n"
         " the base cells, through its own nodes' cells;\n"
+        " jump_points (with the options by map): the refinements' searches over the base cells\n"
+        " are jump point searches (the same costs; expansions: the jump points expanded);\n"
         " follow (with the no_ring_when_clear row's\n"
         " options): a plan is registered only when the robot follows it no longer than the\n"
         " last one registered (following.Follower: execute's length, compiled; its calls in the\n"
