@@ -229,13 +229,13 @@ def search(
 def _walkable(padded: IntArray, local: IntArray, at: int) -> bool:
     """Whether the padded cell `at` is in the corridor (free, `local` >= 0 for its node)."""
     head = padded[at]
-    return head >= 0 and local[head] >= 0
+    return bool(head >= 0 and local[head] >= 0)
 
 
 @_compiled
 def _ended(padded: IntArray, local: IntArray, finish: FloatArray, at: int) -> bool:
     """Whether the padded cell `at` (in the corridor) is a target."""
-    return finish[local[padded[at]]] < np.inf
+    return bool(finish[local[padded[at]]] < np.inf)
 
 
 @_compiled
@@ -352,7 +352,7 @@ def _kept(
         if dy == -py or dx == 0:
             return False
         side = dx
-    behind_blocked = padded[at + side - step] < 0
+    behind_blocked = bool(padded[at + side - step] < 0)
     if dx == 0 or dy == 0:  # the side cell
         return behind_blocked
     return behind_blocked or not _walkable(padded, local, at + side)
@@ -372,12 +372,17 @@ def jump_search(
     target_costs: FloatArray,
 ) -> tuple[IntArray, float, int]:
     """`search` at level 0 with octile moves and no corner cutting, by jump points (Harabor and
-    Grastien's JPS, the rules without corner cutting): the corridor `nodes` is the walkable
-    set, each source starts in all eight directions, and a node reached moving in one
-    direction goes on only in the directions no other shortest path covers (diagonally: its
-    two components and the diagonal; straight: ahead, and a side cell and the diagonal toward
-    it where the cell behind that side is not walkable). Between jump points a scan moves
-    straight or diagonally over cells without pushing them, and it stops at every target.
+    Grastien's JPS, its rules without corner cutting, on the same graph: a move enters only
+    cells of the corridor `nodes`, and a diagonal needs its two straight cells free on the map,
+    in the corridor or not). Each source starts in all eight directions; a cell reached moving
+    one way goes on only where no other shortest path leads (`_kept`): ahead and, after a
+    diagonal, along its components, and toward a forced neighbour, one only a path through
+    this cell reaches cheapest (`_straight_forced`, `_diagonal_forced`: where a cell outside
+    the corridor stands beside the move, more than where walls alone do). Between jump points a
+    scan moves straight or diagonally over cells without pushing them, and it stops at every
+    target. On MovingAI's Dragon Age maps, the refinements' corridors of 4 x 4 blocks expand a
+    ninth of the cells A* over every cell does, for about a tenth less time: scans read the
+    cells A* would push.
 
     Returns what `search` returns: a cheapest path (its cells, every one, source first), its
     cost, and the expansions: the jump points expanded below the path's cost and the path's
