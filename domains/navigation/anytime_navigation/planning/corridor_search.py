@@ -926,7 +926,9 @@ def refinement(
     (`target`) when it is >= 0, else any child of `source_node` (`target_node`), each costing
     how much farther its centre is from (`source_x`, `source_y`) than the nearest child's;
     then `search` one level down (its rows, or at level 0 `padded` and `wide`; `local` its
-    scratch; at level 0 with octile moves `jump_search` instead when `jump`). With
+    scratch; at level 0 with octile moves `jump_search` instead when `jump` and the search
+    has one source: each source scans all eight ways, and a coarser neighbour's node gives up
+    to 16 of them, where A* grows them as one frontier). With
     `grand_first_child` not empty, the search is two levels down: the corridor and the ends are
     the children's children (`grand_first_child`, `grand_child`: the rows of the level one
     down). Returns what `search` returns."""
@@ -941,7 +943,7 @@ def refinement(
         first_child, child, grand_first_child, grand_child, centre,
         target, target_node, target_x, target_y,
     )  # fmt: skip
-    if jump and len(padded) and movement == 8:
+    if jump and len(padded) and movement == 8 and len(sources) == 1:
         return jump_search(
             allowed, local, padded, wide, block, centre,
             sources, source_costs, targets, target_costs,
