@@ -519,11 +519,13 @@ def atp(
             Dragon Age caves 10-25% less time, final plans within 0.006; `SOLID_MAP_OPTIONS`),
             where they are one cell thick or obstacles scattered, much (rooms of 8: 0.985 ->
             0.962, random 20%: 0.975 -> 0.926 of the optimal length).
-        jump_points: the refinements' searches over the base cells (octile moves) are jump
-            point searches (`corridor_search.jump_search`), not A* over every cell (False,
-            the default): the same cheapest costs through the same corridors, a path of
-            equal length (ties may go another way), fewer nodes pushed and expanded; the
-            expansions reported are the jump points expanded.
+        jump_points: the searches over the base cells (octile moves) from one source, the
+            refinements' and the direct route's, are jump point searches
+            (`corridor_search.jump_search`), not A* over every cell (False, the default): the
+            same cheapest costs through the same corridors, a path of equal length (ties may
+            go another way), fewer nodes pushed and expanded; the expansions reported are the
+            jump points expanded. It pays where corridors are wide and costs where they are
+            one cell (docs/navigation.md, "Jump points in the base cells").
 
     REFINE re-plans the chosen level-k segment one level lower, through the children of its
     nodes only (they are connected: see `components`), so the search is local and always finds
