@@ -623,17 +623,22 @@ class Components:
         wide = at.grid.shape[1] + 2 if at.grid is not None else 0
         sources_ = np.asarray(sources, dtype=np.int64)
         targets_ = np.asarray(targets, dtype=np.int64)
-        no_costs = source_costs is None, target_costs is None
-        source_costs_ = np.zeros(len(sources_)) if no_costs[0] else np.asarray(source_costs, float)
-        target_costs_ = np.zeros(len(targets_)) if no_costs[1] else np.asarray(target_costs, float)
+        source_costs_ = np.zeros(len(sources_)) if source_costs is None else source_costs
+        target_costs_ = np.zeros(len(targets_)) if target_costs is None else target_costs
+        ends = (
+            sources_,
+            np.asarray(source_costs_, float),
+            targets_,
+            np.asarray(target_costs_, float),
+        )
+        nodes = np.asarray(allowed, dtype=np.int64)
         if jump_points and level == 0 and self.movement == 8:
             path, best, expansions = compiled().jump_search(
-                np.asarray(allowed, dtype=np.int64), local, padded, wide, at.block, at.centre,
-                sources_, source_costs_, targets_, target_costs_,
-            )  # fmt: skip
+                nodes, local, padded, wide, at.block, at.centre, *ends
+            )
         else:
             path, best, expansions = compiled().search(
-                np.asarray(allowed, dtype=np.int64),
+                nodes,
                 local,
                 at.first if at.k else none,
                 at.neighbour if at.k else none,
@@ -643,10 +648,7 @@ class Components:
                 at.block,
                 at.centre,
                 self.movement,
-                sources_,
-                source_costs_,
-                targets_,
-                target_costs_,
+                *ends,
                 self.landmarks(level, landmarks) if landmarks and level else np.zeros((0, 0)),
             )
         if expansions > limit:

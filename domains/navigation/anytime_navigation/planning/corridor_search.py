@@ -90,6 +90,50 @@ def _pop(keys: FloatArray, items: IntArray, size: int) -> int:
 
 
 @_compiled
+def _numbered(nodes: IntArray, local: IntArray) -> IntArray:
+    """A search's members: `nodes` once each, in first-seen order, each numbered in `local`
+    (scratch, -1 everywhere before) by its place."""
+    n = 0
+    for node in nodes:
+        if local[node] < 0:
+            local[node] = n
+            n += 1
+    members = np.empty(n, dtype=np.int64)
+    for node in nodes:
+        members[local[node]] = node
+    return members
+
+
+@_compiled
+def _finishes(targets: IntArray, target_costs: FloatArray, local: IntArray, n: int) -> FloatArray:
+    """Each member's cost to end there: its least target cost (inf: not a target)."""
+    finish = np.full(n, np.inf)
+    for j in range(len(targets)):
+        t = local[targets[j]]
+        finish[t] = min(finish[t], target_costs[j])
+    return finish
+
+
+@_compiled
+def _counted(
+    settled: NDArray[np.bool_],
+    distance: FloatArray,
+    estimate: FloatArray,
+    previous: IntArray,
+    end: int,
+    best: float,
+) -> tuple[IntArray, int]:
+    """The path found (members, first to last) and the expansions an A* search for it counts:
+    the members settled below its cost, and its own but the last."""
+    expanded = np.zeros(len(settled), dtype=np.bool_)
+    tolerance = 1e-9 * max(1.0, best) if best < np.inf else 0.0
+    for u in range(len(settled)):
+        expanded[u] = settled[u] and distance[u] + estimate[u] < best - tolerance
+    path = _traced(previous, end, expanded)
+    return path, int(np.count_nonzero(expanded))
+
+
+@_compiled
 def search(
     nodes: IntArray,
     local: IntArray,
@@ -120,14 +164,8 @@ def search(
 
     Returns (the path's nodes, source first; empty when no target is reached), its cost (inf
     when none), and the expansions as `Components.corridor` counts them."""
-    n = 0
-    for node in nodes:
-        if local[node] < 0:
-            local[node] = n
-            n += 1
-    members = np.empty(n, dtype=np.int64)
-    for node in nodes:
-        members[local[node]] = node
+    members = _numbered(nodes, local)
+    n = len(members)
     # Each member's centre and, at level 0, its padded cell, read once here: the expansions
     # read these (small, hot) rather than the level's arrays (megabytes at level 0, cold after
     # another search has run: 7-11% of the planner's time on the MovingAI maps' 16 longest)
@@ -139,10 +177,7 @@ def search(
         x[i], y[i] = centre[node, 0], centre[node, 1]
         if len(padded):
             at_of[i] = (block[node, 1] + 1) * wide + block[node, 0] + 1
-    target_x = np.empty(len(targets))
-    target_y = np.empty(len(targets))
-    for j in range(len(targets)):
-        target_x[j], target_y[j] = centre[targets[j], 0], centre[targets[j], 1]
+    target_x, target_y = centre[targets, 0], centre[targets, 1]
     # The targets' distances from the landmarks, read for every node reached
     to_targets = np.empty((len(targets), landmarks.shape[1]))
     if landmarks.shape[1]:
@@ -152,10 +187,7 @@ def search(
     estimate = np.full(n, -1.0)  # the heuristic, made when the node is first reached
     previous = np.full(n, -1, dtype=np.int64)
     settled = np.zeros(n, dtype=np.bool_)
-    finish = np.full(n, np.inf)  # a target's cost to end there
-    for j in range(len(targets)):
-        t = local[targets[j]]
-        finish[t] = min(finish[t], target_costs[j])
+    finish = _finishes(targets, target_costs, local, n)  # a target's cost to end there
     capacity = 8 * n + len(sources) + 1
     keys = np.empty(capacity, dtype=np.float64)
     items = np.empty(capacity, dtype=np.int64)
@@ -213,12 +245,7 @@ def search(
                     if size == len(keys):
                         keys, items = _grown(keys, items)
                     size = _push(keys, items, size, d + cost[e] + estimate[v], v)
-    expanded = np.zeros(n, dtype=np.bool_)
-    tolerance = 1e-9 * max(1.0, best) if best < np.inf else 0.0
-    for u in range(n):
-        expanded[u] = settled[u] and distance[u] + estimate[u] < best - tolerance
-    path = _traced(previous, end, expanded)
-    expansions = int(np.count_nonzero(expanded))
+    path, expansions = _counted(settled, distance, estimate, previous, end, best)
     path = members[path]
     for node in nodes:
         local[node] = -1
@@ -387,26 +414,14 @@ def jump_search(
     Returns what `search` returns: a cheapest path (its cells, every one, source first), its
     cost, and the expansions: the jump points expanded below the path's cost and the path's
     own but the last (each scanned cell is not counted)."""
-    n = 0
-    for node in nodes:
-        if local[node] < 0:
-            local[node] = n
-            n += 1
-    members = np.empty(n, dtype=np.int64)
-    for node in nodes:
-        members[local[node]] = node
+    members = _numbered(nodes, local)
+    n = len(members)
     distance = np.full(n, np.inf)
     estimate = np.full(n, -1.0)
     previous = np.full(n, -1, dtype=np.int64)
     settled = np.zeros(n, dtype=np.bool_)
-    finish = np.full(n, np.inf)
-    for j in range(len(targets)):
-        t = local[targets[j]]
-        finish[t] = min(finish[t], target_costs[j])
-    target_x = np.empty(len(targets))
-    target_y = np.empty(len(targets))
-    for j in range(len(targets)):
-        target_x[j], target_y[j] = centre[targets[j], 0], centre[targets[j], 1]
+    finish = _finishes(targets, target_costs, local, n)
+    target_x, target_y = centre[targets, 0], centre[targets, 1]
     capacity = 8 * n + len(sources) + 1
     keys = np.empty(capacity, dtype=np.float64)
     items = np.empty(capacity, dtype=np.int64)
@@ -458,12 +473,7 @@ def jump_search(
                 if size == len(keys):
                     keys, items = _grown(keys, items)
                 size = _push(keys, items, size, g + estimate[v], v)
-    expanded = np.zeros(n, dtype=np.bool_)
-    tolerance = 1e-9 * max(1.0, best) if best < np.inf else 0.0
-    for u in range(n):
-        expanded[u] = settled[u] and distance[u] + estimate[u] < best - tolerance
-    jumps = _traced(previous, end, expanded)
-    expansions = int(np.count_nonzero(expanded))
+    jumps, expansions = _counted(settled, distance, estimate, previous, end, best)
     # Every cell between consecutive jump points: one straight or diagonal line each
     count = 1 if len(jumps) else 0
     for i in range(1, len(jumps)):
