@@ -95,6 +95,7 @@ from anytime_navigation.planning.components import Components
 from anytime_navigation.planning.following import Follower
 from anytime_navigation.planning.planner import (
     DEFAULT_TOP,
+    JUMP_MIN_WIDTH,
     LARGE_MAP_OPTIONS,
     SCATTERED_MAP_OPTIONS,
     SOLID_MAP_OPTIONS,
@@ -180,13 +181,17 @@ KIND_CONFIGS: dict[str, dict[str, Any]] = {
         "one_ring_when_open": 0.1,
     },
     "... and landmarks=8": {
-        key: value for key, value in LARGE_MAP_OPTIONS.items() if key != "no_ring_when_clear"
+        key: value
+        for key, value in LARGE_MAP_OPTIONS.items()
+        if key not in ("no_ring_when_clear", "jump_points")
     },
-    "... and no_ring_when_clear=0.7": dict(LARGE_MAP_OPTIONS),  # `anytime plan`'s options
+    "... and no_ring_when_clear=0.7": {
+        key: value for key, value in LARGE_MAP_OPTIONS.items() if key != "jump_points"
+    },
+    "... and jump_points": dict(LARGE_MAP_OPTIONS),  # `anytime plan`'s options
     "... and skip_level_1": dict(SOLID_MAP_OPTIONS),  # the options of solid maps
     "... and follow (compiled)": {**LARGE_MAP_OPTIONS, "follow": FOLLOW},
     "options by map (map_options)": {"options": BY_MAP},  # `anytime plan`'s default
-    "options by map and jump_points": {"options": BY_MAP, "jump_points": True},
 }
 
 #: The papers' result when run to completion, and the issue's target on 512 x 512 maps.
@@ -1028,15 +1033,17 @@ def bench_kinds(
         " refined with one ring of neighbouring nodes, not three; landmarks=N (with the row\n"
         " above's options): the first plan's search\n"
         " bounded by N landmarks' distances (ALT; made with the abstraction, in its build);\n"
-        " no_ring_when_clear=S (with the row above's options: planner.LARGE_MAP_OPTIONS,\n"
-        " anytime plan's): a level-2 segment at least S of whose nodes are clear 4 x 4 blocks\n"
-        " is refined through its own nodes' children, without rings;\n"
-        " skip_level_1 (with the no_ring_when_clear row's options: planner.SOLID_MAP_OPTIONS,\n"
-        " anytime plan's on maps of solid obstacles): a level-2 segment is refined straight to\n"
-        " the base cells, through its own nodes' cells;\n"
-        " jump_points (with the options by map): the refinements' searches over the base cells\n"
-        " are jump point searches (the same costs; expansions: the jump points expanded);\n"
-        " follow (with the no_ring_when_clear row's\n"
+        " no_ring_when_clear=S (with the row above's options): a level-2 segment at least S\n"
+        " of whose nodes are clear 4 x 4 blocks is refined through its own nodes' children,\n"
+        " without rings;\n"
+        " jump_points (with the row above's options: planner.LARGE_MAP_OPTIONS, anytime plan's):\n"
+        " the searches over the base cells from one source are jump point searches (the same\n"
+        " costs; expansions: the jump points expanded), the direct route's only where its\n"
+        f" corridor has at least {JUMP_MIN_WIDTH:g} cells per unit of length;\n"
+        " skip_level_1 (with the row above's options: planner.SOLID_MAP_OPTIONS, anytime plan's\n"
+        " on maps of solid obstacles): a level-2 segment is refined straight to the base cells,\n"
+        " through its own nodes' cells;\n"
+        " follow (with the jump_points row's\n"
         " options): a plan is registered only when the robot follows it no longer than the\n"
         " last one registered (following.Follower: execute's length, compiled; its calls in the\n"
         " ATP's time, its build, once per map, with the abstraction's); the\n"

@@ -12,7 +12,7 @@ import numpy as np
 from anytime_navigation.planning import corridor_search
 from anytime_navigation.planning.abstraction import Pyramid
 from anytime_navigation.planning.components import Components
-from anytime_navigation.planning.planner import atp
+from anytime_navigation.planning.planner import JUMP_MIN_WIDTH, _Planner, atp
 from anytime_navigation.task.execution import execute
 from anytime_navigation.world import random_world
 from hypothesis import given, settings
@@ -209,3 +209,37 @@ def test_the_corridor_search_by_jump_points() -> None:
     found4 = four.corridor(0, cells4, *ends4)
     assert found4 is not None
     assert four.corridor(0, cells4, *ends4, jump_points=True) == found4
+
+
+def _direct_work(blocked: np.ndarray, **options: Any) -> tuple[float, float]:
+    """The work of `atp`'s direct route (a first plan of at most 256 nodes at level 2, then one
+    base search) from corner to corner, and the width `JUMP_MIN_WIDTH` is compared with."""
+    components = Components.build(blocked, 8, top=2)
+    free = np.argwhere(~blocked)
+    start, goal = tuple(free[0, ::-1].tolist()), tuple(free[-1, ::-1].tolist())  # (x, y)
+    ctx = Context()
+    plans = list(
+        atp(
+            ctx, start, goal, Pyramid.build(blocked), movement=8, components=components, top=2,
+            direct=256, **options,
+        )
+    )  # fmt: skip
+    assert len(plans) == 1 and execute(plans[0].value, blocked, movement=8).reached
+    first = _Planner(components, Pyramid.build(blocked), start, goal, Context()).first(2)
+    return ctx.elapsed, _Planner(components, None, start, goal, Context()).width(2, first)
+
+
+def test_the_direct_route_jumps_only_through_a_wide_corridor() -> None:
+    """With `jump_points`, the direct route's search is by jump points across open ground (many
+    cells per unit of length: fewer expansions) and by A* along a corridor one cell wide (below
+    `JUMP_MIN_WIDTH`: the same work), where every cell would be a jump point."""
+    open_ground = np.zeros((32, 32), dtype=bool)
+    usual, width = _direct_work(open_ground)
+    assert width >= JUMP_MIN_WIDTH
+    assert _direct_work(open_ground, jump_points=True)[0] < usual
+    winding = np.zeros((32, 32), dtype=bool)  # rows of walls, each open at alternate ends
+    winding[1::2, :] = True
+    winding[1:-1:4, -1] = winding[3:-1:4, 0] = False
+    usual, width = _direct_work(winding)
+    assert width < JUMP_MIN_WIDTH
+    assert _direct_work(winding, jump_points=True)[0] == usual

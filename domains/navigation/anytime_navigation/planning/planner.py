@@ -72,7 +72,11 @@ DEFAULT_TOP = 3
 #: The options that measured best on the 512 x 512 MovingAI maps of every kind (issue 36; the
 #: per-kind table of benchmarks/bench_navigation.py): `anytime plan`'s by default on every map
 #: but those of scattered, dense obstacles or solid ones (`map_options`). Not the navigation
-#: task's, whose 128 x 128 worlds are planned better with the defaults.
+#: task's, whose 128 x 128 worlds are planned better with the defaults. `jump_points` joined
+#: them last (the same plans; scratch runs, the 16 longest problems, interleaved, time with the
+#: build against the compiled A*'s, without -> with: mazes of width 4 16.5% -> 11.6-12.1%,
+#: width 8 14.6% -> 13.5-13.7%, rooms of 8 and 64 0.1-0.9 points less, random 10% and 20%
+#: within 0.4 of a point either way, the maze of width 1 unchanged with `JUMP_MIN_WIDTH`).
 LARGE_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
     {
         "top": 4,
@@ -82,6 +86,7 @@ LARGE_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
         "one_ring_when_open": 0.1,
         "landmarks": 8,
         "no_ring_when_clear": 0.7,
+        "jump_points": True,
     }
 )
 
@@ -94,9 +99,11 @@ LARGE_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
 #: against the optimal length, large-map options -> these: 25% blocked 0.965 -> 0.981, 30%
 #: 0.957 (min 0.925) -> 0.975 (min 0.951), 35% 0.967 -> 0.981, at 21-27% of the compiled A*'s
 #: time with the build against 16-20%; the same held on each map's twin, -1, not tuned on; at
-#: 10-20% blocked the large-map options hold 0.975-0.981 and are faster).
+#: 10-20% blocked the large-map options hold 0.975-0.981 and are faster). Without jump points:
+#: scattered obstacles make most cells jump points (random 30%: 28.3-28.7% -> 29.1-29.6% of the
+#: compiled A*'s time with them, the same plans).
 SCATTERED_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
-    {**LARGE_MAP_OPTIONS, "top": 3, "direct_width": 8}
+    {**LARGE_MAP_OPTIONS, "top": 3, "direct_width": 8, "jump_points": False}
 )
 
 
@@ -110,6 +117,15 @@ SCATTERED_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
 #: walls are one cell thick (rooms, mazes) or obstacles scattered (random maps), that step is
 #: what finds the doors and the ways round: rooms of 8 lost 0.024, random 20% 0.049.
 SOLID_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType({**LARGE_MAP_OPTIONS, "skip_level_1": True})
+
+
+#: The direct route is searched by jump points (`atp(jump_points=True)`) only where its corridor
+#: has at least this many base cells per unit of the first plan's length (`_Planner.width`). In
+#: a one-cell corridor every turn and junction is a jump point and each scan checks its sides at
+#: every cell (issue 36, MovingAI's mazes, the 16 longest problems, the direct route's search,
+#: A* -> jump points: width 1 at 3.2-3.9 cells per unit, 1.07-1.46 -> 2.00-2.58 ms; width 2 at
+#: 6.3-6.8, 3.9-4.3 -> 3.5-3.8 ms; width 4 at 9.4-9.8, 8.0-8.7 -> 4.2-4.4 ms).
+JUMP_MIN_WIDTH = 5.0
 
 
 @frozen
@@ -197,8 +213,10 @@ _RINGS = {2: 3}
 
 __all__ = [
     "DEFAULT_TOP",
+    "JUMP_MIN_WIDTH",
     "LARGE_MAP_OPTIONS",
     "SCATTERED_MAP_OPTIONS",
+    "SOLID_MAP_OPTIONS",
     "MapShape",
     "MultiPath",
     "Segment",
@@ -520,12 +538,14 @@ def atp(
             where they are one cell thick or obstacles scattered, much (rooms of 8: 0.985 ->
             0.962, random 20%: 0.975 -> 0.926 of the optimal length).
         jump_points: the searches over the base cells (octile moves) from one source, the
-            refinements' and the direct route's, are jump point searches
+            refinements' and the direct route's (where its corridor has at least
+            `JUMP_MIN_WIDTH` cells per unit of length), are jump point searches
             (`corridor_search.jump_search`), not A* over every cell (False, the default): the
             same cheapest costs through the same corridors, a path of equal length (ties may
             go another way), fewer nodes pushed and expanded; the expansions reported are the
             jump points expanded. It pays where corridors are wide and costs where they are
-            one cell (docs/navigation.md, "Jump points in the base cells").
+            one cell or obstacles scattered (docs/navigation.md, "Jump points in the base
+            cells"; `LARGE_MAP_OPTIONS` and `SOLID_MAP_OPTIONS` take it).
 
     REFINE re-plans the chosen level-k segment one level lower, through the children of its
     nodes only (they are connected: see `components`), so the search is local and always finds
@@ -603,7 +623,7 @@ def atp(
         return
     if direct is not None and top > 0 and len(found.nodes) <= direct:
         try:
-            route = planner.direct(top, found.nodes)
+            route = planner.direct(top, found)
         except SearchLimit as stopped:  # the deadline came first: register the first plan
             ctx.tick(stopped.expansions)
         else:
@@ -648,7 +668,7 @@ def atp(
     yield Result(plan, share * estimate)
     if direct_width is not None and top > 0 and planner.width(top, found) <= direct_width:
         try:
-            route = planner.direct(top, found.nodes)
+            route = planner.direct(top, found)
         except SearchLimit as stopped:  # the deadline came first: keep the first plan
             ctx.tick(stopped.expansions)
             return
@@ -902,16 +922,18 @@ class _Planner:
         self.ctx.tick(found.expansions)
         return found
 
-    def direct(self, level: int, nodes: tuple[int, ...]) -> Segment:
-        """The base route through the cells of `nodes` (at `level`) and of their neighbours:
-        one segment at level 0."""
+    def direct(self, level: int, path: NodePath) -> Segment:
+        """The base route through the cells of the nodes of `path` (at `level`) and of their
+        neighbours: one segment at level 0. With `jump_points`, searched by jump points where
+        those cells are at least `JUMP_MIN_WIDTH` per unit of the path's length."""
         c = self.components
-        allowed = c.widened(level, nodes, 1)
+        allowed = c.widened(level, path.nodes, 1)
         for k in range(level - 1, 0, -1):  # down to the cells, every child
             allowed = c.widened(k, allowed, 0)
+        wide = len(allowed) >= JUMP_MIN_WIDTH * max(path.cost, 1.0)  # `width`, from the cells
         found = c.corridor(
             0, allowed, [c.node(self.start, 0)], [c.node(self.goal, 0)],
-            limit=self.ctx.remaining, jump_points=self.jump_points,
+            limit=self.ctx.remaining, jump_points=self.jump_points and wide,
         )  # fmt: skip
         if found is None:
             raise AssertionError("no base route through the children of a path")
