@@ -214,19 +214,19 @@ def test_the_corridor_search_by_jump_points() -> None:
 def _direct_work(blocked: np.ndarray, **options: Any) -> tuple[float, float]:
     """The work of `atp`'s direct route (a first plan of at most 256 nodes at level 2, then one
     base search) from corner to corner, and the width `JUMP_MIN_WIDTH` is compared with."""
-    components = Components.build(blocked, 8, top=2)
+    components, pyramid = Components.build(blocked, 8, top=2), Pyramid.build(blocked)
     free = np.argwhere(~blocked)
     start, goal = tuple(free[0, ::-1].tolist()), tuple(free[-1, ::-1].tolist())  # (x, y)
     ctx = Context()
     plans = list(
         atp(
-            ctx, start, goal, Pyramid.build(blocked), movement=8, components=components, top=2,
-            direct=256, **options,
+            ctx, start, goal, pyramid, movement=8, components=components, top=2, direct=256,
+            **options,
         )
     )  # fmt: skip
     assert len(plans) == 1 and execute(plans[0].value, blocked, movement=8).reached
-    first = _Planner(components, Pyramid.build(blocked), start, goal, Context()).first(2)
-    return ctx.elapsed, _Planner(components, None, start, goal, Context()).width(2, first)
+    planner = _Planner(components, pyramid, start, goal, Context())
+    return ctx.elapsed, planner.width(2, planner.first(2))
 
 
 def test_the_direct_route_jumps_only_through_a_wide_corridor() -> None:
