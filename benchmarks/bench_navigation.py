@@ -275,10 +275,14 @@ def abstraction(
 ) -> tuple[Pyramid, Components]:
     """The ATP's description of a map, built once per map: the obstacleness pyramid and the
     connectivity-aware abstraction up to the first-plan level `top` (default: the planner's),
-    with that level's `landmarks` (`atp(landmarks=...)`) when asked for."""
+    with that level's doors (`atp(doors=True)`, every configuration's here: made when first
+    searched, they are built here so that no problem's time holds them) and its `landmarks`
+    (`atp(landmarks=...)`) when asked for."""
     pyramid = Pyramid.build(blocked)
     level = first_level(top, pyramid)
     components = Components.build(blocked, movement, top=level)
+    if level:
+        components.doors(level)
     if landmarks and level:
         components.landmarks(level, landmarks)
     return pyramid, components

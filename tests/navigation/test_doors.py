@@ -9,12 +9,16 @@ import math
 
 import numpy as np
 import pytest
+from anytime_navigation.planning.abstraction import Pyramid
 from anytime_navigation.planning.components import Components
-from anytime_navigation.planning.doors import CROSSING
+from anytime_navigation.planning.doors import CROSSING, Doors
+from anytime_navigation.planning.planner import atp
 from anytime_navigation.planning.search import SearchLimit
 from grid_moves import draw_free_pair, legal_moves  # tests/navigation/grid_moves.py
 from hypothesis import given, settings
 from hypothesis import strategies as st
+
+from anytime.plugin import Context
 
 maps = st.builds(
     lambda seed, density, side: np.random.default_rng(seed).random((side, side)) < density,
@@ -83,8 +87,8 @@ def test_the_route_is_the_cheapest_through_the_doors(
     blocked: np.ndarray, movement: int, level: int, data: st.DataObject
 ) -> None:
     c = Components.build(blocked, movement, top=level)
-    doors = c.doors
-    assert doors is not None and doors.level == level
+    doors = c.doors(level)
+    assert doors.level == level
     grid = c.grids[level]
     reference = _doors(blocked, grid, movement)
     # Every state's door is the mean midpoint of the moves between its nodes.
@@ -121,12 +125,11 @@ def test_a_route_keeps_to_its_limit_and_counts_what_a_star_expands() -> None:
     blocked = np.zeros((64, 64), dtype=bool)
     blocked[8:56, 32] = True  # a wall between start and goal
     c = Components.build(blocked, 8, top=3)
-    assert c.doors is not None
-    nodes, cost, expansions = c.doors.route((4, 32), (60, 32))
-    assert len(nodes) - 2 <= expansions < len(c.doors.tail)
+    nodes, cost, expansions = c.doors(c.top).route((4, 32), (60, 32))
+    assert len(nodes) - 2 <= expansions < len(c.doors(c.top).tail)
     with pytest.raises(SearchLimit):
-        c.doors.route((4, 32), (60, 32), limit=expansions - 1)
-    assert c.doors.route((4, 32), (60, 32), limit=expansions) == (nodes, cost, expansions)
+        c.doors(c.top).route((4, 32), (60, 32), limit=expansions - 1)
+    assert c.doors(c.top).route((4, 32), (60, 32), limit=expansions) == (nodes, cost, expansions)
     # Around the wall's end, not through it: the route's blocks pass row 56 or row 7.
     blocks = [c.block(node, 3) for node in nodes]
     assert any(y == 0 or y == 7 for _, y in blocks)
@@ -134,8 +137,7 @@ def test_a_route_keeps_to_its_limit_and_counts_what_a_star_expands() -> None:
 
 def test_a_route_within_one_node_is_that_node() -> None:
     c = Components.build(np.zeros((16, 16), dtype=bool), 4, top=2)
-    assert c.doors is not None
-    assert c.doors.route((1, 1), (2, 3)) == ((c.node((1, 1), 2),), 3.0, 0)
+    assert c.doors(c.top).route((1, 1), (2, 3)) == ((c.node((1, 1), 2),), 3.0, 0)
 
 
 def test_a_level_of_its_own_gets_its_doors_when_asked() -> None:
@@ -146,6 +148,34 @@ def test_a_level_of_its_own_gets_its_doors_when_asked() -> None:
     assert len(found.nodes) == 8  # the diagonal: fewest doors among the straightest routes
 
 
+def test_the_doors_are_made_once_when_first_searched(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Not with the hierarchy: a planner that never searches through them never pays for them
+    (`atp(doors=False)`, the navigation task's); asked for again, a level's are the same."""
+    made: list[int] = []
+    build = Doors.build
+
+    def counted(level: int, *args: object, **kwargs: object) -> Doors:
+        made.append(level)
+        return build(level, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(Doors, "build", counted)
+    blocked = np.zeros((32, 32), dtype=bool)
+    blocked[8:24, 15] = True
+    c = Components.build(blocked, 8, top=3)
+    pyramid = Pyramid.build(blocked)
+    list(atp(Context(), (2, 16), (29, 16), pyramid, movement=8, components=c, doors=False))
+    assert made == []
+    list(atp(Context(), (2, 16), (29, 16), pyramid, movement=8, components=c))
+    assert made == [3]
+    assert c.doors(3) is c.doors(3) and made == [3]
+    # the top level's doors, read off level 0's grid, are a level's own grid's
+    own = Components.build(blocked, 8, top=4).doors(3)
+    for name in ("tail", "head", "point", "after", "length"):
+        assert np.array_equal(getattr(c.doors(3), name), getattr(own, name)), name
+    with pytest.raises(ValueError, match=r"^doors are of levels 1 to 3, not 0$"):
+        c.doors(0)
+
+
 @settings(max_examples=30, deadline=None)
 @given(maps, st.sampled_from([4, 8]), st.data())
 def test_no_path_of_nodes_is_cheaper_through_its_doors_than_the_route(
@@ -154,12 +184,12 @@ def test_no_path_of_nodes_is_cheaper_through_its_doors_than_the_route(
     """The route is the cheapest through the doors: the path from centre to centre (the
     "centres" first plan) costs at least as much through its own doors."""
     c = Components.build(blocked, movement, top=2)
-    assert c.doors is not None
     pair = draw_free_pair(blocked, data)
     if pair is None or not c.connected(*pair):
         return
     start, goal = pair
-    _, cost, _ = c.doors.route(start, goal)
+    made = c.doors(c.top)
+    _, cost, _ = made.route(start, goal)
     every = np.arange(len(c.levels[2]))
     centres = c.corridor(2, every, [c.node(start, 2)], [c.node(goal, 2)])
     assert centres is not None
@@ -173,14 +203,14 @@ def test_no_path_of_nodes_is_cheaper_through_its_doors_than_the_route(
         for a, b in zip(points, points[1:], strict=False)
     )
     assert cost <= (own + CROSSING * (len(nodes) - 1)) * (1 + 1e-12)
-    assert math.isclose(c.doors.cost_of(nodes, start, goal), own + CROSSING * (len(nodes) - 1))
+    assert math.isclose(made.cost_of(nodes, start, goal), own + CROSSING * (len(nodes) - 1))
     # Bounded by the centres' path, or by the route itself (the cut at exactly its cost through
     # its doors, `corridor_search.door_route`), the search finds a route as cheap (of several,
     # the cut may leave another), costing what `cost_of` says it does.
-    for bound in (nodes, c.doors.route(start, goal)[0]):
-        bounded, bounded_cost, _ = c.doors.route(start, goal, bound=bound)
+    for bound in (nodes, made.route(start, goal)[0]):
+        bounded, bounded_cost, _ = made.route(start, goal, bound=bound)
         assert bounded_cost == cost
-        assert math.isclose(c.doors.cost_of(bounded, start, goal), cost, rel_tol=1e-12)
+        assert math.isclose(made.cost_of(bounded, start, goal), cost, rel_tol=1e-12)
 
 
 def test_the_doors_of_a_map_with_blocked_margins_are_where_its_moves_are() -> None:
@@ -190,8 +220,8 @@ def test_the_doors_of_a_map_with_blocked_margins_are_where_its_moves_are() -> No
     blocked = np.ones((32, 32), dtype=bool)
     blocked[7:27, 11:24] = inner
     c = Components.build(blocked, 8, top=2)
-    assert c.doors is not None
     reference = _doors(blocked, c.grids[2], 8)
-    assert len(reference) == len(c.doors.tail)
-    for j, (u, v) in enumerate(zip(c.doors.tail.tolist(), c.doors.head.tolist(), strict=True)):
-        assert np.allclose(c.doors.point[j], reference[u, v])
+    doors = c.doors(c.top)
+    assert len(reference) == len(doors.tail)
+    for j, (u, v) in enumerate(zip(doors.tail.tolist(), doors.head.tolist(), strict=True)):
+        assert np.allclose(doors.point[j], reference[u, v])

@@ -283,8 +283,7 @@ def test_the_first_plan_is_routed_again_through_the_doors_where_that_is_cheaper(
     blocked = load_map(Path(str(data_file("maps"))) / "8room_000.map")[0]
     pyramid = Pyramid.build(blocked)
     components = Components.build(blocked, 8, top=3)
-    doors = components.doors
-    assert doors is not None
+    doors = components.doors(3)
     start, goal = (4, 4), (500, 500)
     assert not blocked[4, 4] and not blocked[500, 500]
     without = list(atp(Context(), start, goal, pyramid, movement=8, doors=False))

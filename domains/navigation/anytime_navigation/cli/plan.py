@@ -65,6 +65,19 @@ ATP_OPTIONS: dict[str, Mapping[str, Any]] = {
 }
 BY_MAP = "by-map"
 
+
+def _listed(options: Mapping[str, Any]) -> str:
+    """Options as `--help` shows them, name=value (an option on by itself: its name)."""
+    return ", ".join(
+        name if value is True else f"{name}={value}" for name, value in options.items()
+    )
+
+
+def _changed(options: Mapping[str, Any]) -> str:
+    """What `options` change of `LARGE_MAP_OPTIONS`, as `_listed` shows them."""
+    return _listed({k: v for k, v in options.items() if LARGE_MAP_OPTIONS.get(k, None) != v})
+
+
 #: Lengths this close (relative) to a `.scen` optimal count as optimal: old-style files such as
 #: `arena.map.scen` print the optimal lengths to 6 significant digits (11.8284 for 11.828427).
 _SCEN_PRECISION = 1e-5
@@ -126,14 +139,13 @@ def add_command(commands: CommandGroup) -> None:
         "--atp-options",
         choices=[BY_MAP, *sorted(ATP_OPTIONS)],
         default=BY_MAP,
-        help="the ATP's options: those that measured best on MovingAI maps (large-maps: top=4, "
-        "direct=4, direct_width=12, no_ring_when_open=0.05, one_ring_when_open=0.1, "
-        "landmarks=8, no_ring_when_clear=0.7), the same with top=3 and direct_width=8 for "
+        help="the ATP's options: those that measured best on MovingAI maps (large-maps: "
+        f"{_listed(LARGE_MAP_OPTIONS)}), the same with {_changed(SCATTERED_MAP_OPTIONS)} for "
         "maps of scattered, dense obstacles (scattered-maps), the same with level-2 segments "
-        "refined straight to the cells (skip_level_1) for maps of solid obstacles such as "
-        "streets and caves (solid-maps), one of those three chosen by the map's shape "
-        "(by-map), or the planner's defaults, as the navigation task plans its 128 x 128 "
-        "worlds (task) (by-map)",
+        f"refined straight to the cells ({_changed(SOLID_MAP_OPTIONS)}) for maps of solid "
+        "obstacles such as streets and caves (solid-maps), one of those three chosen by the "
+        "map's shape (by-map), or the planner's defaults, as the navigation task plans its "
+        "128 x 128 worlds (task) (by-map)",
     )
     parser.add_argument(
         "--movement",
@@ -290,6 +302,8 @@ def _described(blocked: BoolGrid, movement: int, options: Mapping[str, Any]) -> 
     # A map smaller than the options' first level plans from its pyramid's top.
     top = min(options.get("top", DEFAULT_TOP), pyramid.top)
     components = Components.build(blocked, movement, top=top)
+    if options.get("doors", True) and top > 0:  # made when first searched: here, not in a
+        components.doors(top)  # problem's time
     if options.get("landmarks") and top > 0:  # made with the abstraction, once per map
         components.landmarks(top, options["landmarks"])
     return Described(pyramid, components, {**options, "top": top})

@@ -23,9 +23,10 @@ distance between them as the robot moves (Manhattan for 4-connected moves, octil
 8-connected ones; at level 0 that is the move's length, 1 or sqrt 2). The whole hierarchy is
 built once per map, bottom-up, vectorised and compiled (`Components.build`): level 1 read off
 the 2 x 2 blocks' patterns, each level above from the graph of the one below (a union-find);
-linear in the free cells, each level's edges sorted by counting. The top level
-also gets its *doors* (`doors`: where a route crosses from node to node, for searching the
-first plan's level again by the way through the nodes rather than their centres).
+linear in the free cells, each level's edges sorted by counting. A level's *doors* (`doors`:
+where a route crosses from node to node, for searching the first plan's level again by the way
+through the nodes rather than their centres) are made when a route is first searched through
+them, not with the hierarchy: a planner that never does so never pays for them.
 
 Landmarks. On request (`landmarks`), a level gets the distances from a few of its nodes to every
 other, over its edges, for the ALT heuristic of the searches over the whole level (the first
@@ -283,6 +284,10 @@ def _level_room(components: Components, level: int) -> list[Any]:
     return made[level]
 
 
+# Each abstraction's doors by level, made when a route is first searched through them (as above):
+# a planner that never searches the doors (`atp(doors=False)`, the navigation task's, or a
+# direct route through a maze) does not pay for them (40% of the build of a 128 x 128 world).
+_DOORS: weakref.WeakKeyDictionary[Components, dict[int, Doors]] = weakref.WeakKeyDictionary()
 # Each abstraction's landmark distances by (level, count), made when first asked for (as above).
 _LANDMARKS: weakref.WeakKeyDictionary[Components, dict[tuple[int, int], FloatArray]] = (
     weakref.WeakKeyDictionary()
@@ -302,7 +307,6 @@ class Components:
     # The connected free region of each top-level node: `regions` (each base cell's) is made
     # from it when first read; `connected` reads the two cells' nodes.
     top_regions: IntArray
-    doors: Doors | None = None  # the top level's, when it is above level 0 (first plans)
     # Each level's scratch for its searches: -1 for every node between them (made here, so that
     # a plan's pickle, which holds its abstraction, is the same before and after a search).
     _scratch: tuple[IntArray, ...] = field(init=False, repr=False)
@@ -317,6 +321,23 @@ class Components:
         if stacked is None:
             stacked = _STACKED[self] = _stack(self.levels, self._scratch)
         return stacked
+
+    def doors(self, level: int) -> Doors:
+        """The doors of `level` > 0 (`doors.Doors`), made when first asked for: the top level's
+        read each cell's node off level 0's grid, so its grid is not made."""
+        made = _DOORS.setdefault(self, {})
+        if level not in made:
+            if not 0 < level <= self.top:
+                raise ValueError(f"doors are of levels 1 to {self.top}, not {level}")
+            at = self.levels[level]
+            if level == self.top:
+                grid, up = self.grids[0], self.grids.up
+            else:
+                grid, up = self.grids[level], None
+            made[level] = Doors.build(
+                level, grid, at.block, at.first, at.neighbour, self.movement, up=up
+            )
+        return made[level]
 
     def landmarks(self, level: int, count: int) -> FloatArray:
         """The distances over `level`'s edges from `count` landmark nodes to every node of the
@@ -419,13 +440,7 @@ class Components:
 
             labels, _ = ndimage.label(free)  # 4-connected: octile moves join the same cells
             region = labels.ravel()[cells].astype(np.int64) - 1
-        doors = None
-        if top > 0:
-            at = levels[top]
-            doors = Doors.build(
-                top, grids[0], at.block, at.first, at.neighbour, movement, up=made_grids.up
-            )
-        return cls(levels, made_grids, movement, region, doors)
+        return cls(levels, made_grids, movement, region)
 
     @property
     def top(self) -> int:
@@ -482,12 +497,7 @@ class Components:
         Raises:
             SearchLimit: its work is more than `limit`.
         """
-        doors = self.doors
-        if doors is None or doors.level != level:
-            here = self.levels[level]
-            doors = Doors.build(
-                level, self.grids[level], here.block, here.first, here.neighbour, self.movement
-            )
+        doors = self.doors(level)
         within = None
         if rings is not None and bound is not None:
             within = self.neighbourhood(level, bound, rings)

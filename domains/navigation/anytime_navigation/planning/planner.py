@@ -450,8 +450,8 @@ def atp(
             is what refinement keeps invariant, so it sets the grain of the anytime behaviour:
             how much one refinement costs and improves.
         components: the abstraction of the pyramid's map (`Components.build(pyramid.levels[0]
-            >= 1, movement, top=top)`: its doors are its top level's), built here when not
-            given; pass it to plan many times on one map.
+            >= 1, movement, top=top)`; its top level's doors are made when first searched),
+            built here when not given; pass it to plan many times on one map.
         doors: after the first plan (a path of nodes costed from centre to centre), search
             the top level again through the doors between nodes (`doors`) and, when that
             route is cheaper through its doors, go on from it (the second result). Centres
