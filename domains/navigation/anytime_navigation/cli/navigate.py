@@ -107,7 +107,9 @@ def add_command(commands: CommandGroup) -> None:
         choices=["work", "wall"],
         default="work",
         help="time in reported ticks of work (work: reproducible, the default) or in seconds of"
-        " the wall clock (wall)",
+        " the wall clock (wall: read as ticks at a rate measured once; the shipped profiles and"
+        " the prediction are of the work clock, and a frame's fixed costs, which no tick"
+        " counts, outlast the monitor's contracts there)",
     )
     navigate.add_argument(
         "--moving-obstacles",
