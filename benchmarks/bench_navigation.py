@@ -189,7 +189,8 @@ KIND_CONFIGS: dict[str, dict[str, Any]] = {
         key: value for key, value in LARGE_MAP_OPTIONS.items() if key != "jump_points"
     },
     "... and jump_points": dict(LARGE_MAP_OPTIONS),  # `anytime plan`'s options
-    "... and skip_level_1": dict(SOLID_MAP_OPTIONS),  # the options of solid maps
+    "... and skip_level_1": {**LARGE_MAP_OPTIONS, "skip_level_1": True},
+    "... and doors=False": dict(SOLID_MAP_OPTIONS),  # the options of solid maps
     "... and follow (compiled)": {**LARGE_MAP_OPTIONS, "follow": FOLLOW},
     "options by map (map_options)": {"options": BY_MAP},  # `anytime plan`'s default
 }
@@ -252,7 +253,10 @@ class AtpRun:
 
 
 def best_of(repeats: int, measure: Callable[[], Any]) -> tuple[float, Any]:
-    """The least wall time of `repeats` calls of `measure` and the last call's value."""
+    """The least wall time of `repeats` calls of `measure` and the last call's value, each
+    after a collection and with the collector off (`main` freezes what is alive once set up:
+    a collection then scans what the runs made, not the 140,000 objects of the modules
+    loaded, 30 ms a collection, half the run's time)."""
     best, value = math.inf, None
     for _ in range(repeats):
         gc.collect()
@@ -271,17 +275,21 @@ def timed(measure: Callable[[], Any]) -> tuple[float, Any]:
 
 
 def abstraction(
-    blocked: BoolGrid, movement: int, top: int | None = None, landmarks: int = 0
+    blocked: BoolGrid,
+    movement: int,
+    top: int | None = None,
+    landmarks: int = 0,
+    doors: bool = True,
 ) -> tuple[Pyramid, Components]:
     """The ATP's description of a map, built once per map: the obstacleness pyramid and the
     connectivity-aware abstraction up to the first-plan level `top` (default: the planner's),
-    with that level's doors (`atp(doors=True)`, every configuration's here: made when first
+    with that level's doors when the planner searches them (`atp(doors=True)`: made when first
     searched, they are built here so that no problem's time holds them) and its `landmarks`
     (`atp(landmarks=...)`) when asked for."""
     pyramid = Pyramid.build(blocked)
     level = first_level(top, pyramid)
     components = Components.build(blocked, movement, top=level)
-    if level:
+    if doors and level:
         components.doors(level)
     if landmarks and level:
         components.landmarks(level, landmarks)
@@ -937,17 +945,17 @@ def bench_kinds(
         python = sum(measured.python_times) / astar_total
         peer_ratio = "-"
         if peer is not None:
-            run = race_pathfinding(peer, blocked, width, height, longest(scenarios, count), repeats)
+            run = race_pathfinding(peer, blocked, width, height, longest(scenarios, count), 1)
             peer_ratio = f"{sum(run.theirs) / sum(run.ours):.2f}"
         others = []
         for make, problems in ((networkx_query, NETWORKX_PROBLEMS), (tcod_query, count)):
-            raced = race_peer(make, blocked, longest(scenarios, problems), repeats)
+            raced = race_peer(make, blocked, longest(scenarios, problems), 1)
             others.append("-" if raced is None else f"{raced[0]:.2f} ({raced[1]}/{problems})")
         pyramid = Pyramid.build(blocked)
-        builds: dict[tuple[int, int], float] = {}
+        builds: dict[tuple[int, int, bool], float] = {}
         for index, (name, options) in enumerate(chosen.items()):
             top = first_level(options.get("top"), pyramid)
-            key = (top, options.get("landmarks") or 0)
+            key = (top, options.get("landmarks") or 0, options.get("doors", True))
             if key not in builds:  # the abstraction up to the first plan's level, once per map
                 builds[key] = best_of(repeats, partial(abstraction, blocked, 8, *key))[0]
             build = builds[key]
@@ -1044,9 +1052,11 @@ def bench_kinds(
         " the searches over the base cells from one source are jump point searches (the same\n"
         " costs; expansions: the jump points expanded), the direct route's only where its\n"
         f" corridor has at least {JUMP_MIN_WIDTH:g} cells per unit of length;\n"
-        " skip_level_1 (with the row above's options: planner.SOLID_MAP_OPTIONS, anytime plan's\n"
-        " on maps of solid obstacles): a level-2 segment is refined straight to the base cells,\n"
-        " through its own nodes' cells;\n"
+        " skip_level_1 (with the row above's options): a level-2 segment is refined straight to\n"
+        " the base cells, through its own nodes' cells;\n"
+        " doors=False (with the row above's options: planner.SOLID_MAP_OPTIONS, anytime plan's\n"
+        " on maps of solid obstacles): the first plan is not searched again through the doors\n"
+        " (nor are they built);\n"
         " follow (with the jump_points row's\n"
         " options): a plan is registered only when the robot follows it no longer than the\n"
         " last one registered (following.Follower: execute's length, compiled; its calls in the\n"
@@ -1065,6 +1075,8 @@ def bench_kinds(
         " (the same search: the same paths and expansions);\n"
         " pathfinding / A*: its total query time / the compiled A*'s on the same problems, as in\n"
         f" the second table;\n {peers};\n"
+        " the peers here one run of each problem, side by side with one of the compiled A*'s\n"
+        " (they take 4 to 300 times its time: a best of 3 would add minutes a map, not a digit);\n"
         f" issue 36 target: final q mean >= {quality_mean} and min >= {quality_min} with\n"
         f" abstraction <= {time_target:.0%} (stretch: 12%), first q >= {first_quality} at first"
         f" plan time <= {first_time:.0%},\n expansions <= {EXPANSIONS_TARGET:.0%}, the random"
@@ -1137,6 +1149,8 @@ def main() -> None:
         parser.error("--configs goes with --maps")
     began = time.perf_counter()
     print(compiled_searches())
+    gc.collect()
+    gc.freeze()  # the modules loaded: no collection before a timed run scans them again
     if args.maps:  # maps of the user's: the per-kind table alone, on those that load
         given = []
         for path in args.maps:

@@ -142,7 +142,8 @@ def add_command(commands: CommandGroup) -> None:
         help="the ATP's options: those that measured best on MovingAI maps (large-maps: "
         f"{_listed(LARGE_MAP_OPTIONS)}), the same with {_changed(SCATTERED_MAP_OPTIONS)} for "
         "maps of scattered, dense obstacles (scattered-maps), the same with level-2 segments "
-        f"refined straight to the cells ({_changed(SOLID_MAP_OPTIONS)}) for maps of solid "
+        "refined straight to the cells and the first plan not searched again through the doors "
+        f"({_changed(SOLID_MAP_OPTIONS)}) for maps of solid "
         "obstacles such as streets and caves (solid-maps), one of those three chosen by the "
         "map's shape (by-map), or the planner's defaults, as the navigation task plans its "
         "128 x 128 worlds (task) (by-map)",
