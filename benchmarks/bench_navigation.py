@@ -63,8 +63,10 @@ the best of 2 runs (the per-kind table: the best of 3, as issue 36 measured, its
 given up after 2x the pure-Python A*'s time: its targets sit within a few points of A*'s time,
 and with one run of each problem random512-10-0's large-map row read 26.9% and 33.6% of A*'s
 time, with the abstraction, on two page runs, of planners that took the same time side by side;
-about 70 minutes in all on a 2-core machine; the full run takes longer, three runs of each
-problem).
+about 25 minutes in all on a 2-core machine; the full run takes longer, three runs of each
+problem). Each timed run follows a collection, with the collector off while it runs; what is
+alive once set up is frozen (`gc.freeze`): a collection of the whole heap before each run took
+most of the time and started each run cold.
 Plans are executed keeping to their corridor (`execute(..., keep_to_plan=True)`): they are made
 on the map they are followed on.
 
@@ -1123,7 +1125,7 @@ def compiled_searches() -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="fewer problems: about 70 minutes")
+    parser.add_argument("--quick", action="store_true", help="fewer problems: about 25 minutes")
     parser.add_argument(
         "--repeats",
         type=int,

@@ -286,7 +286,8 @@ def _level_room(components: Components, level: int) -> list[Any]:
 
 # Each abstraction's doors by level, made when a route is first searched through them (as above):
 # a planner that never searches the doors (`atp(doors=False)`, the navigation task's, or a
-# direct route through a maze) does not pay for them (40% of the build of a 128 x 128 world).
+# direct route through a maze) does not pay for them (two thirds of the build of a 128 x 128
+# world).
 _DOORS: weakref.WeakKeyDictionary[Components, dict[int, Doors]] = weakref.WeakKeyDictionary()
 # Each abstraction's landmark distances by (level, count), made when first asked for (as above).
 _LANDMARKS: weakref.WeakKeyDictionary[Components, dict[tuple[int, int], FloatArray]] = (
