@@ -1020,8 +1020,16 @@ def compile_searches(movements: Sequence[int] = (4, 8), *, follower: bool = True
         pyramid = Pyramid.build(world.blocked)
         follow = Follower(world.blocked, movement) if follower else None
         # the options whose searches the default's plans do not reach: the door search kept
-        # near the first plan (`neighbourhood`) and the direct route (`widened_children`)
-        for options in ({}, {"door_rings": 1}, {"direct_width": math.inf}):
+        # near the first plan (`neighbourhood`), the direct route (`widened_children`) and
+        # `anytime plan`'s options by map (jump points, landmarks, no level 1, no door search)
+        for options in (
+            {},
+            {"door_rings": 1},
+            {"direct_width": math.inf},
+            LARGE_MAP_OPTIONS,
+            SCATTERED_MAP_OPTIONS,
+            SOLID_MAP_OPTIONS,
+        ):
             plans = atp(
                 Context(), world.start, world.goal, pyramid, movement=movement, follow=follow,
                 **options,
@@ -1029,3 +1037,10 @@ def compile_searches(movements: Sequence[int] = (4, 8), *, follower: bool = True
             for _ in plans:
                 pass
         GridAstar(world.blocked, movement=movement, weight=0.0).find_path(world.start, world.goal)
+        # a short problem in the open: the direct route searched by jump points from Python
+        # (otherwise the first such problem of a process paid 13 ms loading that search)
+        open_ground = Pyramid.build(np.zeros((64, 64), dtype=bool))
+        for _ in atp(
+            Context(), (1, 1), (40, 40), open_ground, movement=movement, **LARGE_MAP_OPTIONS
+        ):
+            pass
