@@ -104,6 +104,7 @@ from anytime_navigation.planning.planner import (
     MultiPath,
     atp,
     compile_searches,
+    made_ahead,
     map_options,
 )
 from anytime_navigation.planning.search import GridAstar, find_path
@@ -285,16 +286,12 @@ def abstraction(
 ) -> tuple[Pyramid, Components]:
     """The ATP's description of a map, built once per map: the obstacleness pyramid and the
     connectivity-aware abstraction up to the first-plan level `top` (default: the planner's),
-    with that level's doors when the planner searches them (`atp(doors=True)`: made when first
-    searched, they are built here so that no problem's time holds them) and its `landmarks`
-    (`atp(landmarks=...)`) when asked for."""
+    with what `atp(doors=doors, landmarks=landmarks)` makes of it when first needed
+    (`planner.made_ahead`: the level's doors, its landmarks)."""
     pyramid = Pyramid.build(blocked)
     level = first_level(top, pyramid)
     components = Components.build(blocked, movement, top=level)
-    if doors and level:
-        components.doors(level)
-    if landmarks and level:
-        components.landmarks(level, landmarks)
+    made_ahead(components, level, {"doors": doors, "landmarks": landmarks})
     return pyramid, components
 
 
@@ -517,10 +514,9 @@ def measure_suite(
             pyramid = Pyramid.build(problem.blocked)
             tops = {first_level(options.get("top"), pyramid) for options in configs.values()}
             built = {top: abstraction(problem.blocked, suite.movement, top)[1] for top in tops}
-            for options in configs.values():  # the landmarks too, like the abstraction
+            for options in configs.values():  # what each makes ahead too, like the abstraction
                 level = first_level(options.get("top"), pyramid)
-                if options.get("landmarks") and level:
-                    built[level].landmarks(level, options["landmarks"])
+                made_ahead(built[level], level, options)
             follows = any(options.get("follow") == FOLLOW for options in configs.values())
             follower = Follower(problem.blocked, suite.movement) if follows else None
             described[key] = (astar, pyramid, built, follower)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import heapq
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -154,9 +155,9 @@ def test_the_doors_are_made_once_when_first_searched(monkeypatch: pytest.MonkeyP
     made: list[int] = []
     build = Doors.build
 
-    def counted(level: int, *args: object, **kwargs: object) -> Doors:
+    def counted(level: int, *args: Any, **kwargs: Any) -> Doors:
         made.append(level)
-        return build(level, *args, **kwargs)  # type: ignore[arg-type]
+        return build(level, *args, **kwargs)
 
     monkeypatch.setattr(Doors, "build", counted)
     blocked = np.zeros((32, 32), dtype=bool)

@@ -45,6 +45,7 @@ from ..planning.planner import (
     SOLID_MAP_OPTIONS,
     atp,
     compile_searches,
+    made_ahead,
     map_options,
 )
 from ..planning.search import GridAstar
@@ -303,10 +304,7 @@ def _described(blocked: BoolGrid, movement: int, options: Mapping[str, Any]) -> 
     # A map smaller than the options' first level plans from its pyramid's top.
     top = min(options.get("top", DEFAULT_TOP), pyramid.top)
     components = Components.build(blocked, movement, top=top)
-    if options.get("doors", True) and top > 0:  # made when first searched: here, not in a
-        components.doors(top)  # problem's time
-    if options.get("landmarks") and top > 0:  # made with the abstraction, once per map
-        components.landmarks(top, options["landmarks"])
+    made_ahead(components, top, options)  # with the abstraction, once per map
     return Described(pyramid, components, {**options, "top": top})
 
 

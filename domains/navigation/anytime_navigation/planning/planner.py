@@ -136,6 +136,17 @@ SOLID_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
 JUMP_MIN_WIDTH = 5.0
 
 
+def made_ahead(components: Components, level: int, options: Mapping[str, Any]) -> None:
+    """Make now what `atp(**options)` with its first plan at `level` makes of `components` when
+    first needed and keeps: the level's doors when it searches them (`doors`, on by default)
+    and its `landmarks`. Call it with the abstraction's build, once per map, so that no
+    problem's time holds them."""
+    if level > 0 and options.get("doors", True):
+        components.doors(level)
+    if level > 0 and options.get("landmarks"):
+        components.landmarks(level, options["landmarks"])
+
+
 @frozen
 class MapShape:
     """What `map_options` reads of a map: how scattered its obstacles are, how dense they are
@@ -230,6 +241,7 @@ __all__ = [
     "Segment",
     "atp",
     "compile_searches",
+    "made_ahead",
     "map_options",
     "quality_estimate",
     "segmentize",
