@@ -46,15 +46,19 @@ ATP's abstraction.
 4. The compiled A*'s lengths against the `.scen` optimal lengths of the 15 maps: every problem
    in a full run, 200 per map spread over the file with --quick.
 
-Timing: `time.perf_counter`, the garbage collector paused, the sides interleaved per problem
-(the compiled A*, the pure-Python A*, then each ATP configuration; ours, then theirs), the best
-of `--repeats` runs per problem and side. ATP's time is planning only: its abstraction (the
-obstacleness pyramid and the connected components of every block) is built once per map, timed
-separately (shown as a fraction of A*'s total time on that map's problems), and the execution
-of its plans, which yields the quality, is not timed (and is given up after `EXECUTION_BUDGET`
-times the pure-Python A*'s time: the first plan's quality is then unknown). `pathfinding`'s
-grid is built once per map and reset before each query, both outside its query time and shown
-separately.
+Timing: `time.perf_counter`, the garbage collector paused, the sides one after another per
+problem (the compiled A*, the pure-Python A*, then each ATP configuration, in turn from the
+problem's index, so that each runs first as often; ours, then theirs), each side's
+`--repeats` runs back to back after one untimed run, the best kept. The planner's short runs
+are cache-bound: run straight after A*, its first run took 1.5x the steady time and the next
+ones came down over four runs; a row run after the rows before it read up to 4.6 points of
+A*'s time lower than alone, before the rows took turns. ATP's time is planning only: its
+abstraction (the obstacleness pyramid and the connected components of every block) is built
+once per map, timed separately (shown as a fraction of A*'s total time on that map's problems),
+and the execution of its plans, which yields the quality, is not timed (and is given up after
+`EXECUTION_BUDGET` times the pure-Python A*'s time: the first plan's quality is then unknown).
+`pathfinding`'s grid is built once per map and reset before each query, both outside its query
+time and shown separately.
 
 Problems: 20 worlds of 128 x 128 per movement, 10 of 512 x 512, the 12 problems of the
 longest buckets of each shipped MovingAI map, and 16 per map in the per-kind table (the issue's
@@ -255,19 +259,20 @@ class AtpRun:
     unknown_steps: int  # steps from plan to plan whose executions went over budget
 
 
-def best_of(repeats: int, measure: Callable[[], Any]) -> tuple[float, Any]:
-    """The least wall time of `repeats` calls of `measure` and the last call's value, each
-    after a collection and with the collector off (`main` freezes what is alive once set up:
-    a collection then scans what the runs made, not the 140,000 objects of the modules
-    loaded, 30 ms a collection, half the run's time)."""
+def best_of(repeats: int, measure: Callable[[], Any], warm: int = 0) -> tuple[float, Any]:
+    """The least wall time of `repeats` calls of `measure` after `warm` untimed ones, and the
+    last call's value, each after a collection and with the collector off (`main` freezes what
+    is alive once set up: a collection then scans what the runs made, not the 140,000 objects
+    of the modules loaded, 30 ms a collection, half the run's time)."""
     best, value = math.inf, None
-    for _ in range(repeats):
+    for run in range(warm + repeats):
         gc.collect()
         gc.disable()
         try:
             begin = time.perf_counter()
             value = measure()
-            best = min(best, time.perf_counter() - begin)
+            if run >= warm:
+                best = min(best, time.perf_counter() - begin)
         finally:
             gc.enable()
     return best, value
@@ -358,29 +363,34 @@ def measure_problem(
     every_plan: bool = False,
     executed: bool = True,
     follower: Follower | None = None,
+    turn: int = 0,
 ) -> tuple[Baseline, dict[str, AtpRun]]:
     """The compiled A*'s and the pure-Python A*'s best times, and each ATP configuration's run,
-    interleaved (`components` by the level of the configuration's first plan); executing a plan
-    is given up after `budget` times the pure-Python A*'s time (the budget the benchmark gave
-    before the compiled A* was its reference). `every_plan`: execute every plan registered, to
-    count the falls of the executed quality (else the first and the last only). `executed`
-    False: no plan executed (times only; the qualities are NaN). `follower`: the map's, for the
-    configurations whose follow is `FOLLOW` (reset before each run, in its time)."""
-    compiled_best = python_best = math.inf
-    found = None
-    best: dict[str, list[float]] = {name: [math.inf, math.inf] for name in configs}
+    one side after another, each side's `repeats` runs back to back after one untimed (the
+    configurations in turn from the `turn`-th, so that each runs first as often; `components`
+    by the level of the configuration's first plan); executing a plan is given up after
+    `budget` times the pure-Python A*'s time (the budget the benchmark gave before the compiled
+    A* was its reference). `every_plan`: execute every plan registered, to count the falls of
+    the executed quality (else the first and the last only). `executed` False: no plan executed
+    (times only; the qualities are NaN). `follower`: the map's, for the configurations whose
+    follow is `FOLLOW` (reset before each run, in its time)."""
+    compiled_best, found = best_of(
+        repeats, partial(astar.find_path, problem.start, problem.goal), warm=1
+    )
+    python_best, pure = best_of(
+        repeats,
+        partial(
+            find_path, problem.blocked, problem.start, problem.goal, movement=movement, weight=0
+        ),
+    )
+    assert pure == found, "the compiled A* is the pure-Python A*, step for step"
+    best: dict[str, list[float]] = {}
     outcome: dict[str, tuple[Context, list[MultiPath]]] = {}
-    for _ in range(repeats):
-        seconds, found = timed(partial(astar.find_path, problem.start, problem.goal))
-        compiled_best = min(compiled_best, seconds)
-        seconds, pure = timed(
-            partial(
-                find_path, problem.blocked, problem.start, problem.goal, movement=movement, weight=0
-            )
-        )
-        python_best = min(python_best, seconds)
-        assert pure == found, "the compiled A* is the pure-Python A*, step for step"
-        for name, options in configs.items():
+    names = list(configs)
+    for name in names[turn % len(names) :] + names[: turn % len(names)]:
+        options = configs[name]
+        best[name] = [math.inf, math.inf]
+        for run in range(1 + repeats):  # back to back, the first untimed (it warms the caches)
             ctx = Context()
 
             def plan(ctx: Context = ctx, options: dict[str, Any] = options) -> Any:
@@ -400,7 +410,8 @@ def measure_problem(
                 return run_atp(ctx, plans)
 
             seconds, (first_seconds, registered) = timed(plan)
-            best[name] = [min(best[name][0], seconds), min(best[name][1], first_seconds)]
+            if run:
+                best[name] = [min(best[name][0], seconds), min(best[name][1], first_seconds)]
             outcome[name] = (ctx, registered)
     assert found is not None, "the benchmark's problems are solvable"
     optimal = found.length if problem.optimal is None else problem.optimal
@@ -507,7 +518,7 @@ def measure_suite(
 ) -> Measured:
     described: dict[int, tuple[GridAstar, Pyramid, dict[int, Components], Follower | None]] = {}
     measured = Measured([], [], [], {name: [] for name in configs})
-    for problem in suite.problems:
+    for turn, problem in enumerate(suite.problems):
         key = id(problem.blocked)
         if key not in described:  # the compiled A*'s grid, like the abstraction, once per map
             astar = GridAstar(problem.blocked, movement=suite.movement, weight=0.0)
@@ -533,6 +544,7 @@ def measure_suite(
             every_plan,
             executed,
             follower,
+            turn,
         )
         measured.astar_times.append(baseline.seconds)
         measured.astar_expansions.append(baseline.expansions)
@@ -590,11 +602,11 @@ def bench_atp(suites: list[Suite], repeats: int) -> str:
         " A*'s); each A*'s grid is built once per map, outside its time;\n"
         " q: plan quality = optimal length / executed length, per problem, then the mean or the\n"
         " minimum; time / A* (mean): the mean over problems of ATP time / A* time, each the best\n"
-        f" of {repeats} runs; (totals): total ATP time / total A* time; first plan time: to the\n"
-        " first yield; expansions / A*: total ATP expansions (of all its searches) / total A*\n"
-        " expansions; refinements: mean per problem; abstraction / A*: building the pyramid and\n"
-        " the components, once per map, / total A* time on the map's problems (not in the ATP\n"
-        " time);\n"
+        f" of {repeats} runs back to back after an untimed one; (totals): total ATP time / total\n"
+        " A* time; first plan time: to the first yield; expansions / A*: total ATP expansions\n"
+        " (of all its searches) / total A* expansions; refinements: mean per problem;\n"
+        " abstraction / A*: building the pyramid and the components, once per map, / total A*\n"
+        " time on the map's problems (not in the ATP time);\n"
         " first plan exec. exp.: the obstacle-avoidance expansions executing the first plan on\n"
         " the true map takes, / total A* expansions (the final plan is followed with none);\n"
         f" an execution is given up after {EXECUTION_BUDGET}x the pure-Python A*'s time: 'k over'"
@@ -955,12 +967,12 @@ def bench_kinds(
             top = first_level(options.get("top"), pyramid)
             key = (top, options.get("landmarks") or 0, options.get("doors", True))
             if key not in builds:  # the abstraction up to the first plan's level, once per map
-                builds[key] = best_of(repeats, partial(abstraction, blocked, 8, *key))[0]
+                builds[key] = best_of(repeats, partial(abstraction, blocked, 8, *key), warm=1)[0]
             build = builds[key]
             if configs[name].get("options") == BY_MAP:  # and reading the map's shape
-                build += best_of(repeats, partial(map_options, blocked))[0]
+                build += best_of(repeats, partial(map_options, blocked), warm=1)[0]
             if options.get("follow") == FOLLOW:  # and the follower's, once per map
-                build += best_of(repeats, partial(Follower, blocked, 8))[0]
+                build += best_of(repeats, partial(Follower, blocked, 8), warm=1)[0]
             runs = measured.runs[name]
             summary = summarise(measured.astar_times, measured.astar_expansions, runs)
             with_abstraction = (sum(r.seconds for r in runs) + build) / astar_total
@@ -1060,9 +1072,10 @@ def bench_kinds(
         " last one registered (following.Follower: execute's length, compiled; its calls in the\n"
         " ATP's time, its build, once per map, with the abstraction's); the\n"
         f" {count} problems of the longest buckets per map, octile without\n"
-        " corner cutting, optimal lengths from A*; A* and the ATP interleaved, each the best of\n"
-        f" {repeats} run(s); columns as in the first table, but an execution is given up after\n"
-        f" {budget:g}x the pure-Python A*'s time;\n"
+        " corner cutting, optimal lengths from A*; A* and the ATP interleaved (the rows in\n"
+        " turn, each problem starting one row further on), each the best of\n"
+        f" {repeats} run(s) back to back after an untimed one; columns as in the first table,\n"
+        f" but an execution is given up after {budget:g}x the pure-Python A*'s time;\n"
         " with abstraction: (total ATP time + building its abstraction once) / total A* time;\n"
         " falls: steps from a registered plan to the next whose executed quality falls / all\n"
         " such steps ('k over': steps not judged, an execution over budget);\n"
