@@ -248,13 +248,14 @@ BENCHMARKS = [
         " loaded) is frozen (`gc.freeze`), so that collection does not scan it again (since "
         "186b07b: before, each collection walked some 140,000 objects, a cold start that made"
         " the planner's time on the options' rows up to 1.6 times what it is without, and "
-        "took most of the run). What runs just before a timed run matters too: a problem's "
-        "configurations run in the table's order after its pure-Python A*, so the rows after "
-        "the first run on caches warm with the same map's abstraction; the options by map run"
-        " alone after the pure-Python A* read up to 4.6 points of A*'s time higher with the "
-        'build (random 30%: 0.6 lower) (docs/navigation.md, "Measured again without the cold '
-        'start"). The ATP plans over connected free regions of blocks (a block a wall splits '
-        "is two nodes), first over blocks of 8 x 8 cells from centre to centre, then goes on "
+        "took most of the run). What runs just before a timed run matters too: the planner's "
+        "runs are short and cache-bound, so each side's runs are back to back after one "
+        "untimed run and the configurations take turns (each problem starts one row further"
+        " on); until this page they ran in the table's order, and the options by map, last, "
+        "read up to 4.6 points of A*'s time lower with the build than run alone "
+        '(docs/navigation.md, "Measured again without the cold start"). The ATP plans over '
+        "connected free regions of blocks (a block a wall splits is two nodes), first over "
+        "blocks of 8 x 8 cells from centre to centre, then goes on "
         "from the route through the doors between them (not registered by itself); its time "
         "is planning only. Plans are made on the map they are followed on, so the robot keeps"
         " to the cells of the plan's nodes (`keep_to_plan`).",
