@@ -30,10 +30,10 @@ from concurrent.futures import Executor
 from typing import Any
 
 import numpy as np
-from attrs import cmp_using, field, frozen
+from attrs import asdict, cmp_using, field, frozen
 
 from anytime.clocks import WorkClock
-from anytime.compiler.compile import CompiledProgram
+from anytime.compiler.compile import CompiledProgram, declared_dependence
 from anytime.errors import AnytimeError
 from anytime.measure.progress import ProgressBar
 from anytime.modules import Result
@@ -49,6 +49,7 @@ __all__ = [
     "SIGMAS",
     "TOLERANCE",
     "BudgetCheck",
+    "DependenceFit",
     "Verification",
     "VerifyError",
     "format_verification",
@@ -118,6 +119,28 @@ class BudgetCheck:
 
 
 @frozen
+class DependenceFit:
+    """The `:dependence` of a program's best-of that best explains the runs.
+
+    With one best-of judged by quality, the promise at `:dependence D` is linear in D:
+    `(1 - D) * independent + D * least` at each total, `least` the comonotone bound
+    (`BudgetCheck.dependence`). The estimate is the weighted least-squares D of the realised
+    means (weights 1 / se^2 per total), unclipped: below 0, the alternatives do better together
+    than independent ones, which `:dependence` cannot say. It is fitted at the table's
+    allocations; a schema given it is compiled again, so check it on another seed.
+
+    Attributes:
+        declared: the schema's `:dependence` (0: independent).
+        estimate: the fitted D.
+        se: its standard error.
+    """
+
+    declared: float
+    estimate: float
+    se: float
+
+
+@frozen
 class Verification:
     """What `verify` found: one `BudgetCheck` per total checked, and how it was run.
 
@@ -132,6 +155,8 @@ class Verification:
         tolerance, sigmas: a total failed when |realised - promised| > max(tolerance,
             sigmas * se).
         seconds: wall time of the whole verification.
+        dependence_fit: for a program with one best-of (judged by quality), the
+            `:dependence` that best explains the runs; None otherwise.
     """
 
     schema: str
@@ -144,6 +169,7 @@ class Verification:
     tolerance: float = TOLERANCE
     sigmas: float = SIGMAS
     seconds: float = field(default=0.0, eq=False)
+    dependence_fit: DependenceFit | None = None
 
     @property
     def passed(self) -> bool:
@@ -389,7 +415,29 @@ def verify(
         tolerance=float(tolerance),
         sigmas=float(sigmas),
         seconds=_time.perf_counter() - started,
+        dependence_fit=_fit_dependence(compiled, checks),
     )
+
+
+def _fit_dependence(
+    compiled: CompiledProgram, checks: Sequence[BudgetCheck]
+) -> DependenceFit | None:
+    """The `:dependence` that best explains the realised means (see `DependenceFit`)."""
+    declared = declared_dependence(compiled.model)
+    ranged = [check for check in checks if check.dependence is not None and check.runs]
+    if declared is None or declared >= 1 or not ranged:
+        return None  # at 1 the promise no longer says what independent alternatives give
+    promised = np.array([check.promised for check in ranged])
+    realised = np.array([check.realised for check in ranged])
+    least = np.array([check.dependence[0] for check in ranged if check.dependence is not None])
+    se = np.array([c.se if c.se > 0 else 1.0 / c.runs for c in ranged])
+    independent = (promised - declared * least) / (1 - declared)
+    slope, residual, weight = least - independent, realised - independent, se**-2.0
+    information = float(np.sum(weight * slope**2))
+    if information <= 1e-12:  # the bound and the promise agree everywhere: no dependence shows
+        return None
+    estimate = float(np.sum(weight * slope * residual)) / information
+    return DependenceFit(declared, estimate, 1 / math.sqrt(information))
 
 
 def _wrap(problems: ProgramProblemSet) -> ProgramProblems:
@@ -535,6 +583,9 @@ def verification_to_dict(verification: Verification) -> dict[str, Any]:
             }
             for check in verification.budgets
         ],
+        "dependence_fit": (
+            None if verification.dependence_fit is None else asdict(verification.dependence_fit)
+        ),
         "seconds": round(verification.seconds, 3),
     }
 
@@ -603,10 +654,21 @@ def _verdict(verification: Verification) -> Iterator[str]:
             if c.dependence is not None
         )
         yield (
-            "  the promise takes a best-of's alternatives as independent; 'if dependent' is"
-            " what it would be were they as dependent as their profiles allow, either way:"
-            f" realised within it ({verification.sigmas:g} se) at {inside} of {len(ranged)}"
-            " budgets"
+            "  the promise takes a best-of's alternatives as independent, or as its :dependence"
+            " says; 'if dependent' is what it would be were they as dependent as their"
+            " profiles allow, either way: realised within it"
+            f" ({verification.sigmas:g} se) at {inside} of {len(ranged)} budgets"
+        )
+    fit = verification.dependence_fit
+    if fit is not None:
+        yield (
+            f"  the runs fit :dependence {fit.estimate:.2f} ± {fit.se:.2f} (the schema's:"
+            f" {fit.declared:g}), the probability that one draw decides every alternative"
+            + (
+                " (below 0: they do better together than independent ones)"
+                if fit.estimate < 0
+                else ""
+            )
         )
     if not failed:
         yield f"  passed at all {len(checks)} budgets ({rule})"

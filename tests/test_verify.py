@@ -151,7 +151,7 @@ def test_the_result_as_data(fair: Verification) -> None:
     data = verification_to_dict(fair)
     assert list(data) == [
         "schema", "time_unit", "problem_set", "scored", "runs_per_budget", "seed", "passed",
-        "min_tolerance", "sigmas", "budgets", "seconds",
+        "min_tolerance", "sigmas", "budgets", "dependence_fit", "seconds",
     ]  # fmt: skip
     assert list(data["budgets"][1]) == [
         "budget", "expected_quality", "realised_quality", "se", "realised_quality_se",

@@ -43,6 +43,7 @@ from anytime.compiler.model import (
     ChoiceNode,
     CompileError,
     CompileModel,
+    CompileNode,
     IfNode,
     ModuleNode,
     Timed,
@@ -239,15 +240,34 @@ def has_best_of(model: CompileModel) -> bool:
     """Whether the program has a best-of of several alternatives judged by their quality,
     itself or in a schema it calls or a branch of its ifs (those whose results a dependence
     between the alternatives moves: `CompiledProgram.dependence`)."""
-    for node in model.nodes:
-        if isinstance(node, ChoiceNode) and len(node.slots) > 1 and not any(node.estimated):
-            return True
-        if isinstance(node, ModuleNode) and node.callee is not None:
-            if node.callee.dependence is not None:
-                return True
-        if isinstance(node, IfNode):
-            if any(plan.compiled.dependence is not None for plan in node.branches):
-                return True
+    return bool(_best_ofs(model)) or any(_holds_best_of(node) for node in model.nodes)
+
+
+def declared_dependence(model: CompileModel) -> float | None:
+    """The `:dependence` of the program's best-of where it has exactly one judged by quality,
+    of its own (none in a schema it calls or in an if's branch): then its promise is linear in
+    it, `(1 - D) * independent + D * least`. None otherwise."""
+    choices = _best_ofs(model)
+    if len(choices) != 1 or any(_holds_best_of(node) for node in model.nodes):
+        return None
+    return choices[0].dependence
+
+
+def _best_ofs(model: CompileModel) -> list[ChoiceNode]:
+    """The program's own best-ofs of several alternatives judged by their quality."""
+    return [
+        node
+        for node in model.nodes
+        if isinstance(node, ChoiceNode) and len(node.slots) > 1 and not any(node.estimated)
+    ]
+
+
+def _holds_best_of(node: CompileNode) -> bool:
+    """Whether a call's schema or an if's branch has such a best-of."""
+    if isinstance(node, ModuleNode) and node.callee is not None:
+        return node.callee.dependence is not None
+    if isinstance(node, IfNode):
+        return any(plan.compiled.dependence is not None for plan in node.branches)
     return False
 
 

@@ -28,6 +28,9 @@ qualities and nothing else): that is the profiles' model, and the evaluation is 
   its quality is the maximum of its alternatives' (independent given the shared results).
 - **Dependent alternatives.** Alternatives run on one problem are rarely independent: a problem
   hard for one is often hard for all, which no profile conditioned on input qualities can say.
+  A best-of written with `:dependence D` is taken as the mixture the schema states: with
+  probability D one draw decides every alternative (comonotone, the least below), else they
+  are independent -- a copula (the mixture of two), so the marginals stay the profiles'.
   An evaluator made with `coupling="least"` or `"most"` takes the alternatives of every
   best-of judged by quality as coupled as unfavourably (their maximum stochastically smallest:
   comonotone, CDF `min_i F_i`) or as favourably (CDF `max(0, sum_i F_i - (n - 1))`) as their
@@ -283,12 +286,15 @@ class Evaluator:
             return _conditional(node, inputs, alloc, rows, self.coupling)
         if isinstance(node, TestNode):  # its quality flows nowhere
             return Dist.point(np.ones(batch))
-        if isinstance(node, ChoiceNode) and self.coupling != "independent":
-            if len(inputs) > 1 and not any(node.estimated):
-                return _coupled_maximum(inputs, self.coupling)
+        coupled = isinstance(node, ChoiceNode) and len(inputs) > 1 and not any(node.estimated)
+        if coupled and self.coupling != "independent":
+            return _coupled_maximum(inputs, self.coupling)
         q, p = _combinations(inputs, batch)  # (B, C1..Cm, m), (B, C1..Cm)
         if isinstance(node, ChoiceNode):
-            return _choice(node, inputs, q, p, batch)
+            independent = _choice(node, inputs, q, p, batch)
+            if not coupled or node.dependence == 0:
+                return independent
+            return _mixed(independent, _coupled_maximum(inputs, "least"), node.dependence)
         missing = np.any(q == NO_RESULT, axis=-1)  # some input has no result
         q = np.maximum(q, 0.0)  # what a module that accepts a missing input is looked up at
         match node:
@@ -338,6 +344,14 @@ def _coupled_maximum(inputs: list[Dist], coupling: Coupling) -> Dist:
         cdf = np.clip(cdfs.sum(axis=0) - (len(inputs) - 1), 0.0, None)
     probs = np.diff(cdf, axis=1, prepend=0.0)
     return Dist(support, np.clip(probs, 0.0, None))
+
+
+def _mixed(first: Dist, second: Dist, weight: float) -> Dist:
+    """The mixture of two distributions of a batch, `second` with probability `weight`."""
+    return Dist(
+        np.concatenate([first.values, second.values], axis=1),
+        np.concatenate([(1 - weight) * first.probs, weight * second.probs], axis=1),
+    )
 
 
 def _choice(node: ChoiceNode, inputs: list[Dist], q: Array, p: Array, batch: int) -> Dist:

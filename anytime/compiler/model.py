@@ -160,7 +160,8 @@ class ChoiceNode:
     (None: always applicable). `estimated` marks the alternatives whose result comes from a
     module that does not report its true quality: the runtime judges those by what their
     profile predicts, not by their quality, so the best-of cannot pick the best of them run by
-    run, and its quality is not their maximum (see the evaluator)."""
+    run, and its quality is not their maximum (see the evaluator). `dependence`: the schema's
+    `:dependence`, the probability that one draw decides every alternative's quality."""
 
     index: int
     slots: tuple[Slot, ...]
@@ -169,6 +170,7 @@ class ChoiceNode:
     within: Within | None = None
     name: str = "best-of"
     estimated: tuple[bool, ...] = ()
+    dependence: float = 0.0
 
 
 @frozen(eq=False)

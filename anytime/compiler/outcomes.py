@@ -102,10 +102,11 @@ MESSAGES: dict[Code, str] = {
         " quality has a standard error of up to {error:.2g}"
     ),
     Code.DEPENDENCE: (
-        "a best-of's alternatives are taken as independent given their inputs' qualities;"
-        " if they depend on each other (a problem hard for one is hard for all), the"
-        " expected quality is up to {below:.3f} lower or {above:.3f} higher than the table's"
-        " (the bounds over every dependence: dependence)"
+        "a best-of's alternatives are taken as independent given their inputs' qualities,"
+        " or as dependent as its :dependence says; if they depend on each other otherwise"
+        " (a problem hard for one is hard for all), the expected quality is up to"
+        " {below:.3f} lower or {above:.3f} higher than the table's (the bounds over every"
+        " dependence: dependence)"
     ),
     Code.KEPT_SMALLER: (
         "at {totals} of the table's totals a smaller total does better:"

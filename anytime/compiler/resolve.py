@@ -347,7 +347,13 @@ class _Resolver:
             isinstance(s, NodeRef) and _estimated(self.built.get(s.index)) for s in values
         )
         return ChoiceNode(
-            index, slots, values, tests, self.within[choice.target], estimated=estimated
+            index,
+            slots,
+            values,
+            tests,
+            self.within[choice.target],
+            estimated=estimated,
+            dependence=choice.dependence,
         )
 
     def conditional(self, index: int, step: If) -> CompileNode | str:

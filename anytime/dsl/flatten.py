@@ -180,12 +180,26 @@ class ProgramBuilder:
             self.steps = outer
 
     def best_of(self, call: BestOfForm, name: str | None) -> Var:
-        """`(best-of (when PRE EXPR) ... EXPR)`: an alternative written without `when` is
-        always applicable."""
+        """`(best-of (when PRE EXPR) ... EXPR [:dependence D])`: an alternative written without
+        `when` is always applicable."""
         error = self.checker.error
         target = name if name is not None else self.fresh()
+        dependence = 0.0
         for keyword in call.keywords:
-            error(keyword.span, f"best-of takes no keyword arguments (got :{keyword.name})")
+            if keyword.name != "dependence":
+                error(
+                    keyword.span,
+                    "best-of takes only the keyword :dependence, the probability that one draw"
+                    f" decides all its alternatives (got :{keyword.name})",
+                )
+            elif not isinstance(keyword.value, Number) or not 0 <= keyword.value.value <= 1:
+                error(
+                    keyword.value.span,
+                    "the :dependence of best-of must be a number in [0, 1] (the probability"
+                    f" that one draw decides all its alternatives), got {written(keyword.value)}",
+                )
+            else:
+                dependence = float(keyword.value.value)
         if not call.args:
             error(
                 call.span,
@@ -210,7 +224,9 @@ class ProgramBuilder:
         for test, (_, expr) in zip(preconditions, forms, strict=True):
             steps, value = self.nested(functools.partial(self.expression, expr, None))
             alternatives.append(Alternative(test, steps, value))
-        self.steps.append(BestOf(target, tuple(alternatives), call.span, call.function_span))
+        self.steps.append(
+            BestOf(target, tuple(alternatives), call.span, call.function_span, dependence)
+        )
         return Var(target)
 
     def precondition(self, expr: Expr) -> CallStep | None:
@@ -265,15 +281,10 @@ class ProgramBuilder:
                     f"(got :{keyword.name})",
                 )
             elif not isinstance(keyword.value, Number) or not 0 <= keyword.value.value <= 1:
-                got = (
-                    format(keyword.value.value)
-                    if isinstance(keyword.value, Number)
-                    else "a " + type(keyword.value).__name__.lower()
-                )
                 error(
                     keyword.value.span,
                     f"the :p of if must be a number in [0, 1] (the probability that the "
-                    f"condition holds), got {got}",
+                    f"condition holds), got {written(keyword.value)}",
                 )
             else:
                 p = float(keyword.value.value)
@@ -453,6 +464,13 @@ def describe(expr: Expr) -> str:
         case Call():
             return "a call"
     return f"a {form_word(expr)} form"
+
+
+def written(value: Expr) -> str:
+    """How an error names a keyword's value: a number as written, else its kind."""
+    if isinstance(value, Number):
+        return format(value.value)
+    return "a " + type(value).__name__.lower()
 
 
 def count(n: int) -> str:

@@ -44,12 +44,14 @@ def format_step(step: Step) -> str:
             parts += [f":{name} {format_arg(value)}" for name, value in keywords]
         case SchemaCall(schema=schema, args=args):
             parts = [schema, *(format_arg(a) for a in args)]
-        case BestOf(alternatives=alternatives):
+        case BestOf(alternatives=alternatives, dependence=dependence):
             parts = ["best-of"]
             for alternative in alternatives:
                 value = _nested(alternative.steps, alternative.value)
                 test = alternative.precondition
                 parts.append(value if test is None else f"(when {format_step(test)} {value})")
+            if dependence:
+                parts.append(f":dependence {format_literal(dependence)}")
         case If(condition=condition, then=then, else_=other, p=p):
             parts = ["if", format_arg(condition)]
             parts += [_nested(then.steps, then.value), _nested(other.steps, other.value)]
@@ -131,8 +133,9 @@ def step_to_json(step: Step) -> dict[str, Any]:
             }
         case SchemaCall(schema=schema, args=args):
             out |= {"kind": "schema", "schema": schema, "args": [arg_to_json(a) for a in args]}
-        case BestOf(alternatives=alternatives):
+        case BestOf(alternatives=alternatives, dependence=dependence):
             out["kind"] = "best-of"
+            out["dependence"] = dependence
             out["alternatives"] = [
                 {
                     "when": None if a.precondition is None else step_to_json(a.precondition),

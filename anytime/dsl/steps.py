@@ -71,13 +71,17 @@ class Alternative:
 
 @frozen
 class BestOf:
-    """`(best-of ALTERNATIVE...)`: every precondition first, then every applicable
-    alternative, sharing the time; the answer is the best of their results."""
+    """`(best-of ALTERNATIVE... [:dependence D])`: every precondition first, then every
+    applicable alternative, sharing the time; the answer is the best of their results.
+    `dependence` is the probability that one draw decides every alternative's quality
+    (comonotone), where otherwise they are independent given their inputs: what the compiler
+    takes them as (0, the default, is independent)."""
 
     target: str
     alternatives: tuple[Alternative, ...]
     span: Span | None = field(default=None, eq=False, repr=False)
     function_span: Span | None = field(default=None, eq=False, repr=False)
+    dependence: float = 0.0
 
 
 @frozen

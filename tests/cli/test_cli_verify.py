@@ -63,7 +63,7 @@ def test_json_and_workers(cli: Cli, lab_any: str) -> None:
     one = json.loads(out)
     assert list(one) == [
         "schema", "time_unit", "problem_set", "scored", "runs_per_budget", "seed", "passed",
-        "min_tolerance", "sigmas", "budgets", "seconds",
+        "min_tolerance", "sigmas", "budgets", "dependence_fit", "seconds",
     ]  # fmt: skip
     assert (one["schema"], one["passed"], [b["budget"] for b in one["budgets"]]) == (
         "low",

@@ -7,6 +7,7 @@ draws (the best), and through a called schema, storage and the reports."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -15,11 +16,16 @@ from conftest import Cli
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from anytime.compiler import Code, compile_file, load_compiled, save_compiled
+from anytime.compiler import Code, compile_file, compile_program, load_compiled, save_compiled
 from anytime.compiler.dist import NO_RESULT, Dist
-from anytime.compiler.evaluate import _coupled_maximum
+from anytime.compiler.evaluate import Evaluator, _coupled_maximum
+from anytime.compiler.model import ChoiceNode
 from anytime.compiler.report import compiled_to_dict, format_report
 from anytime.dsl import parse_schemas
+from anytime.library import AnytimeLibrary, RegistrySource
+from anytime.modules import Context, Registry, Result, contract
+from anytime.plugin import Instance
+from anytime.verification import format_verification, verification_to_dict, verify
 
 VALUES = np.array([NO_RESULT, 0.0, 0.3, 0.7, 1.0])
 
@@ -98,10 +104,11 @@ def test_the_note_and_the_reports_say_by_how_much() -> None:
     above = float(np.max(result.dependence[1] - result.expected))
     (note,) = [n for n in result.notes if n.code is Code.DEPENDENCE]
     assert note.message == (
-        "a best-of's alternatives are taken as independent given their inputs' qualities; if"
-        " they depend on each other (a problem hard for one is hard for all), the expected"
-        f" quality is up to {below:.3f} lower or {above:.3f} higher than the table's (the"
-        " bounds over every dependence: dependence)"
+        "a best-of's alternatives are taken as independent given their inputs' qualities, or"
+        " as dependent as its :dependence says; if they depend on each other otherwise (a"
+        " problem hard for one is hard for all), the expected quality is up to"
+        f" {below:.3f} lower or {above:.3f} higher than the table's (the bounds over every"
+        " dependence: dependence)"
     )
     assert "if dependent" in format_report(result).splitlines()[1]
     row = compiled_to_dict(result)["budgets"][6]
@@ -201,3 +208,126 @@ def test_plotting_a_saved_program_draws_the_baselines_and_the_band_it_holds(
         "",
         f"{path}: error: compiled.dependence[1][3]: expected a quality in [0, 1], got -0.5\n",
     )
+
+
+def _declared(dependence: float) -> str:
+    return BEST_OF[:-2] + f"\n           :dependence {dependence}))"
+
+
+def test_a_declared_dependence_mixes_independent_and_one_draw_deciding_all() -> None:
+    """At any allocation, `:dependence D` gives (1 - D) x the independent expectation + D x
+    the comonotone bound's, and the table is optimised for it."""
+    free, half = compiled(BEST_OF), compiled(_declared(0.5))
+    for allocation in (half.allocation, free.allocation):
+        split = allocation.reshape(len(TIME), -1)
+        independent = Evaluator(free.model).expected([], split)
+        least = Evaluator(free.model, "least").expected([], split)
+        declared = Evaluator(half.model).expected([], split)
+        np.testing.assert_allclose(declared, 0.5 * independent + 0.5 * least, atol=1e-12)
+    np.testing.assert_allclose(
+        half.expected, Evaluator(half.model).expected([], half.allocation), atol=1e-12
+    )
+    assert np.all(half.expected <= free.expected + 1e-12)
+    assert np.any(half.expected < free.expected - 0.01)  # a gamble loses most when shared
+    assert half.dependence is not None
+    assert np.all(half.dependence[0] <= half.expected + 1e-12)
+    assert np.all(half.expected <= half.dependence[1] + 1e-12)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.floats(0.0, 1.0))
+def test_runs_whose_draws_are_shared_with_that_probability_deliver_it(dependence: float) -> None:
+    """Sampled from the profiles: with probability D one uniform decides both alternatives,
+    else each its own; the mean of the better is the compiled promise within 4 se."""
+    result = compiled(_declared(round(dependence, 3)))
+    rng = np.random.default_rng(5)
+    n = 40_000
+    shared = rng.random(n) < round(dependence, 3)
+    u = rng.random(n)
+    v = np.where(shared, u, rng.random(n))
+    for j, split in enumerate(result.allocation):
+        cdfs = [
+            np.cumsum(p.distribution([], t))
+            for p, t in ((steady(), split[0]), (gamble(), split[1]))
+        ]
+        a, b = (
+            MID[np.minimum(np.searchsorted(c, w * c[-1]), len(MID) - 1)]
+            for c, w in zip(cdfs, (u, v), strict=True)
+        )
+        better = np.maximum(a, b)
+        se = better.std() / np.sqrt(n)
+        assert abs(better.mean() - result.expected[j]) <= 4 * se + 1e-9, j
+
+
+SHARING = 0.6  # the runs' true dependence
+
+
+def sampling_library() -> AnytimeLibrary:
+    """`steady` and `gamble` drawing their quality from their profiles, each with the uniform
+    the problem gives it: a best-of's run sees them as dependent as the problem draws them."""
+    registry = Registry()
+    for index, (name, profile) in enumerate((("steady", steady()), ("gamble", gamble()))):
+
+        def run(ctx: Context, w: Any, profile: Any = profile, index: int = index) -> Result:
+            ctx.tick(ctx.allocation)
+            cdf = np.cumsum(profile.distribution([], ctx.allocation))
+            quality = float(MID[min(np.searchsorted(cdf, w[index] * cdf[-1]), len(MID) - 1)])
+            return Result(quality, quality)
+
+        run.__name__ = run.__qualname__ = name
+        contract(name, inputs=[], profile=profile, registry=registry)(run)
+    return AnytimeLibrary([RegistrySource(registry)])
+
+
+class SharedDraws:
+    """A problem: with probability `SHARING` one uniform for both alternatives, else two."""
+
+    def instance(self, rng: np.random.Generator) -> Instance:
+        u = float(rng.random())
+        return Instance(((u, u if rng.random() < SHARING else float(rng.random())),))
+
+
+def test_verify_fits_the_dependence_the_runs_show_and_its_promise_holds() -> None:
+    text = "(defschema pick (w) (best-of (steady w) (gamble w){}))"
+    lib = sampling_library()
+    free = compile_program(parse_schemas(text.format(""))["pick"], lib, TIME)
+    checked = verify(free, SharedDraws(), runs=600, seed=1)
+    fit = checked.dependence_fit
+    assert fit is not None and fit.declared == 0.0
+    assert abs(fit.estimate - SHARING) <= 3 * fit.se and fit.se < 0.1
+    assert not checked.passed  # independent alternatives promise too much
+    written = round(fit.estimate, 2)
+    declared = compile_program(
+        parse_schemas(text.format(f" :dependence {written}"))["pick"], lib, TIME
+    )
+    again = verify(declared, SharedDraws(), runs=600, seed=3)  # other problems than the fit's
+    assert again.passed, format_verification(again)
+    assert again.dependence_fit is not None and again.dependence_fit.declared == written
+    assert abs(again.dependence_fit.estimate - SHARING) <= 3 * again.dependence_fit.se
+    text_out = format_verification(again)
+    assert f"the runs fit :dependence {again.dependence_fit.estimate:.2f} ± " in text_out
+    assert verification_to_dict(again)["dependence_fit"] == {
+        "declared": written,
+        "estimate": again.dependence_fit.estimate,
+        "se": again.dependence_fit.se,
+    }
+
+
+def test_no_fit_without_exactly_one_best_of() -> None:
+    lib = sampling_library()
+    one = compile_program(parse_schemas("(defschema one (w) (steady w))")["one"], lib, TIME)
+    assert verify(one, SharedDraws(), runs=5).dependence_fit is None
+    text = "(defschema two (w) (best-of (steady w) (best-of (gamble w) (steady w))))"
+    two = compile_program(parse_schemas(text)["two"], lib, TIME)
+    assert two.dependence is not None
+    assert verify(two, SharedDraws(), runs=5, budgets=[4]).dependence_fit is None
+
+
+def test_storage_keeps_a_declared_dependence(tmp_path: Path) -> None:
+    half = compiled(_declared(0.5))
+    path = tmp_path / "half.yaml"
+    save_compiled(half, path)
+    loaded = load_compiled(path, library())
+    (choice,) = [node for node in loaded.model.nodes if isinstance(node, ChoiceNode)]
+    assert choice.dependence == 0.5
+    np.testing.assert_array_equal(loaded.expected, half.expected)

@@ -127,6 +127,27 @@ ERRORS = {
         41,
         "if takes only the keyword :p, the probability of the condition (got :q)",
     ),
+    "dependence-out-of-range": (
+        "(defschema p (x) (best-of (f x) (g x) :dependence 1.5))",
+        1,
+        51,
+        "the :dependence of best-of must be a number in [0, 1] (the probability that one "
+        "draw decides all its alternatives), got 1.5",
+    ),
+    "dependence-not-a-number": (
+        "(defschema p (x) (best-of (f x) (g x) :dependence high))",
+        1,
+        51,
+        "the :dependence of best-of must be a number in [0, 1] (the probability that one "
+        "draw decides all its alternatives), got a symbol",
+    ),
+    "best-of-other-keyword": (
+        "(defschema p (x) (best-of (f x) (g x) :p 0.5))",
+        1,
+        39,
+        "best-of takes only the keyword :dependence, the probability that one draw decide"
+        "s all its alternatives (got :p)",
+    ),
 }
 
 
@@ -168,6 +189,19 @@ def test_an_alternative_without_when_is_always_applicable() -> None:
         {"target": "t2", "kind": "call", "function": "left-clear?", "args": ["w"], "keywords": {}},
         None,
     ]
+
+
+def test_a_declared_dependence_is_kept_printed_and_named_in_json() -> None:
+    text = "(defschema p (w) (best-of (f w) (g w) :dependence 0.25))"
+    program = parse_schemas(text)["p"]
+    (best_of,) = program.steps
+    assert isinstance(best_of, BestOf) and best_of.dependence == 0.25
+    assert "(best-of (f w) (g w) :dependence 0.25)" in format_program(program)
+    assert parse_schemas(format_program(program))["p"] == program
+    assert program_to_json(program)["steps"][-1]["dependence"] == 0.25
+    (plain,) = parse_schemas(UNCONDITIONAL)["p"].steps
+    assert isinstance(plain, BestOf) and plain.dependence == 0.0  # independent by default
+    assert ":dependence" not in format_program(parse_schemas(UNCONDITIONAL)["p"])
 
 
 def test_known_functions_do_not_include_the_special_forms() -> None:
