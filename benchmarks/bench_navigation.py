@@ -46,13 +46,15 @@ ATP's abstraction.
 4. The compiled A*'s lengths against the `.scen` optimal lengths of the 15 maps: every problem
    in a full run, 200 per map spread over the file with --quick.
 
-Timing: `time.perf_counter`, the garbage collector paused, the sides one after another per
-problem (the compiled A*, the pure-Python A*, then each ATP configuration, in turn from the
-problem's index, so that each runs first as often; ours, then theirs), each side's
-`--repeats` runs back to back after one untimed run, the best kept. The planner's short runs
-are cache-bound: run straight after A*, its first run took 1.5x the steady time and the next
-ones came down over four runs; a row run after the rows before it read up to 4.6 points of
-A*'s time lower than alone, before the rows took turns. ATP's time is planning only: its
+Timing: `time.perf_counter`. Each side runs one map's problems as a stream, one after another,
+as a planner serving queries on a map does (the grid-pathfinding competition's way): per round
+the compiled A* on every problem, the pure-Python A*, then each ATP configuration (ours, then
+theirs); one untimed round first, then `--repeats` rounds, each problem's best kept. A stream
+follows one garbage collection and runs with the collector off. The planner's runs are short
+and cache-bound: run straight after A*, its first run took 1.5x its steady time, and a
+collection before each run (which walks the plans the runs before kept) started each cold; with
+a collection and its runs interleaved per problem, the caves' options by map read 22-33% of
+A*'s time with the build where the stream reads 22%. ATP's time is planning only: its
 abstraction (the obstacleness pyramid and the connected components of every block) is built
 once per map, timed separately (shown as a fraction of A*'s total time on that map's problems),
 and the execution of its plans, which yields the quality, is not timed (and is given up after
@@ -282,6 +284,23 @@ def timed(measure: Callable[[], Any]) -> tuple[float, Any]:
     return best_of(1, measure)
 
 
+def stream(measures: list[Callable[[], Any]]) -> list[tuple[float, Any]]:
+    """Each call's wall time and value, one after another after one collection, with the
+    collector off throughout: a collection before each call walks what the calls before kept
+    (their plans) and empties the caches a short run needs."""
+    gc.collect()
+    gc.disable()
+    try:
+        out = []
+        for measure in measures:
+            begin = time.perf_counter()
+            value = measure()
+            out.append((time.perf_counter() - begin, value))
+        return out
+    finally:
+        gc.enable()
+
+
 def abstraction(
     blocked: BoolGrid,
     movement: int,
@@ -351,68 +370,113 @@ class Baseline:
     python_seconds: float
 
 
-def measure_problem(
+@frozen
+class Timed:
+    """One problem's times: the compiled A*'s best and its path, the pure-Python A*'s best,
+    and per configuration its best [time, first plan time] and its last run (context, plans)."""
+
+    compiled: float
+    found: Any
+    python: float
+    best: dict[str, list[float]]
+    outcome: dict[str, tuple[Context, list[MultiPath]]]
+
+
+def plan_once(
+    ctx: Context,
     problem: Problem,
+    pyramid: Pyramid,
+    components: dict[int, Components],
+    movement: int,
+    options: dict[str, Any],
+    follower: Follower | None,
+) -> tuple[float, list[MultiPath]]:
+    """The ATP with `options` on `problem`, run to completion (`components` by the level of
+    its first plan; `follower`: the map's, reset first, for a `FOLLOW` configuration)."""
+    if options.get("follow") == FOLLOW:
+        assert follower is not None, "the map's follower is built with its abstraction"
+        follower.reset()  # nothing kept from the last run: each run pays its own
+        options = {**options, "follow": follower}
+    plans = atp(
+        ctx,
+        problem.start,
+        problem.goal,
+        pyramid,
+        movement=movement,
+        components=components[first_level(options.get("top"), pyramid)],
+        **options,
+    )
+    return run_atp(ctx, plans)
+
+
+def time_stream(
+    problems: list[Problem],
     astar: GridAstar,
     pyramid: Pyramid,
     components: dict[int, Components],
     movement: int,
     repeats: int,
-    configs: dict[str, dict[str, Any]] = CONFIGS,
+    configs: dict[str, dict[str, Any]],
+    follower: Follower | None,
+) -> list[Timed]:
+    """Each side's times on one map's `problems` run as a stream, one after another, as a
+    planner serving queries on a map runs them (the grid-pathfinding competition's way): per
+    round, the compiled A* on every problem, the pure-Python A*, then each configuration; one
+    untimed round first (the pure-Python A* skips it), then `repeats`, each problem's best
+    kept. So each timed run follows a run of its own side on the same map."""
+    n, blocked = len(problems), problems[0].blocked
+    compiled, python, found = [math.inf] * n, [math.inf] * n, [None] * n
+    best = {name: [[math.inf, math.inf] for _ in problems] for name in configs}
+    outcome: dict[str, list[Any]] = {name: [None] * n for name in configs}
+    for round_ in range(1 + repeats):
+        astars = [partial(astar.find_path, p.start, p.goal) for p in problems]
+        for i, (seconds, found[i]) in enumerate(stream(astars)):
+            compiled[i] = min(compiled[i], seconds) if round_ else compiled[i]
+        pures = [
+            partial(find_path, blocked, p.start, p.goal, movement=movement, weight=0)
+            for p in problems
+        ]
+        for i, (seconds, pure) in enumerate(stream(pures) if round_ else []):  # slow: no warm-up
+            assert pure == found[i], "the compiled A* is the pure-Python A*, step for step"
+            python[i] = min(python[i], seconds)
+        for name, options in configs.items():
+            contexts = [Context() for _ in problems]
+            plans = [
+                partial(plan_once, ctx, p, pyramid, components, movement, options, follower)
+                for ctx, p in zip(contexts, problems, strict=True)
+            ]
+            for i, (seconds, (first_seconds, registered)) in enumerate(stream(plans)):
+                if round_:
+                    kept = best[name][i]
+                    best[name][i] = [min(kept[0], seconds), min(kept[1], first_seconds)]
+                outcome[name][i] = (contexts[i], registered)
+    return [
+        Timed(
+            compiled[i],
+            found[i],
+            python[i],
+            {name: best[name][i] for name in configs},
+            {name: outcome[name][i] for name in configs},
+        )
+        for i in range(n)
+    ]
+
+
+def judge_problem(
+    problem: Problem,
+    times: Timed,
+    movement: int,
     budget: float = EXECUTION_BUDGET,
     every_plan: bool = False,
     executed: bool = True,
-    follower: Follower | None = None,
-    turn: int = 0,
 ) -> tuple[Baseline, dict[str, AtpRun]]:
-    """The compiled A*'s and the pure-Python A*'s best times, and each ATP configuration's run,
-    one side after another, each side's `repeats` runs back to back after one untimed (the
-    configurations in turn from the `turn`-th, so that each runs first as often; `components`
-    by the level of the configuration's first plan); executing a plan is given up after
-    `budget` times the pure-Python A*'s time (the budget the benchmark gave before the compiled
-    A* was its reference). `every_plan`: execute every plan registered, to count the falls of
-    the executed quality (else the first and the last only). `executed` False: no plan executed
-    (times only; the qualities are NaN). `follower`: the map's, for the configurations whose
-    follow is `FOLLOW` (reset before each run, in its time)."""
-    compiled_best, found = best_of(
-        repeats, partial(astar.find_path, problem.start, problem.goal), warm=1
-    )
-    python_best, pure = best_of(
-        repeats,
-        partial(
-            find_path, problem.blocked, problem.start, problem.goal, movement=movement, weight=0
-        ),
-    )
-    assert pure == found, "the compiled A* is the pure-Python A*, step for step"
-    best: dict[str, list[float]] = {}
-    outcome: dict[str, tuple[Context, list[MultiPath]]] = {}
-    names = list(configs)
-    for name in names[turn % len(names) :] + names[: turn % len(names)]:
-        options = configs[name]
-        best[name] = [math.inf, math.inf]
-        for run in range(1 + repeats):  # back to back, the first untimed (it warms the caches)
-            ctx = Context()
-
-            def plan(ctx: Context = ctx, options: dict[str, Any] = options) -> Any:
-                if options.get("follow") == FOLLOW:
-                    assert follower is not None, "the map's follower is built with its abstraction"
-                    follower.reset()  # nothing kept from the last run: each run pays its own
-                    options = {**options, "follow": follower}
-                plans = atp(
-                    ctx,
-                    problem.start,
-                    problem.goal,
-                    pyramid,
-                    movement=movement,
-                    components=components[first_level(options.get("top"), pyramid)],
-                    **options,
-                )
-                return run_atp(ctx, plans)
-
-            seconds, (first_seconds, registered) = timed(plan)
-            if run:
-                best[name] = [min(best[name][0], seconds), min(best[name][1], first_seconds)]
-            outcome[name] = (ctx, registered)
+    """One problem's A* baseline and each configuration's run, its plans executed on the map:
+    executing a plan is given up after `budget` times the pure-Python A*'s time (the budget
+    the benchmark gave before the compiled A* was its reference). `every_plan`: execute every
+    plan registered, to count the falls of the executed quality (else the first and the last
+    only). `executed` False: no plan executed (times only; the qualities are NaN)."""
+    found, python_best, best, outcome = times.found, times.python, times.best, times.outcome
+    compiled_best = times.compiled
     assert found is not None, "the benchmark's problems are solvable"
     optimal = found.length if problem.optimal is None else problem.optimal
     runs = {}
@@ -516,41 +580,33 @@ def measure_suite(
     every_plan: bool = False,
     executed: bool = True,
 ) -> Measured:
-    described: dict[int, tuple[GridAstar, Pyramid, dict[int, Components], Follower | None]] = {}
     measured = Measured([], [], [], {name: [] for name in configs})
-    for turn, problem in enumerate(suite.problems):
-        key = id(problem.blocked)
-        if key not in described:  # the compiled A*'s grid, like the abstraction, once per map
-            astar = GridAstar(problem.blocked, movement=suite.movement, weight=0.0)
-            pyramid = Pyramid.build(problem.blocked)
-            tops = {first_level(options.get("top"), pyramid) for options in configs.values()}
-            built = {top: abstraction(problem.blocked, suite.movement, top)[1] for top in tops}
-            for options in configs.values():  # what each makes ahead too, like the abstraction
-                level = first_level(options.get("top"), pyramid)
-                made_ahead(built[level], level, options)
-            follows = any(options.get("follow") == FOLLOW for options in configs.values())
-            follower = Follower(problem.blocked, suite.movement) if follows else None
-            described[key] = (astar, pyramid, built, follower)
-        astar, pyramid, components, follower = described[key]
-        baseline, runs = measure_problem(
-            problem,
-            astar,
-            pyramid,
-            components,
-            suite.movement,
-            repeats,
-            configs,
-            budget,
-            every_plan,
-            executed,
-            follower,
-            turn,
+    maps: dict[int, list[Problem]] = {}  # the problems of each map, in order
+    for problem in suite.problems:
+        maps.setdefault(id(problem.blocked), []).append(problem)
+    for problems in maps.values():
+        blocked = problems[0].blocked
+        astar = GridAstar(blocked, movement=suite.movement, weight=0.0)  # once per map
+        pyramid = Pyramid.build(blocked)
+        tops = {first_level(options.get("top"), pyramid) for options in configs.values()}
+        built = {top: abstraction(blocked, suite.movement, top)[1] for top in tops}
+        for options in configs.values():  # what each makes ahead too, like the abstraction
+            level = first_level(options.get("top"), pyramid)
+            made_ahead(built[level], level, options)
+        follows = any(options.get("follow") == FOLLOW for options in configs.values())
+        follower = Follower(blocked, suite.movement) if follows else None
+        streamed = time_stream(
+            problems, astar, pyramid, built, suite.movement, repeats, configs, follower
         )
-        measured.astar_times.append(baseline.seconds)
-        measured.astar_expansions.append(baseline.expansions)
-        measured.python_times.append(baseline.python_seconds)
-        for name, run in runs.items():
-            measured.runs[name].append(run)
+        for problem, times in zip(problems, streamed, strict=True):
+            baseline, runs = judge_problem(
+                problem, times, suite.movement, budget, every_plan, executed
+            )
+            measured.astar_times.append(baseline.seconds)
+            measured.astar_expansions.append(baseline.expansions)
+            measured.python_times.append(baseline.python_seconds)
+            for name, run in runs.items():
+                measured.runs[name].append(run)
     return measured
 
 
@@ -602,9 +658,10 @@ def bench_atp(suites: list[Suite], repeats: int) -> str:
         " A*'s); each A*'s grid is built once per map, outside its time;\n"
         " q: plan quality = optimal length / executed length, per problem, then the mean or the\n"
         " minimum; time / A* (mean): the mean over problems of ATP time / A* time, each the best\n"
-        f" of {repeats} runs back to back after an untimed one; (totals): total ATP time / total\n"
-        " A* time; first plan time: to the first yield; expansions / A*: total ATP expansions\n"
-        " (of all its searches) / total A* expansions; refinements: mean per problem;\n"
+        f" of {repeats} rounds of the map's problems after an untimed one; (totals): total ATP\n"
+        " time / total A* time; first plan time: to the first yield; expansions / A*: total\n"
+        " ATP expansions (of all its searches) / total A* expansions; refinements: mean per\n"
+        " problem;\n"
         " abstraction / A*: building the pyramid and the components, once per map, / total A*\n"
         " time on the map's problems (not in the ATP time);\n"
         " first plan exec. exp.: the obstacle-avoidance expansions executing the first plan on\n"
@@ -1072,9 +1129,9 @@ def bench_kinds(
         " last one registered (following.Follower: execute's length, compiled; its calls in the\n"
         " ATP's time, its build, once per map, with the abstraction's); the\n"
         f" {count} problems of the longest buckets per map, octile without\n"
-        " corner cutting, optimal lengths from A*; A* and the ATP interleaved (the rows in\n"
-        " turn, each problem starting one row further on), each the best of\n"
-        f" {repeats} run(s) back to back after an untimed one; columns as in the first table,\n"
+        " corner cutting, optimal lengths from A*; each side runs the map's problems as a\n"
+        f" stream, an untimed round and {repeats} timed, each problem's best kept; columns as in\n"
+        " the first table,\n"
         f" but an execution is given up after {budget:g}x the pure-Python A*'s time;\n"
         " with abstraction: (total ATP time + building its abstraction once) / total A* time;\n"
         " falls: steps from a registered plan to the next whose executed quality falls / all\n"
