@@ -111,6 +111,7 @@ from anytime_navigation.planning.planner import (
     atp,
     compile_searches,
     made_ahead,
+    map_follows,
     map_options,
 )
 from anytime_navigation.planning.search import GridAstar, find_path
@@ -956,13 +957,25 @@ def random_problems(scenarios: list[Scenario], count: int) -> list[Scenario]:
 
 def for_map(configs: dict[str, dict[str, Any]], blocked: BoolGrid) -> dict[str, dict[str, Any]]:
     """`configs` on the map `blocked`: a `BY_MAP` configuration made `planner.map_options`'
-    (with its other options on top)."""
+    with the map's follower where `planner.map_follows` (as `anytime plan` plans), its other
+    options on top."""
+    follows = {"follow": FOLLOW} if map_follows(blocked) else {}
     return {
-        name: {**map_options(blocked), **{k: v for k, v in options.items() if k != "options"}}
+        name: {
+            **map_options(blocked),
+            **follows,
+            **{k: v for k, v in options.items() if k != "options"},
+        }
         if options.get("options") == BY_MAP
         else options
         for name, options in configs.items()
     }
+
+
+def read_shape(blocked: BoolGrid) -> tuple[Any, bool]:
+    """What `anytime plan` reads of a map's shape by default: its options and whether it
+    follows the plans (timed with the build)."""
+    return map_options(blocked), map_follows(blocked)
 
 
 def shown(name: str, options: dict[str, Any], blocked: BoolGrid) -> str:
@@ -976,7 +989,8 @@ def shown(name: str, options: dict[str, Any], blocked: BoolGrid) -> str:
         (LARGE_MAP_OPTIONS, "large"),
     )
     which = next(kind for named, kind in kinds if named is chosen)
-    return f"{name}: {which}-map options"
+    follows = ", followed" if map_follows(blocked) else ""
+    return f"{name}: {which}-map options{follows}"
 
 
 def bench_kinds(
@@ -1027,7 +1041,7 @@ def bench_kinds(
                 builds[key] = best_of(repeats, partial(abstraction, blocked, 8, *key), warm=1)[0]
             build = builds[key]
             if configs[name].get("options") == BY_MAP:  # and reading the map's shape
-                build += best_of(repeats, partial(map_options, blocked), warm=1)[0]
+                build += best_of(repeats, partial(read_shape, blocked), warm=1)[0]
             if options.get("follow") == FOLLOW:  # and the follower's, once per map
                 build += best_of(repeats, partial(Follower, blocked, 8), warm=1)[0]
             runs = measured.runs[name]

@@ -14,6 +14,7 @@ import pytest
 from anytime_navigation.cli.plan import ATP_OPTIONS
 from anytime_navigation.movingai import load_map, load_scenarios
 from anytime_navigation.planning.abstraction import Pyramid
+from anytime_navigation.planning.following import Follower
 from anytime_navigation.planning.planner import (
     LARGE_MAP_OPTIONS,
     SCATTERED_MAP_OPTIONS,
@@ -152,6 +153,50 @@ def test_options_chosen_by_the_map(cli: Cli, tmp_path: Path) -> None:
     assert "atp (scattered-maps options, chosen by the map), 8-connected" in out
 
 
+def test_monotone_plans_are_those_followed_no_longer(cli: Cli, tmp_path: Path) -> None:
+    """`--monotone on` registers a plan only when it is followed no longer than the last: the
+    same plans and ticks as `atp(follow=Follower(...))`, and the final plan never followed
+    longer than the first. By default only on open ground (`map_follows`): not on random 10%,
+    on a map of rooms 32 cells wide (every 16 x 16 block away from the walls is clear)."""
+    argv = ("--planner", "atp", "--start", "489,1", "--goal", "33,493")
+    on = _json(cli, *argv, "--monotone", "on", map=RANDOM)
+    assert on["summary"]["monotone"] is True
+    (problem,) = on["problems"]
+    assert problem["final_quality"] >= problem["first_quality"]
+    blocked = load_map(MAPS / "random512-10-0.map")[0]
+    ctx = Context()
+    plans = list(
+        atp(
+            ctx,
+            (489, 1),
+            (33, 493),
+            Pyramid.build(blocked),
+            movement=8,
+            follow=Follower(blocked, 8),
+            **LARGE_MAP_OPTIONS,
+        )
+    )
+    assert plans and problem["expansions"] == ctx.ticks
+    assert _json(cli, *argv, map=RANDOM)["summary"]["monotone"] is False
+    rooms = np.zeros((128, 128), dtype=bool)
+    rooms[::32, :] = rooms[:, ::32] = True
+    rooms[16::32, ::32] = rooms[::32, 16::32] = False  # a door in the middle of each wall
+    path = tmp_path / "rooms.map"
+    path.write_text(
+        "type octile\nheight 128\nwidth 128\nmap\n"
+        + "".join("".join("@" if cell else "." for cell in row) + "\n" for row in rooms)
+    )
+    rooms_argv = ("--planner", "atp", "--start", "1,1", "--goal", "120,120")
+    assert _json(cli, *rooms_argv, map=str(path))["summary"]["monotone"] is True
+    off = _json(cli, *rooms_argv, "--monotone", "off", map=str(path))
+    assert off["summary"]["monotone"] is False
+    code, out, err = cli("plan", "--map", str(path), *rooms_argv)
+    assert (code, err) == (0, "")
+    assert "atp (large-maps options, chosen by the map, monotone), 8-connected" in out
+    astar = _json(cli, "--limit", "2", "--monotone", "on")  # A*: no plans to follow
+    assert astar["summary"]["monotone"] is None
+
+
 def test_one_explicit_problem(cli: Cli) -> None:
     astar = _json(cli, "--start", "1,11", "--goal", "45,40")
     atp = _json(cli, "--start", "1,11", "--goal", "45,40", "--planner", "atp")
@@ -220,6 +265,7 @@ SUMMARY = {
     "build_seconds",
     "atp_options",
     "atp_options_by_map",
+    "monotone",
 }
 
 

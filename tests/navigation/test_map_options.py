@@ -17,6 +17,7 @@ from anytime_navigation.planning.planner import (
     SOLID_MAP_OPTIONS,
     MapShape,
     atp,
+    map_follows,
     map_options,
 )
 from anytime_navigation.resources import data_file
@@ -60,7 +61,31 @@ def test_a_map_without_free_cells() -> None:
 
 
 def test_a_map_without_blocked_cells() -> None:
-    assert MapShape.of(np.zeros((3, 3), dtype=bool)) == MapShape(0.0, 0.0, 0.0)
+    assert MapShape.of(np.zeros((3, 3), dtype=bool)) == MapShape(0.0, 0.0, 0.0, 1.0)
+
+
+def test_free_cells_in_clear_blocks() -> None:
+    """Blocks of 16 x 16 from the corner, the last ones cut by the map's edge: a blocked cell
+    takes its block's free cells out of open ground, and only its block's."""
+    blocked = np.zeros((20, 40), dtype=bool)  # blocks of 16 x 16, 16 x 8, 4 x 16 and 4 x 8
+    blocked[2, 20] = True  # in the second block of the first row of blocks
+    assert MapShape.of(blocked).free_in_clear_blocks == (800 - 256) / 799
+    blocked[18, 36] = True  # in the last, cut block: 4 x 8 cells
+    assert MapShape.of(blocked).free_in_clear_blocks == (800 - 256 - 32) / 798
+    assert MapShape.of(blocked).open  # 0.64 >= `MapShape.OPEN`
+
+
+def test_open_ground_is_followed() -> None:
+    """`map_follows`: the maps of open ground, rooms 32 cells wide, are planned following each
+    plan; a random map, rooms 8 wide and solid blocks with no clear block between them not."""
+    rooms = np.zeros((128, 128), dtype=bool)
+    rooms[::32, :] = rooms[:, ::32] = True
+    assert MapShape.of(rooms).free_in_clear_blocks == pytest.approx(0.26, abs=0.01)
+    assert map_follows(rooms)
+    small = np.zeros((128, 128), dtype=bool)
+    small[::8, :] = small[:, ::8] = True
+    assert not map_follows(small)
+    assert not map_follows(_random(0.10))
 
 
 @given(arrays(np.bool_, st.tuples(st.integers(1, 12), st.integers(1, 12))))

@@ -20,7 +20,7 @@ import os
 import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from attrs import frozen
 
@@ -46,11 +46,15 @@ from ..planning.planner import (
     atp,
     compile_searches,
     made_ahead,
+    map_follows,
     map_options,
 )
 from ..planning.search import GridAstar
 from ..task.execution import execute, plan_quality
 from ..world import BoolGrid, Position, reachable
+
+if TYPE_CHECKING:
+    from ..planning.following import Follower  # compiled code: imported when a map is followed
 
 __all__ = ["Problem", "Solution", "add_command", "run_plan"]
 
@@ -150,6 +154,15 @@ def add_command(commands: CommandGroup) -> None:
         "128 x 128 worlds (task) (by-map)",
     )
     parser.add_argument(
+        "--monotone",
+        choices=[BY_MAP, "on", "off"],
+        default=BY_MAP,
+        help="register a plan of the ATP only when the robot follows it on the map no longer "
+        "than the last one registered, so the executed quality never falls (each plan "
+        "followed as the quality is measured, compiled): on, off, or on open ground only, "
+        "where following costs little (by-map)",
+    )
+    parser.add_argument(
         "--movement",
         type=int,
         choices=[4, 8],
@@ -193,7 +206,10 @@ def run_plan(args: argparse.Namespace) -> int:
         raise InputError(error.message, where=f"{error.filename}:{error.line}") from None
     # Paid once, timed apart: loading the compiled searches (once per process), then the
     # planner's description of the map (once per map).
-    load_seconds, _ = _timed(lambda: compile_searches((args.movement,), follower=False))
+    monotone = args.planner == "atp" and (
+        map_follows(blocked) if args.monotone == BY_MAP else args.monotone == "on"
+    )
+    load_seconds, _ = _timed(lambda: compile_searches((args.movement,), follower=monotone))
     astar: GridAstar | None = None
     described: Described | None = None
     chosen: str | None = None
@@ -202,7 +218,7 @@ def run_plan(args: argparse.Namespace) -> int:
         def describe() -> Described:
             nonlocal chosen
             chosen = _chosen_options(args.atp_options, blocked)  # the map's shape: read once
-            return _described(blocked, args.movement, ATP_OPTIONS[chosen])
+            return _described(blocked, args.movement, ATP_OPTIONS[chosen], monotone)
 
         build_seconds, described = _timed(describe)
     else:
@@ -219,6 +235,7 @@ def run_plan(args: argparse.Namespace) -> int:
     summary = _summary(solutions, args.planner, args.movement, reference)
     summary["atp_options"] = chosen
     summary["atp_options_by_map"] = args.atp_options == BY_MAP if chosen is not None else None
+    summary["monotone"] = monotone if chosen is not None else None
     summary["load_seconds"] = load_seconds
     summary["build_seconds"] = build_seconds
     if args.json:
@@ -284,11 +301,13 @@ def _astar(blocked: BoolGrid, movement: int) -> GridAstar:
 
 @frozen
 class Described:
-    """The ATP's description of a map, built once for all its problems, and its options."""
+    """The ATP's description of a map, built once for all its problems, its options, and the
+    map's follower when the planner registers only plans followed no longer than the last."""
 
     pyramid: Pyramid
     components: Components
     options: Mapping[str, Any]
+    follower: Follower | None
 
 
 def _chosen_options(name: str, blocked: BoolGrid) -> str:
@@ -299,13 +318,20 @@ def _chosen_options(name: str, blocked: BoolGrid) -> str:
     return next(key for key, value in ATP_OPTIONS.items() if value is options)
 
 
-def _described(blocked: BoolGrid, movement: int, options: Mapping[str, Any]) -> Described:
+def _described(
+    blocked: BoolGrid, movement: int, options: Mapping[str, Any], monotone: bool
+) -> Described:
     pyramid = Pyramid.build(blocked)
     # A map smaller than the options' first level plans from its pyramid's top.
     top = min(options.get("top", DEFAULT_TOP), pyramid.top)
     components = Components.build(blocked, movement, top=top)
     made_ahead(components, top, options)  # with the abstraction, once per map
-    return Described(pyramid, components, {**options, "top": top})
+    follower = None
+    if monotone:
+        from ..planning.following import Follower
+
+        follower = Follower(blocked, movement)
+    return Described(pyramid, components, {**options, "top": top}, follower)
 
 
 def _solve(
@@ -337,6 +363,8 @@ def _solve(
             quality,
         )
     ctx = Context()
+    if described.follower is not None:
+        described.follower.reset()  # nothing of the last problem's routes
     begin = time.perf_counter()
     plans = atp(
         ctx,
@@ -345,6 +373,7 @@ def _solve(
         described.pyramid,
         movement=movement,
         components=described.components,
+        follow=described.follower,
         **described.options,
     )
     first = last = next(plans).value
@@ -441,7 +470,8 @@ def _format(solutions: list[Solution], summary: dict[str, Any]) -> str:
     planner = summary["planner"]
     if summary["atp_options"] is not None:
         how = ", chosen by the map" if summary["atp_options_by_map"] else ""
-        planner += f" ({summary['atp_options']} options{how})"
+        monotone = ", monotone" if summary["monotone"] else ""
+        planner += f" ({summary['atp_options']} options{how}{monotone})"
     line = (
         f"{count} {problems}, {planner}, {summary['movement']}-connected"
         f" (optimal lengths from {source}): mean length / optimal"

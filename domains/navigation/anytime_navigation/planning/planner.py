@@ -77,11 +77,17 @@ DEFAULT_TOP = 3
 #: build against the compiled A*'s, without -> with: mazes of width 4 16.5% -> 11.6-12.1%,
 #: width 8 14.6% -> 13.5-13.7%, rooms of 8 and 64 0.1-0.9 points less, random 10% and 20%
 #: within 0.4 of a point either way, the maze of width 1 unchanged with `JUMP_MIN_WIDTH`).
+#: `direct_width` went from 12 to 20 with jump points: the mazes of width 8, 15-18 cells per
+#: unit of length, are then planned by the direct route too (the 16 longest problems, scratch
+#: runs, time against the compiled A*'s without the build: 11.9% -> 5.9%, final plans 1.000,
+#: and no fall of the executed quality: two plans, the second never followed longer); rooms of
+#: 8 and 16, at 27 or more, lose with it (0.985 -> 0.957 on rooms of 8: their first plan's
+#: corridor holds the wrong doors).
 LARGE_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
     {
         "top": 4,
         "direct": 4,
-        "direct_width": 12,
+        "direct_width": 20,
         "no_ring_when_open": 0.05,
         "one_ring_when_open": 0.1,
         "landmarks": 8,
@@ -121,9 +127,11 @@ SCATTERED_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
 #: not (issue 36, the 16 longest problems of the 14 solid maps of the benchmark and of those
 #: held out, interleaved, best of 3: 1.2-3.4 points less of the compiled A*'s time, the doors'
 #: build besides; final plans within 0.003 of the mean, ost003d 0.990 -> 0.987, the lowest
-#: problem's 0.970, New York's).
+#: problem's 0.970, New York's). The direct route stays for corridors of 12 cells per unit of
+#: length: a cave's are 17-21 (Dragon Age's brc202d, the 16 longest problems: 15.1% of the
+#: compiled A*'s time by refinement, 28.4% by the direct route).
 SOLID_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
-    {**LARGE_MAP_OPTIONS, "skip_level_1": True, "doors": False}
+    {**LARGE_MAP_OPTIONS, "skip_level_1": True, "doors": False, "direct_width": 12}
 )
 
 
@@ -160,6 +168,9 @@ class MapShape:
     blocked_near_free: float
     #: the share of blocked cells with no free cell one move or less from them
     solid_obstacles: float
+    #: the share of free cells in blocks of 16 x 16 cells (the large-map options' first level,
+    #: from the map's corner) with no blocked cell: open ground
+    free_in_clear_blocks: float = 0.0
 
     #: Scattered: at least this many lone blocked cells per free cell.
     SCATTERED = 0.01
@@ -170,6 +181,14 @@ class MapShape:
     #: streets, Baldur's Gate II and Dragon Age maps 0.74-0.99; rooms, mazes and random maps
     #: of up to 30% 0.50 or less (rooms of 64: 0.50, of 32: 0.27, the others 0.03 or less).
     SOLID = 0.6
+    #: Open: at least this share of the free cells in clear blocks of 16 x 16. There a robot
+    #: following a coarse plan seldom bumps into anything, and following each plan the planner
+    #: registers (`following.Follower`, a curve that never falls) costs little: on MovingAI's
+    #: rooms of 32 and 64, streets and Baldur's Gate II's AR0011SR 0.27-0.69, and the ATP with
+    #: it 11-20% of the compiled A*'s time (the 16 longest problems); on the others 0.24 or
+    #: less, and 25-54% with it (caves, mazes, rooms of 8 and 16, random maps).
+    OPEN = 0.25
+    _BLOCK = 16
 
     @classmethod
     def of(cls, blocked: BoolGrid) -> MapShape:
@@ -194,7 +213,22 @@ class MapShape:
         blocked_near = near_cells - free_cells
         blocked_cells = middle.size - free_cells
         solid = (blocked_cells - blocked_near) / blocked_cells if blocked_cells else 0.0
-        return cls(int(np.count_nonzero(lone)) / free_cells, blocked_near / near_cells, solid)
+        # the blocks, the map padded with free cells to whole blocks (the padding not counted)
+        k = cls._BLOCK
+        height, width = grid.shape
+        padded = np.zeros((-(-height // k) * k, -(-width // k) * k), dtype=bool)
+        padded[:height, :width] = grid
+        rows, columns = padded.shape[0] // k, padded.shape[1] // k
+        clear = ~padded.reshape(rows, k, columns, k).any(axis=(1, 3))
+        in_clear = int(
+            np.count_nonzero(middle & np.repeat(np.repeat(clear, k, 0), k, 1)[:height, :width])
+        )
+        return cls(
+            int(np.count_nonzero(lone)) / free_cells,
+            blocked_near / near_cells,
+            solid,
+            in_clear / free_cells,
+        )
 
     @property
     def scattered_dense(self) -> bool:
@@ -207,6 +241,10 @@ class MapShape:
     def solid(self) -> bool:
         return self.solid_obstacles >= self.SOLID
 
+    @property
+    def open(self) -> bool:
+        return self.free_in_clear_blocks >= self.OPEN
+
 
 def map_options(blocked: BoolGrid) -> Mapping[str, Any]:
     """The options of `atp` (and of its abstraction's build) chosen by the map's shape:
@@ -218,6 +256,15 @@ def map_options(blocked: BoolGrid) -> Mapping[str, Any]:
     if shape.scattered_dense:
         return SCATTERED_MAP_OPTIONS
     return SOLID_MAP_OPTIONS if shape.solid else LARGE_MAP_OPTIONS
+
+
+def map_follows(blocked: BoolGrid) -> bool:
+    """Whether `anytime plan` follows the plans it registers on the map by default (`atp(follow=
+    following.Follower(blocked))`: each registered only when the robot follows it no longer
+    than the last, so the executed quality never falls): on open ground (`MapShape.open`),
+    where following costs little. Elsewhere it costs more than the planner's own time (issue
+    36: random 10%, 28.7% of the compiled A*'s time against the planner's 17.9%)."""
+    return MapShape.of(blocked).open
 
 
 #: How many rings of neighbouring nodes around a refined segment's nodes join its corridor, by
@@ -242,6 +289,7 @@ __all__ = [
     "atp",
     "compile_searches",
     "made_ahead",
+    "map_follows",
     "map_options",
     "quality_estimate",
     "segmentize",
