@@ -37,15 +37,11 @@ def _run(size: int, seed: int, movement: int, top: int | None = None) -> list[Re
 
 
 def _refinements(results: list[Result]) -> list[tuple[Result, Result]]:
-    """The consecutive results of refinements: all but the first plan's re-routing through the
-    doors (a second plan at the top level, when one is registered: with `follow`). Without
-    `follow` the door route is not registered, and the second result refines it; the first
-    plan is one segment, which that refinement replaces whole, as one of the first plan's
-    would."""
-    top = results[0].value.segments[0].level
-    rerouted = len(results) > 1 and all(s.level == top for s in results[1].value.segments)
-    pairs = list(zip(results, results[1:], strict=False))
-    return pairs[1:] if rerouted and top > 0 else pairs
+    """The consecutive results, each a refinement of the one before: the first plan's
+    re-routing through the doors is not registered, and the second result refines it; the
+    first plan is one segment, which that refinement replaces whole, as one of the first
+    plan's would."""
+    return list(zip(results, results[1:], strict=False))
 
 
 def _changed(before: MultiPath, after: MultiPath) -> tuple[int, Segment, tuple[Segment, ...]]:
