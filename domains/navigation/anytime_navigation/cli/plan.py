@@ -146,9 +146,9 @@ def add_command(commands: CommandGroup) -> None:
         default=BY_MAP,
         help="the ATP's options: those that measured best on MovingAI maps (large-maps: "
         f"{_listed(LARGE_MAP_OPTIONS)}), the same with {_changed(SCATTERED_MAP_OPTIONS)} for "
-        "maps of scattered, dense obstacles (scattered-maps), the same with level-2 segments "
-        "refined straight to the cells and the first plan not searched again through the doors "
-        f"({_changed(SOLID_MAP_OPTIONS)}) for maps of solid "
+        "maps of scattered, dense obstacles (scattered-maps), the first plan over blocks of "
+        "8 x 8 followed by the shortest route through its blocks and their neighbours', no "
+        f"refinement level by level ({_changed(SOLID_MAP_OPTIONS)}), for maps of solid "
         "obstacles such as streets and caves (solid-maps), one of those three chosen by the "
         "map's shape (by-map), or the planner's defaults, as the navigation task plans its "
         "128 x 128 worlds (task) (by-map)",

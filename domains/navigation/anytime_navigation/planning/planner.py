@@ -114,24 +114,24 @@ SCATTERED_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
 
 
 #: The options of maps whose obstacles are solid masses (`MapShape.solid`: streets, buildings,
-#: the games' caves and halls): `LARGE_MAP_OPTIONS` with level-2 segments refined straight to
-#: the base cells (`skip_level_1`). There the walls are thick, a 4 x 4 block's free region is
-#: the way through it, and the level-1 step with its three rings of neighbours changes little
-#: (issue 36, the 16 longest problems, final plans against the optimal length: Dragon Age's
-#: ost003d, lak303d, ht_chantry, brc202d and BG II's AR0603SR, AR0011SR within 0.006 of the
-#: large-map options' (0.99 or more), the streets' unchanged, at 10-25% less time). Where
-#: walls are one cell thick (rooms, mazes) or obstacles scattered (random maps), that step is
-#: what finds the doors and the ways round: rooms of 8 lost 0.024, random 20% 0.049. Nor is
-#: the first plan searched again through the doors (`doors=False`): where walls are thick a
-#: node is the one way through its block, and the door search found little the refinements do
-#: not (issue 36, the 16 longest problems of the 14 solid maps of the benchmark and of those
-#: held out, interleaved, best of 3: 1.2-3.4 points less of the compiled A*'s time, the doors'
-#: build besides; final plans within 0.003 of the mean, ost003d 0.990 -> 0.987, the lowest
-#: problem's 0.970, New York's). The direct route stays for corridors of 12 cells per unit of
-#: length: a cave's are 17-21 (Dragon Age's brc202d, the 16 longest problems: 15.1% of the
-#: compiled A*'s time by refinement, 28.4% by the direct route).
+#: the games' caves and halls): the first plan over blocks of 8 x 8, then the direct route
+#: through the cells of its nodes and of their neighbours (`direct_width` unbounded), no
+#: refinement level by level. Followed on the map it was made on, the first plan keeps to its
+#: corridor, inside the cells that route is the shortest through: the curve never falls, two
+#: plans a problem. Refined level by level (the large-map options with level-2 segments
+#: refined straight to the base cells and no door search), the executed quality fell at 3-22
+#: of 112 steps on every solid map not of open ground, at about the same time (issue 36, the
+#: 16 longest problems, scratch runs, time against the compiled A*'s without the build,
+#: refined -> direct: Dragon Age's brc203d 19.5% -> 19.4%, lak303d 23.9% -> 23.5%, ost003d
+#: 28.5% -> 27.5%, den520d 16.7% -> 16.3%, hrt201n 16.7% -> 16.2%, ht_chantry 22.7% ->
+#: 21.1%, brc202d 13.8% -> 16.3%; Baldur's Gate II's AR0205SR 11.4% -> 10.3%, AR0603SR 15.5%
+#: -> 13.4%; final plans 0.987-0.997 -> 1.000 but ht_chantry, 0.993 -> 0.979 (min 0.964)).
+#: On the streets the direct route is optimal too (0.999-1.000) at 5.4-7.6% of A*'s time,
+#: where following each refinement to keep the curve from falling took 12-21%. The first plan
+#: over blocks of 16 x 16 would be cheaper, but its corridor's direct route costs more (brc202d
+#: 28.4%).
 SOLID_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
-    {**LARGE_MAP_OPTIONS, "skip_level_1": True, "doors": False, "direct_width": 12}
+    {**LARGE_MAP_OPTIONS, "top": 3, "direct_width": math.inf, "doors": False}
 )
 
 
@@ -262,9 +262,12 @@ def map_follows(blocked: BoolGrid) -> bool:
     """Whether `anytime plan` follows the plans it registers on the map by default (`atp(follow=
     following.Follower(blocked))`: each registered only when the robot follows it no longer
     than the last, so the executed quality never falls): on open ground (`MapShape.open`),
-    where following costs little. Elsewhere it costs more than the planner's own time (issue
-    36: random 10%, 28.7% of the compiled A*'s time against the planner's 17.9%)."""
-    return MapShape.of(blocked).open
+    where following costs little, unless the map is solid: there the options register no plan
+    that could fall (`SOLID_MAP_OPTIONS`, the direct route). Elsewhere following costs more
+    than the planner's own time (issue 36: random 10%, 28.7% of the compiled A*'s time
+    against the planner's 17.9%)."""
+    shape = MapShape.of(blocked)
+    return shape.open and not shape.solid and not shape.scattered_dense
 
 
 #: How many rings of neighbouring nodes around a refined segment's nodes join its corridor, by
