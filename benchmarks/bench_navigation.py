@@ -106,12 +106,11 @@ from anytime_navigation.planning.planner import (
     JUMP_MIN_WIDTH,
     LARGE_MAP_OPTIONS,
     SCATTERED_MAP_OPTIONS,
-    SOLID_MAP_OPTIONS,
+    WALLED_MAP_OPTIONS,
     MultiPath,
     atp,
     compile_searches,
     made_ahead,
-    map_follows,
     map_options,
 )
 from anytime_navigation.planning.search import GridAstar, find_path
@@ -151,6 +150,16 @@ KINDS: tuple[tuple[str, Path], ...] = (
     ("game (Baldur's Gate II)", MORE_MAPS / "AR0011SR.map"),
     ("game (Dragon Age)", MORE_MAPS / "brc202d.map"),
 )
+
+#: The options of maps of solid obstacles before issue 36's walled-map options (a row of the
+#: per-kind table): the large-map options with level-2 segments refined straight to the base
+#: cells and no door search.
+SOLID_MAP_OPTIONS: dict[str, Any] = {
+    **LARGE_MAP_OPTIONS,
+    "skip_level_1": True,
+    "doors": False,
+    "direct_width": 12,
+}
 
 #: The ATP configurations compared: name -> keyword arguments of `atp`.
 CONFIGS: dict[str, dict[str, Any]] = {
@@ -200,7 +209,8 @@ KIND_CONFIGS: dict[str, dict[str, Any]] = {
     },
     "... and jump_points": dict(LARGE_MAP_OPTIONS),  # `anytime plan`'s options
     "... and skip_level_1": {**LARGE_MAP_OPTIONS, "skip_level_1": True},
-    "... and doors=False": dict(SOLID_MAP_OPTIONS),  # the options of solid maps
+    "... and doors=False": dict(SOLID_MAP_OPTIONS),  # the options of solid maps until issue 36
+    "walled-map options (direct route)": dict(WALLED_MAP_OPTIONS),
     "... and follow (compiled)": {**LARGE_MAP_OPTIONS, "follow": FOLLOW},
     "options by map (map_options)": {"options": BY_MAP},  # `anytime plan`'s default
 }
@@ -957,25 +967,13 @@ def random_problems(scenarios: list[Scenario], count: int) -> list[Scenario]:
 
 def for_map(configs: dict[str, dict[str, Any]], blocked: BoolGrid) -> dict[str, dict[str, Any]]:
     """`configs` on the map `blocked`: a `BY_MAP` configuration made `planner.map_options`'
-    with the map's follower where `planner.map_follows` (as `anytime plan` plans), its other
-    options on top."""
-    follows = {"follow": FOLLOW} if map_follows(blocked) else {}
+    (with its other options on top)."""
     return {
-        name: {
-            **map_options(blocked),
-            **follows,
-            **{k: v for k, v in options.items() if k != "options"},
-        }
+        name: {**map_options(blocked), **{k: v for k, v in options.items() if k != "options"}}
         if options.get("options") == BY_MAP
         else options
         for name, options in configs.items()
     }
-
-
-def read_shape(blocked: BoolGrid) -> tuple[Any, bool]:
-    """What `anytime plan` reads of a map's shape by default: its options and whether it
-    follows the plans (timed with the build)."""
-    return map_options(blocked), map_follows(blocked)
 
 
 def shown(name: str, options: dict[str, Any], blocked: BoolGrid) -> str:
@@ -985,12 +983,11 @@ def shown(name: str, options: dict[str, Any], blocked: BoolGrid) -> str:
     chosen = map_options(blocked)
     kinds = (
         (SCATTERED_MAP_OPTIONS, "scattered"),
-        (SOLID_MAP_OPTIONS, "solid"),
+        (WALLED_MAP_OPTIONS, "walled"),
         (LARGE_MAP_OPTIONS, "large"),
     )
     which = next(kind for named, kind in kinds if named is chosen)
-    follows = ", followed" if map_follows(blocked) else ""
-    return f"{name}: {which}-map options{follows}"
+    return f"{name}: {which}-map options"
 
 
 def bench_kinds(
@@ -1041,7 +1038,7 @@ def bench_kinds(
                 builds[key] = best_of(repeats, partial(abstraction, blocked, 8, *key), warm=1)[0]
             build = builds[key]
             if configs[name].get("options") == BY_MAP:  # and reading the map's shape
-                build += best_of(repeats, partial(read_shape, blocked), warm=1)[0]
+                build += best_of(repeats, partial(map_options, blocked), warm=1)[0]
             if options.get("follow") == FOLLOW:  # and the follower's, once per map
                 build += best_of(repeats, partial(Follower, blocked, 8), warm=1)[0]
             runs = measured.runs[name]
@@ -1135,9 +1132,12 @@ def bench_kinds(
         f" corridor has at least {JUMP_MIN_WIDTH:g} cells per unit of length;\n"
         " skip_level_1 (with the row above's options): a level-2 segment is refined straight to\n"
         " the base cells, through its own nodes' cells;\n"
-        " doors=False (with the row above's options: planner.SOLID_MAP_OPTIONS, anytime plan's\n"
-        " on maps of solid obstacles): the first plan is not searched again through the doors\n"
+        " doors=False (with the row above's options: anytime plan's on maps of solid\n"
+        " obstacles until issue 36): the first plan is not searched again through the doors\n"
         " (nor are they built);\n"
+        " walled-map options (planner.WALLED_MAP_OPTIONS, anytime plan's on maps of walls):\n"
+        " the first plan over blocks of 8 x 8, then the direct route through its nodes' and\n"
+        " their neighbours' cells, no refinement level by level;\n"
         " follow (with the jump_points row's\n"
         " options): a plan is registered only when the robot follows it no longer than the\n"
         " last one registered (following.Follower: execute's length, compiled; its calls in the\n"

@@ -18,7 +18,7 @@ from anytime_navigation.planning.following import Follower
 from anytime_navigation.planning.planner import (
     LARGE_MAP_OPTIONS,
     SCATTERED_MAP_OPTIONS,
-    SOLID_MAP_OPTIONS,
+    WALLED_MAP_OPTIONS,
     atp,
 )
 from anytime_navigation.resources import data_file
@@ -91,17 +91,17 @@ def test_atp_quality_is_optimal_over_executed_length(cli: Cli) -> None:
     assert summary["expansions"] == sum(p["expansions"] for p in problems) > 0
 
 
-@pytest.mark.parametrize("name", ["large-maps", "scattered-maps", "solid-maps", "task"])
+@pytest.mark.parametrize("name", ["large-maps", "scattered-maps", "walled-maps", "task"])
 def test_atp_options_are_atps_keyword_arguments(cli: Cli, name: str) -> None:
     """`--atp-options` plans with `LARGE_MAP_OPTIONS`, `SCATTERED_MAP_OPTIONS`,
-    `SOLID_MAP_OPTIONS` or `atp`'s own
+    `WALLED_MAP_OPTIONS` or `atp`'s own
     defaults (the navigation task's): the same plans and ticks as `atp` called with them. By
     default they are chosen by the map: random512-10-0's obstacles are scattered but not dense
     enough for the scattered-map options."""
     assert ATP_OPTIONS == {
         "large-maps": LARGE_MAP_OPTIONS,
         "scattered-maps": SCATTERED_MAP_OPTIONS,
-        "solid-maps": SOLID_MAP_OPTIONS,
+        "walled-maps": WALLED_MAP_OPTIONS,
         "task": {},
     }
     default = _json(cli, "--planner", "atp", "--start", "489,1", "--goal", "33,493", map=RANDOM)
@@ -153,13 +153,14 @@ def test_options_chosen_by_the_map(cli: Cli, tmp_path: Path) -> None:
     assert "atp (scattered-maps options, chosen by the map), 8-connected" in out
 
 
-def test_monotone_plans_are_those_followed_no_longer(cli: Cli, tmp_path: Path) -> None:
-    """`--monotone on` registers a plan only when it is followed no longer than the last: the
-    same plans and ticks as `atp(follow=Follower(...))`, and the final plan never followed
-    longer than the first. By default only on open ground (`map_follows`): not on random 10%,
-    on a map of rooms 32 cells wide (every 16 x 16 block away from the walls is clear)."""
+def test_monotone_plans_are_those_followed_no_longer(cli: Cli) -> None:
+    """`--monotone` registers a plan only when it is followed no longer than the last: the same
+    plans and ticks as `atp(follow=Follower(...))`, and the final plan never followed longer
+    than the first. The summary says whether the curve can fall: not with `--monotone`, nor
+    with the walled-map options (the arena's), whose plans are the first and the direct route;
+    with A*, no curve."""
     argv = ("--planner", "atp", "--start", "489,1", "--goal", "33,493")
-    on = _json(cli, *argv, "--monotone", "on", map=RANDOM)
+    on = _json(cli, *argv, "--monotone", map=RANDOM)
     assert on["summary"]["monotone"] is True
     (problem,) = on["problems"]
     assert problem["final_quality"] >= problem["first_quality"]
@@ -178,23 +179,10 @@ def test_monotone_plans_are_those_followed_no_longer(cli: Cli, tmp_path: Path) -
     )
     assert plans and problem["expansions"] == ctx.ticks
     assert _json(cli, *argv, map=RANDOM)["summary"]["monotone"] is False
-    rooms = np.zeros((128, 128), dtype=bool)
-    rooms[::32, :] = rooms[:, ::32] = True
-    rooms[16::32, ::32] = rooms[::32, 16::32] = False  # a door in the middle of each wall
-    path = tmp_path / "rooms.map"
-    path.write_text(
-        "type octile\nheight 128\nwidth 128\nmap\n"
-        + "".join("".join("@" if cell else "." for cell in row) + "\n" for row in rooms)
-    )
-    rooms_argv = ("--planner", "atp", "--start", "1,1", "--goal", "120,120")
-    assert _json(cli, *rooms_argv, map=str(path))["summary"]["monotone"] is True
-    off = _json(cli, *rooms_argv, "--monotone", "off", map=str(path))
-    assert off["summary"]["monotone"] is False
-    code, out, err = cli("plan", "--map", str(path), *rooms_argv)
-    assert (code, err) == (0, "")
-    assert "atp (large-maps options, chosen by the map, monotone), 8-connected" in out
-    astar = _json(cli, "--limit", "2", "--monotone", "on")  # A*: no plans to follow
-    assert astar["summary"]["monotone"] is None
+    walled = _json(cli, "--planner", "atp", "--limit", "3")
+    assert walled["summary"]["atp_options"] == "walled-maps"
+    assert walled["summary"]["monotone"] is True
+    assert _json(cli, "--limit", "2", "--monotone")["summary"]["monotone"] is None  # A*
 
 
 def test_one_explicit_problem(cli: Cli) -> None:
@@ -239,7 +227,8 @@ def test_table_and_summary_line(cli: Cli) -> None:
     assert lines[1].split()[:5] == ["1", "1,11", "1,12", "1.0000", "1.0000"]
     assert len(lines) == 6
     assert lines[-2].startswith(
-        "3 problems, atp (solid-maps options, chosen by the map), 8-connected (optimal lengths"
+        "3 problems, atp (walled-maps options, chosen by the map, monotone), 8-connected"
+        " (optimal lengths"
         " from the .scen"
         " file): mean length /"
         " optimal 1.0000, "

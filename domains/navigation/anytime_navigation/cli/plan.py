@@ -42,11 +42,10 @@ from ..planning.planner import (
     DEFAULT_TOP,
     LARGE_MAP_OPTIONS,
     SCATTERED_MAP_OPTIONS,
-    SOLID_MAP_OPTIONS,
+    WALLED_MAP_OPTIONS,
     atp,
     compile_searches,
     made_ahead,
-    map_follows,
     map_options,
 )
 from ..planning.search import GridAstar
@@ -65,7 +64,7 @@ _T = TypeVar("_T")
 ATP_OPTIONS: dict[str, Mapping[str, Any]] = {
     "large-maps": LARGE_MAP_OPTIONS,
     "scattered-maps": SCATTERED_MAP_OPTIONS,
-    "solid-maps": SOLID_MAP_OPTIONS,
+    "walled-maps": WALLED_MAP_OPTIONS,
     "task": {},
 }
 BY_MAP = "by-map"
@@ -148,19 +147,18 @@ def add_command(commands: CommandGroup) -> None:
         f"{_listed(LARGE_MAP_OPTIONS)}), the same with {_changed(SCATTERED_MAP_OPTIONS)} for "
         "maps of scattered, dense obstacles (scattered-maps), the first plan over blocks of "
         "8 x 8 followed by the shortest route through its blocks and their neighbours', no "
-        f"refinement level by level ({_changed(SOLID_MAP_OPTIONS)}), for maps of solid "
-        "obstacles such as streets and caves (solid-maps), one of those three chosen by the "
+        f"refinement level by level ({_changed(WALLED_MAP_OPTIONS)}), for maps of walls such as "
+        "rooms, mazes, streets and caves (walled-maps), one of those three chosen by the "
         "map's shape (by-map), or the planner's defaults, as the navigation task plans its "
         "128 x 128 worlds (task) (by-map)",
     )
     parser.add_argument(
         "--monotone",
-        choices=[BY_MAP, "on", "off"],
-        default=BY_MAP,
+        action="store_true",
         help="register a plan of the ATP only when the robot follows it on the map no longer "
         "than the last one registered, so the executed quality never falls (each plan "
-        "followed as the quality is measured, compiled): on, off, or on open ground only, "
-        "where following costs little (by-map)",
+        "followed as the quality is measured, compiled; the walled-map options' plans never "
+        "fall, and are not followed)",
     )
     parser.add_argument(
         "--movement",
@@ -206,9 +204,7 @@ def run_plan(args: argparse.Namespace) -> int:
         raise InputError(error.message, where=f"{error.filename}:{error.line}") from None
     # Paid once, timed apart: loading the compiled searches (once per process), then the
     # planner's description of the map (once per map).
-    monotone = args.planner == "atp" and (
-        map_follows(blocked) if args.monotone == BY_MAP else args.monotone == "on"
-    )
+    monotone = args.planner == "atp" and args.monotone
     load_seconds, _ = _timed(lambda: compile_searches((args.movement,), follower=monotone))
     astar: GridAstar | None = None
     described: Described | None = None
@@ -235,7 +231,7 @@ def run_plan(args: argparse.Namespace) -> int:
     summary = _summary(solutions, args.planner, args.movement, reference)
     summary["atp_options"] = chosen
     summary["atp_options_by_map"] = args.atp_options == BY_MAP if chosen is not None else None
-    summary["monotone"] = monotone if chosen is not None else None
+    summary["monotone"] = None if described is None else _never_falls(described)
     summary["load_seconds"] = load_seconds
     summary["build_seconds"] = build_seconds
     if args.json:
@@ -332,6 +328,16 @@ def _described(
 
         follower = Follower(blocked, movement)
     return Described(pyramid, components, {**options, "top": top}, follower)
+
+
+def _never_falls(described: Described) -> bool:
+    """Whether no registered plan is followed longer than the one before: each is followed
+    (`--monotone`), or the options register the direct route after the first plan alone (the
+    walled-map options: the first plan, followed on its map, keeps to cells that route is the
+    shortest through)."""
+    top = described.options.get("top", DEFAULT_TOP)
+    direct = described.options.get("direct_width") == math.inf and top > 0
+    return described.follower is not None or direct
 
 
 def _solve(

@@ -113,24 +113,27 @@ SCATTERED_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
 )
 
 
-#: The options of maps whose obstacles are solid masses (`MapShape.solid`: streets, buildings,
-#: the games' caves and halls): the first plan over blocks of 8 x 8, then the direct route
-#: through the cells of its nodes and of their neighbours (`direct_width` unbounded), no
-#: refinement level by level. Followed on the map it was made on, the first plan keeps to its
-#: corridor, inside the cells that route is the shortest through: the curve never falls, two
-#: plans a problem. Refined level by level (the large-map options with level-2 segments
-#: refined straight to the base cells and no door search), the executed quality fell at 3-22
-#: of 112 steps on every solid map not of open ground, at about the same time (issue 36, the
-#: 16 longest problems, scratch runs, time against the compiled A*'s without the build,
-#: refined -> direct: Dragon Age's brc203d 19.5% -> 19.4%, lak303d 23.9% -> 23.5%, ost003d
-#: 28.5% -> 27.5%, den520d 16.7% -> 16.3%, hrt201n 16.7% -> 16.2%, ht_chantry 22.7% ->
-#: 21.1%, brc202d 13.8% -> 16.3%; Baldur's Gate II's AR0205SR 11.4% -> 10.3%, AR0603SR 15.5%
-#: -> 13.4%; final plans 0.987-0.997 -> 1.000 but ht_chantry, 0.993 -> 0.979 (min 0.964)).
-#: On the streets the direct route is optimal too (0.999-1.000) at 5.4-7.6% of A*'s time,
-#: where following each refinement to keep the curve from falling took 12-21%. The first plan
-#: over blocks of 16 x 16 would be cheaper, but its corridor's direct route costs more (brc202d
-#: 28.4%).
-SOLID_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
+#: The options of maps of walls (no scattered obstacles: rooms, mazes, streets, the games'
+#: caves and halls): the first plan over blocks of 8 x 8, then the direct route through the
+#: cells of its nodes and of their neighbours (`direct_width` unbounded), no refinement level
+#: by level. Followed on the map it was made on, the first plan keeps to its corridor, inside
+#: the cells that route is the shortest through: the curve never falls, two plans a problem.
+#: Refined level by level, the executed quality fell at 3-30 steps in 112-240 on every map of
+#: walls measured but the narrow mazes and random 30% (issue 36, MovingAI's maps, the 16
+#: longest problems, the benchmark's per-kind table, time against the compiled A*'s with the
+#: build, refined -> direct: rooms of 8 9.5% -> 7.1%, of 16 8.6% -> 7.0%, of 32 and 64 (each
+#: refinement followed, to keep it from falling) 21.3% -> 7.0% and 18.7% -> 6.8%, the maze of
+#: width 16 16.8% -> 10.2%, final plans 0.985 -> 0.972 on rooms of 8 (min 0.950), 0.990 ->
+#: 0.975 on rooms of 16, 0.981-0.996 -> 0.989-1.000 on rooms of 32 and 64; the streets and the
+#: games' maps 0.987-0.997 -> 1.000 but ht_chantry 0.979, at about the same time: Dragon Age's
+#: brc203d, den520d, hrt201n 19-23% and Baldur's Gate II's 11-16% with the build, the caves of
+#: about 200 x 200 cells, where A* takes 2-4 ms, 28-30% on a busy machine, 25-27% refined).
+#: The first plan over blocks of 16 x 16 would be cheaper, but its corridor's direct route
+#: costs more (brc202d: 28.4% of A*'s time without the build, 16.3% from blocks of 8 x 8), and
+#: on rooms it holds the wrong doors (rooms of 8: 0.957). Not on maps of scattered obstacles:
+#: there the corridor of blocks of 8 x 8 is searched cell by cell (random 10%: 29.4% of A*'s
+#: time with the build against 21.0% refined, the curve falling at 30 steps in 240).
+WALLED_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
     {**LARGE_MAP_OPTIONS, "top": 3, "direct_width": math.inf, "doors": False}
 )
 
@@ -157,38 +160,21 @@ def made_ahead(components: Components, level: int, options: Mapping[str, Any]) -
 
 @frozen
 class MapShape:
-    """What `map_options` reads of a map: how scattered its obstacles are, how dense they are
-    where the robot can go, and how solid they are. On MovingAI's random maps (10-40% blocked)
-    0.065-0.098 lone blocked cells (no blocked cell beside them) per free cell; on every other
-    kind of the benchmark (rooms, mazes, streets, games, caves) 0.001 or fewer."""
+    """What `map_options` reads of a map: how scattered its obstacles are, and how dense they
+    are where the robot can go. On MovingAI's random maps (10-40% blocked) 0.065-0.098 lone
+    blocked cells (no blocked cell beside them) per free cell; on every other kind of the
+    benchmark (rooms, mazes, streets, games, caves: maps of walls) 0.001 or fewer."""
 
     #: blocked cells none of whose four neighbours is blocked, per free cell
     lone_obstacles_per_free_cell: float
     #: the blocked share of the cells one move or less from a free cell
     blocked_near_free: float
-    #: the share of blocked cells with no free cell one move or less from them
-    solid_obstacles: float
-    #: the share of free cells in blocks of 16 x 16 cells (the large-map options' first level,
-    #: from the map's corner) with no blocked cell: open ground
-    free_in_clear_blocks: float = 0.0
 
     #: Scattered: at least this many lone blocked cells per free cell.
     SCATTERED = 0.01
     #: Dense: at least this share blocked near free cells (0.22: between MovingAI's random maps
     #: of 20%, which the large-map options plan at 0.975, and 25%, at 0.965).
     DENSE = 0.22
-    #: Solid: at least this share of the blocked cells inside a mass of them. On MovingAI's
-    #: streets, Baldur's Gate II and Dragon Age maps 0.74-0.99; rooms, mazes and random maps
-    #: of up to 30% 0.50 or less (rooms of 64: 0.50, of 32: 0.27, the others 0.03 or less).
-    SOLID = 0.6
-    #: Open: at least this share of the free cells in clear blocks of 16 x 16. There a robot
-    #: following a coarse plan seldom bumps into anything, and following each plan the planner
-    #: registers (`following.Follower`, a curve that never falls) costs little: on MovingAI's
-    #: rooms of 32 and 64, streets and Baldur's Gate II's AR0011SR 0.27-0.69, and the ATP with
-    #: it 11-20% of the compiled A*'s time (the 16 longest problems); on the others 0.24 or
-    #: less, and 25-54% with it (caves, mazes, rooms of 8 and 16, random maps).
-    OPEN = 0.25
-    _BLOCK = 16
 
     @classmethod
     def of(cls, blocked: BoolGrid) -> MapShape:
@@ -199,7 +185,7 @@ class MapShape:
         np.logical_not(grid, out=free[1:-1, 1:-1])
         free_cells = int(np.count_nonzero(free))
         if free_cells == 0:
-            return cls(0.0, 1.0, 1.0)
+            return cls(0.0, 1.0)
         middle = free[1:-1, 1:-1]
         lone = free[:-2, 1:-1] & free[2:, 1:-1]  # all four sides free, in place
         lone &= free[1:-1, :-2]
@@ -211,63 +197,28 @@ class MapShape:
         near |= across[2:]
         near_cells = int(np.count_nonzero(near))
         blocked_near = near_cells - free_cells
-        blocked_cells = middle.size - free_cells
-        solid = (blocked_cells - blocked_near) / blocked_cells if blocked_cells else 0.0
-        # the blocks, the map padded with free cells to whole blocks (the padding not counted)
-        k = cls._BLOCK
-        height, width = grid.shape
-        padded = np.zeros((-(-height // k) * k, -(-width // k) * k), dtype=bool)
-        padded[:height, :width] = grid
-        rows, columns = padded.shape[0] // k, padded.shape[1] // k
-        clear = ~padded.reshape(rows, k, columns, k).any(axis=(1, 3))
-        in_clear = int(
-            np.count_nonzero(middle & np.repeat(np.repeat(clear, k, 0), k, 1)[:height, :width])
-        )
-        return cls(
-            int(np.count_nonzero(lone)) / free_cells,
-            blocked_near / near_cells,
-            solid,
-            in_clear / free_cells,
-        )
+        return cls(int(np.count_nonzero(lone)) / free_cells, blocked_near / near_cells)
 
     @property
-    def scattered_dense(self) -> bool:
-        return (
-            self.lone_obstacles_per_free_cell >= self.SCATTERED
-            and self.blocked_near_free >= self.DENSE
-        )
+    def scattered(self) -> bool:
+        return self.lone_obstacles_per_free_cell >= self.SCATTERED
 
     @property
-    def solid(self) -> bool:
-        return self.solid_obstacles >= self.SOLID
-
-    @property
-    def open(self) -> bool:
-        return self.free_in_clear_blocks >= self.OPEN
+    def dense(self) -> bool:
+        return self.blocked_near_free >= self.DENSE
 
 
 def map_options(blocked: BoolGrid) -> Mapping[str, Any]:
     """The options of `atp` (and of its abstraction's build) chosen by the map's shape:
-    `SCATTERED_MAP_OPTIONS` on maps of scattered, dense obstacles, `SOLID_MAP_OPTIONS` on maps
-    of solid ones, else `LARGE_MAP_OPTIONS` (`anytime plan`'s by default; on MovingAI's maps of
-    194 x 194 to 512 x 512 of every kind they measured better than the planner's defaults, made
-    for the navigation task's 128 x 128 worlds)."""
+    `WALLED_MAP_OPTIONS` on maps of walls (no scattered obstacles), `SCATTERED_MAP_OPTIONS` on
+    maps of scattered, dense obstacles, else (scattered, not dense: random maps of 10-20%)
+    `LARGE_MAP_OPTIONS` (`anytime plan`'s by default; on MovingAI's maps of 194 x 194 to
+    512 x 512 of every kind they measured better than the planner's defaults, made for the
+    navigation task's 128 x 128 worlds)."""
     shape = MapShape.of(blocked)
-    if shape.scattered_dense:
-        return SCATTERED_MAP_OPTIONS
-    return SOLID_MAP_OPTIONS if shape.solid else LARGE_MAP_OPTIONS
-
-
-def map_follows(blocked: BoolGrid) -> bool:
-    """Whether `anytime plan` follows the plans it registers on the map by default (`atp(follow=
-    following.Follower(blocked))`: each registered only when the robot follows it no longer
-    than the last, so the executed quality never falls): on open ground (`MapShape.open`),
-    where following costs little, unless the map is solid: there the options register no plan
-    that could fall (`SOLID_MAP_OPTIONS`, the direct route). Elsewhere following costs more
-    than the planner's own time (issue 36: random 10%, 28.7% of the compiled A*'s time
-    against the planner's 17.9%)."""
-    shape = MapShape.of(blocked)
-    return shape.open and not shape.solid and not shape.scattered_dense
+    if not shape.scattered:
+        return WALLED_MAP_OPTIONS
+    return SCATTERED_MAP_OPTIONS if shape.dense else LARGE_MAP_OPTIONS
 
 
 #: How many rings of neighbouring nodes around a refined segment's nodes join its corridor, by
@@ -285,14 +236,13 @@ __all__ = [
     "JUMP_MIN_WIDTH",
     "LARGE_MAP_OPTIONS",
     "SCATTERED_MAP_OPTIONS",
-    "SOLID_MAP_OPTIONS",
+    "WALLED_MAP_OPTIONS",
     "MapShape",
     "MultiPath",
     "Segment",
     "atp",
     "compile_searches",
     "made_ahead",
-    "map_follows",
     "map_options",
     "quality_estimate",
     "segmentize",
@@ -609,7 +559,8 @@ def atp(
             of level 1. Half as many refinements below level 2, each searching the
             cells the two levels below would have searched through; where walls are thick, the
             finer level's rings changed little (issue 36: with it on MovingAI's
-            Dragon Age caves 10-25% less time, final plans within 0.006; `SOLID_MAP_OPTIONS`),
+            Dragon Age caves 10-25% less time, final plans within 0.006; the solid-map
+            options before issue 36's walled-map options),
             where they are one cell thick or obstacles scattered, much (rooms of 8: 0.985 ->
             0.962, random 20%: 0.975 -> 0.926 of the optimal length).
         jump_points: the searches over the base cells (octile moves) from one source, the
@@ -620,7 +571,7 @@ def atp(
             go another way), fewer nodes pushed and expanded; the expansions reported are the
             jump points expanded. It pays where corridors are wide and costs where they are
             one cell or obstacles scattered (docs/navigation.md, "Jump points in the base
-            cells"; `LARGE_MAP_OPTIONS` and `SOLID_MAP_OPTIONS` take it).
+            cells"; `LARGE_MAP_OPTIONS` and `WALLED_MAP_OPTIONS` take it).
 
     REFINE re-plans the chosen level-k segment one level lower, through the children of its
     nodes only (they are connected: see `components`), so the search is local and always finds
@@ -1086,14 +1037,14 @@ def compile_searches(movements: Sequence[int] = (4, 8), *, follower: bool = True
         follow = Follower(world.blocked, movement) if follower else None
         # the options whose searches the default's plans do not reach: the door search kept
         # near the first plan (`neighbourhood`), the direct route (`widened_children`) and
-        # `anytime plan`'s options by map (jump points, landmarks, no level 1, no door search)
+        # `anytime plan`'s options by map (jump points, landmarks, no door search)
         for options in (
             {},
             {"door_rings": 1},
             {"direct_width": math.inf},
             LARGE_MAP_OPTIONS,
             SCATTERED_MAP_OPTIONS,
-            SOLID_MAP_OPTIONS,
+            WALLED_MAP_OPTIONS,
         ):
             plans = atp(
                 Context(), world.start, world.goal, pyramid, movement=movement, follow=follow,
