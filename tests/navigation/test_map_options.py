@@ -106,16 +106,18 @@ def test_maps_get_the_options_of_their_shape(blocked: np.ndarray, options: objec
     [
         ("random512-10-0", LARGE_MAP_OPTIONS),
         ("8room_000", WALLED_MAP_OPTIONS),
-        ("maze512-1-0", WALLED_MAP_OPTIONS),
+        ("maze512-1-0", LARGE_MAP_OPTIONS),
         ("arena", WALLED_MAP_OPTIONS),
     ],
 )
 def test_the_shipped_maps_options(name: str, options: object) -> None:
     """Random 10% is scattered but not dense (0.100 blocked near free cells); rooms of 8, the
-    maze and the arena have no lone obstacle: maps of walls."""
+    maze and the arena have no lone obstacle: maps of walls, the maze's dense (its corridors
+    are one cell wide: half the cells beside a free one are blocked)."""
     blocked = load_map(Path(str(data_file("maps", f"{name}.map"))))[0]
     shape = MapShape.of(blocked)
-    assert shape.scattered == (options is not WALLED_MAP_OPTIONS)
+    assert shape.scattered == (name == "random512-10-0")
+    assert shape.dense == (name == "maze512-1-0")
     assert map_options(blocked) is options
 
 

@@ -113,8 +113,9 @@ SCATTERED_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
 )
 
 
-#: The options of maps of walls (no scattered obstacles: rooms, mazes, streets, the games'
-#: caves and halls): the first plan over blocks of 8 x 8, then the direct route through the
+#: The options of maps of walls (no scattered obstacles, not dense: rooms, mazes of corridors
+#: four cells wide or more, streets, the games' caves and halls): the first plan over blocks
+#: of 8 x 8, then the direct route through the
 #: cells of its nodes and of their neighbours (`direct_width` unbounded), no refinement level
 #: by level. Followed on the map it was made on, the first plan keeps to its corridor, inside
 #: the cells that route is the shortest through: the curve never falls, two plans a problem.
@@ -210,15 +211,18 @@ class MapShape:
 
 def map_options(blocked: BoolGrid) -> Mapping[str, Any]:
     """The options of `atp` (and of its abstraction's build) chosen by the map's shape:
-    `WALLED_MAP_OPTIONS` on maps of walls (no scattered obstacles), `SCATTERED_MAP_OPTIONS` on
-    maps of scattered, dense obstacles, else (scattered, not dense: random maps of 10-20%)
-    `LARGE_MAP_OPTIONS` (`anytime plan`'s by default; on MovingAI's maps of 194 x 194 to
-    512 x 512 of every kind they measured better than the planner's defaults, made for the
-    navigation task's 128 x 128 worlds)."""
+    `WALLED_MAP_OPTIONS` on maps of walls (no scattered obstacles) not dense,
+    `SCATTERED_MAP_OPTIONS` on maps of scattered, dense obstacles, else `LARGE_MAP_OPTIONS`
+    (`anytime plan`'s by default; on MovingAI's maps of 194 x 194 to 512 x 512 of every kind
+    they measured better than the planner's defaults, made for the navigation task's 128 x 128
+    worlds): random maps of 10-20% (scattered, not dense) and mazes of corridors one or two
+    cells wide (dense walls, 0.33-0.50 blocked near free cells), where a first plan over blocks
+    of 8 x 8 costs more than 2% of the compiled A*'s time (width 1: 2.5%, against 1.8% over
+    blocks of 16 x 16, whose corridors are narrow enough there for the direct route)."""
     shape = MapShape.of(blocked)
-    if not shape.scattered:
-        return WALLED_MAP_OPTIONS
-    return SCATTERED_MAP_OPTIONS if shape.dense else LARGE_MAP_OPTIONS
+    if shape.scattered:
+        return SCATTERED_MAP_OPTIONS if shape.dense else LARGE_MAP_OPTIONS
+    return LARGE_MAP_OPTIONS if shape.dense else WALLED_MAP_OPTIONS
 
 
 #: How many rings of neighbouring nodes around a refined segment's nodes join its corridor, by
