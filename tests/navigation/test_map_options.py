@@ -18,6 +18,7 @@ from anytime_navigation.planning.planner import (
     MapShape,
     atp,
     map_options,
+    registers_no_fall,
 )
 from anytime_navigation.resources import data_file
 from anytime_navigation.task.execution import execute
@@ -133,6 +134,13 @@ def test_the_scattered_options_plan_to_the_goal() -> None:
     run = execute(plans[-1].value, blocked, movement=8, keep_to_plan=True)
     assert run.reached
     assert run.length >= 123 * np.sqrt(2)
+
+
+def test_only_the_direct_route_after_the_first_plan_registers_no_fall() -> None:
+    assert registers_no_fall(WALLED_MAP_OPTIONS)
+    assert not registers_no_fall({**WALLED_MAP_OPTIONS, "top": 0})  # no first plan above cells
+    for options in (LARGE_MAP_OPTIONS, SCATTERED_MAP_OPTIONS, {}):
+        assert not registers_no_fall(options)
 
 
 def test_the_walled_options_never_fall() -> None:

@@ -47,6 +47,7 @@ from ..planning.planner import (
     compile_searches,
     made_ahead,
     map_options,
+    registers_no_fall,
 )
 from ..planning.search import GridAstar
 from ..task.execution import execute, plan_quality
@@ -332,12 +333,8 @@ def _described(
 
 def _never_falls(described: Described) -> bool:
     """Whether no registered plan is followed longer than the one before: each is followed
-    (`--monotone`), or the options register the direct route after the first plan alone (the
-    walled-map options: the first plan, followed on its map, keeps to cells that route is the
-    shortest through)."""
-    top = described.options.get("top", DEFAULT_TOP)
-    direct = described.options.get("direct_width") == math.inf and top > 0
-    return described.follower is not None or direct
+    (`--monotone`), or the options register none that could be (`registers_no_fall`)."""
+    return described.follower is not None or registers_no_fall(described.options)
 
 
 def _solve(

@@ -115,10 +115,9 @@ SCATTERED_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
 
 #: The options of maps of walls (no scattered obstacles, not dense: rooms, mazes of corridors
 #: four cells wide or more, streets, the games' caves and halls): the first plan over blocks
-#: of 8 x 8, then the direct route through the
-#: cells of its nodes and of their neighbours (`direct_width` unbounded), no refinement level
-#: by level. Followed on the map it was made on, the first plan keeps to its corridor, inside
-#: the cells that route is the shortest through: the curve never falls, two plans a problem.
+#: of 8 x 8, then the direct route through the cells of its nodes and of their neighbours
+#: (`direct_width` unbounded), no refinement level by level: the curve never falls
+#: (`registers_no_fall`), two plans a problem.
 #: Refined level by level, the executed quality fell at 3-30 steps in 112-240 on every map of
 #: walls measured but the narrow mazes and random 30% (issue 36, MovingAI's maps, the 16
 #: longest problems, the benchmark's per-kind table, time against the compiled A*'s with the
@@ -127,8 +126,9 @@ SCATTERED_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
 #: width 16 16.8% -> 10.2%, final plans 0.985 -> 0.972 on rooms of 8 (min 0.950), 0.990 ->
 #: 0.975 on rooms of 16, 0.981-0.996 -> 0.989-1.000 on rooms of 32 and 64; the streets and the
 #: games' maps 0.987-0.997 -> 1.000 but ht_chantry 0.979, at about the same time: Dragon Age's
-#: brc203d, den520d, hrt201n 19-23% and Baldur's Gate II's 11-16% with the build, the caves of
-#: about 200 x 200 cells, where A* takes 2-4 ms, 28-30% on a busy machine, 25-27% refined).
+#: brc203d, den520d, hrt201n 19-23% and Baldur's Gate II's 11-16% with the build; the caves of
+#: about 200 x 200 cells, where A* takes 2-4 ms, measured in one run: ht_chantry 25.8% -> 24.8%,
+#: lak303d 24.8% -> 28.0%, ost003d 26.5% -> 28.7%).
 #: The first plan over blocks of 16 x 16 would be cheaper, but its corridor's direct route
 #: costs more (brc202d: 28.4% of A*'s time without the build, 16.3% from blocks of 8 x 8), and
 #: on rooms it holds the wrong doors (rooms of 8: 0.957). Not on maps of scattered obstacles:
@@ -225,6 +225,15 @@ def map_options(blocked: BoolGrid) -> Mapping[str, Any]:
     return LARGE_MAP_OPTIONS if shape.dense else WALLED_MAP_OPTIONS
 
 
+def registers_no_fall(options: Mapping[str, Any]) -> bool:
+    """Whether `atp(**options)`, planning on the map its plans are followed on, registers no
+    plan followed longer than the one before, without following any: the first plan (above
+    the base level), then the direct route through the cells of its nodes and of their
+    neighbours alone (`direct_width` unbounded, `WALLED_MAP_OPTIONS`). Followed on its map, the
+    first plan keeps to its corridor, inside the cells that route is the shortest through."""
+    return options.get("direct_width") == math.inf and options.get("top", DEFAULT_TOP) > 0
+
+
 #: How many rings of neighbouring nodes around a refined segment's nodes join its corridor, by
 #: the segment's level (one where not listed). Level 2 gets three: on dense random maps (20-30%
 #: of cells blocked, scattered) the centres of 4 x 4 blocks choose blindly among ways of about
@@ -249,6 +258,7 @@ __all__ = [
     "made_ahead",
     "map_options",
     "quality_estimate",
+    "registers_no_fall",
     "segmentize",
 ]
 
