@@ -105,7 +105,9 @@ from anytime_navigation.planning.planner import (
     DEFAULT_TOP,
     JUMP_MIN_WIDTH,
     LARGE_MAP_OPTIONS,
+    MODERATE_MAP_OPTIONS,
     SCATTERED_MAP_OPTIONS,
+    SPARSE_MAP_OPTIONS,
     WALLED_MAP_OPTIONS,
     MultiPath,
     atp,
@@ -211,6 +213,8 @@ KIND_CONFIGS: dict[str, dict[str, Any]] = {
     "... and skip_level_1": {**LARGE_MAP_OPTIONS, "skip_level_1": True},
     "... and doors=False": dict(SOLID_MAP_OPTIONS),  # the options of solid maps until issue 36
     "walled-map options (direct route)": dict(WALLED_MAP_OPTIONS),
+    "moderate-map options (searched cell by cell)": dict(MODERATE_MAP_OPTIONS),
+    "sparse-map options (direct_ring_level=2)": dict(SPARSE_MAP_OPTIONS),
     "... and follow (compiled)": {**LARGE_MAP_OPTIONS, "follow": FOLLOW},
     "options by map (map_options)": {"options": BY_MAP},  # `anytime plan`'s default
 }
@@ -983,6 +987,8 @@ def shown(name: str, options: dict[str, Any], blocked: BoolGrid) -> str:
     chosen = map_options(blocked)
     kinds = (
         (SCATTERED_MAP_OPTIONS, "scattered"),
+        (MODERATE_MAP_OPTIONS, "moderate"),
+        (SPARSE_MAP_OPTIONS, "sparse"),
         (WALLED_MAP_OPTIONS, "walled"),
         (LARGE_MAP_OPTIONS, "large"),
     )
@@ -1138,6 +1144,12 @@ def bench_kinds(
         " walled-map options (planner.WALLED_MAP_OPTIONS, anytime plan's on maps of walls):\n"
         " the first plan over blocks of 8 x 8, then the direct route through its nodes' and\n"
         " their neighbours' cells, no refinement level by level;\n"
+        " moderate-map options (planner.MODERATE_MAP_OPTIONS, anytime plan's on maps of\n"
+        " scattered obstacles of moderate density): the same, the direct route searched cell\n"
+        " by cell (no jump points);\n"
+        " sparse-map options (planner.SPARSE_MAP_OPTIONS, anytime plan's on maps of sparse\n"
+        " scattered obstacles): the same, with the neighbours among the blocks of 4 x 4\n"
+        " (direct_ring_level=2), not of 8 x 8;\n"
         " follow (with the jump_points row's\n"
         " options): a plan is registered only when the robot follows it no longer than the\n"
         " last one registered (following.Follower: execute's length, compiled; its calls in the\n"

@@ -17,7 +17,9 @@ from anytime_navigation.planning.abstraction import Pyramid
 from anytime_navigation.planning.following import Follower
 from anytime_navigation.planning.planner import (
     LARGE_MAP_OPTIONS,
+    MODERATE_MAP_OPTIONS,
     SCATTERED_MAP_OPTIONS,
+    SPARSE_MAP_OPTIONS,
     WALLED_MAP_OPTIONS,
     atp,
 )
@@ -91,21 +93,22 @@ def test_atp_quality_is_optimal_over_executed_length(cli: Cli) -> None:
     assert summary["expansions"] == sum(p["expansions"] for p in problems) > 0
 
 
-@pytest.mark.parametrize("name", ["large-maps", "scattered-maps", "walled-maps", "task"])
+@pytest.mark.parametrize("name", sorted(ATP_OPTIONS))
 def test_atp_options_are_atps_keyword_arguments(cli: Cli, name: str) -> None:
-    """`--atp-options` plans with `LARGE_MAP_OPTIONS`, `SCATTERED_MAP_OPTIONS`,
-    `WALLED_MAP_OPTIONS` or `atp`'s own
+    """`--atp-options` plans with `LARGE_MAP_OPTIONS`, `MODERATE_MAP_OPTIONS`,
+    `SCATTERED_MAP_OPTIONS`, `SPARSE_MAP_OPTIONS`, `WALLED_MAP_OPTIONS` or `atp`'s own
     defaults (the navigation task's): the same plans and ticks as `atp` called with them. By
-    default they are chosen by the map: random512-10-0's obstacles are scattered but not dense
-    enough for the scattered-map options."""
+    default they are chosen by the map: random512-10-0's obstacles are scattered and sparse."""
     assert ATP_OPTIONS == {
         "large-maps": LARGE_MAP_OPTIONS,
+        "moderate-maps": MODERATE_MAP_OPTIONS,
         "scattered-maps": SCATTERED_MAP_OPTIONS,
+        "sparse-maps": SPARSE_MAP_OPTIONS,
         "walled-maps": WALLED_MAP_OPTIONS,
         "task": {},
     }
     default = _json(cli, "--planner", "atp", "--start", "489,1", "--goal", "33,493", map=RANDOM)
-    assert default["summary"]["atp_options"] == "large-maps"
+    assert default["summary"]["atp_options"] == "sparse-maps"
     assert default["summary"]["atp_options_by_map"] is True
     chosen = _json(
         cli,
@@ -119,7 +122,7 @@ def test_atp_options_are_atps_keyword_arguments(cli: Cli, name: str) -> None:
         name,
         map=RANDOM,
     )
-    if name == "large-maps":
+    if name == "sparse-maps":
         assert chosen["problems"] == [{**default["problems"][0], "seconds": ANY}]
     assert chosen["summary"]["atp_options"] == name
     assert chosen["summary"]["atp_options_by_map"] is False
@@ -156,11 +159,12 @@ def test_options_chosen_by_the_map(cli: Cli, tmp_path: Path) -> None:
 def test_monotone_plans_are_those_followed_no_longer(cli: Cli) -> None:
     """`--monotone` registers a plan only when it is followed no longer than the last: the same
     plans and ticks as `atp(follow=Follower(...))`, and the final plan never followed longer
-    than the first. The summary says whether the curve can fall: not with `--monotone`, nor
-    with the walled-map options (the arena's), whose plans are the first and the direct route;
-    with A*, no curve."""
+    than the first. The summary says whether the curve can fall: with the large-map options;
+    not with `--monotone`, nor with the walled-map options (the arena's) or the sparse-map
+    options (random 10%'s), whose plans are the first and the direct route; with A*, no
+    curve."""
     argv = ("--planner", "atp", "--start", "489,1", "--goal", "33,493")
-    on = _json(cli, *argv, "--monotone", map=RANDOM)
+    on = _json(cli, *argv, "--monotone", "--atp-options", "large-maps", map=RANDOM)
     assert on["summary"]["monotone"] is True
     (problem,) = on["problems"]
     assert problem["final_quality"] >= problem["first_quality"]
@@ -178,7 +182,10 @@ def test_monotone_plans_are_those_followed_no_longer(cli: Cli) -> None:
         )
     )
     assert plans and problem["expansions"] == ctx.ticks
-    assert _json(cli, *argv, map=RANDOM)["summary"]["monotone"] is False
+    assert (
+        _json(cli, *argv, "--atp-options", "large-maps", map=RANDOM)["summary"]["monotone"] is False
+    )
+    assert _json(cli, *argv, map=RANDOM)["summary"]["monotone"] is True
     walled = _json(cli, "--planner", "atp", "--limit", "3")
     assert walled["summary"]["atp_options"] == "walled-maps"
     assert walled["summary"]["monotone"] is True

@@ -1,7 +1,8 @@
 """The ATP's options chosen by the map's shape (issue 36): `MapShape` reads how scattered and
 how dense a map's obstacles are, and `map_options` plans maps of walls (no scattered obstacles:
-rooms, mazes, streets, caves) with `WALLED_MAP_OPTIONS`, maps of scattered, dense obstacles with
-`SCATTERED_MAP_OPTIONS`, the others (scattered, not dense) with `LARGE_MAP_OPTIONS`."""
+rooms, mazes, streets, caves) with `WALLED_MAP_OPTIONS` (dense walls, narrow mazes, with
+`LARGE_MAP_OPTIONS`), maps of scattered obstacles with `SPARSE_MAP_OPTIONS`,
+`MODERATE_MAP_OPTIONS` or `SCATTERED_MAP_OPTIONS` as they are sparse, neither or dense."""
 
 from __future__ import annotations
 
@@ -13,7 +14,9 @@ from anytime_navigation.movingai import load_map
 from anytime_navigation.planning.abstraction import Pyramid
 from anytime_navigation.planning.planner import (
     LARGE_MAP_OPTIONS,
+    MODERATE_MAP_OPTIONS,
     SCATTERED_MAP_OPTIONS,
+    SPARSE_MAP_OPTIONS,
     WALLED_MAP_OPTIONS,
     MapShape,
     atp,
@@ -22,7 +25,7 @@ from anytime_navigation.planning.planner import (
 )
 from anytime_navigation.resources import data_file
 from anytime_navigation.task.execution import execute
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
@@ -89,13 +92,14 @@ def _blocks(seed: int = 0) -> np.ndarray:
 @pytest.mark.parametrize(
     ("blocked", "options"),
     [
-        (_random(0.10), LARGE_MAP_OPTIONS),  # scattered, not dense
-        (_random(0.20), LARGE_MAP_OPTIONS),
+        (_random(0.10), SPARSE_MAP_OPTIONS),  # scattered, sparse
+        (_random(0.15), SPARSE_MAP_OPTIONS),
+        (_random(0.20), MODERATE_MAP_OPTIONS),  # neither sparse nor dense
         (_random(0.25), SCATTERED_MAP_OPTIONS),
         (_random(0.35), SCATTERED_MAP_OPTIONS),
         (np.zeros((64, 64), dtype=bool), WALLED_MAP_OPTIONS),  # open ground: nothing scattered
         (_blocks(), WALLED_MAP_OPTIONS),
-        (_blocks() | _random(0.02), LARGE_MAP_OPTIONS),  # obstacles scattered among them
+        (_blocks() | _random(0.02), SPARSE_MAP_OPTIONS),  # obstacles scattered among them
     ],
 )
 def test_maps_get_the_options_of_their_shape(blocked: np.ndarray, options: object) -> None:
@@ -105,20 +109,21 @@ def test_maps_get_the_options_of_their_shape(blocked: np.ndarray, options: objec
 @pytest.mark.parametrize(
     ("name", "options"),
     [
-        ("random512-10-0", LARGE_MAP_OPTIONS),
+        ("random512-10-0", SPARSE_MAP_OPTIONS),
         ("8room_000", WALLED_MAP_OPTIONS),
         ("maze512-1-0", LARGE_MAP_OPTIONS),
         ("arena", WALLED_MAP_OPTIONS),
     ],
 )
 def test_the_shipped_maps_options(name: str, options: object) -> None:
-    """Random 10% is scattered but not dense (0.100 blocked near free cells); rooms of 8, the
+    """Random 10% is scattered and sparse (0.100 blocked near free cells); rooms of 8, the
     maze and the arena have no lone obstacle: maps of walls, the maze's dense (its corridors
     are one cell wide: half the cells beside a free one are blocked)."""
     blocked = load_map(Path(str(data_file("maps", f"{name}.map"))))[0]
     shape = MapShape.of(blocked)
     assert shape.scattered == (name == "random512-10-0")
     assert shape.dense == (name == "maze512-1-0")
+    assert shape.sparse or name != "random512-10-0"
     assert map_options(blocked) is options
 
 
@@ -137,7 +142,8 @@ def test_the_scattered_options_plan_to_the_goal() -> None:
 
 
 def test_only_the_direct_route_after_the_first_plan_registers_no_fall() -> None:
-    assert registers_no_fall(WALLED_MAP_OPTIONS)
+    for options in (WALLED_MAP_OPTIONS, MODERATE_MAP_OPTIONS, SPARSE_MAP_OPTIONS):
+        assert registers_no_fall(options)
     assert not registers_no_fall({**WALLED_MAP_OPTIONS, "top": 0})  # no first plan above cells
     for options in (LARGE_MAP_OPTIONS, SCATTERED_MAP_OPTIONS, {}):
         assert not registers_no_fall(options)
@@ -158,3 +164,54 @@ def test_the_walled_options_never_fall() -> None:
     assert final.reached
     assert 125 * np.sqrt(2) <= final.length <= first.length
     assert all(segment.level == 0 for segment in plans[-1].value.segments)
+
+
+@settings(max_examples=12, deadline=None)
+@given(
+    share=st.sampled_from([0.08, 0.12, 0.18, 0.21]),
+    seed=st.integers(0, 2**16),
+    ring_level=st.sampled_from([1, 2, 3]),
+)
+def test_the_direct_route_through_scattered_obstacles_never_falls(
+    share: float, seed: int, ring_level: int
+) -> None:
+    """On a random map of scattered obstacles, the direct route through the first plan's blocks
+    and their neighbours at any level (`direct_ring_level`) is followed to the goal no longer
+    than the first plan: the corridor holds every cell the first plan is followed through."""
+    blocked = _random(share, seed)
+    start, goal = (2, 125), (125, 3)
+    blocked[start[1], start[0]] = blocked[goal[1], goal[0]] = False
+    options = {**MODERATE_MAP_OPTIONS, "direct_ring_level": ring_level}
+    plans = list(atp(Context(), start, goal, Pyramid.build(blocked), movement=8, **options))
+    assert len(plans) == 2
+    first, final = (execute(p.value, blocked, movement=8, keep_to_plan=True) for p in plans)
+    assert first.reached and final.reached
+    assert final.length <= first.length
+    assert plans[-1].value.base_route() is not None
+
+
+def test_the_ring_one_level_lower_searches_fewer_cells() -> None:
+    """The sparse-map options' corridor (the ring of neighbours at level 2) is narrower than the
+    moderate-map options' (at level 3): fewer expansions, a route no shorter."""
+    blocked = _random(0.1, seed=3)
+    start, goal = (1, 1), (126, 120)
+    blocked[start[1], start[0]] = blocked[goal[1], goal[0]] = False
+    pyramid = Pyramid.build(blocked)
+    ticks, lengths = [], []
+    for options in (MODERATE_MAP_OPTIONS, SPARSE_MAP_OPTIONS):
+        ctx = Context()
+        route = list(atp(ctx, start, goal, pyramid, movement=8, **options))[-1].value
+        ticks.append(ctx.elapsed)
+        lengths.append(execute(route, blocked, movement=8, keep_to_plan=True).length)
+    assert ticks[1] < ticks[0]
+    assert lengths[1] >= lengths[0]
+
+
+def test_the_ring_level_must_be_a_level() -> None:
+    blocked = _random(0.1)
+    blocked[1, 1] = blocked[120, 120] = False
+    plans = atp(
+        Context(), (1, 1), (120, 120), Pyramid.build(blocked), movement=8, direct_ring_level=0
+    )
+    with pytest.raises(ValueError, match=r"^direct_ring_level must be >= 1 or None, got 0$"):
+        next(plans)

@@ -41,7 +41,9 @@ from ..planning.components import Components
 from ..planning.planner import (
     DEFAULT_TOP,
     LARGE_MAP_OPTIONS,
+    MODERATE_MAP_OPTIONS,
     SCATTERED_MAP_OPTIONS,
+    SPARSE_MAP_OPTIONS,
     WALLED_MAP_OPTIONS,
     atp,
     compile_searches,
@@ -64,7 +66,9 @@ _T = TypeVar("_T")
 #: `BY_MAP`, the default, is one of them chosen by the map's shape (`planner.map_options`).
 ATP_OPTIONS: dict[str, Mapping[str, Any]] = {
     "large-maps": LARGE_MAP_OPTIONS,
+    "moderate-maps": MODERATE_MAP_OPTIONS,
     "scattered-maps": SCATTERED_MAP_OPTIONS,
+    "sparse-maps": SPARSE_MAP_OPTIONS,
     "walled-maps": WALLED_MAP_OPTIONS,
     "task": {},
 }
@@ -149,17 +153,20 @@ def add_command(commands: CommandGroup) -> None:
         "maps of scattered, dense obstacles (scattered-maps), the first plan over blocks of "
         "8 x 8 followed by the shortest route through its blocks and their neighbours', no "
         f"refinement level by level ({_changed(WALLED_MAP_OPTIONS)}), for maps of walls such as "
-        "rooms, mazes, streets and caves (walled-maps), one of those three chosen by the "
-        "map's shape (by-map), or the planner's defaults, as the navigation task plans its "
-        "128 x 128 worlds (task) (by-map)",
+        "rooms, mazes, streets and caves (walled-maps), the same searched cell by cell "
+        f"({_changed(MODERATE_MAP_OPTIONS)}) for maps of scattered obstacles of moderate "
+        "density (moderate-maps), and with the neighbours' blocks of 4 x 4 "
+        f"({_changed(SPARSE_MAP_OPTIONS)}) for sparse ones (sparse-maps), one of those five "
+        "chosen by the map's shape (by-map), or the planner's defaults, as the navigation task "
+        "plans its 128 x 128 worlds (task) (by-map)",
     )
     parser.add_argument(
         "--monotone",
         action="store_true",
         help="register a plan of the ATP only when the robot follows it on the map no longer "
         "than the last one registered, so the executed quality never falls (each plan "
-        "followed as the quality is measured, compiled; the walled-map options' plans never "
-        "fall, and are not followed)",
+        "followed as the quality is measured, compiled; the walled-, moderate- and sparse-map "
+        "options' plans never fall, and are not followed)",
     )
     parser.add_argument(
         "--movement",

@@ -139,6 +139,34 @@ WALLED_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
 )
 
 
+#: The options of maps of scattered obstacles neither sparse nor dense (`MapShape`: MovingAI's
+#: random maps of 20% blocked): the walled-map options' first plan and direct route, its
+#: corridor searched cell by cell (scattered obstacles make most cells jump points: random 10%,
+#: 41.5% of the compiled A*'s time with the build by jump points, 27.8% cell by cell). Refined
+#: level by level with `LARGE_MAP_OPTIONS`, as until issue 36's curve that never falls, their
+#: executed quality fell at 17-27 steps in 240; the direct route registers none that falls
+#: (`registers_no_fall`), two plans a problem, its final plans as good or better (issue 36, the
+#: 16 longest problems, time against the compiled A*'s with the build, refined -> direct:
+#: random512-20-0 18.8% -> 16.0%, final plans 0.975 -> 0.977; random512-20-1, not tuned on,
+#: 0.977 -> 0.980 at 17.5%).
+MODERATE_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
+    {**WALLED_MAP_OPTIONS, "jump_points": False}
+)
+
+#: The options of maps of sparse scattered obstacles (`MapShape.sparse`: MovingAI's random maps
+#: of 10-15%): `MODERATE_MAP_OPTIONS` with the direct route's ring of neighbours one level lower
+#: (`direct_ring_level`, blocks of 4 x 4). Where few cells are blocked the shortest route keeps
+#: close to the first plan's blocks, and the ring of blocks of 8 x 8 costs more than it gains
+#: (issue 36, the 16 longest problems, with the build, against the compiled A*'s time and
+#: expansions: random512-10-0 27.8% and 33.3% with the ring of 8 x 8 (final plans 0.989), 20.5%
+#: and 23.1% with these (0.987), against 22.7% and 15.0% refined with `LARGE_MAP_OPTIONS`
+#: (0.977, falling at 30 steps in 240); not tuned on: random512-10-1 22.5% (0.988), -15-0 and
+#: -15-1 15.6-15.8% (0.977-0.978; 21.6% and 0.984 with the ring of 8 x 8)).
+SPARSE_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
+    {**MODERATE_MAP_OPTIONS, "direct_ring_level": 2}
+)
+
+
 #: The direct route is searched by jump points (`atp(jump_points=True)`) only where its corridor
 #: has at least this many base cells per unit of the first plan's length (`_Planner.width`). In
 #: a one-cell corridor every turn and junction is a jump point and each scan checks its sides at
@@ -176,6 +204,9 @@ class MapShape:
     #: Dense: at least this share blocked near free cells (0.22: between MovingAI's random maps
     #: of 20%, which the large-map options plan at 0.975, and 25%, at 0.965).
     DENSE = 0.22
+    #: Sparse: less than this share blocked near free cells (0.125: between MovingAI's random
+    #: maps of 10%, 0.100, and 15%, 0.150).
+    SPARSE = 0.175
 
     @classmethod
     def of(cls, blocked: BoolGrid) -> MapShape:
@@ -208,20 +239,27 @@ class MapShape:
     def dense(self) -> bool:
         return self.blocked_near_free >= self.DENSE
 
+    @property
+    def sparse(self) -> bool:
+        return self.blocked_near_free < self.SPARSE
+
 
 def map_options(blocked: BoolGrid) -> Mapping[str, Any]:
-    """The options of `atp` (and of its abstraction's build) chosen by the map's shape:
-    `WALLED_MAP_OPTIONS` on maps of walls (no scattered obstacles) not dense,
-    `SCATTERED_MAP_OPTIONS` on maps of scattered, dense obstacles, else `LARGE_MAP_OPTIONS`
+    """The options of `atp` (and of its abstraction's build) chosen by the map's shape
     (`anytime plan`'s by default; on MovingAI's maps of 194 x 194 to 512 x 512 of every kind
     they measured better than the planner's defaults, made for the navigation task's 128 x 128
-    worlds): random maps of 10-20% (scattered, not dense) and mazes of corridors one or two
-    cells wide (dense walls, 0.33-0.50 blocked near free cells), where a first plan over blocks
-    of 8 x 8 costs more than 2% of the compiled A*'s time (width 1: 2.5%, against 1.8% over
-    blocks of 16 x 16, whose corridors are narrow enough there for the direct route)."""
+    worlds): `WALLED_MAP_OPTIONS` on maps of walls (no scattered obstacles) not dense; on maps
+    of scattered obstacles `SPARSE_MAP_OPTIONS`, `MODERATE_MAP_OPTIONS` or
+    `SCATTERED_MAP_OPTIONS` as they are sparse, neither or dense; else `LARGE_MAP_OPTIONS`:
+    mazes of corridors one or two cells wide (dense walls, 0.33-0.50 blocked near free cells),
+    where a first plan over blocks of 8 x 8 costs more than 2% of the compiled A*'s time
+    (width 1: 2.5%, against 1.8% over blocks of 16 x 16, whose corridors are narrow enough
+    there for the direct route)."""
     shape = MapShape.of(blocked)
     if shape.scattered:
-        return SCATTERED_MAP_OPTIONS if shape.dense else LARGE_MAP_OPTIONS
+        if shape.dense:
+            return SCATTERED_MAP_OPTIONS
+        return SPARSE_MAP_OPTIONS if shape.sparse else MODERATE_MAP_OPTIONS
     return LARGE_MAP_OPTIONS if shape.dense else WALLED_MAP_OPTIONS
 
 
@@ -229,8 +267,10 @@ def registers_no_fall(options: Mapping[str, Any]) -> bool:
     """Whether `atp(**options)`, planning on the map its plans are followed on, registers no
     plan followed longer than the one before, without following any: the first plan (above
     the base level), then the direct route through the cells of its nodes and of their
-    neighbours alone (`direct_width` unbounded, `WALLED_MAP_OPTIONS`). Followed on its map, the
-    first plan keeps to its corridor, inside the cells that route is the shortest through."""
+    neighbours alone (`direct_width` unbounded: `WALLED_MAP_OPTIONS`, `MODERATE_MAP_OPTIONS`,
+    `SPARSE_MAP_OPTIONS`; the neighbours at any level, `direct_ring_level`). Followed on its
+    map, the first plan keeps to its corridor, inside the cells that route is the shortest
+    through."""
     return options.get("direct_width") == math.inf and options.get("top", DEFAULT_TOP) > 0
 
 
@@ -248,7 +288,9 @@ __all__ = [
     "DEFAULT_TOP",
     "JUMP_MIN_WIDTH",
     "LARGE_MAP_OPTIONS",
+    "MODERATE_MAP_OPTIONS",
     "SCATTERED_MAP_OPTIONS",
+    "SPARSE_MAP_OPTIONS",
     "WALLED_MAP_OPTIONS",
     "MapShape",
     "MultiPath",
@@ -457,6 +499,7 @@ def atp(
     no_ring_when_clear: float | None = None,
     skip_level_1: bool = False,
     jump_points: bool = False,
+    direct_ring_level: int | None = None,
 ) -> Iterator[Result]:
     """The anytime abstract planner: yields `Result(MultiPath, quality_estimate)` after the first
     plan and after every refinement (with `follow`, each that is followed no worse than the last
@@ -586,6 +629,17 @@ def atp(
             jump points expanded. It pays where corridors are wide and costs where they are
             one cell or obstacles scattered (docs/navigation.md, "Jump points in the base
             cells"; `LARGE_MAP_OPTIONS` and `WALLED_MAP_OPTIONS` take it).
+        direct_ring_level: the level whose ring of neighbouring nodes joins the direct
+            route's corridor (`direct`, `direct_width`): the cells of the first plan's nodes
+            and of their neighbours at this level (None, the default: at the first plan's
+            level; at most that level, at least 1). One level lower, the ring is half as wide
+            on each side, and so is the search (issue 36, MovingAI's random maps of 10%, the 16
+            longest problems, from blocks of 8 x 8: the ring at level 3 -> at level 2, 18.3-20.8%
+            -> 13.3% of the compiled A*'s time without the build, final plans 0.989 -> 0.987;
+            at 20% 0.977 -> 0.967: there the shortest route strays further from the first
+            plan's blocks). Any level holds the cells the first plan is followed through (a
+            free cell beside one of them is in its node or in a neighbouring one at every
+            level), so the route is never followed longer than the first plan either way.
 
     REFINE re-plans the chosen level-k segment one level lower, through the children of its
     nodes only (they are connected: see `components`), so the search is local and always finds
@@ -604,8 +658,8 @@ def atp(
     for it crosses cells blocked on the map given (a plan crossing 10 of 100 cells: 100 / 110).
 
     Raises:
-        ValueError: a blocked start or goal, a top outside the pyramid, segment_moves < 1, or
-            components of another map or movement.
+        ValueError: a blocked start or goal, a top outside the pyramid, segment_moves < 1,
+            direct_ring_level < 1, or components of another map or movement.
     """
     top = min(DEFAULT_TOP, pyramid.top) if top is None else top
     if segment_moves is not None and segment_moves < 1:
@@ -642,6 +696,8 @@ def atp(
     ):
         if option is not None and option < 0:
             raise ValueError(f"{name} must be >= 0 or None, got {option}")
+    if direct_ring_level is not None and direct_ring_level < 1:
+        raise ValueError(f"direct_ring_level must be >= 1 or None, got {direct_ring_level}")
     planner = _Planner(
         components,
         pyramid,
@@ -655,6 +711,7 @@ def atp(
         landmarks=landmarks or 0,
         skip_level_1=skip_level_1,
         jump_points=jump_points,
+        direct_ring_level=direct_ring_level,
     )
     try:
         found = planner.first(top)
@@ -933,6 +990,7 @@ class _Planner:
         landmarks: int = 0,
         skip_level_1: bool = False,
         jump_points: bool = False,
+        direct_ring_level: int | None = None,
     ) -> None:
         self.components, self.pyramid = components, pyramid
         self.landmarks = landmarks
@@ -943,6 +1001,7 @@ class _Planner:
         self.no_ring_when_clear = no_ring_when_clear
         self.skip_level_1 = skip_level_1
         self.jump_points = jump_points
+        self.direct_ring_level = direct_ring_level
 
     def first(self, level: int) -> NodePath:
         """The first plan: a path of nodes at `level` from the start's node to the goal's, the
@@ -962,12 +1021,14 @@ class _Planner:
 
     def direct(self, level: int, path: NodePath) -> Segment:
         """The base route through the cells of the nodes of `path` (at `level`) and of their
-        neighbours: one segment at level 0. With `jump_points`, searched by jump points where
-        those cells are at least `JUMP_MIN_WIDTH` per unit of the path's length."""
+        neighbours at `direct_ring_level` (by default `level`): one segment at level 0. With
+        `jump_points`, searched by jump points where those cells are at least `JUMP_MIN_WIDTH`
+        per unit of the path's length."""
         c = self.components
-        allowed = c.widened(level, path.nodes, 1)
-        for k in range(level - 1, 0, -1):  # down to the cells, every child
-            allowed = c.widened(k, allowed, 0)
+        ring = level if self.direct_ring_level is None else min(self.direct_ring_level, level)
+        allowed = np.asarray(path.nodes, dtype=np.int64)
+        for k in range(level, 0, -1):  # down to the cells, every child
+            allowed = c.widened(k, allowed, 1 if k == ring else 0)
         wide = len(allowed) >= JUMP_MIN_WIDTH * max(path.cost, 1.0)  # `width`, from the cells
         found = c.corridor(
             0, allowed, [c.node(self.start, 0)], [c.node(self.goal, 0)],
@@ -1059,6 +1120,7 @@ def compile_searches(movements: Sequence[int] = (4, 8), *, follower: bool = True
             LARGE_MAP_OPTIONS,
             SCATTERED_MAP_OPTIONS,
             WALLED_MAP_OPTIONS,
+            SPARSE_MAP_OPTIONS,
         ):
             plans = atp(
                 Context(), world.start, world.goal, pyramid, movement=movement, follow=follow,
