@@ -163,6 +163,17 @@ SOLID_MAP_OPTIONS: dict[str, Any] = {
     "direct_width": 12,
 }
 
+#: The options of maps of scattered, dense obstacles until issue 36's direct route (a row of the
+#: per-kind table): the large-map options with the first plan over blocks of 8 x 8, the direct
+#: route for corridors of at most 8 cells per unit of length, no jump points, refined level by
+#: level.
+REFINED_SCATTERED_OPTIONS: dict[str, Any] = {
+    **LARGE_MAP_OPTIONS,
+    "top": 3,
+    "direct_width": 8,
+    "jump_points": False,
+}
+
 #: The ATP configurations compared: name -> keyword arguments of `atp`.
 CONFIGS: dict[str, dict[str, Any]] = {
     "one segment": {},  # the default
@@ -215,6 +226,8 @@ KIND_CONFIGS: dict[str, dict[str, Any]] = {
     "walled-map options (direct route)": dict(WALLED_MAP_OPTIONS),
     "moderate-map options (searched cell by cell)": dict(MODERATE_MAP_OPTIONS),
     "sparse-map options (direct_ring_level=2)": dict(SPARSE_MAP_OPTIONS),
+    "scattered-map options (direct_via=2, direct_rings=2)": dict(SCATTERED_MAP_OPTIONS),
+    "... refined, as until issue 36's direct route": dict(REFINED_SCATTERED_OPTIONS),
     "... and follow (compiled)": {**LARGE_MAP_OPTIONS, "follow": FOLLOW},
     "options by map (map_options)": {"options": BY_MAP},  # `anytime plan`'s default
 }
@@ -1150,6 +1163,12 @@ def bench_kinds(
         " sparse-map options (planner.SPARSE_MAP_OPTIONS, anytime plan's on maps of sparse\n"
         " scattered obstacles): the same, with the neighbours among the blocks of 4 x 4\n"
         " (direct_ring_level=2), not of 8 x 8;\n"
+        " scattered-map options (planner.SCATTERED_MAP_OPTIONS, anytime plan's on maps of\n"
+        " scattered, dense obstacles): the moderate-map options with the corridor through a\n"
+        " second plan over blocks of 4 x 4 and two rings of its neighbours, and the first\n"
+        " plan's cells with one ring;\n"
+        " ... refined (anytime plan's on those maps until issue 36's direct route): the\n"
+        " large-map options with top=3, direct_width=8, no jump points;\n"
         " follow (with the jump_points row's\n"
         " options): a plan is registered only when the robot follows it no longer than the\n"
         " last one registered (following.Follower: execute's length, compiled; its calls in the\n"

@@ -153,7 +153,7 @@ def test_options_chosen_by_the_map(cli: Cli, tmp_path: Path) -> None:
     assert by_map["problems"] == [{**named["problems"][0], "seconds": ANY}]
     code, out, err = cli("plan", "--map", str(path), *argv)
     assert (code, err) == (0, "")
-    assert "atp (scattered-maps options, chosen by the map), 8-connected" in out
+    assert "atp (scattered-maps options, chosen by the map, monotone), 8-connected" in out
 
 
 def test_monotone_plans_are_those_followed_no_longer(cli: Cli) -> None:

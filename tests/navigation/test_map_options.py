@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from anytime_navigation.movingai import load_map
 from anytime_navigation.planning.abstraction import Pyramid
+from anytime_navigation.planning.components import Components
 from anytime_navigation.planning.planner import (
     LARGE_MAP_OPTIONS,
     MODERATE_MAP_OPTIONS,
@@ -142,10 +143,15 @@ def test_the_scattered_options_plan_to_the_goal() -> None:
 
 
 def test_only_the_direct_route_after_the_first_plan_registers_no_fall() -> None:
-    for options in (WALLED_MAP_OPTIONS, MODERATE_MAP_OPTIONS, SPARSE_MAP_OPTIONS):
+    for options in (
+        WALLED_MAP_OPTIONS,
+        MODERATE_MAP_OPTIONS,
+        SPARSE_MAP_OPTIONS,
+        SCATTERED_MAP_OPTIONS,
+    ):
         assert registers_no_fall(options)
     assert not registers_no_fall({**WALLED_MAP_OPTIONS, "top": 0})  # no first plan above cells
-    for options in (LARGE_MAP_OPTIONS, SCATTERED_MAP_OPTIONS, {}):
+    for options in (LARGE_MAP_OPTIONS, {**SCATTERED_MAP_OPTIONS, "direct_width": 8}, {}):
         assert not registers_no_fall(options)
 
 
@@ -166,22 +172,28 @@ def test_the_walled_options_never_fall() -> None:
     assert all(segment.level == 0 for segment in plans[-1].value.segments)
 
 
-@settings(max_examples=12, deadline=None)
+@settings(max_examples=16, deadline=None)
 @given(
-    share=st.sampled_from([0.08, 0.12, 0.18, 0.21]),
+    share=st.sampled_from([0.08, 0.12, 0.18, 0.21, 0.3]),
     seed=st.integers(0, 2**16),
-    ring_level=st.sampled_from([1, 2, 3]),
+    corridor=st.sampled_from(
+        [{"direct_ring_level": level} for level in (1, 2, 3)]
+        + [{"direct_via": via, "direct_rings": rings} for via in (1, 2) for rings in (0, 2)]
+    ),
 )
 def test_the_direct_route_through_scattered_obstacles_never_falls(
-    share: float, seed: int, ring_level: int
+    share: float, seed: int, corridor: dict[str, int]
 ) -> None:
     """On a random map of scattered obstacles, the direct route through the first plan's blocks
-    and their neighbours at any level (`direct_ring_level`) is followed to the goal no longer
-    than the first plan: the corridor holds every cell the first plan is followed through."""
+    and their neighbours at any level (`direct_ring_level`), or through a second plan's
+    (`direct_via`), is followed to the goal no longer than the first plan: the corridor holds
+    every cell the first plan is followed through."""
     blocked = _random(share, seed)
     start, goal = (2, 125), (125, 3)
     blocked[start[1], start[0]] = blocked[goal[1], goal[0]] = False
-    options = {**MODERATE_MAP_OPTIONS, "direct_ring_level": ring_level}
+    if not Components.build(blocked, 8, top=3).connected(start, goal):
+        return  # a wall of obstacles between them: planned across it, and not followed
+    options = {**MODERATE_MAP_OPTIONS, **corridor}
     plans = list(atp(Context(), start, goal, Pyramid.build(blocked), movement=8, **options))
     assert len(plans) == 2
     first, final = (execute(p.value, blocked, movement=8, keep_to_plan=True) for p in plans)
@@ -214,4 +226,17 @@ def test_the_ring_level_must_be_a_level() -> None:
         Context(), (1, 1), (120, 120), Pyramid.build(blocked), movement=8, direct_ring_level=0
     )
     with pytest.raises(ValueError, match=r"^direct_ring_level must be >= 1 or None, got 0$"):
+        next(plans)
+
+
+@pytest.mark.parametrize("via", [0, 3, 4])
+def test_the_second_plan_is_below_the_first(via: int) -> None:
+    blocked = _random(0.1)
+    blocked[1, 1] = blocked[120, 120] = False
+    plans = atp(
+        Context(), (1, 1), (120, 120), Pyramid.build(blocked), movement=8, top=3, direct_via=via
+    )
+    with pytest.raises(
+        ValueError, match=rf"^direct_via must be in \[1, 2\] \(below top\) or None, got {via}$"
+    ):
         next(plans)

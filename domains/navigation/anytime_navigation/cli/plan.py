@@ -148,25 +148,27 @@ def add_command(commands: CommandGroup) -> None:
         "--atp-options",
         choices=[BY_MAP, *sorted(ATP_OPTIONS)],
         default=BY_MAP,
-        help="the ATP's options: those that measured best on MovingAI maps (large-maps: "
-        f"{_listed(LARGE_MAP_OPTIONS)}), the same with {_changed(SCATTERED_MAP_OPTIONS)} for "
-        "maps of scattered, dense obstacles (scattered-maps), the first plan over blocks of "
-        "8 x 8 followed by the shortest route through its blocks and their neighbours', no "
-        f"refinement level by level ({_changed(WALLED_MAP_OPTIONS)}), for maps of walls such as "
-        "rooms, mazes, streets and caves (walled-maps), the same searched cell by cell "
+        help="the ATP's options: the first plan over blocks of 8 x 8 followed by the shortest "
+        "route through its blocks and their neighbours', no refinement level by level "
+        f"({_changed(WALLED_MAP_OPTIONS)}), for maps of walls such as rooms, mazes, streets "
+        "and caves (walled-maps); the same searched cell by cell "
         f"({_changed(MODERATE_MAP_OPTIONS)}) for maps of scattered obstacles of moderate "
-        "density (moderate-maps), and with the neighbours' blocks of 4 x 4 "
-        f"({_changed(SPARSE_MAP_OPTIONS)}) for sparse ones (sparse-maps), one of those five "
-        "chosen by the map's shape (by-map), or the planner's defaults, as the navigation task "
-        "plans its 128 x 128 worlds (task) (by-map)",
+        "density (moderate-maps), with the neighbours among the blocks of 4 x 4 "
+        f"({_changed(SPARSE_MAP_OPTIONS)}) for sparse ones (sparse-maps), and through a "
+        "second plan over blocks of 4 x 4 and its neighbours "
+        f"({_changed(SCATTERED_MAP_OPTIONS)}) for dense ones (scattered-maps); the options "
+        f"that measured best on MovingAI maps before those ({_listed(LARGE_MAP_OPTIONS)}), "
+        "refined level by level, for mazes of narrow corridors (large-maps); one of those "
+        "five chosen by the map's shape (by-map), or the planner's defaults, as the "
+        "navigation task plans its 128 x 128 worlds (task) (by-map)",
     )
     parser.add_argument(
         "--monotone",
         action="store_true",
         help="register a plan of the ATP only when the robot follows it on the map no longer "
         "than the last one registered, so the executed quality never falls (each plan "
-        "followed as the quality is measured, compiled; the walled-, moderate- and sparse-map "
-        "options' plans never fall, and are not followed)",
+        "followed as the quality is measured, compiled; the plans of every option set but "
+        "large-maps and task never fall, and are not followed)",
     )
     parser.add_argument(
         "--movement",

@@ -96,23 +96,6 @@ LARGE_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
     }
 )
 
-#: The options of maps whose obstacles are scattered and dense (`MapShape.scattered_dense`):
-#: `LARGE_MAP_OPTIONS` with the first plan one level lower (blocks of 8 x 8) and the direct
-#: route kept for narrower corridors (8 cells per unit of length, not 12: a level-3 corridor of
-#: the same width is half as many cells). With 16 x 16 blocks the top level's centres choose
-#: blindly among many ways of about equal length around the scattered obstacles, and the finer
-#: levels cannot undo it (issue 36, MovingAI's random512 maps, 16 longest problems, final plans
-#: against the optimal length, large-map options -> these: 25% blocked 0.965 -> 0.981, 30%
-#: 0.957 (min 0.925) -> 0.975 (min 0.951), 35% 0.967 -> 0.981, at 21-27% of the compiled A*'s
-#: time with the build against 16-20%; the same held on each map's twin, -1, not tuned on; at
-#: 10-20% blocked the large-map options hold 0.975-0.981 and are faster). Without jump points:
-#: scattered obstacles make most cells jump points (random 30%: 28.3-28.7% -> 29.1-29.6% of the
-#: compiled A*'s time with them, the same plans).
-SCATTERED_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
-    {**LARGE_MAP_OPTIONS, "top": 3, "direct_width": 8, "jump_points": False}
-)
-
-
 #: The options of maps of walls (no scattered obstacles, not dense: rooms, mazes of corridors
 #: four cells wide or more, streets, the games' caves and halls): the first plan over blocks
 #: of 8 x 8, then the direct route through the cells of its nodes and of their neighbours
@@ -166,6 +149,25 @@ SPARSE_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
     {**MODERATE_MAP_OPTIONS, "direct_ring_level": 2}
 )
 
+#: The options of maps of scattered, dense obstacles (`MapShape`: MovingAI's random maps of
+#: 25-40%): `MODERATE_MAP_OPTIONS` with the direct route's corridor through a second plan over
+#: blocks of 4 x 4 and two rings of their neighbours (`direct_via`, `direct_rings`), and the
+#: first plan's cells with one ring. Among dense obstacles a first plan over blocks of 8 x 8
+#: goes round them the wrong way (its corridor's direct route, one ring: random 30% 0.958, min
+#: 0.912; two rings 0.966, min 0.926), and one over blocks of 4 x 4 chooses better but costs
+#: 2.1-3.5% of the compiled A*'s time as a first plan. Refined level by level from blocks of
+#: 8 x 8 with the door search, as until issue 36's curve that never falls (`LARGE_MAP_OPTIONS`
+#: with `top=3, direct_width=8`, no jump points), the final plans were 0.975-0.981 but 0.979
+#: at 40%, and the executed quality fell at up to 5 steps in 112; these register two plans, the
+#: second never followed longer (issue 36, the 16 longest problems, in one run, time against the
+#: compiled A*'s with the build, refined -> these: random512-25-0 27.6% -> 26.1%, final plans
+#: 0.981 -> 0.982; -30-0 24.1% -> 20.5%, 0.975 (min 0.951) -> 0.981 (0.966); -30-1 28.9% ->
+#: 28.8%, 0.979 -> 0.994; -35-0 18.3% -> 16.4%, 0.981 -> 0.983; -40-0 14.3% -> 16.6%, 0.979 ->
+#: 1.000; a noisy run: the first two read 22-24% refined in others).
+SCATTERED_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
+    {**MODERATE_MAP_OPTIONS, "direct_via": 2, "direct_rings": 2}
+)
+
 
 #: The direct route is searched by jump points (`atp(jump_points=True)`) only where its corridor
 #: has at least this many base cells per unit of the first plan's length (`_Planner.width`). In
@@ -179,12 +181,15 @@ JUMP_MIN_WIDTH = 5.0
 def made_ahead(components: Components, level: int, options: Mapping[str, Any]) -> None:
     """Make now what `atp(**options)` with its first plan at `level` makes of `components` when
     first needed and keeps: the level's doors when it searches them (`doors`, on by default)
-    and its `landmarks`. Call it with the abstraction's build, once per map, so that no
-    problem's time holds them."""
+    and its `landmarks` (and `direct_via`'s level's). Call it with the abstraction's build,
+    once per map, so that no problem's time holds them."""
     if level > 0 and options.get("doors", True):
         components.doors(level)
     if level > 0 and options.get("landmarks"):
         components.landmarks(level, options["landmarks"])
+        via = options.get("direct_via")
+        if via is not None and 1 <= via < level:
+            components.landmarks(via, options["landmarks"])
 
 
 @frozen
@@ -500,6 +505,8 @@ def atp(
     skip_level_1: bool = False,
     jump_points: bool = False,
     direct_ring_level: int | None = None,
+    direct_via: int | None = None,
+    direct_rings: int | None = None,
 ) -> Iterator[Result]:
     """The anytime abstract planner: yields `Result(MultiPath, quality_estimate)` after the first
     plan and after every refinement (with `follow`, each that is followed no worse than the last
@@ -640,6 +647,17 @@ def atp(
             plan's blocks). Any level holds the cells the first plan is followed through (a
             free cell beside one of them is in its node or in a neighbouring one at every
             level), so the route is never followed longer than the first plan either way.
+        direct_via: the direct route's corridor also holds the nodes of a second plan at this
+            level (below the first plan's), the cheapest over the whole level from centre to
+            centre (with `landmarks`, bounded by theirs at that level), and `direct_rings`
+            rings of their neighbours; not registered (None, the default: no second plan).
+            The corridor keeps the first plan's cells and one ring of their neighbours at the
+            level below the first plan's, so the route is still never followed longer than
+            the first plan. Where obstacles are scattered and dense, a first plan over blocks
+            of 8 x 8 goes round them the wrong way, and one over blocks of 4 x 4 chooses
+            better, at more than 2% of the compiled A*'s time (`SCATTERED_MAP_OPTIONS`).
+        direct_rings: the rings of neighbouring nodes around `direct_via`'s plan (None, the
+            default: one).
 
     REFINE re-plans the chosen level-k segment one level lower, through the children of its
     nodes only (they are connected: see `components`), so the search is local and always finds
@@ -693,11 +711,16 @@ def atp(
         ("one_ring_when_open", one_ring_when_open),
         ("landmarks", landmarks),
         ("no_ring_when_clear", no_ring_when_clear),
+        ("direct_rings", direct_rings),
     ):
         if option is not None and option < 0:
             raise ValueError(f"{name} must be >= 0 or None, got {option}")
     if direct_ring_level is not None and direct_ring_level < 1:
         raise ValueError(f"direct_ring_level must be >= 1 or None, got {direct_ring_level}")
+    if direct_via is not None and not 1 <= direct_via < top:
+        raise ValueError(
+            f"direct_via must be in [1, {top - 1}] (below top) or None, got {direct_via}"
+        )
     planner = _Planner(
         components,
         pyramid,
@@ -712,6 +735,8 @@ def atp(
         skip_level_1=skip_level_1,
         jump_points=jump_points,
         direct_ring_level=direct_ring_level,
+        direct_via=direct_via,
+        direct_rings=direct_rings,
     )
     try:
         found = planner.first(top)
@@ -991,6 +1016,8 @@ class _Planner:
         skip_level_1: bool = False,
         jump_points: bool = False,
         direct_ring_level: int | None = None,
+        direct_via: int | None = None,
+        direct_rings: int | None = None,
     ) -> None:
         self.components, self.pyramid = components, pyramid
         self.landmarks = landmarks
@@ -1002,6 +1029,8 @@ class _Planner:
         self.skip_level_1 = skip_level_1
         self.jump_points = jump_points
         self.direct_ring_level = direct_ring_level
+        self.direct_via = direct_via
+        self.direct_rings = 1 if direct_rings is None else direct_rings
 
     def first(self, level: int) -> NodePath:
         """The first plan: a path of nodes at `level` from the start's node to the goal's, the
@@ -1025,10 +1054,13 @@ class _Planner:
         `jump_points`, searched by jump points where those cells are at least `JUMP_MIN_WIDTH`
         per unit of the path's length."""
         c = self.components
-        ring = level if self.direct_ring_level is None else min(self.direct_ring_level, level)
-        allowed = np.asarray(path.nodes, dtype=np.int64)
-        for k in range(level, 0, -1):  # down to the cells, every child
-            allowed = c.widened(k, allowed, 1 if k == ring else 0)
+        if self.direct_via is not None:
+            allowed = self._via(level, path)
+        else:
+            ring = level if self.direct_ring_level is None else min(self.direct_ring_level, level)
+            allowed = np.asarray(path.nodes, dtype=np.int64)
+            for k in range(level, 0, -1):  # down to the cells, every child
+                allowed = c.widened(k, allowed, 1 if k == ring else 0)
         wide = len(allowed) >= JUMP_MIN_WIDTH * max(path.cost, 1.0)  # `width`, from the cells
         found = c.corridor(
             0, allowed, [c.node(self.start, 0)], [c.node(self.goal, 0)],
@@ -1042,6 +1074,28 @@ class _Planner:
         blocks = c.levels[0].block[found.array]
         cells = tuple(zip(blocks[:, 0].tolist(), blocks[:, 1].tolist(), strict=True))
         return Segment._made(0, cells, found.nodes)
+
+    def _via(self, level: int, path: NodePath) -> npt.NDArray[np.int64]:
+        """The base cells of `direct_via`'s corridor: the nodes of the cheapest path at that
+        level and `direct_rings` rings of their neighbours, with the first plan's (`path`, at
+        `level`) cells and one ring of their neighbours at `level` - 1."""
+        c, via = self.components, self.direct_via
+        assert via is not None
+        second = c.path(
+            via, c.node(self.start, via), c.node(self.goal, via),
+            limit=self.ctx.remaining, landmarks=self.landmarks,
+        )  # fmt: skip
+        self.ctx.tick(second.expansions)
+        own = c.widened(level, np.asarray(path.nodes, dtype=np.int64), 0)
+        for k in range(level - 1, via, -1):  # the first plan's nodes' children at `via`
+            own = c.widened(k, own, 1 if k == level - 1 else 0)
+        allowed = np.union1d(
+            c.widened(via, own, 1 if via == level - 1 else 0),
+            c.widened(via, np.asarray(second.nodes, dtype=np.int64), self.direct_rings),
+        )
+        for k in range(via - 1, 0, -1):
+            allowed = c.widened(k, allowed, 0)
+        return allowed
 
     def width(self, level: int, path: NodePath) -> float:
         """The base cells of the nodes of `path` (at `level`) and of their neighbours per unit
