@@ -6,6 +6,7 @@ rooms, mazes, streets, caves) with `WALLED_MAP_OPTIONS` (dense walls, narrow maz
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -229,14 +230,19 @@ def test_the_ring_level_must_be_a_level() -> None:
         next(plans)
 
 
-@pytest.mark.parametrize("via", [0, 3, 4])
-def test_the_second_plan_is_below_the_first(via: int) -> None:
-    blocked = _random(0.1)
-    blocked[1, 1] = blocked[120, 120] = False
-    plans = atp(
-        Context(), (1, 1), (120, 120), Pyramid.build(blocked), movement=8, top=3, direct_via=via
-    )
-    with pytest.raises(
-        ValueError, match=rf"^direct_via must be in \[1, 2\] \(below top\) or None, got {via}$"
-    ):
-        next(plans)
+def test_the_second_plan_is_below_the_first() -> None:
+    """`direct_via` must be a level; at or above the first plan's level (a small map's top),
+    there is no second plan: the same plans as without it."""
+    blocked = _random(0.3, seed=4)
+    blocked[0, 0] = blocked[127, 127] = False
+    pyramid = Pyramid.build(blocked)
+
+    def plans(**options: int) -> list[object]:
+        found = atp(Context(), (0, 0), (127, 127), pyramid, movement=8, top=3, **options)
+        return [result.value for result in found]
+
+    with pytest.raises(ValueError, match=r"^direct_via must be >= 1 or None, got 0$"):
+        plans(direct_width=math.inf, direct_via=0)
+    alone = plans(direct_width=math.inf)
+    assert plans(direct_width=math.inf, direct_via=3) == alone
+    assert plans(direct_width=math.inf, direct_via=4) == alone

@@ -209,8 +209,8 @@ class MapShape:
     #: Dense: at least this share blocked near free cells (0.22: between MovingAI's random maps
     #: of 20%, which the large-map options plan at 0.975, and 25%, at 0.965).
     DENSE = 0.22
-    #: Sparse: less than this share blocked near free cells (0.125: between MovingAI's random
-    #: maps of 10%, 0.100, and 15%, 0.150).
+    #: Sparse: less than this share blocked near free cells (0.175: between MovingAI's random
+    #: maps of 15%, 0.150, and 20%, 0.202).
     SPARSE = 0.175
 
     @classmethod
@@ -273,9 +273,9 @@ def registers_no_fall(options: Mapping[str, Any]) -> bool:
     plan followed longer than the one before, without following any: the first plan (above
     the base level), then the direct route through the cells of its nodes and of their
     neighbours alone (`direct_width` unbounded: `WALLED_MAP_OPTIONS`, `MODERATE_MAP_OPTIONS`,
-    `SPARSE_MAP_OPTIONS`; the neighbours at any level, `direct_ring_level`). Followed on its
-    map, the first plan keeps to its corridor, inside the cells that route is the shortest
-    through."""
+    `SPARSE_MAP_OPTIONS`, `SCATTERED_MAP_OPTIONS`; the neighbours at any level,
+    `direct_ring_level`, or a second plan's besides, `direct_via`). Followed on its map, the
+    first plan keeps to its corridor, inside the cells that route is the shortest through."""
     return options.get("direct_width") == math.inf and options.get("top", DEFAULT_TOP) > 0
 
 
@@ -650,7 +650,8 @@ def atp(
         direct_via: the direct route's corridor also holds the nodes of a second plan at this
             level (below the first plan's), the cheapest over the whole level from centre to
             centre (with `landmarks`, bounded by theirs at that level), and `direct_rings`
-            rings of their neighbours; not registered (None, the default: no second plan).
+            rings of their neighbours; not registered (None, the default, or a level not below
+            the first plan's: no second plan).
             The corridor keeps the first plan's cells and one ring of their neighbours at the
             level below the first plan's, so the route is still never followed longer than
             the first plan. Where obstacles are scattered and dense, a first plan over blocks
@@ -677,7 +678,7 @@ def atp(
 
     Raises:
         ValueError: a blocked start or goal, a top outside the pyramid, segment_moves < 1,
-            direct_ring_level < 1, or components of another map or movement.
+            direct_ring_level or direct_via < 1, or components of another map or movement.
     """
     top = min(DEFAULT_TOP, pyramid.top) if top is None else top
     if segment_moves is not None and segment_moves < 1:
@@ -717,10 +718,10 @@ def atp(
             raise ValueError(f"{name} must be >= 0 or None, got {option}")
     if direct_ring_level is not None and direct_ring_level < 1:
         raise ValueError(f"direct_ring_level must be >= 1 or None, got {direct_ring_level}")
-    if direct_via is not None and not 1 <= direct_via < top:
-        raise ValueError(
-            f"direct_via must be in [1, {top - 1}] (below top) or None, got {direct_via}"
-        )
+    if direct_via is not None and direct_via < 1:
+        raise ValueError(f"direct_via must be >= 1 or None, got {direct_via}")
+    if direct_via is not None and direct_via >= top:  # no level below a small map's top
+        direct_via = None
     planner = _Planner(
         components,
         pyramid,
