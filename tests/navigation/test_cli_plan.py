@@ -156,6 +156,16 @@ def test_options_chosen_by_the_map(cli: Cli, tmp_path: Path) -> None:
     assert "atp (scattered-maps options, chosen by the map, monotone), 8-connected" in out
 
 
+def test_a_map_smaller_than_the_options_levels(cli: Cli, tmp_path: Path) -> None:
+    """A 4 x 4 map of scattered, dense obstacles: its pyramid's top is level 2, the
+    scattered-map options' second plan's level, so it is planned without one."""
+    path = tmp_path / "tiny.map"
+    path.write_text("type octile\nheight 4\nwidth 4\nmap\n.@..\n..@.\n@...\n..@.\n")
+    result = _json(cli, "--planner", "atp", "--start", "0,0", "--goal", "3,3", map=str(path))
+    assert result["summary"]["atp_options"] == "scattered-maps"
+    assert result["problems"][0]["final_quality"] == 1.0
+
+
 def test_monotone_plans_are_those_followed_no_longer(cli: Cli) -> None:
     """`--monotone` registers a plan only when it is followed no longer than the last: the same
     plans and ticks as `atp(follow=Follower(...))`, and the final plan never followed longer
