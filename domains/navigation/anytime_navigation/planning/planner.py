@@ -1059,9 +1059,7 @@ class _Planner:
             allowed = self._via(level, path)
         else:
             ring = level if self.direct_ring_level is None else min(self.direct_ring_level, level)
-            allowed = np.asarray(path.nodes, dtype=np.int64)
-            for k in range(level, 0, -1):  # down to the cells, every child
-                allowed = c.widened(k, allowed, 1 if k == ring else 0)
+            allowed = self._down(path.nodes, level, 0, ring)
         wide = len(allowed) >= JUMP_MIN_WIDTH * max(path.cost, 1.0)  # `width`, from the cells
         found = c.corridor(
             0, allowed, [c.node(self.start, 0)], [c.node(self.goal, 0)],
@@ -1087,16 +1085,26 @@ class _Planner:
             limit=self.ctx.remaining, landmarks=self.landmarks,
         )  # fmt: skip
         self.ctx.tick(second.expansions)
-        own = c.widened(level, np.asarray(path.nodes, dtype=np.int64), 0)
-        for k in range(level - 1, via, -1):  # the first plan's nodes' children at `via`
-            own = c.widened(k, own, 1 if k == level - 1 else 0)
-        allowed = np.union1d(
-            c.widened(via, own, 1 if via == level - 1 else 0),
-            c.widened(via, np.asarray(second.nodes, dtype=np.int64), self.direct_rings),
+        allowed = np.union1d(  # at level via - 1
+            self._down(path.nodes, level, via - 1, level - 1),
+            self._down(second.nodes, via, via - 1, via, self.direct_rings),
         )
-        for k in range(via - 1, 0, -1):
-            allowed = c.widened(k, allowed, 0)
-        return allowed
+        return self._down(allowed, via - 1, 0)
+
+    def _down(
+        self,
+        nodes: Sequence[int] | npt.NDArray[np.int64],
+        level: int,
+        to: int,
+        ring: int = -1,
+        rings: int = 1,
+    ) -> npt.NDArray[np.int64]:
+        """The nodes at level `to` below `nodes` (at `level`): every child, level by level,
+        with `rings` rings of neighbours at level `ring` (none at any other)."""
+        below = np.asarray(nodes, dtype=np.int64)
+        for k in range(level, to, -1):
+            below = self.components.widened(k, below, rings if k == ring else 0)
+        return below
 
     def width(self, level: int, path: NodePath) -> float:
         """The base cells of the nodes of `path` (at `level`) and of their neighbours per unit
