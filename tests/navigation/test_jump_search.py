@@ -38,10 +38,13 @@ def _searches(
         corridor, local, NONE, NONE, np.zeros(0), base.padded, wide, base.block, base.centre, 8,
         *args, *ends, np.zeros((0, 0)),
     )  # fmt: skip
+    cells = components._cells
+    before = cells.copy()
     jumps = corridor_search.jump_search(
-        corridor, local, base.padded, wide, base.block, base.centre, *args, *ends
+        corridor, local, base.padded, cells, wide, base.block, base.centre, *args, *ends
     )
     assert (local == -1).all()  # the scratch left as it was
+    assert (cells == before).all() and (cells == (base.padded >= 0)).all()
     return every, jumps
 
 

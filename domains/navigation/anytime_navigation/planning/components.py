@@ -208,11 +208,12 @@ class Stacked(NamedTuple):
     a search's), its compressed rows `[first_at[k]:first_at[k + 1]]` of `first` and
     `first_child`, its edges `[edge_at[k]:edge_at[k + 1]]` of `neighbour` and `cost`, its
     children `[child_at[k]:child_at[k + 1]]` of `child`. Levels 0 and 1 are read apart (their
-    arrays, and `base_scratch` and `one_scratch`, the abstraction's own scratch): copying
+    arrays, and `base_scratch`, `one_scratch` and `cells`, the abstraction's own scratch): copying
     level 1's, a third of the cells, cost 4-7 ms per 512 x 512 map, levels 2 and up's 0.2."""
 
     base_scratch: IntArray
     one_scratch: IntArray
+    cells: NDArray[np.uint8]
     node_at: IntArray
     parent: IntArray
     block: IntArray
@@ -228,7 +229,9 @@ class Stacked(NamedTuple):
     child: IntArray
 
 
-def _stack(levels: Sequence[Level], scratch: Sequence[IntArray]) -> Stacked:
+def _stack(
+    levels: Sequence[Level], scratch: Sequence[IntArray], cells: NDArray[np.uint8]
+) -> Stacked:
     above = levels[2:]
 
     def offsets(sizes: list[int]) -> IntArray:
@@ -242,6 +245,7 @@ def _stack(levels: Sequence[Level], scratch: Sequence[IntArray]) -> Stacked:
     return Stacked(
         scratch[0],
         scratch[1] if len(scratch) > 1 else no_ints,
+        cells,
         node_at,
         joined([level.parent for level in above], no_ints),
         joined([level.block for level in above], np.zeros((0, 2), dtype=np.int64)),
@@ -311,16 +315,26 @@ class Components:
     # Each level's scratch for its searches: -1 for every node between them (made here, so that
     # a plan's pickle, which holds its abstraction, is the same before and after a search).
     _scratch: tuple[IntArray, ...] = field(init=False, repr=False)
+    # Level 0's padded cells as jump point searches read them (`corridor_search.CELL_*`):
+    # blocked or free between searches, a search's corridor marked in it while it runs.
+    _cells: NDArray[np.uint8] = field(init=False, repr=False)
 
     @_scratch.default
     def _no_nodes(self) -> tuple[IntArray, ...]:
         return tuple(np.full(len(level), -1, dtype=np.int64) for level in self.levels)
 
+    @_cells.default
+    def _free_cells(self) -> NDArray[np.uint8]:
+        padded = self.levels[0].padded
+        if padded is None:
+            return np.zeros(0, dtype=np.uint8)
+        return (padded >= 0).astype(np.uint8)  # CELL_FREE where free, else CELL_BLOCKED
+
     def stacked(self) -> Stacked:
         """Levels 2 .. top's arrays concatenated (`Stacked`), made once."""
         stacked = _STACKED.get(self)
         if stacked is None:
-            stacked = _STACKED[self] = _stack(self.levels, self._scratch)
+            stacked = _STACKED[self] = _stack(self.levels, self._scratch, self._cells)
         return stacked
 
     def doors(self, level: int) -> Doors:
@@ -589,6 +603,7 @@ class Components:
             at.neighbour if at.k else none,
             at.cost if at.k else np.zeros(0),
             at.padded if at.padded is not None else none,
+            self._cells if level == 1 else np.zeros(0, dtype=np.uint8),
             at.grid.shape[1] + 2 if at.grid is not None else 0,
             at.block, at.centre, self.movement, False, self._scratch[level - 1],
             *source, *target,
@@ -645,7 +660,7 @@ class Components:
         nodes = np.asarray(allowed, dtype=np.int64)
         if jump_points and level == 0 and self.movement == 8:
             path, best, expansions = compiled().jump_search(
-                nodes, local, padded, wide, at.block, at.centre, *ends
+                nodes, local, padded, self._cells, wide, at.block, at.centre, *ends
             )
         else:
             path, best, expansions = compiled().search(

@@ -954,7 +954,7 @@ def _map_reads(components: Components, pyramid: Pyramid) -> tuple[object, ...]:
         assert obstacleness is not None
     reads = (
         base.parent, base.block, base.centre, stacked.base_scratch,
-        base.padded if base.padded is not None else none,
+        base.padded if base.padded is not None else none, stacked.cells,
         base.grid.shape[1] + 2 if base.grid is not None else 0,
         *level_one,
         stacked.node_at, stacked.parent, stacked.block, stacked.centre, stacked.scratch,
