@@ -103,9 +103,7 @@ from anytime_navigation.planning.components import Components
 from anytime_navigation.planning.following import Follower
 from anytime_navigation.planning.planner import (
     DEFAULT_TOP,
-    JUMP_MIN_WIDTH,
     LARGE_MAP_OPTIONS,
-    MODERATE_MAP_OPTIONS,
     SCATTERED_MAP_OPTIONS,
     SPARSE_MAP_OPTIONS,
     WALLED_MAP_OPTIONS,
@@ -224,7 +222,7 @@ KIND_CONFIGS: dict[str, dict[str, Any]] = {
     "... and skip_level_1": {**LARGE_MAP_OPTIONS, "skip_level_1": True},
     "... and doors=False": dict(SOLID_MAP_OPTIONS),  # the options of solid maps until issue 36
     "walled-map options (direct route)": dict(WALLED_MAP_OPTIONS),
-    "moderate-map options (searched cell by cell)": dict(MODERATE_MAP_OPTIONS),
+    "... searched cell by cell (jump_points=False)": {**WALLED_MAP_OPTIONS, "jump_points": False},
     "sparse-map options (direct_ring_level=2)": dict(SPARSE_MAP_OPTIONS),
     "scattered-map options (direct_via=2, direct_rings=2)": dict(SCATTERED_MAP_OPTIONS),
     "... refined, as until issue 36's direct route": dict(REFINED_SCATTERED_OPTIONS),
@@ -1000,7 +998,6 @@ def shown(name: str, options: dict[str, Any], blocked: BoolGrid) -> str:
     chosen = map_options(blocked)
     kinds = (
         (SCATTERED_MAP_OPTIONS, "scattered"),
-        (MODERATE_MAP_OPTIONS, "moderate"),
         (SPARSE_MAP_OPTIONS, "sparse"),
         (WALLED_MAP_OPTIONS, "walled"),
         (LARGE_MAP_OPTIONS, "large"),
@@ -1147,8 +1144,7 @@ def bench_kinds(
         " without rings;\n"
         " jump_points (with the row above's options: planner.LARGE_MAP_OPTIONS, anytime plan's):\n"
         " the searches over the base cells from one source are jump point searches (the same\n"
-        " costs; expansions: the jump points expanded), the direct route's only where its\n"
-        f" corridor has at least {JUMP_MIN_WIDTH:g} cells per unit of length;\n"
+        " costs; expansions: the jump points expanded);\n"
         " skip_level_1 (with the row above's options): a level-2 segment is refined straight to\n"
         " the base cells, through its own nodes' cells;\n"
         " doors=False (with the row above's options: anytime plan's on maps of solid\n"
@@ -1156,15 +1152,15 @@ def bench_kinds(
         " (nor are they built);\n"
         " walled-map options (planner.WALLED_MAP_OPTIONS, anytime plan's on maps of walls):\n"
         " the first plan over blocks of 8 x 8, then the direct route through its nodes' and\n"
-        " their neighbours' cells, no refinement level by level;\n"
-        " moderate-map options (planner.MODERATE_MAP_OPTIONS, anytime plan's on maps of\n"
-        " scattered obstacles of moderate density): the same, the direct route searched cell\n"
-        " by cell (no jump points);\n"
+        " their neighbours' cells, no refinement level by level (anytime plan's also on maps\n"
+        " of scattered obstacles of moderate density);\n"
+        " ... searched cell by cell: the same without jump points (the options of maps of\n"
+        " scattered obstacles until jump points read a byte a cell);\n"
         " sparse-map options (planner.SPARSE_MAP_OPTIONS, anytime plan's on maps of sparse\n"
-        " scattered obstacles): the same, with the neighbours among the blocks of 4 x 4\n"
-        " (direct_ring_level=2), not of 8 x 8;\n"
+        " scattered obstacles): the walled-map options with the neighbours among the blocks\n"
+        " of 4 x 4 (direct_ring_level=2), not of 8 x 8;\n"
         " scattered-map options (planner.SCATTERED_MAP_OPTIONS, anytime plan's on maps of\n"
-        " scattered, dense obstacles): the moderate-map options with the corridor through a\n"
+        " scattered, dense obstacles): the walled-map options with the corridor through a\n"
         " second plan over blocks of 4 x 4 and two rings of its neighbours, and the first\n"
         " plan's cells with one ring;\n"
         " ... refined (anytime plan's on those maps until issue 36's direct route): the\n"

@@ -17,7 +17,6 @@ from anytime_navigation.planning.abstraction import Pyramid
 from anytime_navigation.planning.following import Follower
 from anytime_navigation.planning.planner import (
     LARGE_MAP_OPTIONS,
-    MODERATE_MAP_OPTIONS,
     SCATTERED_MAP_OPTIONS,
     SPARSE_MAP_OPTIONS,
     WALLED_MAP_OPTIONS,
@@ -95,13 +94,12 @@ def test_atp_quality_is_optimal_over_executed_length(cli: Cli) -> None:
 
 @pytest.mark.parametrize("name", sorted(ATP_OPTIONS))
 def test_atp_options_are_atps_keyword_arguments(cli: Cli, name: str) -> None:
-    """`--atp-options` plans with `LARGE_MAP_OPTIONS`, `MODERATE_MAP_OPTIONS`,
-    `SCATTERED_MAP_OPTIONS`, `SPARSE_MAP_OPTIONS`, `WALLED_MAP_OPTIONS` or `atp`'s own
+    """`--atp-options` plans with `LARGE_MAP_OPTIONS`, `SCATTERED_MAP_OPTIONS`,
+    `SPARSE_MAP_OPTIONS`, `WALLED_MAP_OPTIONS` or `atp`'s own
     defaults (the navigation task's): the same plans and ticks as `atp` called with them. By
     default they are chosen by the map: random512-10-0's obstacles are scattered and sparse."""
     assert ATP_OPTIONS == {
         "large-maps": LARGE_MAP_OPTIONS,
-        "moderate-maps": MODERATE_MAP_OPTIONS,
         "scattered-maps": SCATTERED_MAP_OPTIONS,
         "sparse-maps": SPARSE_MAP_OPTIONS,
         "walled-maps": WALLED_MAP_OPTIONS,

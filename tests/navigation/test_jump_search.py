@@ -12,7 +12,7 @@ import numpy as np
 from anytime_navigation.planning import corridor_search
 from anytime_navigation.planning.abstraction import Pyramid
 from anytime_navigation.planning.components import Components
-from anytime_navigation.planning.planner import JUMP_MIN_WIDTH, _Planner, atp
+from anytime_navigation.planning.planner import atp
 from anytime_navigation.task.execution import execute
 from anytime_navigation.world import random_world
 from hypothesis import given, settings
@@ -216,7 +216,7 @@ def test_the_corridor_search_by_jump_points() -> None:
 
 def _direct_work(blocked: np.ndarray, **options: Any) -> tuple[float, float]:
     """The work of `atp`'s direct route (a first plan of at most 256 nodes at level 2, then one
-    base search) from corner to corner, and the width `JUMP_MIN_WIDTH` is compared with."""
+    base search) from corner to corner, and the route's length followed."""
     components, pyramid = Components.build(blocked, 8, top=2), Pyramid.build(blocked)
     free = np.argwhere(~blocked)
     start, goal = tuple(free[0, ::-1].tolist()), tuple(free[-1, ::-1].tolist())  # (x, y)
@@ -227,22 +227,24 @@ def _direct_work(blocked: np.ndarray, **options: Any) -> tuple[float, float]:
             **options,
         )
     )  # fmt: skip
-    assert len(plans) == 1 and execute(plans[0].value, blocked, movement=8).reached
-    planner = _Planner(components, pyramid, start, goal, Context())
-    return ctx.elapsed, planner.width(2, planner.first(2))
+    run = execute(plans[0].value, blocked, movement=8)
+    assert len(plans) == 1 and run.reached
+    return ctx.elapsed, run.length
 
 
-def test_the_direct_route_jumps_only_through_a_wide_corridor() -> None:
-    """With `jump_points`, the direct route's search is by jump points across open ground (many
-    cells per unit of length: fewer expansions) and by A* along a corridor one cell wide (below
-    `JUMP_MIN_WIDTH`: the same work), where every cell would be a jump point."""
+def test_the_direct_route_jumps_through_any_corridor() -> None:
+    """With `jump_points`, the direct route's search is by jump points, as long a route: across
+    open ground far fewer expansions, and along a corridor one cell wide, where every turn is
+    a jump point, fewer (the straight runs between turns are scanned, not expanded)."""
     open_ground = np.zeros((32, 32), dtype=bool)
-    usual, width = _direct_work(open_ground)
-    assert width >= JUMP_MIN_WIDTH
-    assert _direct_work(open_ground, jump_points=True)[0] < usual
+    usual, length = _direct_work(open_ground)
+    jumped, jumped_length = _direct_work(open_ground, jump_points=True)
+    assert jumped_length == length
+    assert jumped <= usual / 4
     winding = np.zeros((32, 32), dtype=bool)  # rows of walls, each open at alternate ends
     winding[1::2, :] = True
     winding[1:-1:4, -1] = winding[3:-1:4, 0] = False
-    usual, width = _direct_work(winding)
-    assert width < JUMP_MIN_WIDTH
-    assert _direct_work(winding, jump_points=True)[0] == usual
+    usual, length = _direct_work(winding)
+    jumped, jumped_length = _direct_work(winding, jump_points=True)
+    assert jumped_length == length
+    assert jumped < usual

@@ -2,7 +2,7 @@
 how dense a map's obstacles are, and `map_options` plans maps of walls (no scattered obstacles:
 rooms, mazes, streets, caves) with `WALLED_MAP_OPTIONS` (dense walls, narrow mazes, with
 `LARGE_MAP_OPTIONS`), maps of scattered obstacles with `SPARSE_MAP_OPTIONS`,
-`MODERATE_MAP_OPTIONS` or `SCATTERED_MAP_OPTIONS` as they are sparse, neither or dense."""
+`WALLED_MAP_OPTIONS` or `SCATTERED_MAP_OPTIONS` as they are sparse, neither or dense."""
 
 from __future__ import annotations
 
@@ -16,7 +16,6 @@ from anytime_navigation.planning.abstraction import Pyramid
 from anytime_navigation.planning.components import Components
 from anytime_navigation.planning.planner import (
     LARGE_MAP_OPTIONS,
-    MODERATE_MAP_OPTIONS,
     SCATTERED_MAP_OPTIONS,
     SPARSE_MAP_OPTIONS,
     WALLED_MAP_OPTIONS,
@@ -96,7 +95,7 @@ def _blocks(seed: int = 0) -> np.ndarray:
     [
         (_random(0.10), SPARSE_MAP_OPTIONS),  # scattered, sparse
         (_random(0.15), SPARSE_MAP_OPTIONS),
-        (_random(0.20), MODERATE_MAP_OPTIONS),  # neither sparse nor dense
+        (_random(0.20), WALLED_MAP_OPTIONS),  # neither sparse nor dense
         (_random(0.25), SCATTERED_MAP_OPTIONS),
         (_random(0.35), SCATTERED_MAP_OPTIONS),
         (np.zeros((64, 64), dtype=bool), WALLED_MAP_OPTIONS),  # open ground: nothing scattered
@@ -144,12 +143,7 @@ def test_the_scattered_options_plan_to_the_goal() -> None:
 
 
 def test_only_the_direct_route_after_the_first_plan_registers_no_fall() -> None:
-    for options in (
-        WALLED_MAP_OPTIONS,
-        MODERATE_MAP_OPTIONS,
-        SPARSE_MAP_OPTIONS,
-        SCATTERED_MAP_OPTIONS,
-    ):
+    for options in (WALLED_MAP_OPTIONS, SPARSE_MAP_OPTIONS, SCATTERED_MAP_OPTIONS):
         assert registers_no_fall(options)
     assert not registers_no_fall({**WALLED_MAP_OPTIONS, "top": 0})  # no first plan above cells
     for options in (LARGE_MAP_OPTIONS, {**SCATTERED_MAP_OPTIONS, "direct_width": 8}, {}):
@@ -194,7 +188,7 @@ def test_the_direct_route_through_scattered_obstacles_never_falls(
     blocked[start[1], start[0]] = blocked[goal[1], goal[0]] = False
     if not Components.build(blocked, 8, top=3).connected(start, goal):
         return  # a wall of obstacles between them: planned across it, and not followed
-    options = {**MODERATE_MAP_OPTIONS, **corridor}
+    options = {**WALLED_MAP_OPTIONS, **corridor}
     plans = list(atp(Context(), start, goal, Pyramid.build(blocked), movement=8, **options))
     assert len(plans) == 2
     first, final = (execute(p.value, blocked, movement=8, keep_to_plan=True) for p in plans)
@@ -205,13 +199,13 @@ def test_the_direct_route_through_scattered_obstacles_never_falls(
 
 def test_the_ring_one_level_lower_searches_fewer_cells() -> None:
     """The sparse-map options' corridor (the ring of neighbours at level 2) is narrower than the
-    moderate-map options' (at level 3): fewer expansions, a route no shorter."""
+    walled-map options' (at level 3): fewer expansions, a route no shorter."""
     blocked = _random(0.1, seed=3)
     start, goal = (1, 1), (126, 120)
     blocked[start[1], start[0]] = blocked[goal[1], goal[0]] = False
     pyramid = Pyramid.build(blocked)
     ticks, lengths = [], []
-    for options in (MODERATE_MAP_OPTIONS, SPARSE_MAP_OPTIONS):
+    for options in (WALLED_MAP_OPTIONS, SPARSE_MAP_OPTIONS):
         ctx = Context()
         route = list(atp(ctx, start, goal, pyramid, movement=8, **options))[-1].value
         ticks.append(ctx.elapsed)

@@ -41,7 +41,6 @@ from ..planning.components import Components
 from ..planning.planner import (
     DEFAULT_TOP,
     LARGE_MAP_OPTIONS,
-    MODERATE_MAP_OPTIONS,
     SCATTERED_MAP_OPTIONS,
     SPARSE_MAP_OPTIONS,
     WALLED_MAP_OPTIONS,
@@ -66,7 +65,6 @@ _T = TypeVar("_T")
 #: `BY_MAP`, the default, is one of them chosen by the map's shape (`planner.map_options`).
 ATP_OPTIONS: dict[str, Mapping[str, Any]] = {
     "large-maps": LARGE_MAP_OPTIONS,
-    "moderate-maps": MODERATE_MAP_OPTIONS,
     "scattered-maps": SCATTERED_MAP_OPTIONS,
     "sparse-maps": SPARSE_MAP_OPTIONS,
     "walled-maps": WALLED_MAP_OPTIONS,
@@ -151,16 +149,15 @@ def add_command(commands: CommandGroup) -> None:
         help="the ATP's options: the first plan over blocks of 8 x 8 followed by the shortest "
         "route through its blocks and their neighbours', no refinement level by level "
         f"({_changed(WALLED_MAP_OPTIONS)}), for maps of walls such as rooms, mazes, streets "
-        "and caves (walled-maps); the same searched cell by cell "
-        f"({_changed(MODERATE_MAP_OPTIONS)}) for maps of scattered obstacles of moderate "
-        "density (moderate-maps), with the neighbours among the blocks of 4 x 4 "
-        f"({_changed(SPARSE_MAP_OPTIONS)}) for sparse ones (sparse-maps), and through a "
-        "second plan over blocks of 4 x 4 and its neighbours "
-        f"({_changed(SCATTERED_MAP_OPTIONS)}) for dense ones (scattered-maps); the options "
-        f"that measured best on MovingAI maps before those ({_listed(LARGE_MAP_OPTIONS)}), "
-        "refined level by level, for mazes of narrow corridors (large-maps); one of those "
-        "five chosen by the map's shape (by-map), or the planner's defaults, as the "
-        "navigation task plans its 128 x 128 worlds (task) (by-map)",
+        "and caves, and maps of scattered obstacles of moderate density (walled-maps); the "
+        f"same with the neighbours among the blocks of 4 x 4 ({_changed(SPARSE_MAP_OPTIONS)}) "
+        "for sparse scattered obstacles (sparse-maps), and through a second plan over blocks "
+        f"of 4 x 4 and its neighbours ({_changed(SCATTERED_MAP_OPTIONS)}) for dense ones "
+        "(scattered-maps); the options that measured best on MovingAI maps before those "
+        f"({_listed(LARGE_MAP_OPTIONS)}), refined level by level, for mazes of narrow "
+        "corridors (large-maps); one of those four chosen by the map's shape (by-map), or the "
+        "planner's defaults, as the navigation task plans its 128 x 128 worlds (task) "
+        "(by-map)",
     )
     parser.add_argument(
         "--monotone",

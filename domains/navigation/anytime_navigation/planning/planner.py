@@ -76,7 +76,8 @@ DEFAULT_TOP = 3
 #: them last (the same plans; scratch runs, the 16 longest problems, interleaved, time with the
 #: build against the compiled A*'s, without -> with: mazes of width 4 16.5% -> 11.6-12.1%,
 #: width 8 14.6% -> 13.5-13.7%, rooms of 8 and 64 0.1-0.9 points less, random 10% and 20%
-#: within 0.4 of a point either way, the maze of width 1 unchanged with `JUMP_MIN_WIDTH`).
+#: within 0.4 of a point either way; the maze of width 1 then searched its direct route cell by
+#: cell, until the scans read a byte a cell).
 #: `direct_width` went from 12 to 20 with jump points: the mazes of width 8, 15-18 cells per
 #: unit of length, are then planned by the direct route too (the 16 longest problems, scratch
 #: runs, time against the compiled A*'s without the build: 11.9% -> 5.9%, final plans 1.000,
@@ -114,30 +115,23 @@ LARGE_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
 #: lak303d 24.8% -> 28.0%, ost003d 26.5% -> 28.7%).
 #: The first plan over blocks of 16 x 16 would be cheaper, but its corridor's direct route
 #: costs more (brc202d: 28.4% of A*'s time without the build, 16.3% from blocks of 8 x 8), and
-#: on rooms it holds the wrong doors (rooms of 8: 0.957). Not on maps of scattered obstacles:
-#: there the corridor of blocks of 8 x 8 is searched cell by cell (random 10%: 29.4% of A*'s
-#: time with the build against 21.0% refined, the curve falling at 30 steps in 240).
+#: on rooms it holds the wrong doors (rooms of 8: 0.957). Also the options of maps of scattered
+#: obstacles neither sparse nor dense (`MapShape`: MovingAI's random maps of 20% blocked).
+#: Refined level by level with `LARGE_MAP_OPTIONS`, as until issue 36's curve that never falls,
+#: their executed quality fell at 17-27 steps in 240; the direct route registers none that falls,
+#: its final plans as good or better (issue 36, the 16 longest problems, time against the
+#: compiled A*'s with the build, refined -> direct, searched cell by cell then: random512-20-0
+#: 18.8% -> 16.0%, final plans 0.975 -> 0.977; random512-20-1, not tuned on, 0.977 -> 0.980 at
+#: 17.5%). Searched by jump points since they read a byte a cell: 1.2-2.6 points of A*'s time
+#: less on random 10-30% (scratch runs, interleaved, without the build: random 20% 11.0-11.4%
+#: -> 9.6-10.1%).
 WALLED_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
     {**LARGE_MAP_OPTIONS, "top": 3, "direct_width": math.inf, "doors": False}
 )
 
 
-#: The options of maps of scattered obstacles neither sparse nor dense (`MapShape`: MovingAI's
-#: random maps of 20% blocked): the walled-map options' first plan and direct route, its
-#: corridor searched cell by cell (scattered obstacles make most cells jump points: random 10%,
-#: 41.5% of the compiled A*'s time with the build by jump points, 27.8% cell by cell). Refined
-#: level by level with `LARGE_MAP_OPTIONS`, as until issue 36's curve that never falls, their
-#: executed quality fell at 17-27 steps in 240; the direct route registers none that falls
-#: (`registers_no_fall`), two plans a problem, its final plans as good or better (issue 36, the
-#: 16 longest problems, time against the compiled A*'s with the build, refined -> direct:
-#: random512-20-0 18.8% -> 16.0%, final plans 0.975 -> 0.977; random512-20-1, not tuned on,
-#: 0.977 -> 0.980 at 17.5%).
-MODERATE_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
-    {**WALLED_MAP_OPTIONS, "jump_points": False}
-)
-
 #: The options of maps of sparse scattered obstacles (`MapShape.sparse`: MovingAI's random maps
-#: of 10-15%): `MODERATE_MAP_OPTIONS` with the direct route's ring of neighbours one level lower
+#: of 10-15%): `WALLED_MAP_OPTIONS` with the direct route's ring of neighbours one level lower
 #: (`direct_ring_level`, blocks of 4 x 4). Where few cells are blocked the shortest route keeps
 #: close to the first plan's blocks, and the ring of blocks of 8 x 8 costs more than it gains
 #: (issue 36, the 16 longest problems, with the build, against the compiled A*'s time and
@@ -146,11 +140,11 @@ MODERATE_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
 #: (0.977, falling at 30 steps in 240); not tuned on: random512-10-1 22.5% (0.988), -15-0 and
 #: -15-1 15.6-15.8% (0.977-0.978; 21.6% and 0.984 with the ring of 8 x 8)).
 SPARSE_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
-    {**MODERATE_MAP_OPTIONS, "direct_ring_level": 2}
+    {**WALLED_MAP_OPTIONS, "direct_ring_level": 2}
 )
 
 #: The options of maps of scattered, dense obstacles (`MapShape`: MovingAI's random maps of
-#: 25-40%): `MODERATE_MAP_OPTIONS` with the direct route's corridor through a second plan over
+#: 25-40%): `WALLED_MAP_OPTIONS` with the direct route's corridor through a second plan over
 #: blocks of 4 x 4 and two rings of their neighbours (`direct_via`, `direct_rings`), and the
 #: first plan's cells with one ring. Among dense obstacles a first plan over blocks of 8 x 8
 #: goes round them the wrong way (its corridor's direct route, one ring: random 30% 0.958, min
@@ -165,17 +159,8 @@ SPARSE_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
 #: 28.8%, 0.979 -> 0.994; -35-0 18.3% -> 16.4%, 0.981 -> 0.983; -40-0 14.3% -> 16.6%, 0.979 ->
 #: 1.000; a noisy run: the first two read 22-24% refined in others).
 SCATTERED_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
-    {**MODERATE_MAP_OPTIONS, "direct_via": 2, "direct_rings": 2}
+    {**WALLED_MAP_OPTIONS, "direct_via": 2, "direct_rings": 2}
 )
-
-
-#: The direct route is searched by jump points (`atp(jump_points=True)`) only where its corridor
-#: has at least this many base cells per unit of the first plan's length (`_Planner.width`). In
-#: a one-cell corridor every turn and junction is a jump point and each scan checks its sides at
-#: every cell (issue 36, MovingAI's mazes, the 16 longest problems, the direct route's search,
-#: A* -> jump points: width 1 at 3.2-3.9 cells per unit, 1.07-1.46 -> 2.00-2.58 ms; width 2 at
-#: 6.3-6.8, 3.9-4.3 -> 3.5-3.8 ms; width 4 at 9.4-9.8, 8.0-8.7 -> 4.2-4.4 ms).
-JUMP_MIN_WIDTH = 5.0
 
 
 def made_ahead(components: Components, level: int, options: Mapping[str, Any]) -> None:
@@ -254,7 +239,7 @@ def map_options(blocked: BoolGrid) -> Mapping[str, Any]:
     (`anytime plan`'s by default; on MovingAI's maps of 194 x 194 to 512 x 512 of every kind
     they measured better than the planner's defaults, made for the navigation task's 128 x 128
     worlds): `WALLED_MAP_OPTIONS` on maps of walls (no scattered obstacles) not dense; on maps
-    of scattered obstacles `SPARSE_MAP_OPTIONS`, `MODERATE_MAP_OPTIONS` or
+    of scattered obstacles `SPARSE_MAP_OPTIONS`, `WALLED_MAP_OPTIONS` or
     `SCATTERED_MAP_OPTIONS` as they are sparse, neither or dense; else `LARGE_MAP_OPTIONS`:
     mazes of corridors one or two cells wide (dense walls, 0.33-0.50 blocked near free cells),
     where a first plan over blocks of 8 x 8 costs more than 2% of the compiled A*'s time
@@ -264,7 +249,7 @@ def map_options(blocked: BoolGrid) -> Mapping[str, Any]:
     if shape.scattered:
         if shape.dense:
             return SCATTERED_MAP_OPTIONS
-        return SPARSE_MAP_OPTIONS if shape.sparse else MODERATE_MAP_OPTIONS
+        return SPARSE_MAP_OPTIONS if shape.sparse else WALLED_MAP_OPTIONS
     return LARGE_MAP_OPTIONS if shape.dense else WALLED_MAP_OPTIONS
 
 
@@ -272,8 +257,8 @@ def registers_no_fall(options: Mapping[str, Any]) -> bool:
     """Whether `atp(**options)`, planning on the map its plans are followed on, registers no
     plan followed longer than the one before, without following any: the first plan (above
     the base level), then the direct route through the cells of its nodes and of their
-    neighbours alone (`direct_width` unbounded: `WALLED_MAP_OPTIONS`, `MODERATE_MAP_OPTIONS`,
-    `SPARSE_MAP_OPTIONS`, `SCATTERED_MAP_OPTIONS`; the neighbours at any level,
+    neighbours alone (`direct_width` unbounded: `WALLED_MAP_OPTIONS`, `SPARSE_MAP_OPTIONS`,
+    `SCATTERED_MAP_OPTIONS`; the neighbours at any level,
     `direct_ring_level`, or a second plan's besides, `direct_via`). Followed on its map, the
     first plan keeps to its corridor, inside the cells that route is the shortest through."""
     return options.get("direct_width") == math.inf and options.get("top", DEFAULT_TOP) > 0
@@ -291,9 +276,7 @@ _RINGS = {2: 3}
 
 __all__ = [
     "DEFAULT_TOP",
-    "JUMP_MIN_WIDTH",
     "LARGE_MAP_OPTIONS",
-    "MODERATE_MAP_OPTIONS",
     "SCATTERED_MAP_OPTIONS",
     "SPARSE_MAP_OPTIONS",
     "WALLED_MAP_OPTIONS",
@@ -628,14 +611,15 @@ def atp(
             where they are one cell thick or obstacles scattered, much (rooms of 8: 0.985 ->
             0.962, random 20%: 0.975 -> 0.926 of the optimal length).
         jump_points: the searches over the base cells (octile moves) from one source, the
-            refinements' and the direct route's (where its corridor has at least
-            `JUMP_MIN_WIDTH` cells per unit of length), are jump point searches
+            refinements' and the direct route's, are jump point searches
             (`corridor_search.jump_search`), not A* over every cell (False, the default): the
             same cheapest costs through the same corridors, a path of equal length (ties may
             go another way), fewer nodes pushed and expanded; the expansions reported are the
-            jump points expanded. It pays where corridors are wide and costs where they are
-            one cell or obstacles scattered (docs/navigation.md, "Jump points in the base
-            cells"; `LARGE_MAP_OPTIONS` and `WALLED_MAP_OPTIONS` take it).
+            jump points expanded. Its scans read a byte a cell: on the direct route's
+            corridors it takes 9-22% of A*'s time on walls of every width but one cell, 85%
+            in corridors one cell wide and 67-81% among scattered obstacles
+            (docs/navigation.md, "Jump points in the base cells"; every option set of
+            `map_options` takes it).
         direct_ring_level: the level whose ring of neighbouring nodes joins the direct
             route's corridor (`direct`, `direct_width`): the cells of the first plan's nodes
             and of their neighbours at this level (None, the default: at the first plan's
@@ -1051,19 +1035,17 @@ class _Planner:
 
     def direct(self, level: int, path: NodePath) -> Segment:
         """The base route through the cells of the nodes of `path` (at `level`) and of their
-        neighbours at `direct_ring_level` (by default `level`): one segment at level 0. With
-        `jump_points`, searched by jump points where those cells are at least `JUMP_MIN_WIDTH`
-        per unit of the path's length."""
+        neighbours at `direct_ring_level` (by default `level`): one segment at level 0, searched
+        by jump points with `jump_points`."""
         c = self.components
         if self.direct_via is not None:
             allowed = self._via(level, path)
         else:
             ring = level if self.direct_ring_level is None else min(self.direct_ring_level, level)
             allowed = self._down(path.nodes, level, 0, ring)
-        wide = len(allowed) >= JUMP_MIN_WIDTH * max(path.cost, 1.0)  # `width`, from the cells
         found = c.corridor(
             0, allowed, [c.node(self.start, 0)], [c.node(self.goal, 0)],
-            limit=self.ctx.remaining, jump_points=self.jump_points and wide,
+            limit=self.ctx.remaining, jump_points=self.jump_points,
         )  # fmt: skip
         if found is None:
             raise AssertionError("no base route through the children of a path")
