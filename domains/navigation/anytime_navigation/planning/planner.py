@@ -431,7 +431,11 @@ def segmentize(position: Position, top: int) -> tuple[Segment, ...]:
     plan; here it is also where refinement takes the endpoints of the first and last halves
     (the cell containing the start one level lower, not an arbitrary child)."""
     x, y = int(position[0]), int(position[1])  # projected up: (x >> k, y >> k), `project`
-    return tuple(Segment._made(level, ((x >> level, y >> level),), ()) for level in range(top))
+    made = Segment._made  # a loop, not a generator: made twice per first plan
+    segments = []
+    for level in range(top):
+        segments.append(made(level, ((x >> level, y >> level),), ()))
+    return tuple(segments)
 
 
 def _credit(segment: Segment, obstacleness: float, top: int) -> tuple[float, float]:
@@ -960,7 +964,9 @@ def _forget(_: object) -> None:
 def _runs(moves: int, most: int | None) -> list[tuple[int, int]]:
     """A path of `moves` moves cut into the fewest runs of at most `most` moves, of about equal
     length: each run's (first, last) node index (consecutive runs share their junction node)."""
-    count = 1 if most is None or moves <= most else -(-moves // most)
+    if most is None or moves <= most:  # one run: every first plan but with `segment_moves`
+        return [(0, moves)]
+    count = -(-moves // most)
     bounds = [round(i * moves / count) for i in range(count + 1)]
     return list(zip(bounds, bounds[1:], strict=False))
 
