@@ -228,6 +228,7 @@ KIND_CONFIGS: dict[str, dict[str, Any]] = {
     "... refined, as until issue 36's direct route": dict(REFINED_SCATTERED_OPTIONS),
     "... and follow (compiled)": {**LARGE_MAP_OPTIONS, "follow": FOLLOW},
     "options by map (map_options)": {"options": BY_MAP},  # `anytime plan`'s default
+    "... in steps (direct_steps)": {"options": BY_MAP, "direct_steps": True},
 }
 
 #: The papers' result when run to completion, and the issue's target on 512 x 512 maps.
@@ -1168,7 +1169,10 @@ def bench_kinds(
         " follow (with the jump_points row's\n"
         " options): a plan is registered only when the robot follows it no longer than the\n"
         " last one registered (following.Follower: execute's length, compiled; its calls in the\n"
-        " ATP's time, its build, once per map, with the abstraction's); the\n"
+        " ATP's time, its build, once per map, with the abstraction's); options by map: the\n"
+        " options planner.map_options chooses by the map's shape (anytime plan's), and ... in\n"
+        " steps: the same with direct_steps (the direct route registered through the first\n"
+        " plan's cells and a ring of neighbours at level 1, 2, .. up to its own); the\n"
         f" {count} problems of the longest buckets per map, octile without\n"
         " corner cutting, optimal lengths from A*; each side runs the map's problems as a\n"
         f" stream, an untimed round and {repeats} timed, each problem's best kept; columns as in\n"

@@ -197,6 +197,49 @@ def test_the_direct_route_through_scattered_obstacles_never_falls(
     assert plans[-1].value.base_route() is not None
 
 
+@settings(max_examples=12, deadline=None)
+@given(
+    share=st.sampled_from([0.0, 0.1, 0.2, 0.3]),
+    seed=st.integers(0, 2**16),
+    options=st.sampled_from([WALLED_MAP_OPTIONS, SPARSE_MAP_OPTIONS, SCATTERED_MAP_OPTIONS]),
+)
+def test_the_direct_route_in_steps_never_falls(
+    share: float, seed: int, options: dict[str, object]
+) -> None:
+    """With `direct_steps`, the direct route is registered through corridors with the ring of
+    neighbours at level 1, then 2, up to the options' own: each route is followed to the goal
+    no longer than the plan before it, and the last is as long as the route made at once."""
+    blocked = _random(share, seed) if share else _blocks(seed=seed % 8)
+    start, goal = (2, 125), (125, 3)
+    blocked[start[1], start[0]] = blocked[goal[1], goal[0]] = False
+    if not Components.build(blocked, 8, top=3).connected(start, goal):
+        return  # a wall of obstacles between them: planned across it, and not followed
+    pyramid = Pyramid.build(blocked)
+    stepped = list(atp(Context(), start, goal, pyramid, movement=8, **options, direct_steps=True))
+    at_once = list(atp(Context(), start, goal, pyramid, movement=8, **options))
+    steps = 2 if options is SPARSE_MAP_OPTIONS else 3  # rings at 1 (and 2) below the own
+    assert len(stepped) == 1 + steps and len(at_once) == 2
+    runs = [execute(p.value, blocked, movement=8, keep_to_plan=True) for p in stepped]
+    assert all(run.reached for run in runs)
+    lengths = [run.length for run in runs]
+    assert all(b <= a + 1e-9 for a, b in zip(lengths, lengths[1:], strict=False))
+    final = execute(at_once[-1].value, blocked, movement=8, keep_to_plan=True)
+    assert math.isclose(lengths[-1], final.length)
+
+
+def test_direct_steps_need_the_direct_route() -> None:
+    blocked = _random(0.1)
+    blocked[1, 1] = blocked[120, 120] = False
+    plans = atp(
+        Context(), (1, 1), (120, 120), Pyramid.build(blocked), movement=8, direct_steps=True
+    )
+    with pytest.raises(
+        ValueError,
+        match=r"^direct_steps needs direct_width: it steps the route after the first plan$",
+    ):
+        next(plans)
+
+
 def test_the_ring_one_level_lower_searches_fewer_cells() -> None:
     """The sparse-map options' corridor (the ring of neighbours at level 2) is narrower than the
     walled-map options' (at level 3): fewer expansions, a route no shorter."""

@@ -494,6 +494,7 @@ def atp(
     direct_ring_level: int | None = None,
     direct_via: int | None = None,
     direct_rings: int | None = None,
+    direct_steps: bool = False,
 ) -> Iterator[Result]:
     """The anytime abstract planner: yields `Result(MultiPath, quality_estimate)` after the first
     plan and after every refinement (with `follow`, each that is followed no worse than the last
@@ -647,6 +648,13 @@ def atp(
             better, at more than 2% of the compiled A*'s time (`SCATTERED_MAP_OPTIONS`).
         direct_rings: the rings of neighbouring nodes around `direct_via`'s plan (None, the
             default: one).
+        direct_steps: the direct route after the first plan (`direct_width`) is registered in
+            steps (False, the default: once): first the route through the first plan's cells
+            and a ring of neighbours at level 1, then at level 2, and so on up to its own
+            corridor (`direct_ring_level`, `direct_via`). Each corridor holds the one before
+            (a neighbour's cells lie in its parent, which is the parent of a first-plan node or
+            its neighbour), so each route is the shortest through a set holding the last
+            one's and is never followed longer: a curve of more, smaller steps, each a search.
 
     REFINE re-plans the chosen level-k segment one level lower, through the children of its
     nodes only (they are connected: see `components`), so the search is local and always finds
@@ -710,6 +718,8 @@ def atp(
         raise ValueError(f"direct_via must be >= 1 or None, got {direct_via}")
     if direct_via is not None and direct_via >= top:  # no level below a small map's top
         direct_via = None
+    if direct_steps and direct_width is None:
+        raise ValueError("direct_steps needs direct_width: it steps the route after the first plan")
     planner = _Planner(
         components,
         pyramid,
@@ -778,18 +788,20 @@ def atp(
     kept = plan  # the first plan: always registered (nothing is before it)
     yield Result(plan, share * estimate)
     if direct_width is not None and top > 0 and planner.width(top, found) <= direct_width:
-        try:
-            route = planner.direct(top, found)
-        except SearchLimit as stopped:  # the deadline came first: keep the first plan
-            ctx.tick(stopped.expansions)
-            return
-        plan = MultiPath(start, goal, (), (route,), (), components)
         # Followed on the map it was made on, the first plan keeps to its corridor, inside the
-        # cells this route is the shortest through: it is never followed longer (not where
-        # walls were opened: then the map planned on is not the map followed).
+        # cells each route is the shortest through: it is never followed longer (not where
+        # walls were opened: then the map planned on is not the map followed); each step's
+        # corridor holds the last one's
         trusted = share == 1.0 and getattr(follow, "planned_on_its_map", False)
-        if trusted or better(plan):
-            yield Result(plan, share)
+        for ring in planner.direct_rings_by_step(top) if direct_steps else (None,):
+            try:
+                route = planner.direct(top, found, ring)
+            except SearchLimit as stopped:  # the deadline came first: keep the last plan
+                ctx.tick(stopped.expansions)
+                return
+            plan = MultiPath(start, goal, (), (route,), (), components)
+            if trusted or better(plan):
+                yield Result(plan, share)
         return
     if doors and top > 0:
         try:
@@ -1039,15 +1051,17 @@ class _Planner:
         self.ctx.tick(found.expansions)
         return found
 
-    def direct(self, level: int, path: NodePath) -> Segment:
+    def direct(self, level: int, path: NodePath, ring: int | None = None) -> Segment:
         """The base route through the cells of the nodes of `path` (at `level`) and of their
-        neighbours at `direct_ring_level` (by default `level`): one segment at level 0, searched
-        by jump points with `jump_points`."""
+        neighbours at `direct_ring_level` (by default `level`; a level `ring`, one of
+        `direct_rings_by_step`'s steps, instead when given), or `direct_via`'s corridor: one
+        segment at level 0, searched by jump points with `jump_points`."""
         c = self.components
-        if self.direct_via is not None:
+        if ring is None and self.direct_via is not None:
             allowed = self._via(level, path)
         else:
-            ring = level if self.direct_ring_level is None else min(self.direct_ring_level, level)
+            if ring is None:
+                ring = self._ring_level(level)
             allowed = self._down(path.nodes, level, 0, ring)
         found = c.corridor(
             0, allowed, [c.node(self.start, 0)], [c.node(self.goal, 0)],
@@ -1061,6 +1075,18 @@ class _Planner:
         blocks = c.levels[0].block[found.array]
         cells = tuple(zip(blocks[:, 0].tolist(), blocks[:, 1].tolist(), strict=True))
         return Segment._made(0, cells, found.nodes)
+
+    def _ring_level(self, level: int) -> int:
+        """The level of the direct route's ring of neighbours around a first plan at `level`."""
+        return level if self.direct_ring_level is None else min(self.direct_ring_level, level)
+
+    def direct_rings_by_step(self, level: int) -> list[int | None]:
+        """`direct`'s steps after a first plan at `level` (`atp(direct_steps=True)`): the ring
+        of neighbours at level 1, 2, .. below the direct route's own (`direct_ring_level`;
+        with `direct_via`, below the first plan's level, whose ring its corridor holds), then
+        that route (None)."""
+        last = level - 1 if self.direct_via is not None else self._ring_level(level) - 1
+        return [*range(1, last + 1), None]
 
     def _via(self, level: int, path: NodePath) -> npt.NDArray[np.int64]:
         """The base cells of `direct_via`'s corridor: the nodes of the cheapest path at that
