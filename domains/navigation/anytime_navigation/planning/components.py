@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import math
 import weakref
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any, NamedTuple, overload
 
 import numpy as np
@@ -543,27 +543,68 @@ class Components:
             every = np.arange(len(self.levels[0]))
             found = self.corridor(0, every, [source], [target], limit=limit)
         else:  # the same search, its scratch kept per level (`corridor_search.level_search`)
-            at, room = self.levels[level], _level_room(self, level)
-            path, best, expansions, *heap = compiled().level_search(
-                at.first,
-                at.neighbour,
-                at.cost,
-                at.centre,
-                self.movement,
-                source,
-                target,
-                self.landmarks(level, landmarks) if landmarks else np.zeros((0, 0)),
-                *room,
-            )
-            room[-2:] = heap  # grown when it ran out
-            if expansions > limit:
-                raise SearchLimit(int(limit))
-            found = (
-                NodePath(level, tuple(path.tolist()), best, expansions, path) if len(path) else None
-            )
+            search = compiled().level_search
+            found = self._level_path(search, level, source, target, limit, landmarks, ())[0]
         if found is None:
             raise AssertionError(f"no path at level {level} between nodes {source} and {target}")
         return found
+
+    def read_path(
+        self,
+        level: int,
+        source: int,
+        target: int,
+        values: FloatArray,
+        *,
+        limit: float = math.inf,
+        landmarks: int = 0,
+    ) -> tuple[NodePath, IntArray, IntArray, float]:
+        """`path` at `level` > 0, and what a plan reads of it in the same compiled call
+        (`corridor_search.read_path`, the first plan's): its nodes' blocks (x and y) and the
+        mean of `values` (one per block of the level, indexed [y, x]) over them.
+
+        Raises:
+            SearchLimit: as `path`.
+        """
+        reads = (self.levels[level].block, values)
+        found, xs, ys, mean = self._level_path(
+            compiled().read_path, level, source, target, limit, landmarks, reads
+        )
+        if found is None:
+            raise AssertionError(f"no path at level {level} between nodes {source} and {target}")
+        return found, xs, ys, mean
+
+    def _level_path(
+        self,
+        search: Callable[..., tuple[Any, ...]],
+        level: int,
+        source: int,
+        target: int,
+        limit: float,
+        landmarks: int,
+        reads: tuple[NDArray[Any], ...],
+    ) -> tuple[Any, ...]:
+        """A compiled `search` over the whole of `level` > 0 with its room kept per level
+        (`_level_room`, grown when it ran out) and `reads` after its arguments: (the path or
+        None, then what the search returns after its heap)."""
+        at, room = self.levels[level], _level_room(self, level)
+        path, best, expansions, keys, items, *rest = search(
+            at.first,
+            at.neighbour,
+            at.cost,
+            at.centre,
+            self.movement,
+            source,
+            target,
+            self.landmarks(level, landmarks) if landmarks else np.zeros((0, 0)),
+            *room,
+            *reads,
+        )
+        room[-2:] = keys, items
+        if expansions > limit:
+            raise SearchLimit(int(limit))
+        found = NodePath(level, tuple(path.tolist()), best, expansions, path) if len(path) else None
+        return (found, *rest)
 
     def widened(self, level: int, nodes: Sequence[int] | IntArray, rings: int) -> IntArray:
         """The children (at `level` - 1) of `nodes` (at `level`) and of every node up to
