@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import math
 import weakref
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import Any, NamedTuple, overload
 
 import numpy as np
@@ -539,12 +539,12 @@ class Components:
         Raises:
             SearchLimit: its work, counted as `corridor` counts it, is more than `limit`.
         """
-        if level == 0:
-            every = np.arange(len(self.levels[0]))
-            found = self.corridor(0, every, [source], [target], limit=limit)
-        else:  # the same search, its scratch kept per level (`corridor_search.level_search`)
-            search = compiled().level_search
-            found = self._level_path(search, level, source, target, limit, landmarks, ())[0]
+        if level > 0:  # the same search, its scratch kept per level (`read_path`)
+            return self.read_path(
+                level, source, target, np.zeros((0, 0)), limit=limit, landmarks=landmarks
+            )[0]
+        every = np.arange(len(self.levels[0]))
+        found = self.corridor(0, every, [source], [target], limit=limit)
         if found is None:
             raise AssertionError(f"no path at level {level} between nodes {source} and {target}")
         return found
@@ -560,35 +560,15 @@ class Components:
         landmarks: int = 0,
     ) -> tuple[NodePath, IntArray, IntArray, float]:
         """`path` at `level` > 0, and what a plan reads of it in the same compiled call
-        (`corridor_search.read_path`, the first plan's): its nodes' blocks (x and y) and the
-        mean of `values` (one per block of the level, indexed [y, x]) over them.
+        (`corridor_search.level_search`, the first plan's): its nodes' blocks (x and y) and the
+        mean of `values` (one per block of the level, indexed [y, x]) over them (none and NaN
+        with `values` empty). Its room is kept per level (`_level_room`, grown when it ran out).
 
         Raises:
             SearchLimit: as `path`.
         """
-        reads = (self.levels[level].block, values)
-        found, xs, ys, mean = self._level_path(
-            compiled().read_path, level, source, target, limit, landmarks, reads
-        )
-        if found is None:
-            raise AssertionError(f"no path at level {level} between nodes {source} and {target}")
-        return found, xs, ys, mean
-
-    def _level_path(
-        self,
-        search: Callable[..., tuple[Any, ...]],
-        level: int,
-        source: int,
-        target: int,
-        limit: float,
-        landmarks: int,
-        reads: tuple[NDArray[Any], ...],
-    ) -> tuple[Any, ...]:
-        """A compiled `search` over the whole of `level` > 0 with its room kept per level
-        (`_level_room`, grown when it ran out) and `reads` after its arguments: (the path or
-        None, then what the search returns after its heap)."""
         at, room = self.levels[level], _level_room(self, level)
-        path, best, expansions, keys, items, *rest = search(
+        path, best, expansions, keys, items, xs, ys, mean = compiled().level_search(
             at.first,
             at.neighbour,
             at.cost,
@@ -598,13 +578,15 @@ class Components:
             target,
             self.landmarks(level, landmarks) if landmarks else np.zeros((0, 0)),
             *room,
-            *reads,
+            at.block,
+            values,
         )
         room[-2:] = keys, items
         if expansions > limit:
             raise SearchLimit(int(limit))
-        found = NodePath(level, tuple(path.tolist()), best, expansions, path) if len(path) else None
-        return (found, *rest)
+        if not len(path):
+            raise AssertionError(f"no path at level {level} between nodes {source} and {target}")
+        return NodePath(level, tuple(path.tolist()), best, expansions, path), xs, ys, mean
 
     def widened(self, level: int, nodes: Sequence[int] | IntArray, rings: int) -> IntArray:
         """The children (at `level` - 1) of `nodes` (at `level`) and of every node up to

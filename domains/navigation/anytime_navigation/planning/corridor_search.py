@@ -534,9 +534,13 @@ def level_search(
     stamp: IntArray,
     heap_keys: FloatArray,
     heap_items: IntArray,
-) -> tuple[IntArray, float, int, FloatArray, IntArray]:
+    block: IntArray,
+    values: FloatArray,
+) -> tuple[IntArray, float, int, FloatArray, IntArray, IntArray, IntArray, float]:
     """`search` over every node of a level above level 0 from one node to another (the first
-    plan): the same path, cost and expansions (the same pushes in the same order: its local
+    plan), and with `values` not empty what the plan's segment reads of its path in the same
+    call (`path_reads` of it as one run: one compiled call in every first plan's time, not
+    two): the same path, cost and expansions (the same pushes in the same order: its local
     numbers are the level's own when every node is allowed), at the cost of the nodes it
     reaches rather than of the level's. `distance`, `estimate` and `previous` (one entry per
     node) hold a node's only while `stamp[node, 0]` is the search's number, `stamp[-1, 0]`,
@@ -544,7 +548,9 @@ def level_search(
     the level is made or cleared per search. `heap_keys`, `heap_items` are the heap's room.
 
     Returns (the path's nodes, source first; empty when the target is not reached), its cost
-    (inf when none), the expansions, and the heap's room (grown when it ran out)."""
+    (inf when none), the expansions, the heap's room (grown when it ran out), and the path's
+    nodes' blocks (x, y; `block` the level's) and the mean of `values` (the level's, indexed
+    [y, x]) over them (empty and NaN without `values` or a path)."""
     stamp[-1, 0] += 1
     now = stamp[-1, 0]
     target_x = np.empty(1)
@@ -600,39 +606,9 @@ def level_search(
     path = _path_back(previous, end)
     for u in path[:-1]:
         expansions += not distance[u] + estimate[u] < best - tolerance
-    return path, best, expansions, keys, items
-
-
-@_compiled
-def read_path(
-    first: IntArray,
-    neighbour: IntArray,
-    cost: FloatArray,
-    centre: FloatArray,
-    movement: int,
-    source: int,
-    target: int,
-    landmarks: FloatArray,
-    distance: FloatArray,
-    estimate: FloatArray,
-    previous: IntArray,
-    stamp: IntArray,
-    heap_keys: FloatArray,
-    heap_items: IntArray,
-    block: IntArray,
-    values: FloatArray,
-) -> tuple[IntArray, float, int, FloatArray, IntArray, IntArray, IntArray, float]:
-    """`level_search` and `path_reads` of its path as one run, in one call: the first plan's
-    search and what its segment reads (its nodes' blocks, the mean of `values` over them; NaN
-    without a path). One compiled call where two were, in every first plan's time.
-
-    Returns `level_search`'s, then the blocks' x and y and the mean."""
-    path, best, expansions, keys, items = level_search(
-        first, neighbour, cost, centre, movement, source, target, landmarks,
-        distance, estimate, previous, stamp, heap_keys, heap_items,
-    )  # fmt: skip
-    if not len(path):
-        return path, best, expansions, keys, items, path, path, np.nan
+    if not len(path) or not len(values):
+        nothing = np.zeros(0, dtype=np.int64)
+        return path, best, expansions, keys, items, nothing, nothing, np.nan
     bounds = np.zeros(2, dtype=np.int64)
     bounds[1] = len(path) - 1
     xs, ys, means = path_reads(block, values, path, bounds)
