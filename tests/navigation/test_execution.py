@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from anytime_navigation.movingai import load_problems
 from anytime_navigation.planning.abstraction import Pyramid, cell_bounds, project
-from anytime_navigation.planning.planner import MultiPath, Segment, atp, segmentize
+from anytime_navigation.planning.planner import MultiPath, Segment, atp
 from anytime_navigation.planning.search import find_path
 from anytime_navigation.resources import data_file
 from anytime_navigation.task.execution import (
@@ -142,13 +142,11 @@ def test_waypoints_of_a_mixed_plan() -> None:
     plan = MultiPath(
         start=(0, 0),
         goal=(7, 0),
-        head=segmentize((0, 0), 1),
         segments=(
             Segment(1, [(0, 0), (1, 0)]),  # (1, 0)@1 contains (2, 0)@0: dropped
             Segment(0, [(2, 0), (3, 0), (4, 0)]),  # (2, 0)@1 contains (4, 0)@0: dropped
             Segment(1, [(2, 0), (3, 0)]),  # (3, 0)@1 contains the goal: dropped
         ),
-        tail=segmentize((7, 0), 1)[::-1],
     )
     assert waypoints(plan) == [(0, (0, 0)), (0, (2, 0)), (0, (3, 0)), (0, (4, 0)), (0, (7, 0))]
 
@@ -292,7 +290,7 @@ def test_a_corridor_a_wall_cuts_on_the_true_map_is_left(movement: int) -> None:
 
 
 def test_a_plan_without_an_abstraction_has_no_corridor() -> None:
-    plan = MultiPath((0, 0), (1, 0), (), (Segment(0, [(0, 0), (1, 0)]),), ())
+    plan = MultiPath((0, 0), (1, 0), (Segment(0, [(0, 0), (1, 0)]),))
     assert plan.corridor() is None
 
 

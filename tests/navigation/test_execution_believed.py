@@ -61,9 +61,9 @@ def test_a_plan_crossing_its_own_map():
     blocked = np.zeros((8, 8), dtype=bool)
     blocked[3, 4] = True
     cells = [(x, 3) for x in range(8)]
-    through = MultiPath((0, 3), (7, 3), (), (Segment(0, cells),), ())
+    through = MultiPath((0, 3), (7, 3), (Segment(0, cells),))
     assert _crosses_its_map(through, blocked, (0, 3), (7, 3))
-    coarse = MultiPath((0, 3), (7, 3), (), (Segment(1, [(0, 1), (1, 1), (2, 1), (3, 1)]),), ())
+    coarse = MultiPath((0, 3), (7, 3), (Segment(1, [(0, 1), (1, 1), (2, 1), (3, 1)]),))
     assert not _crosses_its_map(coarse, blocked, (0, 3), (7, 3))  # a block is not a cell
     blocked[3, 4] = False
     blocked[3, 0] = blocked[3, 7] = True  # the start and goal count as free: the planner's

@@ -219,6 +219,6 @@ def test_direct_route_is_followed_no_longer_than_the_first_plan(
 def test_plan_without_abstraction() -> None:
     world = random_world(16, seed=1)
     plan = _plans(world.blocked, world.start, world.goal, 4)[0]
-    bare = MultiPath(plan.start, plan.goal, plan.head, plan.segments, plan.tail)
+    bare = MultiPath(plan.start, plan.goal, plan.segments)
     with pytest.raises(ValueError, match="abstraction"):
         Follower(world.blocked, 4)(bare)

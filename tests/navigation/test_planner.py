@@ -154,13 +154,13 @@ def test_quality_estimate_discounts_level_and_obstacleness() -> None:
     blocked = np.zeros((8, 8), dtype=bool)
     blocked[0:2, 2:4] = True  # level-1 cell (1, 0) fully blocked, level-2 cell (0, 0) 1/4
     pyramid = Pyramid.build(blocked)
-    clear = MultiPath((0, 0), (7, 7), (), (Segment(1, [(0, 2), (1, 2), (2, 2)]),), ())
+    clear = MultiPath((0, 0), (7, 7), (Segment(1, [(0, 2), (1, 2), (2, 2)]),))
     # Mean obstacleness 0, level 1 of top 3: (1 - 1/4).
     assert quality_estimate(clear, pyramid) == pytest.approx(0.75)
-    cluttered = MultiPath((0, 0), (7, 7), (), (Segment(2, [(0, 0), (1, 0)]),), ())
+    cluttered = MultiPath((0, 0), (7, 7), (Segment(2, [(0, 0), (1, 0)]),))
     # Mean obstacleness (1/4 + 0) / 2, level 2: (1 - 1/8) * (1 - 2/4).
     assert quality_estimate(cluttered, pyramid) == pytest.approx(0.875 * 0.5)
-    base = MultiPath((0, 0), (1, 0), (), (Segment(0, [(0, 0), (1, 0)]),), ())
+    base = MultiPath((0, 0), (1, 0), (Segment(0, [(0, 0), (1, 0)]),))
     assert quality_estimate(base, pyramid) == 1.0
 
 

@@ -44,7 +44,7 @@ from .obstacles.overcoming_modules import (
     wait,
 )
 from .planning.abstraction import Pyramid, project
-from .planning.planner import MultiPath, Segment, atp, quality_estimate, segmentize
+from .planning.planner import MultiPath, Segment, atp, quality_estimate
 from .planning.search import SearchLimit, find_path_to_box
 from .task.execution import Execution, execute, optimal_length, plan_quality
 from .task.vision import (
@@ -155,13 +155,7 @@ def a_star(ctx: Context, start: Position, goal: Position, domain: Result, level:
     if found is None:
         return Result(None, 0.0)
     ctx.tick(found.expansions)
-    plan = MultiPath(
-        start,
-        goal,
-        segmentize(start, top),
-        (Segment(top, found.path),),
-        segmentize(goal, top)[::-1],
-    )
+    plan = MultiPath(start, goal, (Segment(top, found.path),))
     return Result(plan, quality_estimate(plan, pyramid))
 
 

@@ -196,7 +196,7 @@ class Pyramid:
         return cell_bounds(self._check_position(position, level), level)
 
     def _check_level(self, level: int) -> None:
-        if not 0 <= level <= self.top:
+        if not 0 <= level < len(self.levels):  # `top` + 1, without its call (per problem)
             raise ValueError(f"level must be in [0, {self.top}], got {level}")
 
     def _check_position(self, position: Position, level: int) -> Position:

@@ -148,6 +148,7 @@ class _Grids(Sequence[IntArray]):
 
     def __init__(self, base: IntArray, parents: tuple[IntArray, ...]) -> None:
         self._parents = parents
+        self.base = base  # level 0's, read per problem (`Components.cell`)
         self._made: dict[int, IntArray] = {0: base}
         # each level-0 node's ancestor at the top (itself at top 0)
         self.up = np.arange(len(parents[0]) if parents else 0, dtype=np.int64)
@@ -156,7 +157,7 @@ class _Grids(Sequence[IntArray]):
         self._regions: IntArray | None = None
 
     def __reduce__(self) -> tuple[object, ...]:
-        return (_Grids, (self._made[0], self._parents))
+        return (_Grids, (self.base, self._parents))
 
     def __len__(self) -> int:
         return len(self._parents) + 1
@@ -185,7 +186,7 @@ class _Grids(Sequence[IntArray]):
     def top_node(self, position: Position) -> int:
         """The top-level node of a base cell (-1 where blocked), its grid unread."""
         x, y = position
-        node = int(self._made[0][y, x])
+        node = int(self.base[y, x])
         return node if node < 0 or not self._parents else int(self.up[node])
 
     def made(self, k: int) -> bool:
@@ -368,7 +369,7 @@ class Components:
     @property
     def cell(self) -> IntArray:
         """The level-0 node of each base cell (-1 where blocked)."""
-        return self.grids[0]
+        return self.grids.base
 
     @property
     def regions(self) -> IntArray:

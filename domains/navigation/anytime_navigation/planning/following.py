@@ -39,7 +39,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from ..world import BoolGrid
+from ..world import BoolGrid, Position
 from .components import Components
 from .planner import MultiPath, Segment
 
@@ -921,6 +921,17 @@ def _take_over(
     return True
 
 
+def _segmentized(position: Position, top: int) -> IntArray:
+    """`planner.segmentize(position, top)`'s segments as `Follower._segment`'s rows (level, x,
+    y, -1), made at once: a plan's head and tail (`MultiPath.head`) are not kept with it."""
+    levels = np.arange(top, dtype=np.int64)
+    rows = np.full((top, 4), -1, dtype=np.int64)
+    rows[:, 0] = levels
+    rows[:, 1] = position[0] >> levels
+    rows[:, 2] = position[1] >> levels
+    return rows
+
+
 class Follower:
     """The length of the route `execution.execute(plan, blocked, movement=movement,
     keep_to_plan=True)` follows, compiled (see the module docstring): pass it to `planner.atp`
@@ -1070,7 +1081,15 @@ class Follower:
             self._ends = ends
         at = np.array(ends, dtype=np.int64)
         goal = np.array([[0, plan.goal[0], plan.goal[1], -1]], dtype=np.int64)
-        sequence = np.concatenate([*(self._segment(s) for s in plan.parts), goal])
+        head, tail = plan.segments[0].level, plan.segments[-1].level
+        sequence = np.concatenate(
+            [
+                _segmentized(plan.start, head),
+                *(self._segment(s) for s in plan.segments),
+                _segmentized(plan.goal, tail)[::-1],
+                goal,
+            ]
+        )
         kept, boxes = _waypoints(sequence, at)
         if len(self._checkpoints) < len(kept) + 1:
             grown = np.zeros((2 * len(kept) + 1, _CHECKPOINT), dtype=np.int64)
@@ -1123,5 +1142,5 @@ class Follower:
         )
         self._sequence, self._kept = sequence, kept
         # keep the rows of this plan's segments only: the next plan shares all but one
-        self._cells = {id(s): self._cells[id(s)] for s in plan.parts}
+        self._cells = {id(s): self._cells[id(s)] for s in plan.segments}
         return float(length)

@@ -34,6 +34,7 @@ over it, compiled: `corridor_search`; a tick is a node an A* search would expand
 
 from __future__ import annotations
 
+import functools
 import math
 import weakref
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
@@ -325,9 +326,9 @@ class Segment:
         converters skipped: the planner makes several segments per refinement, and converting
         the long ones at the base level cell by cell cost a fifth of its time on mazes."""
         segment = object.__new__(cls)
-        object.__setattr__(segment, "level", level)
-        object.__setattr__(segment, "cells", cells)
-        object.__setattr__(segment, "nodes", nodes)
+        _SET_LEVEL(segment, level)
+        _SET_CELLS(segment, cells)
+        _SET_NODES(segment, nodes)
         return segment
 
     @property
@@ -346,22 +347,30 @@ class Segment:
         return len(self.cells) - 1
 
 
+# The slots' own setters (a frozen class's `__setattr__` refuses): `Segment._made`'s, faster
+# than `object.__setattr__` by name
+_SET_LEVEL, _SET_CELLS, _SET_NODES = (
+    Segment.__dict__[name].__set__ for name in ("level", "cells", "nodes")
+)
+
+
 @frozen
 class MultiPath:
-    """A plan: `head` (what is left of SEGMENTIZE(start)), the route `segments`, and `tail`
-    (what is left of SEGMENTIZE(goal)). `parts` is the whole list of the pseudocode.
+    """A plan: the route `segments` from `start` to `goal`, with `head` (what is left of
+    SEGMENTIZE(start)) and `tail` (what is left of SEGMENTIZE(goal)) read off them. `parts` is
+    the whole list of the pseudocode.
 
     The head holds the one-cell segments start@0 .. start@(L-1) below the level L of the first
     route segment, the tail likewise for the goal in descending order; refining the first (last)
     route segment plans its new half from start@(L-1) (to goal@(L-1)), which absorbs that
-    connector. When every route segment is at level 0, head and tail are empty.
+    connector. When every route segment is at level 0, head and tail are empty. They follow
+    from the segments' levels, so a plan holds them only when read (a first plan is made in
+    tens of microseconds, and two SEGMENTIZEs were a tenth of it).
     """
 
     start: Position
     goal: Position
-    head: tuple[Segment, ...]
     segments: tuple[Segment, ...]
-    tail: tuple[Segment, ...]
     # The abstraction the segments' nodes are of (None for a plan made without one): what an
     # executor reads a node's cells from, to aim at the region a node means, not its block.
     abstraction: Components | None = field(default=None, eq=False, repr=False)
@@ -405,6 +414,16 @@ class MultiPath:
         return meant
 
     @property
+    def head(self) -> tuple[Segment, ...]:
+        """SEGMENTIZE(start) below the first route segment's level."""
+        return segmentize(self.start, self.segments[0].level) if self.segments else ()
+
+    @property
+    def tail(self) -> tuple[Segment, ...]:
+        """SEGMENTIZE(goal) below the last route segment's level, from the highest down."""
+        return segmentize(self.goal, self.segments[-1].level)[::-1] if self.segments else ()
+
+    @property
     def parts(self) -> tuple[Segment, ...]:
         return self.head + self.segments + self.tail
 
@@ -431,11 +450,8 @@ def segmentize(position: Position, top: int) -> tuple[Segment, ...]:
     plan; here it is also where refinement takes the endpoints of the first and last halves
     (the cell containing the start one level lower, not an arbitrary child)."""
     x, y = int(position[0]), int(position[1])  # projected up: (x >> k, y >> k), `project`
-    made = Segment._made  # a loop, not a generator: made twice per first plan
-    segments = []
-    for level in range(top):
-        segments.append(made(level, ((x >> level, y >> level),), ()))
-    return tuple(segments)
+    made = Segment._made
+    return tuple([made(level, ((x >> level, y >> level),), ()) for level in range(top)])
 
 
 def _credit(segment: Segment, obstacleness: float, top: int) -> tuple[float, float]:
@@ -677,11 +693,15 @@ def atp(
         ValueError: a blocked start or goal, a top outside the pyramid, segment_moves < 1,
             direct_ring_level or direct_via < 1, or components of another map or movement.
     """
-    top = min(DEFAULT_TOP, pyramid.top) if top is None else top
-    if segment_moves is not None and segment_moves < 1:
-        raise ValueError(f"segment_moves must be >= 1 or None, got {segment_moves}")
-    if not 0 <= top <= pyramid.top:
-        raise ValueError(f"top must be in [0, {pyramid.top}], got {top}")
+    highest = pyramid.top
+    top = min(DEFAULT_TOP, highest) if top is None else top
+    if not 0 <= top <= highest:
+        raise ValueError(f"top must be in [0, {highest}], got {top}")
+    options = _checked_options(
+        top, segment_moves, door_rings, direct, direct_width, no_ring_when_open,
+        one_ring_when_open, landmarks, no_ring_when_clear, skip_level_1, jump_points,
+        direct_ring_level, direct_via, direct_rings, direct_steps,
+    )  # fmt: skip
     for name, position in (("start", start), ("goal", goal)):
         if pyramid.obstacleness(position, 0) >= 1.0:
             raise ValueError(f"{name} {position} is a blocked cell")
@@ -701,43 +721,7 @@ def atp(
     if not components.connected(start, goal):
         opened, share = _opened(pyramid.levels[0] >= 1.0, start, goal, movement)
         components = Components.build(opened, movement, top=top)
-    for name, option in (
-        ("door_rings", door_rings),
-        ("direct", direct),
-        ("direct_width", direct_width),
-        ("no_ring_when_open", no_ring_when_open),
-        ("one_ring_when_open", one_ring_when_open),
-        ("landmarks", landmarks),
-        ("no_ring_when_clear", no_ring_when_clear),
-        ("direct_rings", direct_rings),
-    ):
-        if option is not None and option < 0:
-            raise ValueError(f"{name} must be >= 0 or None, got {option}")
-    if direct_ring_level is not None and direct_ring_level < 1:
-        raise ValueError(f"direct_ring_level must be >= 1 or None, got {direct_ring_level}")
-    if direct_via is not None and direct_via < 1:
-        raise ValueError(f"direct_via must be >= 1 or None, got {direct_via}")
-    if direct_via is not None and direct_via >= top:  # no level below a small map's top
-        direct_via = None
-    if direct_steps and direct_width is None:
-        raise ValueError("direct_steps needs direct_width: it steps the route after the first plan")
-    planner = _Planner(
-        components,
-        pyramid,
-        start,
-        goal,
-        ctx,
-        door_rings=door_rings,
-        no_ring_when_open=no_ring_when_open,
-        one_ring_when_open=one_ring_when_open,
-        no_ring_when_clear=no_ring_when_clear,
-        landmarks=landmarks or 0,
-        skip_level_1=skip_level_1,
-        jump_points=jump_points,
-        direct_ring_level=direct_ring_level,
-        direct_via=direct_via,
-        direct_rings=direct_rings,
-    )
+    planner = _Planner(components, pyramid, start, goal, ctx, options)
     try:
         found, first_made = planner.first(top, segment_moves)
     except SearchLimit as stopped:  # the deadline came before the first plan
@@ -749,9 +733,8 @@ def atp(
         except SearchLimit as stopped:  # the deadline came first: register the first plan
             ctx.tick(stopped.expansions)
         else:
-            yield Result(MultiPath(start, goal, (), (route,), (), components), share)
+            yield Result(MultiPath(start, goal, (route,), components), share)
             return
-    ends = segmentize(start, top), segmentize(goal, top)[::-1]
 
     def begin(
         path: NodePath, made: list[tuple[Segment, float]] | None = None
@@ -763,12 +746,13 @@ def atp(
             runs = _runs(len(path.nodes) - 1, segment_moves)
             made = planner.segments(top, path.nodes, runs, path.array)
         extent = credit = 0.0
+        route = []
         for segment, o in made:
-            extent_, credit_ = _credit(segment, o, pyramid.top)
+            extent_, credit_ = _credit(segment, o, highest)
             extent += extent_
             credit += credit_
-        route = tuple(segment for segment, _ in made)
-        plan = MultiPath(start, goal, ends[0], route, ends[1], components)
+            route.append(segment)
+        plan = MultiPath(start, goal, tuple(route), components)
         return made, plan, _clip(credit / extent)
 
     # How long the last plan registered is followed (`follow`), or that plan itself until a
@@ -804,7 +788,7 @@ def atp(
             except SearchLimit as stopped:  # the deadline came first: keep the last plan
                 ctx.tick(stopped.expansions)
                 return
-            plan = MultiPath(start, goal, (), (route,), (), components)
+            plan = MultiPath(start, goal, (route,), components)
             if trusted or better(plan):
                 yield Result(plan, share)
         return
@@ -841,11 +825,7 @@ def atp(
             Segment._made(lower, cells[first : last + 1], nodes[first : last + 1])
             for first, last in halves
         ]
-        # the start's (goal's) one-cell segments below the first (last) segment's new level
-        head = plan.head[:lower] if index == 0 else plan.head
-        at_end = index == len(segments) - len(halves)
-        tail = plan.tail[len(plan.tail) - lower :] if at_end else plan.tail
-        plan = MultiPath(start, goal, head, tuple(segments), tail, components)
+        plan = MultiPath(start, goal, tuple(segments), components)
         if better(plan):
             yield Result(plan, share * estimate)
 
@@ -860,9 +840,9 @@ class _Steps:
 
     def __init__(self, planner: _Planner, pyramid: Pyramid, top: int) -> None:
         c = planner.components
-        no_ring = planner.no_ring_when_open
-        one_ring = planner.one_ring_when_open
-        clear = planner.no_ring_when_clear
+        no_ring = planner.options.no_ring_when_open
+        one_ring = planner.options.one_ring_when_open
+        clear = planner.options.no_ring_when_clear
         self.top, self.pyramid_top = top, pyramid.top
         self.reads = (
             *_map_reads(c, pyramid),
@@ -871,8 +851,8 @@ class _Steps:
             math.nan if no_ring is None else no_ring,  # NaN: no segment is that open
             math.nan if one_ring is None else one_ring,
             math.nan if clear is None else clear,
-            bool(planner.skip_level_1),
-            bool(planner.jump_points),
+            bool(planner.options.skip_level_1),
+            bool(planner.options.jump_points),
         )
 
     def begin(self, made: list[tuple[Segment, float]]) -> float:
@@ -1005,8 +985,81 @@ def _opened(
     return opened, found.length / found.cost
 
 
+@frozen
+class _Options:
+    """`atp`'s options the planner reads, checked (`_checked_options`)."""
+
+    door_rings: int | None
+    no_ring_when_open: float | None
+    one_ring_when_open: float | None
+    no_ring_when_clear: float | None
+    landmarks: int
+    skip_level_1: bool
+    jump_points: bool
+    direct_ring_level: int | None
+    direct_via: int | None  # None where no level is below the first plan's
+    direct_rings: int
+
+
+@functools.lru_cache(maxsize=64)
+def _checked_options(
+    top: int,
+    segment_moves: int | None,
+    door_rings: int | None,
+    direct: int | None,
+    direct_width: float | None,
+    no_ring_when_open: float | None,
+    one_ring_when_open: float | None,
+    landmarks: int | None,
+    no_ring_when_clear: float | None,
+    skip_level_1: bool,
+    jump_points: bool,
+    direct_ring_level: int | None,
+    direct_via: int | None,
+    direct_rings: int | None,
+    direct_steps: bool,
+) -> _Options:
+    """`atp`'s options checked, and what the planner reads of them; made once per set of
+    options and first-plan level (a planner serving queries on a map plans with one set: its
+    first plans take tens of microseconds, and the checks were a tenth of that)."""
+    if segment_moves is not None and segment_moves < 1:
+        raise ValueError(f"segment_moves must be >= 1 or None, got {segment_moves}")
+    for name, option in (
+        ("door_rings", door_rings),
+        ("direct", direct),
+        ("direct_width", direct_width),
+        ("no_ring_when_open", no_ring_when_open),
+        ("one_ring_when_open", one_ring_when_open),
+        ("landmarks", landmarks),
+        ("no_ring_when_clear", no_ring_when_clear),
+        ("direct_rings", direct_rings),
+    ):
+        if option is not None and option < 0:
+            raise ValueError(f"{name} must be >= 0 or None, got {option}")
+    if direct_ring_level is not None and direct_ring_level < 1:
+        raise ValueError(f"direct_ring_level must be >= 1 or None, got {direct_ring_level}")
+    if direct_via is not None and direct_via < 1:
+        raise ValueError(f"direct_via must be >= 1 or None, got {direct_via}")
+    if direct_steps and direct_width is None:
+        raise ValueError("direct_steps needs direct_width: it steps the route after the first plan")
+    return _Options(
+        door_rings=door_rings,
+        no_ring_when_open=no_ring_when_open,
+        one_ring_when_open=one_ring_when_open,
+        no_ring_when_clear=no_ring_when_clear,
+        landmarks=landmarks or 0,
+        skip_level_1=skip_level_1,
+        jump_points=jump_points,
+        direct_ring_level=direct_ring_level,
+        # no level below a small map's top
+        direct_via=direct_via if direct_via is not None and direct_via < top else None,
+        direct_rings=1 if direct_rings is None else direct_rings,
+    )
+
+
 class _Planner:
-    """PATH-FINDER and REFINE over one map's connectivity-aware abstraction."""
+    """PATH-FINDER and REFINE over one map's connectivity-aware abstraction, with `atp`'s
+    options."""
 
     def __init__(
         self,
@@ -1015,30 +1068,11 @@ class _Planner:
         start: Position,
         goal: Position,
         ctx: Context,
-        *,
-        door_rings: int | None = None,
-        no_ring_when_open: float | None = None,
-        one_ring_when_open: float | None = None,
-        no_ring_when_clear: float | None = None,
-        landmarks: int = 0,
-        skip_level_1: bool = False,
-        jump_points: bool = False,
-        direct_ring_level: int | None = None,
-        direct_via: int | None = None,
-        direct_rings: int | None = None,
+        options: _Options,
     ) -> None:
         self.components, self.pyramid = components, pyramid
-        self.landmarks = landmarks
         self.start, self.goal, self.ctx = start, goal, ctx
-        self.door_rings = door_rings
-        self.no_ring_when_open = no_ring_when_open
-        self.one_ring_when_open = one_ring_when_open
-        self.no_ring_when_clear = no_ring_when_clear
-        self.skip_level_1 = skip_level_1
-        self.jump_points = jump_points
-        self.direct_ring_level = direct_ring_level
-        self.direct_via = direct_via
-        self.direct_rings = 1 if direct_rings is None else direct_rings
+        self.options = options
 
     def first(
         self, level: int, segment_moves: int | None
@@ -1053,7 +1087,12 @@ class _Planner:
         if level > 0:
             obstacleness = self.pyramid.levels[level]
             found, xs, ys, mean = c.read_path(
-                level, start, goal, obstacleness, limit=self.ctx.remaining, landmarks=self.landmarks
+                level,
+                start,
+                goal,
+                obstacleness,
+                limit=self.ctx.remaining,
+                landmarks=self.options.landmarks,
             )
         else:  # the cells: a corridor over all of them
             every = np.arange(len(c.levels[0]))
@@ -1074,7 +1113,7 @@ class _Planner:
         `direct_rings_by_step`'s steps, instead when given), or `direct_via`'s corridor: one
         segment at level 0, searched by jump points with `jump_points`."""
         c = self.components
-        if ring is None and self.direct_via is not None:
+        if ring is None and self.options.direct_via is not None:
             allowed = self._via(level, path)
         else:
             if ring is None:
@@ -1082,7 +1121,7 @@ class _Planner:
             allowed = self._down(path.nodes, level, 0, ring)
         found = c.corridor(
             0, allowed, [c.node(self.start, 0)], [c.node(self.goal, 0)],
-            limit=self.ctx.remaining, jump_points=self.jump_points,
+            limit=self.ctx.remaining, jump_points=self.options.jump_points,
         )  # fmt: skip
         if found is None:
             raise AssertionError("no base route through the children of a path")
@@ -1095,30 +1134,34 @@ class _Planner:
 
     def _ring_level(self, level: int) -> int:
         """The level of the direct route's ring of neighbours around a first plan at `level`."""
-        return level if self.direct_ring_level is None else min(self.direct_ring_level, level)
+        return (
+            level
+            if self.options.direct_ring_level is None
+            else min(self.options.direct_ring_level, level)
+        )
 
     def direct_rings_by_step(self, level: int) -> list[int | None]:
         """`direct`'s steps after a first plan at `level` (`atp(direct_steps=True)`): the ring
         of neighbours at level 1, 2, .. below the direct route's own (`direct_ring_level`;
         with `direct_via`, below the first plan's level, whose ring its corridor holds), then
         that route (None)."""
-        last = level - 1 if self.direct_via is not None else self._ring_level(level) - 1
+        last = level - 1 if self.options.direct_via is not None else self._ring_level(level) - 1
         return [*range(1, last + 1), None]
 
     def _via(self, level: int, path: NodePath) -> npt.NDArray[np.int64]:
         """The base cells of `direct_via`'s corridor: the nodes of the cheapest path at that
         level and `direct_rings` rings of their neighbours, with the first plan's (`path`, at
         `level`) cells and one ring of their neighbours at `level` - 1."""
-        c, via = self.components, self.direct_via
+        c, via = self.components, self.options.direct_via
         assert via is not None
         second = c.path(
             via, c.node(self.start, via), c.node(self.goal, via),
-            limit=self.ctx.remaining, landmarks=self.landmarks,
+            limit=self.ctx.remaining, landmarks=self.options.landmarks,
         )  # fmt: skip
         self.ctx.tick(second.expansions)
         allowed = np.union1d(  # at level via - 1
             self._down(path.nodes, level, via - 1, level - 1),
-            self._down(second.nodes, via, via - 1, via, self.direct_rings),
+            self._down(second.nodes, via, via - 1, via, self.options.direct_rings),
         )
         return self._down(allowed, via - 1, 0)
 
@@ -1153,7 +1196,7 @@ class _Planner:
             self.start,
             self.goal,
             bound=path.nodes,
-            rings=self.door_rings,
+            rings=self.options.door_rings,
             limit=self.ctx.remaining,
         )
         self.ctx.tick(found.expansions)
