@@ -196,11 +196,12 @@ class Pyramid:
         return cell_bounds(self._check_position(position, level), level)
 
     def _check_level(self, level: int) -> None:
-        if not 0 <= level < len(self.levels):  # `top` + 1, without its call (per problem)
+        if not 0 <= level <= self.top:
             raise ValueError(f"level must be in [0, {self.top}], got {level}")
 
     def _check_position(self, position: Position, level: int) -> Position:
-        self._check_level(level)
+        if not 0 <= level < len(self.levels):  # as `_check_level`, without its call when not
+            self._check_level(level)
         x, y = position
         side = self.levels[level].shape[0]
         if not (0 <= x < side and 0 <= y < side):

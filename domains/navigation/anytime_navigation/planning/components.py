@@ -275,7 +275,9 @@ _LEVEL_ROOM: weakref.WeakKeyDictionary[Components, dict[int, list[Any]]] = (
 
 
 def _level_room(components: Components, level: int) -> list[Any]:
-    made = _LEVEL_ROOM.setdefault(components, {})
+    made = _LEVEL_ROOM.get(components)  # not `setdefault`: no dict made per search
+    if made is None:
+        made = _LEVEL_ROOM[components] = {}
     if level not in made:
         n = len(components.levels[level])
         made[level] = [
@@ -360,7 +362,9 @@ class Components:
         level, shape (nodes, count) (a node's distances side by side, as a search reads them;
         inf where unreachable), made once: the landmarks chosen farthest first in the level's
         largest connected region (see the module's doc)."""
-        made = _LANDMARKS.setdefault(self, {})
+        made = _LANDMARKS.get(self)  # not `setdefault`: no dict made per search
+        if made is None:
+            made = _LANDMARKS[self] = {}
         key = (level, count)
         if key not in made:
             made[key] = _landmark_distances(self.levels[level], count)
@@ -465,10 +469,10 @@ class Components:
     def node(self, position: Position, level: int) -> int:
         """The level-`level` node of a base cell (-1 when the cell is blocked)."""
         x, y = position
+        if level == len(self.levels) - 1:  # the planner's first plans: read without the grid
+            return self.grids.top_node(position)
         if self.grids.made(level):
             return int(self.grids[level][y, x])
-        if level == self.top:
-            return self.grids.top_node(position)
         node = int(self.grids[0][y, x])
         return node if node < 0 else self.ancestor(node, 0, level)
 
@@ -481,6 +485,29 @@ class Components:
     def block(self, node: int, level: int) -> Position:
         x, y = self.levels[level].block[node]
         return (int(x), int(y))
+
+    def joined(self, start: Position, goal: Position, level: int) -> tuple[int, int] | None:
+        """The level-`level` nodes of the start's and the goal's base cells when a route joins
+        them, else None: a planner's reads of a problem, at once.
+
+        Raises:
+            ValueError: the start or the goal is outside the map or a blocked cell.
+        """
+        grids, ends = self.grids, []
+        height, width = grids.base.shape
+        for name, position in (("start", start), ("goal", goal)):
+            x, y = position
+            if not (0 <= x < width and 0 <= y < height):
+                raise ValueError(f"{name} {position} is outside the {width}x{height} map")
+            node = grids.top_node(position)
+            if node < 0:
+                raise ValueError(f"{name} {position} is a blocked cell")
+            ends.append(node)
+        if self.top_regions[ends[0]] != self.top_regions[ends[1]]:
+            return None
+        if level == len(self.levels) - 1:  # the top's, read above
+            return ends[0], ends[1]
+        return self.node(start, level), self.node(goal, level)
 
     def connected(self, one: Position, other: Position) -> bool:
         """Whether a route joins two free base cells."""

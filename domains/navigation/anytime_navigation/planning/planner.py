@@ -690,8 +690,9 @@ def atp(
     for it crosses cells blocked on the map given (a plan crossing 10 of 100 cells: 100 / 110).
 
     Raises:
-        ValueError: a blocked start or goal, a top outside the pyramid, segment_moves < 1,
-            direct_ring_level or direct_via < 1, or components of another map or movement.
+        ValueError: a start or goal outside the map or blocked, a top outside the pyramid,
+            segment_moves < 1, direct_ring_level or direct_via < 1, or components of another map
+            or movement.
     """
     highest = pyramid.top
     top = min(DEFAULT_TOP, highest) if top is None else top
@@ -702,9 +703,6 @@ def atp(
         one_ring_when_open, landmarks, no_ring_when_clear, skip_level_1, jump_points,
         direct_ring_level, direct_via, direct_rings, direct_steps,
     )  # fmt: skip
-    for name, position in (("start", start), ("goal", goal)):
-        if pyramid.obstacleness(position, 0) >= 1.0:
-            raise ValueError(f"{name} {position} is a blocked cell")
     if components is None:
         components = Components.build(pyramid.levels[0] >= 1.0, movement, top=top)
     elif components.movement != movement or components.top < top:
@@ -718,12 +716,15 @@ def atp(
             f" {pyramid.levels[0].shape}"
         )
     share = 1.0  # the quality's share a plan across opened walls keeps (`_opened`)
-    if not components.connected(start, goal):
+    ends = components.joined(start, goal, top)  # (the map is the pyramid's: free cells alike)
+    if ends is None:
         opened, share = _opened(pyramid.levels[0] >= 1.0, start, goal, movement)
         components = Components.build(opened, movement, top=top)
+        ends = components.joined(start, goal, top)
+        assert ends is not None, "the walls between start and goal were opened"
     planner = _Planner(components, pyramid, start, goal, ctx, options)
     try:
-        found, first_made = planner.first(top, segment_moves)
+        found, first_made = planner.first(top, segment_moves, ends)
     except SearchLimit as stopped:  # the deadline came before the first plan
         ctx.tick(stopped.expansions)
         return
@@ -1075,15 +1076,16 @@ class _Planner:
         self.options = options
 
     def first(
-        self, level: int, segment_moves: int | None
+        self, level: int, segment_moves: int | None, ends: tuple[int, int]
     ) -> tuple[NodePath, list[tuple[Segment, float]]]:
-        """The first plan: a path of nodes at `level` from the start's node to the goal's, the
-        cheapest from centre to centre, and its segments, runs of at most `segment_moves` moves,
-        with their mean obstacleness (`segments`). One run above level 0 is searched and read
-        in one compiled call (`Components.read_path`): a first plan costs tens of microseconds
-        on maps of 200 x 200, where the compiled A* takes 2-3 ms."""
+        """The first plan: a path of nodes at `level` from the start's node to the goal's
+        (`ends`, `Components.joined`), the cheapest from centre to centre, and its segments,
+        runs of at most `segment_moves` moves, with their mean obstacleness (`segments`). One
+        run above level 0 is searched and read in one compiled call (`Components.read_path`):
+        a first plan costs tens of microseconds on maps of 200 x 200, where the compiled A*
+        takes 2-3 ms."""
         c = self.components
-        start, goal = c.node(self.start, level), c.node(self.goal, level)
+        start, goal = ends
         if level > 0:
             obstacleness = self.pyramid.levels[level]
             found, xs, ys, mean = c.read_path(
