@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -151,6 +152,11 @@ def test_the_grids_between_made_when_read_are_the_same_and_so_is_a_pickle(
             assert c.connected(one, other) == (
                 c.regions[one[1], one[0]] == c.regions[other[1], other[0]]
             )
+            for k in range(top + 1):  # a problem's reads at once: its nodes when joined
+                joined = c.joined(one, other, k)
+                assert joined == (
+                    (nodes[one, k], nodes[other, k]) if c.connected(one, other) else None
+                )
     assert pickle.dumps(c) == before
     copy = pickle.loads(before)
     assert all(np.array_equal(a, b) for a, b in zip(copy.grids, c.grids, strict=True))
@@ -163,6 +169,26 @@ def test_a_block_split_by_a_wall_is_two_nodes() -> None:
     c = Components.build(blocked, 4)
     assert len(c.levels[3]) == 2  # the whole map: left of the wall, right of it
     assert not c.connected((0, 0), (7, 7))
+    assert c.joined((0, 0), (7, 7), 3) is None
+
+
+@pytest.mark.parametrize(
+    ("start", "goal", "message"),
+    [
+        ((8, 0), (0, 0), "start (8, 0) is outside the 8x8 map"),
+        ((0, 0), (0, -1), "goal (0, -1) is outside the 8x8 map"),
+        ((3, 2), (0, 0), "start (3, 2) is a blocked cell"),
+        ((0, 0), (3, 7), "goal (3, 7) is a blocked cell"),
+    ],
+)
+def test_a_problem_off_the_map_or_on_a_wall_is_refused(
+    start: tuple[int, int], goal: tuple[int, int], message: str
+) -> None:
+    blocked = np.zeros((8, 8), dtype=bool)
+    blocked[:, 3] = True
+    c = Components.build(blocked, 4)
+    with pytest.raises(ValueError, match=f"^{re.escape(message)}$"):
+        c.joined(start, goal, 2)
     left = c.node((0, 0), 3)
     assert c.region(left, 3)[:, :3].all() and not c.region(left, 3)[:, 3:].any()
 

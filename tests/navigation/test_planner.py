@@ -207,8 +207,10 @@ def test_rejects_a_blocked_start_and_a_bad_top() -> None:
     blocked = np.zeros((8, 8), dtype=bool)
     blocked[0, 0] = True
     pyramid = Pyramid.build(blocked)
-    with pytest.raises(ValueError, match=r"start \(0, 0\) is a blocked cell"):
+    with pytest.raises(ValueError, match=r"^start \(0, 0\) is a blocked cell$"):
         next(atp(Context(), (0, 0), (7, 7), pyramid))
+    with pytest.raises(ValueError, match=r"^goal \(7, 8\) is outside the 8x8 map$"):
+        next(atp(Context(), (1, 0), (7, 8), pyramid))
     with pytest.raises(ValueError, match=r"top must be in \[0, 3\], got 5"):
         next(atp(Context(), (1, 0), (7, 7), pyramid, top=5))
 
@@ -492,8 +494,9 @@ def test_bad_options_are_named() -> None:
     world = random_world(64, seed=1)
     pyramid = Pyramid.build(world.blocked)
     for name in ("door_rings", "direct", "direct_width"):
-        with pytest.raises(ValueError, match=f"{name} must be >= 0 or None, got -1"):
-            next(atp(Context(), world.start, world.goal, pyramid, **{name: -1}))
+        for _ in range(2):  # checked once per set of options, refused every time
+            with pytest.raises(ValueError, match=f"{name} must be >= 0 or None, got -1"):
+                next(atp(Context(), world.start, world.goal, pyramid, **{name: -1}))
 
 
 @pytest.mark.parametrize("movement", [4, 8])
