@@ -611,7 +611,10 @@ def atp(
             cheap, fewer nodes expanded (None, the default: the distance as the robot moves
             alone). Issue 36: on MovingAI's mazes that search was most of the first plan's
             time, over most of level 4's nodes; 8 landmarks expand 6% as many of them, and a
-            quarter on the other maps.
+            quarter on the other maps. The bound is exact along many routes, so many nodes tie
+            (within rounding) with the cheapest cost: the deeper of two goes first, and the
+            plan found costs the cheapest within a relative 1e-9 (on MovingAI's caves of
+            200 x 200, a third fewer nodes settled).
         no_ring_when_clear: a level-2 segment at least this share of whose nodes are clear
             blocks (4 x 4 cells, none blocked) is refined through its own nodes' children
             only, without rings (None, the default: never). Where most of a segment's blocks are
