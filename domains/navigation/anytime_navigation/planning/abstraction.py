@@ -200,8 +200,7 @@ class Pyramid:
             raise ValueError(f"level must be in [0, {self.top}], got {level}")
 
     def _check_position(self, position: Position, level: int) -> Position:
-        if not 0 <= level < len(self.levels):  # as `_check_level`, without its call when not
-            self._check_level(level)
+        self._check_level(level)
         x, y = position
         side = self.levels[level].shape[0]
         if not (0 <= x < side and 0 <= y < side):

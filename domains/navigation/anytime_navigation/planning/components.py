@@ -469,10 +469,10 @@ class Components:
     def node(self, position: Position, level: int) -> int:
         """The level-`level` node of a base cell (-1 when the cell is blocked)."""
         x, y = position
-        if level == len(self.levels) - 1:  # the planner's first plans: read without the grid
-            return self.grids.top_node(position)
         if self.grids.made(level):
             return int(self.grids[level][y, x])
+        if level == self.top:
+            return self.grids.top_node(position)
         node = int(self.grids[0][y, x])
         return node if node < 0 else self.ancestor(node, 0, level)
 
