@@ -266,29 +266,12 @@ def _stack(
 # Each abstraction's `Stacked`, made when a plan is first refined: kept apart from its fields, so
 # that a plan's pickle, which holds its abstraction, is the same before and after.
 _STACKED: weakref.WeakKeyDictionary[Components, Stacked] = weakref.WeakKeyDictionary()
-# Each level's room for `Components.path`'s searches over the whole level, made when first
-# searched: distance, estimate, previous (one entry per node), their stamps (one row per node
-# and one for the search's number) and the heap's keys and items.
-_LEVEL_ROOM: weakref.WeakKeyDictionary[Components, dict[int, list[Any]]] = (
+# Each level's arguments of `Components.path`'s searches over the whole level (its table,
+# edges, heap's room and blocks: `corridor_search.level_search`) by the landmarks' count, made
+# when first searched.
+_LEVEL_SEARCHES: weakref.WeakKeyDictionary[Components, dict[tuple[int, int], tuple[Any, ...]]] = (
     weakref.WeakKeyDictionary()
 )
-
-
-def _level_room(components: Components, level: int) -> list[Any]:
-    made = _LEVEL_ROOM.get(components)  # not `setdefault`: no dict made per search
-    if made is None:
-        made = _LEVEL_ROOM[components] = {}
-    if level not in made:
-        n = len(components.levels[level])
-        made[level] = [
-            np.empty(n),
-            np.empty(n),
-            np.empty(n, dtype=np.int64),
-            np.zeros((n + 1, 2), dtype=np.int64),
-            np.empty(1024),
-            np.empty(1024, dtype=np.int64),
-        ]
-    return made[level]
 
 
 # Each abstraction's doors by level, made when a route is first searched through them (as above):
@@ -590,31 +573,39 @@ class Components:
         """`path` at `level` > 0, and what a plan reads of it in the same compiled call
         (`corridor_search.level_search`, the first plan's): its nodes' blocks (x and y) and the
         mean of `values` (one per block of the level, indexed [y, x]) over them (none and NaN
-        with `values` empty). Its room is kept per level (`_level_room`, grown when it ran out).
+        with `values` empty). Its table and room are kept per level (`_level_search`).
 
         Raises:
             SearchLimit: as `path`.
         """
-        at, room = self.levels[level], _level_room(self, level)
-        path, best, expansions, keys, items, xs, ys, mean = compiled().level_search(
-            at.first,
-            at.neighbour,
-            at.cost,
-            at.centre,
-            self.movement,
-            source,
-            target,
-            self.landmarks(level, landmarks) if landmarks else np.zeros((0, 0)),
-            *room,
-            at.block,
-            values,
-        )
-        room[-2:] = keys, items
+        made = _LEVEL_SEARCHES.get(self)  # not `setdefault`: no dict made per search
+        if made is None:
+            made = _LEVEL_SEARCHES[self] = {}
+        fixed = made.get((level, landmarks))
+        if fixed is None:
+            fixed = made[level, landmarks] = self._level_search(level, landmarks)
+        table, first, neighbour, cost, heap_keys, heap_items, block = fixed
+        path, best, expansions, xs, ys, mean = compiled().level_search(
+            table, first, neighbour, cost, self.movement, source, target, landmarks,
+            heap_keys, heap_items, block, values,
+        )  # fmt: skip
         if expansions > limit:
             raise SearchLimit(int(limit))
         if not len(path):
             raise AssertionError(f"no path at level {level} between nodes {source} and {target}")
         return NodePath(level, tuple(path.tolist()), best, expansions, path), xs, ys, mean
+
+    def _level_search(self, level: int, landmarks: int) -> tuple[Any, ...]:
+        """`level_search`'s arguments for `level` with `landmarks` landmarks that no search
+        changes but its table and heap: the table (`level_table`), the level's edges, the
+        heap's room (one more than the edges) and the nodes' blocks."""
+        at = self.levels[level]
+        distances = self.landmarks(level, landmarks) if landmarks else np.zeros((len(at), 0))
+        room = len(at.neighbour) + 1
+        return (
+            compiled().level_table(at.centre, distances), at.first, at.neighbour, at.cost,
+            np.empty(room), np.empty(room, dtype=np.int64), at.block,
+        )  # fmt: skip
 
     def widened(self, level: int, nodes: Sequence[int] | IntArray, rings: int) -> IntArray:
         """The children (at `level` - 1) of `nodes` (at `level`) and of every node up to

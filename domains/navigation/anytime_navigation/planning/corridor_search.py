@@ -518,107 +518,150 @@ def path_reads(
     return xs, ys, means
 
 
+#: The columns of `level_search`'s table, one row per node of a level (and a last one for the
+#: search's number): what a search reaches a node by, side by side, so that a node reached costs
+#: one cache line, or two adjacent ones with landmarks, not one per array (cold, as a first plan
+#: runs after another problem's whole run, the reads were most of the search's time).
+ROW_REACHED, ROW_SETTLED, ROW_DISTANCE, ROW_ESTIMATE, ROW_PREVIOUS, ROW_X, ROW_Y = range(7)
+ROW_LANDMARKS = 8  # the node's distances from the landmarks, from this column on
+
+
 @_compiled
 def level_search(
+    table: FloatArray,
     first: IntArray,
     neighbour: IntArray,
     cost: FloatArray,
-    centre: FloatArray,
     movement: int,
     source: int,
     target: int,
-    landmarks: FloatArray,
-    distance: FloatArray,
-    estimate: FloatArray,
-    previous: IntArray,
-    stamp: IntArray,
+    landmarks: int,
     heap_keys: FloatArray,
     heap_items: IntArray,
     block: IntArray,
     values: FloatArray,
-) -> tuple[IntArray, float, int, FloatArray, IntArray, IntArray, IntArray, float]:
+) -> tuple[IntArray, float, int, IntArray, IntArray, float]:
     """`search` over every node of a level above level 0 from one node to another (the first
     plan), and with `values` not empty what the plan's segment reads of its path in the same
     call (`path_reads` of it as one run: one compiled call in every first plan's time, not
     two): the same path, cost and expansions (the same pushes in the same order: its local
     numbers are the level's own when every node is allowed), at the cost of the nodes it
-    reaches rather than of the level's. `distance`, `estimate` and `previous` (one entry per
-    node) hold a node's only while `stamp[node, 0]` is the search's number, `stamp[-1, 0]`,
-    which it advances, and the node is settled while `stamp[node, 1]` is: nothing the size of
-    the level is made or cleared per search. `heap_keys`, `heap_items` are the heap's room.
+    reaches rather than of the level's.
 
-    Returns (the path's nodes, source first; empty when the target is not reached), its cost
-    (inf when none), the expansions, the heap's room (grown when it ran out), and the path's
-    nodes' blocks (x, y; `block` the level's) and the mean of `values` (the level's, indexed
-    [y, x]) over them (empty and NaN without `values` or a path)."""
-    stamp[-1, 0] += 1
-    now = stamp[-1, 0]
-    target_x, target_y = centre[target, 0], centre[target, 1]
-    to_target = landmarks[target] if landmarks.shape[1] else np.zeros(0)
+    `table` holds a row per node (`ROW_*`): its centre and its distances from `landmarks`
+    landmarks (from `ROW_LANDMARKS` on) are the level's; its distance, estimate and previous
+    node are the search's while its `ROW_REACHED` is the search's number (`table[-1, 0]`,
+    which it advances), and it is settled while its `ROW_SETTLED` is: nothing the size of the
+    level is made or cleared per search. `heap_keys`, `heap_items` are the heap's room, one
+    more than the level's edges: each edge pushes at most once (when the node it leaves is
+    settled), so it never runs out.
+
+    Returns the path's nodes (source first; empty when the target is not reached), its cost
+    (inf when none), the expansions, and the path's nodes' blocks (x, y; `block` the level's)
+    and the mean of `values` (the level's, indexed [y, x]) over them (empty and NaN without
+    `values` or a path)."""
+    last = len(table) - 1
+    table[last, 0] += 1.0
+    now = table[last, 0]
+    to = table[target]
     # With landmarks, the heuristic is exact along many routes, so many nodes tie (within
     # rounding) with the cheapest path's cost: keyed g * (1 - lean) + h, the deeper of two such
     # nodes comes first, and fewer are settled (MovingAI's caves of 200 x 200, the 16 longest
     # problems, blocks of 8 x 8: 86-90 -> 56-63); the path costs at most 1 / (1 - lean) times
     # the cheapest. Without, the key is g + h.
-    lean = 1e-9 if landmarks.shape[1] else 0.0
+    lean = 1e-9 if landmarks else 0.0
     keys, items = heap_keys, heap_items
     closed = np.empty(64, dtype=np.int64)  # the settled nodes, in order
     settled = 0
-    stamp[source, 0] = now
-    distance[source], previous[source] = 0.0, -1
-    estimate[source] = _one_target_bound(
-        centre[source, 0], centre[source, 1], target_x, target_y, movement, source,
-        to_target, landmarks,
-    )  # fmt: skip
-    size = _push(keys, items, 0, estimate[source], source)
+    row = table[source]
+    row[ROW_REACHED], row[ROW_DISTANCE], row[ROW_PREVIOUS] = now, 0.0, -1.0
+    row[ROW_ESTIMATE] = _row_bound(row, to, movement, landmarks)
+    size = _push(keys, items, 0, row[ROW_ESTIMATE], source)
     best, end = np.inf, -1
     while size > 0:
         f, u = keys[0], items[0]
         size = _pop(keys, items, size)
-        if stamp[u, 1] == now or f > distance[u] * (1.0 - lean) + estimate[u]:
+        row = table[u]
+        d = row[ROW_DISTANCE]
+        if row[ROW_SETTLED] == now or f > d * (1.0 - lean) + row[ROW_ESTIMATE]:
             continue
-        if distance[u] + estimate[u] >= best:  # no way through a node left is cheaper
+        if d + row[ROW_ESTIMATE] >= best:  # no way through a node left is cheaper
             break
-        stamp[u, 1] = now
+        row[ROW_SETTLED] = now
         if settled == len(closed):
             closed = np.concatenate((closed, np.empty(len(closed), dtype=np.int64)))
         closed[settled] = u
         settled += 1
-        d = distance[u]
         if u == target and d < best:
             best, end = d, u
         for e in range(first[u], first[u + 1]):
             v = neighbour[e]
-            if stamp[v, 0] != now:  # first reached: its heuristic made now
-                stamp[v, 0] = now
-                distance[v], previous[v] = np.inf, -1
-                estimate[v] = _one_target_bound(
-                    centre[v, 0], centre[v, 1], target_x, target_y, movement, v, to_target,
-                    landmarks,
-                )  # fmt: skip
+            reached = table[v]
+            if reached[ROW_REACHED] != now:  # first reached: its heuristic made now
+                reached[ROW_REACHED] = now
+                reached[ROW_DISTANCE], reached[ROW_PREVIOUS] = np.inf, -1.0
+                reached[ROW_ESTIMATE] = _row_bound(reached, to, movement, landmarks)
             g = d + cost[e]
-            if g < distance[v]:
-                distance[v], previous[v] = g, u
+            if g < reached[ROW_DISTANCE]:
+                reached[ROW_DISTANCE], reached[ROW_PREVIOUS] = g, u
                 if size == len(keys):
-                    keys, items = _grown(keys, items)
-                size = _push(keys, items, size, g * (1.0 - lean) + estimate[v], v)
+                    raise AssertionError("the heap's room is one more than the level's edges")
+                size = _push(keys, items, size, g * (1.0 - lean) + reached[ROW_ESTIMATE], v)
     tolerance = 1e-9 * max(1.0, best) if best < np.inf else 0.0
     expansions = 0
     for i in range(settled):
-        u = closed[i]
-        expansions += distance[u] + estimate[u] < best - tolerance
-    # the path's nodes but the last count as expanded (A* pops them too) where the count above
-    # left them out
-    path = _path_back(previous, end)
+        row = table[closed[i]]
+        expansions += row[ROW_DISTANCE] + row[ROW_ESTIMATE] < best - tolerance
+    # the path back from the target; its nodes but the last count as expanded (A* pops them
+    # too) where the count above left them out
+    count, u = 0, end
+    while u >= 0:
+        count += 1
+        u = int(table[u, ROW_PREVIOUS])
+    path = np.empty(count, dtype=np.int64)
+    u = end
+    for i in range(count - 1, -1, -1):
+        path[i] = u
+        u = int(table[u, ROW_PREVIOUS])
     for u in path[:-1]:
-        expansions += not distance[u] + estimate[u] < best - tolerance
+        row = table[u]
+        expansions += not row[ROW_DISTANCE] + row[ROW_ESTIMATE] < best - tolerance
     if not len(path) or not len(values):
         nothing = np.zeros(0, dtype=np.int64)
-        return path, best, expansions, keys, items, nothing, nothing, np.nan
+        return path, best, expansions, nothing, nothing, np.nan
     bounds = np.zeros(2, dtype=np.int64)
     bounds[1] = len(path) - 1
     xs, ys, means = path_reads(block, values, path, bounds)
-    return path, best, expansions, keys, items, xs, ys, means[0]
+    return path, best, expansions, xs, ys, means[0]
+
+
+@_compiled
+def _row_bound(row: FloatArray, to: FloatArray, movement: int, landmarks: int) -> float:
+    """`_landmark_bound` of `_nearest`'s distance between the centres of two rows of
+    `level_search`'s table (a node's and the target's), without a branch per landmark: a
+    landmark another region holds is inf from both, and inf - inf, NaN, raises no bound; one
+    the node's region holds and the target's does not (never in a search between connected
+    nodes) gives inf, the true distance."""
+    bound = _move_distance(abs(row[ROW_X] - to[ROW_X]), abs(row[ROW_Y] - to[ROW_Y]), movement)
+    for k in range(ROW_LANDMARKS, ROW_LANDMARKS + landmarks):
+        d = abs(to[k] - row[k])
+        bound = d if d > bound else bound
+    return bound
+
+
+def level_table(centre: FloatArray, landmarks: FloatArray) -> FloatArray:
+    """`level_search`'s table for a level whose nodes' centres are `centre` and distances from
+    the landmarks `landmarks` (shape (nodes, count)): each row a whole number of cache lines
+    (8 floats), aligned on them, no node reached."""
+    nodes, count = landmarks.shape
+    width = ROW_LANDMARKS * (1 + -(-count // ROW_LANDMARKS))
+    line = 64 if width == ROW_LANDMARKS else 128  # a row's own line, or its two adjacent ones
+    room = np.zeros((nodes + 1) * width + line // 8)
+    skip = (-room.ctypes.data % line) // 8
+    table = room[skip : skip + (nodes + 1) * width].reshape(nodes + 1, width)
+    table[:nodes, ROW_X : ROW_Y + 1] = centre
+    table[:nodes, ROW_LANDMARKS : ROW_LANDMARKS + count] = landmarks
+    return table
 
 
 @_compiled
@@ -669,29 +712,6 @@ def _landmark_bound(
                 bound = max(bound, abs(a - b))
         nearest = min(nearest, bound)
     return max(estimate, nearest)
-
-
-@_compiled
-def _one_target_bound(
-    x: float,
-    y: float,
-    target_x: float,
-    target_y: float,
-    movement: int,
-    node: int,
-    to_target: FloatArray,
-    landmarks: FloatArray,
-) -> float:
-    """`_landmark_bound` of `_nearest`'s distance from a node's centre (x, y) to one target's
-    (`to_target`: its distances from the landmarks; empty without), without a branch per
-    landmark: a landmark another region holds is inf from both, and inf - inf, NaN, raises no
-    bound; one the node's region holds and the target's does not (never in a search between
-    connected nodes) gives inf, the true distance."""
-    bound = _move_distance(abs(x - target_x), abs(y - target_y), movement)
-    for k in range(len(to_target)):
-        d = abs(to_target[k] - landmarks[node, k])
-        bound = d if d > bound else bound
-    return bound
 
 
 @_compiled
