@@ -370,6 +370,28 @@ def test_a_path_over_a_level_is_the_corridor_over_every_node(
     assert all(np.array_equal(a, b) for a, b in zip(rows, after, strict=True))
 
 
+@pytest.mark.parametrize(
+    ("count", "width", "line"), [(0, 8, 64), (2, 16, 128), (8, 16, 128), (9, 24, 128)]
+)
+def test_a_level_search_table_holds_each_node_in_whole_aligned_cache_lines(
+    count: int, width: int, line: int
+) -> None:
+    """`corridor_search.level_table`: a row per node and one for the search's number, each
+    row whole cache lines of 8 floats aligned on them (two adjacent ones with landmarks), the
+    node's centre and landmark distances in their columns, nothing reached."""
+    from anytime_navigation.planning import corridor_search as cs
+
+    rng = np.random.default_rng(count)
+    centre, distances = rng.random((5, 2)), rng.random((5, count))
+    table = cs.level_table(centre, distances)
+    assert table.shape == (6, width)
+    assert table.ctypes.data % line == 0 and table.strides == (8 * width, 8)
+    assert np.array_equal(table[:5, cs.ROW_X : cs.ROW_Y + 1], centre)
+    assert np.array_equal(table[:5, cs.ROW_LANDMARKS : cs.ROW_LANDMARKS + count], distances)
+    searched = [cs.ROW_REACHED, cs.ROW_SETTLED, cs.ROW_DISTANCE, cs.ROW_ESTIMATE, cs.ROW_PREVIOUS]
+    assert not table[:, searched].any() and not table[5].any()
+
+
 @settings(max_examples=40, deadline=None)
 @given(maps, st.sampled_from([4, 8]), st.sampled_from([1, 2, 3]), st.integers(0, 3), st.data())
 def test_a_widened_corridor_is_the_children_of_the_nodes_a_few_edges_from_the_route(
