@@ -573,18 +573,14 @@ class Components:
         """`path` at `level` > 0, and what a plan reads of it in the same compiled call
         (`corridor_search.level_search`, the first plan's): its nodes' blocks (x and y) and the
         mean of `values` (one per block of the level, indexed [y, x]) over them (none and NaN
-        with `values` empty). Its table and room are kept per level (`_level_search`).
+        with `values` empty). Its table and room are kept per level (`search_room`).
 
         Raises:
             SearchLimit: as `path`.
         """
-        made = _LEVEL_SEARCHES.get(self)  # not `setdefault`: no dict made per search
-        if made is None:
-            made = _LEVEL_SEARCHES[self] = {}
-        fixed = made.get((level, landmarks))
-        if fixed is None:
-            fixed = made[level, landmarks] = self._level_search(level, landmarks)
-        table, first, neighbour, cost, heap_keys, heap_items, block = fixed
+        table, first, neighbour, cost, heap_keys, heap_items, block = self.search_room(
+            level, landmarks
+        )
         path, best, expansions, xs, ys, mean = compiled().level_search(
             table, first, neighbour, cost, self.movement, source, target, landmarks,
             heap_keys, heap_items, block, values,
@@ -595,17 +591,24 @@ class Components:
             raise AssertionError(f"no path at level {level} between nodes {source} and {target}")
         return NodePath(level, tuple(path.tolist()), best, expansions, path), xs, ys, mean
 
-    def _level_search(self, level: int, landmarks: int) -> tuple[Any, ...]:
-        """`level_search`'s arguments for `level` with `landmarks` landmarks that no search
-        changes but its table and heap: the table (`level_table`), the level's edges, the
-        heap's room (one more than the edges) and the nodes' blocks."""
-        at = self.levels[level]
-        distances = self.landmarks(level, landmarks) if landmarks else np.zeros((len(at), 0))
-        room = len(at.neighbour) + 1
-        return (
-            compiled().level_table(at.centre, distances), at.first, at.neighbour, at.cost,
-            np.empty(room), np.empty(room, dtype=np.int64), at.block,
-        )  # fmt: skip
+    def search_room(self, level: int, landmarks: int = 0) -> tuple[Any, ...]:
+        """What `path`'s searches over `level` (> 0) with `landmarks` landmarks read besides
+        the problem, made when first asked for and kept: the table (`corridor_search.
+        level_table`, each node's row), the level's edges, the heap's room (one more than the
+        edges) and the nodes' blocks."""
+        made = _LEVEL_SEARCHES.get(self)  # not `setdefault`: no dict made per search
+        if made is None:
+            made = _LEVEL_SEARCHES[self] = {}
+        room = made.get((level, landmarks))
+        if room is None:
+            at = self.levels[level]
+            distances = self.landmarks(level, landmarks) if landmarks else np.zeros((len(at), 0))
+            edges = len(at.neighbour) + 1
+            room = made[level, landmarks] = (
+                compiled().level_table(at.centre, distances), at.first, at.neighbour, at.cost,
+                np.empty(edges), np.empty(edges, dtype=np.int64), at.block,
+            )  # fmt: skip
+        return room
 
     def widened(self, level: int, nodes: Sequence[int] | IntArray, rings: int) -> IntArray:
         """The children (at `level` - 1) of `nodes` (at `level`) and of every node up to

@@ -166,16 +166,19 @@ SCATTERED_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
 
 def made_ahead(components: Components, level: int, options: Mapping[str, Any]) -> None:
     """Make now what `atp(**options)` with its first plan at `level` makes of `components` when
-    first needed and keeps: the level's doors when it searches them (`doors`, on by default)
-    and its `landmarks` (and `direct_via`'s level's). Call it with the abstraction's build,
-    once per map, so that no problem's time holds them."""
-    if level > 0 and options.get("doors", True):
+    first needed and keeps: the level's doors when it searches them (`doors`, on by default),
+    the room of its search over the level with its `landmarks` (`Components.search_room`), and
+    `direct_via`'s level's. Call it with the abstraction's build, once per map, so that no
+    problem's time holds them."""
+    if level <= 0:
+        return
+    if options.get("doors", True):
         components.doors(level)
-    if level > 0 and options.get("landmarks"):
-        components.landmarks(level, options["landmarks"])
-        via = options.get("direct_via")
-        if via is not None and 1 <= via < level:
-            components.landmarks(via, options["landmarks"])
+    landmarks = options.get("landmarks") or 0
+    components.search_room(level, landmarks)
+    via = options.get("direct_via")
+    if via is not None and 1 <= via < level:
+        components.search_room(via, landmarks)
 
 
 @frozen
