@@ -268,7 +268,7 @@ def _stack(
 _STACKED: weakref.WeakKeyDictionary[Components, Stacked] = weakref.WeakKeyDictionary()
 # Each level's arguments of `Components.path`'s searches over the whole level (its table,
 # edges, heap's room and blocks: `corridor_search.level_search`) by the landmarks' count, made
-# when first searched.
+# when first searched or with the build (`Components.search_room`, `planner.made_ahead`).
 _LEVEL_SEARCHES: weakref.WeakKeyDictionary[Components, dict[tuple[int, int], tuple[Any, ...]]] = (
     weakref.WeakKeyDictionary()
 )

@@ -612,17 +612,9 @@ def level_search(
     for i in range(settled):
         row = table[closed[i]]
         expansions += row[ROW_DISTANCE] + row[ROW_ESTIMATE] < best - tolerance
-    # the path back from the target; its nodes but the last count as expanded (A* pops them
-    # too) where the count above left them out
-    count, u = 0, end
-    while u >= 0:
-        count += 1
-        u = int(table[u, ROW_PREVIOUS])
-    path = np.empty(count, dtype=np.int64)
-    u = end
-    for i in range(count - 1, -1, -1):
-        path[i] = u
-        u = int(table[u, ROW_PREVIOUS])
+    # the path's nodes but the last count as expanded (A* pops them too) where the count above
+    # left them out
+    path = _path_back(table[:, ROW_PREVIOUS], end)
     for u in path[:-1]:
         row = table[u]
         expansions += not row[ROW_DISTANCE] + row[ROW_ESTIMATE] < best - tolerance
@@ -676,19 +668,19 @@ def _traced(previous: IntArray, end: int, expanded: NDArray[np.bool_]) -> IntArr
 
 
 @_compiled
-def _path_back(previous: IntArray, end: int) -> IntArray:
-    """The path back from `end` by `previous` (-1 before its first), first to last (empty when
-    `end` is -1)."""
+def _path_back(previous: IntArray | FloatArray, end: int) -> IntArray:
+    """The path back from `end` by `previous` (-1 before its first; whole numbers, integers or
+    floats: `level_search`'s table column), first to last (empty when `end` is -1)."""
     count = 0
     u = end
     while u >= 0:
         count += 1
-        u = previous[u]
+        u = int(previous[u])
     path = np.empty(count, dtype=np.int64)
     u = end
     for i in range(count - 1, -1, -1):
         path[i] = u
-        u = previous[u]
+        u = int(previous[u])
     return path
 
 
