@@ -105,6 +105,7 @@ from anytime_navigation.planning.planner import (
     DEFAULT_TOP,
     LARGE_MAP_OPTIONS,
     SCATTERED_MAP_OPTIONS,
+    SMALL_MAP_OPTIONS,
     SPARSE_MAP_OPTIONS,
     WALLED_MAP_OPTIONS,
     MultiPath,
@@ -1002,6 +1003,7 @@ def shown(name: str, options: dict[str, Any], blocked: BoolGrid) -> str:
         (SPARSE_MAP_OPTIONS, "sparse"),
         (WALLED_MAP_OPTIONS, "walled"),
         (LARGE_MAP_OPTIONS, "large"),
+        (SMALL_MAP_OPTIONS, "small"),
     )
     which = next(kind for named, kind in kinds if named is chosen)
     return f"{name}: {which}-map options"

@@ -18,6 +18,7 @@ from anytime_navigation.planning.following import Follower
 from anytime_navigation.planning.planner import (
     LARGE_MAP_OPTIONS,
     SCATTERED_MAP_OPTIONS,
+    SMALL_MAP_OPTIONS,
     SPARSE_MAP_OPTIONS,
     WALLED_MAP_OPTIONS,
     atp,
@@ -95,12 +96,13 @@ def test_atp_quality_is_optimal_over_executed_length(cli: Cli) -> None:
 @pytest.mark.parametrize("name", sorted(ATP_OPTIONS))
 def test_atp_options_are_atps_keyword_arguments(cli: Cli, name: str) -> None:
     """`--atp-options` plans with `LARGE_MAP_OPTIONS`, `SCATTERED_MAP_OPTIONS`,
-    `SPARSE_MAP_OPTIONS`, `WALLED_MAP_OPTIONS` or `atp`'s own
+    `SMALL_MAP_OPTIONS`, `SPARSE_MAP_OPTIONS`, `WALLED_MAP_OPTIONS` or `atp`'s own
     defaults (the navigation task's): the same plans and ticks as `atp` called with them. By
     default they are chosen by the map: random512-10-0's obstacles are scattered and sparse."""
     assert ATP_OPTIONS == {
         "large-maps": LARGE_MAP_OPTIONS,
         "scattered-maps": SCATTERED_MAP_OPTIONS,
+        "small-maps": SMALL_MAP_OPTIONS,
         "sparse-maps": SPARSE_MAP_OPTIONS,
         "walled-maps": WALLED_MAP_OPTIONS,
         "task": {},
@@ -137,13 +139,13 @@ def test_options_chosen_by_the_map(cli: Cli, tmp_path: Path) -> None:
     scattered-map ones: the same plans and ticks as `--atp-options scattered-maps`; the table
     says they were chosen by the map."""
     rng = np.random.default_rng(4)  # a seed whose corners are connected
-    rows = np.where(rng.random((64, 64)) < 0.3, "@", ".")
-    rows[0, 0] = rows[63, 63] = "."
+    rows = np.where(rng.random((128, 128)) < 0.3, "@", ".")  # 11,426 free cells: not small
+    rows[0, 0] = rows[127, 127] = "."
     path = tmp_path / "scattered.map"
     path.write_text(
-        "type octile\nheight 64\nwidth 64\nmap\n" + "".join("".join(row) + "\n" for row in rows)
+        "type octile\nheight 128\nwidth 128\nmap\n" + "".join("".join(row) + "\n" for row in rows)
     )
-    argv = ("--planner", "atp", "--start", "0,0", "--goal", "63,63")
+    argv = ("--planner", "atp", "--start", "0,0", "--goal", "127,127")
     by_map = _json(cli, *argv, map=str(path))
     named = _json(cli, *argv, "--atp-options", "scattered-maps", map=str(path))
     assert by_map["summary"]["atp_options"] == "scattered-maps"
@@ -156,21 +158,27 @@ def test_options_chosen_by_the_map(cli: Cli, tmp_path: Path) -> None:
 
 def test_a_map_smaller_than_the_options_levels(cli: Cli, tmp_path: Path) -> None:
     """A 4 x 4 map of scattered, dense obstacles: its pyramid's top is level 2, the
-    scattered-map options' second plan's level, so it is planned without one."""
+    scattered-map options' second plan's level, so it is planned without one. By default it is
+    small: one search of its cells."""
     path = tmp_path / "tiny.map"
     path.write_text("type octile\nheight 4\nwidth 4\nmap\n.@..\n..@.\n@...\n..@.\n")
-    result = _json(cli, "--planner", "atp", "--start", "0,0", "--goal", "3,3", map=str(path))
-    assert result["summary"]["atp_options"] == "scattered-maps"
-    assert result["problems"][0]["final_quality"] == 1.0
+    argv = ("--planner", "atp", "--start", "0,0", "--goal", "3,3")
+    for name in ("scattered-maps", "large-maps"):
+        result = _json(cli, *argv, "--atp-options", name, map=str(path))
+        assert result["summary"]["atp_options"] == name
+        assert result["problems"][0]["final_quality"] == 1.0
+    by_map = _json(cli, *argv, map=str(path))
+    assert by_map["summary"]["atp_options"] == "small-maps"
+    assert by_map["problems"][0]["first_quality"] == 1.0
 
 
 def test_monotone_plans_are_those_followed_no_longer(cli: Cli) -> None:
     """`--monotone` registers a plan only when it is followed no longer than the last: the same
     plans and ticks as `atp(follow=Follower(...))`, and the final plan never followed longer
     than the first. The summary says whether the curve can fall: with the large-map options;
-    not with `--monotone`, nor with the walled-map options (the arena's) or the sparse-map
-    options (random 10%'s), whose plans are the first and the direct route; with A*, no
-    curve."""
+    not with `--monotone`, nor with the small-map options (the arena's), whose one plan is
+    the optimal route, nor the sparse-map options (random 10%'s), whose plans are the first
+    and the direct route; with A*, no curve."""
     argv = ("--planner", "atp", "--start", "489,1", "--goal", "33,493")
     on = _json(cli, *argv, "--monotone", "--atp-options", "large-maps", map=RANDOM)
     assert on["summary"]["monotone"] is True
@@ -194,9 +202,9 @@ def test_monotone_plans_are_those_followed_no_longer(cli: Cli) -> None:
         _json(cli, *argv, "--atp-options", "large-maps", map=RANDOM)["summary"]["monotone"] is False
     )
     assert _json(cli, *argv, map=RANDOM)["summary"]["monotone"] is True
-    walled = _json(cli, "--planner", "atp", "--limit", "3")
-    assert walled["summary"]["atp_options"] == "walled-maps"
-    assert walled["summary"]["monotone"] is True
+    small = _json(cli, "--planner", "atp", "--limit", "3")
+    assert small["summary"]["atp_options"] == "small-maps"
+    assert small["summary"]["monotone"] is True
     assert _json(cli, "--limit", "2", "--monotone")["summary"]["monotone"] is None  # A*
 
 
@@ -242,7 +250,7 @@ def test_table_and_summary_line(cli: Cli) -> None:
     assert lines[1].split()[:5] == ["1", "1,11", "1,12", "1.0000", "1.0000"]
     assert len(lines) == 6
     assert lines[-2].startswith(
-        "3 problems, atp (walled-maps options, chosen by the map, monotone), 8-connected"
+        "3 problems, atp (small-maps options, chosen by the map, monotone), 8-connected"
         " (optimal lengths"
         " from the .scen"
         " file): mean length /"

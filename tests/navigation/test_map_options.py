@@ -1,5 +1,6 @@
 """The ATP's options chosen by the map's shape (issue 36): `MapShape` reads how scattered and
-how dense a map's obstacles are, and `map_options` plans maps of walls (no scattered obstacles:
+how dense a map's obstacles are, and `map_options` plans small maps with `SMALL_MAP_OPTIONS`
+(one search of every cell), other maps of walls (no scattered obstacles:
 rooms, mazes, streets, caves) with `WALLED_MAP_OPTIONS` (dense walls, narrow mazes, with
 `LARGE_MAP_OPTIONS`), maps of scattered obstacles with `SPARSE_MAP_OPTIONS`,
 `WALLED_MAP_OPTIONS` or `SCATTERED_MAP_OPTIONS` as they are sparse, neither or dense."""
@@ -17,6 +18,8 @@ from anytime_navigation.planning.components import Components
 from anytime_navigation.planning.planner import (
     LARGE_MAP_OPTIONS,
     SCATTERED_MAP_OPTIONS,
+    SMALL_MAP_FREE_CELLS,
+    SMALL_MAP_OPTIONS,
     SPARSE_MAP_OPTIONS,
     WALLED_MAP_OPTIONS,
     MapShape,
@@ -24,6 +27,7 @@ from anytime_navigation.planning.planner import (
     map_options,
     registers_no_fall,
 )
+from anytime_navigation.planning.search import GridAstar
 from anytime_navigation.resources import data_file
 from anytime_navigation.task.execution import execute
 from hypothesis import given, settings
@@ -98,7 +102,7 @@ def _blocks(seed: int = 0) -> np.ndarray:
         (_random(0.20), WALLED_MAP_OPTIONS),  # neither sparse nor dense
         (_random(0.25), SCATTERED_MAP_OPTIONS),
         (_random(0.35), SCATTERED_MAP_OPTIONS),
-        (np.zeros((64, 64), dtype=bool), WALLED_MAP_OPTIONS),  # open ground: nothing scattered
+        (np.zeros((128, 128), dtype=bool), WALLED_MAP_OPTIONS),  # open ground: nothing scattered
         (_blocks(), WALLED_MAP_OPTIONS),
         (_blocks() | _random(0.02), SPARSE_MAP_OPTIONS),  # obstacles scattered among them
     ],
@@ -113,19 +117,59 @@ def test_maps_get_the_options_of_their_shape(blocked: np.ndarray, options: objec
         ("random512-10-0", SPARSE_MAP_OPTIONS),
         ("8room_000", WALLED_MAP_OPTIONS),
         ("maze512-1-0", LARGE_MAP_OPTIONS),
-        ("arena", WALLED_MAP_OPTIONS),
+        ("arena", SMALL_MAP_OPTIONS),
     ],
 )
 def test_the_shipped_maps_options(name: str, options: object) -> None:
     """Random 10% is scattered and sparse (0.100 blocked near free cells); rooms of 8, the
     maze and the arena have no lone obstacle: maps of walls, the maze's dense (its corridors
-    are one cell wide: half the cells beside a free one are blocked)."""
+    are one cell wide: half the cells beside a free one are blocked). The arena is small
+    (2,054 free cells)."""
     blocked = load_map(Path(str(data_file("maps", f"{name}.map"))))[0]
     shape = MapShape.of(blocked)
     assert shape.scattered == (name == "random512-10-0")
     assert shape.dense == (name == "maze512-1-0")
     assert shape.sparse or name != "random512-10-0"
     assert map_options(blocked) is options
+
+
+def test_small_maps_are_searched_whole() -> None:
+    """A map of fewer than `SMALL_MAP_FREE_CELLS` free cells gets `SMALL_MAP_OPTIONS`, whatever
+    its shape; one more free cell, the options of its shape."""
+    blocked = np.ones((128, 128), dtype=bool)
+    blocked.ravel()[: SMALL_MAP_FREE_CELLS - 1] = False  # open ground, rows of it
+    assert map_options(blocked) is SMALL_MAP_OPTIONS
+    blocked.ravel()[SMALL_MAP_FREE_CELLS - 1] = False
+    assert map_options(blocked) is WALLED_MAP_OPTIONS
+    assert map_options(_random(0.3)[:64, :64]) is SMALL_MAP_OPTIONS  # scattered, dense, small
+
+
+@settings(max_examples=20, deadline=None)
+@given(
+    share=st.sampled_from([0.0, 0.1, 0.2, 0.3, 0.4]),
+    seed=st.integers(0, 2**16),
+    movement=st.sampled_from([4, 8]),
+)
+def test_the_small_map_options_register_the_optimal_route_alone(
+    share: float, seed: int, movement: int
+) -> None:
+    """With the small-map options the planner registers one plan, of cells, as long as the
+    compiled A*'s route (by jump points with octile moves), followed as planned, quality 1."""
+    blocked = np.random.default_rng(seed).random((64, 64)) < share
+    start, goal = (1, 62), (62, 2)
+    blocked[start[1], start[0]] = blocked[goal[1], goal[0]] = False
+    found = GridAstar(blocked, movement=movement, weight=0.0).find_path(start, goal)
+    if found is None:
+        return  # walled off: planned across the walls (`atp`), and not followed
+    plans = list(
+        atp(Context(), start, goal, Pyramid.build(blocked), movement=movement,
+            **SMALL_MAP_OPTIONS)
+    )  # fmt: skip
+    assert len(plans) == 1 and plans[0].quality == 1.0
+    assert [segment.level for segment in plans[0].value.segments] == [0]
+    run = execute(plans[0].value, blocked, movement=movement, keep_to_plan=True)
+    assert run.reached and run.expansions == 0
+    assert math.isclose(run.length, found.length)
 
 
 def test_the_scattered_options_plan_to_the_goal() -> None:
@@ -145,7 +189,8 @@ def test_the_scattered_options_plan_to_the_goal() -> None:
 def test_only_the_direct_route_after_the_first_plan_registers_no_fall() -> None:
     for options in (WALLED_MAP_OPTIONS, SPARSE_MAP_OPTIONS, SCATTERED_MAP_OPTIONS):
         assert registers_no_fall(options)
-    assert not registers_no_fall({**WALLED_MAP_OPTIONS, "top": 0})  # no first plan above cells
+    assert registers_no_fall(SMALL_MAP_OPTIONS)  # one plan of cells
+    assert registers_no_fall({**LARGE_MAP_OPTIONS, "top": 0})
     for options in (LARGE_MAP_OPTIONS, {**SCATTERED_MAP_OPTIONS, "direct_width": 8}, {}):
         assert not registers_no_fall(options)
 

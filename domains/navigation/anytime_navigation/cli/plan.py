@@ -42,6 +42,8 @@ from ..planning.planner import (
     DEFAULT_TOP,
     LARGE_MAP_OPTIONS,
     SCATTERED_MAP_OPTIONS,
+    SMALL_MAP_FREE_CELLS,
+    SMALL_MAP_OPTIONS,
     SPARSE_MAP_OPTIONS,
     WALLED_MAP_OPTIONS,
     atp,
@@ -66,6 +68,7 @@ _T = TypeVar("_T")
 ATP_OPTIONS: dict[str, Mapping[str, Any]] = {
     "large-maps": LARGE_MAP_OPTIONS,
     "scattered-maps": SCATTERED_MAP_OPTIONS,
+    "small-maps": SMALL_MAP_OPTIONS,
     "sparse-maps": SPARSE_MAP_OPTIONS,
     "walled-maps": WALLED_MAP_OPTIONS,
     "task": {},
@@ -155,9 +158,12 @@ def add_command(commands: CommandGroup) -> None:
         f"of 4 x 4 and its neighbours ({_changed(SCATTERED_MAP_OPTIONS)}) for dense ones "
         "(scattered-maps); the options that measured best on MovingAI maps before those "
         f"({_listed(LARGE_MAP_OPTIONS)}), refined level by level, for mazes of narrow "
-        "corridors (large-maps); one of those four chosen by the map's shape (by-map), or the "
-        "planner's defaults, as the navigation task plans its 128 x 128 worlds (task) "
-        "(by-map)",
+        "corridors (large-maps); on maps of fewer than "
+        f"{SMALL_MAP_FREE_CELLS:,} free cells, where A* answers in about 2 ms or less, one "
+        "jump point search of every cell, the optimal route at once "
+        f"({_listed(SMALL_MAP_OPTIONS)}) (small-maps); one of those five chosen by the map's "
+        "size and shape (by-map), or the planner's defaults, as the navigation task plans its "
+        "128 x 128 worlds (task) (by-map)",
     )
     parser.add_argument(
         "--monotone",

@@ -163,6 +163,26 @@ SCATTERED_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
     {**WALLED_MAP_OPTIONS, "direct_via": 2, "direct_rings": 2}
 )
 
+#: The options of small maps (fewer free cells than `SMALL_MAP_FREE_CELLS`): no abstraction
+#: above the cells, one jump point search over all of them, which registers the optimal route
+#: as the first plan and the last. There the compiled A* answers the longest problems in under
+#: about 2 ms (about 0.3 µs per free cell on MovingAI's maps), so 2% of its time is less than a
+#: first plan's fixed costs from Python (30-40 µs), and the abstraction cannot pay: on six
+#: Dragon Age maps of 954-11,334 free cells (issue 36, the 16 longest problems, against the
+#: compiled A*'s time) the walled-map options' first plan took 2.5-31% and their route to
+#: completion 18-151%, with the build 32-273%, where one jump point search of the whole map
+#: took 13-46%.
+SMALL_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
+    {"top": 0, "jump_points": True, "doors": False}
+)
+
+#: A map with fewer free cells than this is planned with `SMALL_MAP_OPTIONS` (`map_options`):
+#: about where the compiled A*'s longest problems take 2 ms. Above it the first plan keeps
+#: within 2% of that time (the caves of 7,461-14,784 free cells: 1.4-2.3%), and the ATP to
+#: completion is about as fast as one jump point search of the whole map (ht_chantry, 7,461
+#: free cells: 14.3% of A*'s time against 12.7%; lak303d, 14,784: 18.0% against 18.7%).
+SMALL_MAP_FREE_CELLS = 6000
+
 
 def made_ahead(components: Components, level: int, options: Mapping[str, Any]) -> None:
     """Make now what `atp(**options)` with its first plan at `level` makes of `components` when
@@ -239,16 +259,19 @@ class MapShape:
 
 
 def map_options(blocked: BoolGrid) -> Mapping[str, Any]:
-    """The options of `atp` (and of its abstraction's build) chosen by the map's shape
+    """The options of `atp` (and of its abstraction's build) chosen by the map's size and shape
     (`anytime plan`'s by default; on MovingAI's maps of 194 x 194 to 512 x 512 of every kind
     they measured better than the planner's defaults, made for the navigation task's 128 x 128
-    worlds): `WALLED_MAP_OPTIONS` on maps of walls (no scattered obstacles) not dense; on maps
+    worlds): `SMALL_MAP_OPTIONS` on maps of fewer than `SMALL_MAP_FREE_CELLS` free cells; else
+    `WALLED_MAP_OPTIONS` on maps of walls (no scattered obstacles) not dense; on maps
     of scattered obstacles `SPARSE_MAP_OPTIONS`, `WALLED_MAP_OPTIONS` or
     `SCATTERED_MAP_OPTIONS` as they are sparse, neither or dense; else `LARGE_MAP_OPTIONS`:
     mazes of corridors one or two cells wide (dense walls, 0.33-0.50 blocked near free cells),
     where a first plan over blocks of 8 x 8 costs more than 2% of the compiled A*'s time
     (width 1: 2.5%, against 1.8% over blocks of 16 x 16, whose corridors are narrow enough
     there for the direct route)."""
+    if np.count_nonzero(~np.asarray(blocked, dtype=bool)) < SMALL_MAP_FREE_CELLS:
+        return SMALL_MAP_OPTIONS
     shape = MapShape.of(blocked)
     if shape.scattered:
         if shape.dense:
@@ -264,8 +287,10 @@ def registers_no_fall(options: Mapping[str, Any]) -> bool:
     neighbours alone (`direct_width` unbounded: `WALLED_MAP_OPTIONS`, `SPARSE_MAP_OPTIONS`,
     `SCATTERED_MAP_OPTIONS`; the neighbours at any level,
     `direct_ring_level`, or a second plan's besides, `direct_via`). Followed on its map, the
-    first plan keeps to its corridor, inside the cells that route is the shortest through."""
-    return options.get("direct_width") == math.inf and options.get("top", DEFAULT_TOP) > 0
+    first plan keeps to its corridor, inside the cells that route is the shortest through. Or
+    a first plan of cells (`top=0`: `SMALL_MAP_OPTIONS`), the one plan registered."""
+    top = options.get("top", DEFAULT_TOP)
+    return top == 0 or options.get("direct_width") == math.inf
 
 
 #: How many rings of neighbouring nodes around a refined segment's nodes join its corridor, by
@@ -282,6 +307,8 @@ __all__ = [
     "DEFAULT_TOP",
     "LARGE_MAP_OPTIONS",
     "SCATTERED_MAP_OPTIONS",
+    "SMALL_MAP_FREE_CELLS",
+    "SMALL_MAP_OPTIONS",
     "SPARSE_MAP_OPTIONS",
     "WALLED_MAP_OPTIONS",
     "MapShape",
@@ -783,7 +810,9 @@ def atp(
     made, plan, estimate = begin(found, first_made)
     kept = plan  # the first plan: always registered (nothing is before it)
     yield Result(plan, share * estimate)
-    if direct_width is not None and top > 0 and planner.width(top, found) <= direct_width:
+    if top == 0:  # a plan of cells: nothing is left to refine
+        return
+    if direct_width is not None and planner.width(top, found) <= direct_width:
         # Followed on the map it was made on, the first plan keeps to its corridor, inside the
         # cells each route is the shortest through: it is never followed longer (not where
         # walls were opened: then the map planned on is not the map followed); each step's
@@ -799,7 +828,7 @@ def atp(
             if trusted or better(plan):
                 yield Result(plan, share)
         return
-    if doors and top > 0:
+    if doors:
         try:
             rerouted = planner.through_doors(top, found)
         except SearchLimit as stopped:  # the deadline came first: keep the first plan
@@ -1102,14 +1131,19 @@ class _Planner:
                 limit=self.ctx.remaining,
                 landmarks=self.options.landmarks,
             )
-        else:  # the cells: a corridor over all of them
+        else:  # the cells: a corridor over all of them (by jump points with `jump_points`)
             every = np.arange(len(c.levels[0]))
-            at_base = c.corridor(0, every, [start], [goal], limit=self.ctx.remaining)
+            at_base = c.corridor(
+                0, every, [start], [goal], limit=self.ctx.remaining,
+                jump_points=self.options.jump_points,
+            )  # fmt: skip
             if at_base is None:
                 raise AssertionError("no path between connected cells")
             found = at_base
         self.ctx.tick(found.expansions)
         runs = _runs(len(found.nodes) - 1, segment_moves)
+        if level == 0 and len(runs) == 1:  # free cells: nothing to read of the pyramid
+            return found, [(self._base_segment(found), 0.0)]
         if level > 0 and len(runs) == 1:  # read with the search
             cells = tuple(zip(xs.tolist(), ys.tolist(), strict=True))
             return found, [(Segment._made(level, cells, found.nodes), mean)]
@@ -1134,9 +1168,12 @@ class _Planner:
         if found is None:
             raise AssertionError("no base route through the children of a path")
         self.ctx.tick(found.expansions)
-        # its cells (no mean obstacleness: nothing is left to refine)
+        return self._base_segment(found)
+
+    def _base_segment(self, found: NodePath) -> Segment:
+        """A base route's segment (no mean obstacleness: nothing is left to refine)."""
         assert found.array is not None  # a search's path
-        blocks = c.levels[0].block[found.array]
+        blocks = self.components.levels[0].block[found.array]
         cells = tuple(zip(blocks[:, 0].tolist(), blocks[:, 1].tolist(), strict=True))
         return Segment._made(0, cells, found.nodes)
 
