@@ -513,8 +513,13 @@ def judge_problem(
     def route(plan: MultiPath) -> Execution | None:
         key = tuple(waypoints(plan))
         if key not in routes:
+            # a fully refined plan is followed without search: never given up (a pause of the
+            # process could otherwise outlast the budget of a short problem)
+            limited = (
+                time_budget(budget * python_best) if plan.refinable else contextlib.nullcontext()
+            )
             try:
-                with time_budget(budget * python_best):
+                with limited:
                     routes[key] = execute(  # planned on the map followed: its corridor holds
                         plan, problem.blocked, movement=movement, keep_to_plan=True
                     )
@@ -537,7 +542,9 @@ def judge_problem(
             )
             continue
         first_route, final_route = route(registered[0]), route(registered[-1])
-        assert final_route is not None, "a fully refined plan is followed without search"
+        assert final_route is not None and final_route.expansions == 0, (
+            "a fully refined plan is followed without search"
+        )
         falls = unknown = 0
         if every_plan:
             lengths = [route(plan) for plan in registered]
