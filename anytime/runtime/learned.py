@@ -176,7 +176,7 @@ class HistoryStopping:
             )
         distance = ((self._seen[members, : j + 1] - self._history[: j + 1]) ** 2).sum(axis=1)
         k = min(table.neighbours, len(members))
-        near = members[np.argpartition(distance, k - 1)[:k]]
+        near = members[np.argsort(distance, kind="stable")[:k]]  # ties: the first run
         values = self._actions(near[None, :], j, table)[0].mean(axis=0)  # (actions,)
         column = int(_choose(values[None, :], self.monitoring_cost > 0)[0])
         on = f"on {k} nearest runs"
@@ -289,9 +289,10 @@ class HistoryStopping:
             if k < 1:
                 order = np.zeros((len(members), 0), np.intp)
             else:
-                part = np.argpartition(distance, k - 1, axis=1)[:, :k]
-                rank = np.argsort(np.take_along_axis(distance, part, axis=1), axis=1)
-                order = np.take_along_axis(part, rank, axis=1)
+                # A stable sort, not a partition: runs whose reports are alike (quantised)
+                # tie, and a partition's choice among them is numpy's (it changed between
+                # versions, and so did the policy's promise); ties go to the first run.
+                order = np.argsort(distance, axis=1, kind="stable")[:, :k]
             self._near[j] = (members, order)
         return self._near[j]
 

@@ -182,3 +182,19 @@ def test_assess_scores_a_policy_as_replaying_each_run_does() -> None:
     with pytest.raises(PolicyError) as error:
         assess(policy, recorded, utility, allocation=-1.0)
     assert str(error.value) == "assess: allocation must be a number >= 0, got -1.0"
+
+
+def test_tied_neighbours_are_the_first_runs() -> None:
+    """Runs whose reports are alike (here, identical) are equally near: each run's nearest are
+    the first of the others in run order, whatever numpy's selection would pick, so a policy's
+    promise does not change with numpy's version or the machine."""
+    recorded = kinds([[0.0, 0.5, 0.5, 1.0], [0.0, 0.2, 0.6, 0.9]], 12)
+    model = Linear(1.0, 0.05)
+    policy = HistoryStopping(recorded, Utility(model, model))
+    members, order = policy._neighbourhood(2)
+    assert members.tolist() == list(range(24))
+    for row, run in enumerate(members.tolist()):
+        same_kind = range(12) if run < 12 else range(12, 24)
+        others = [r for r in same_kind if r != run]
+        width = min(order.shape[1], len(others))
+        assert members[order[row, :width]].tolist() == others[:width]
