@@ -564,6 +564,8 @@ def atp(
         movement: 4 or 8, at every level.
         top: the level of the first plan (the papers' "highest level of abstraction"). By
             default `DEFAULT_TOP`, blocks of 8 x 8 cells (the pyramid's top on smaller maps).
+            At 0 the first plan is one search of every cell, the optimal route, and the only
+            plan registered (`SMALL_MAP_OPTIONS`).
         segment_moves: the first plan is cut into segments of at most this many moves, of
             equal length (None, the default: one segment, as in the pseudocode). Segment length
             is what refinement keeps invariant, so it sets the grain of the anytime behaviour:
@@ -665,7 +667,7 @@ def atp(
             where they are one cell thick or obstacles scattered, much (rooms of 8: 0.985 ->
             0.962, random 20%: 0.975 -> 0.926 of the optimal length).
         jump_points: the searches over the base cells (octile moves) from one source, the
-            refinements' and the direct route's, are jump point searches
+            refinements', the direct route's and a first plan's at level 0, are jump point searches
             (`corridor_search.jump_search`), not A* over every cell (False, the default): the
             same cheapest costs through the same corridors, a path of equal length (ties may
             go another way), fewer nodes pushed and expanded; the expansions reported are the
