@@ -9,6 +9,7 @@ import math
 from typing import Any
 
 import numpy as np
+import pytest
 from anytime_navigation.planning import corridor_search
 from anytime_navigation.planning.abstraction import Pyramid
 from anytime_navigation.planning.components import Components
@@ -248,3 +249,47 @@ def test_the_direct_route_jumps_through_any_corridor() -> None:
     jumped, jumped_length = _direct_work(winding, jump_points=True)
     assert jumped_length == length
     assert jumped < usual
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    side=st.sampled_from([8, 16, 32]),
+    seed=st.integers(0, 2**32 - 1),
+    share=st.floats(0.0, 0.45),
+)
+def test_the_search_over_every_cell_by_jump_points(side: int, seed: int, share: float) -> None:
+    """`Components.path` at level 0 by jump points (`whole_jump_search`, its room kept): the
+    cost of A* over every cell, by a path of legal moves from the source to the target, and
+    the room left as it found it, so that three searches in a row on one map each find what a
+    fresh search finds; no path (no route joins them) is said, not searched for ever."""
+    rng = np.random.default_rng(seed)
+    blocked = rng.random((side, side)) < share
+    components = Components.build(blocked, 8, top=2)
+    count = len(components.levels[0])
+    if count < 2:
+        return
+    cells, *kept = components.whole_room()
+    before = [cells.copy(), *(array.copy() for array in kept[:4])]
+    block = components.levels[0].block
+    for source, target in rng.integers(0, count, size=(3, 2)).tolist():
+        every = components.corridor(0, np.arange(count), [source], [target])
+        if every is None:
+            with pytest.raises(AssertionError, match="no path between cells"):
+                components.path(0, source, target, jump_points=True)
+        else:
+            found = components.path(0, source, target, jump_points=True)
+            assert math.isclose(found.cost, every.cost, rel_tol=1e-12)
+            assert found.nodes[0] == source and found.nodes[-1] == target
+            walked = 0.0
+            for a, b in zip(found.nodes[:-1], found.nodes[1:], strict=True):
+                (ax, ay), (bx, by) = block[a], block[b]
+                dx, dy = bx - ax, by - ay
+                assert max(abs(dx), abs(dy)) == 1
+                if dx and dy:  # no corner cutting
+                    assert not blocked[ay, bx] and not blocked[by, ax]
+                walked += math.sqrt(2.0) if dx and dy else 1.0
+            assert math.isclose(walked, found.cost, rel_tol=1e-12)
+            assert found.expansions <= count
+        after = [cells, *kept[:4]]
+        for was, now in zip(before, after, strict=True):
+            np.testing.assert_array_equal(was, now)

@@ -540,12 +540,21 @@ class Components:
         return near
 
     def path(
-        self, level: int, source: int, target: int, *, limit: float = math.inf, landmarks: int = 0
+        self,
+        level: int,
+        source: int,
+        target: int,
+        *,
+        limit: float = math.inf,
+        landmarks: int = 0,
+        jump_points: bool = False,
     ) -> NodePath:
         """A cheapest path of neighbouring nodes at `level` between two nodes over the whole
         level, from centre to centre: `corridor` over every node (with `landmarks`, its
-        heuristic bounded by theirs), the same path and work; above level 0 without the cost of
-        the level's size (`corridor_search.level_search`: the first plan's search).
+        heuristic bounded by theirs; with `jump_points` at level 0 and octile moves, by jump
+        points), the same cost and work; above level 0 without the cost of the level's size
+        (`corridor_search.level_search`: the first plan's search), and so at level 0 by jump
+        points (`corridor_search.whole_jump_search`, its room kept: `whole_room`).
 
         Raises:
             SearchLimit: its work, counted as `corridor` counts it, is more than `limit`.
@@ -554,7 +563,19 @@ class Components:
             return self.read_path(
                 level, source, target, np.zeros((0, 0)), limit=limit, landmarks=landmarks
             )[0]
-        every = np.arange(len(self.levels[0]))
+        at = self.levels[0]
+        if jump_points and self.movement == 8 and at.padded is not None and at.grid is not None:
+            cells, *kept = self.whole_room()
+            path, best, expansions = compiled().whole_jump_search(
+                at.padded, cells, at.grid.shape[1] + 2, at.block, at.centre, source, target,
+                *kept,
+            )  # fmt: skip
+            if expansions > limit:
+                raise SearchLimit(int(limit))
+            if not len(path):
+                raise AssertionError(f"no path between cells {source} and {target}")
+            return NodePath(0, tuple(path.tolist()), best, expansions, path)
+        every = np.arange(len(at))
         found = self.corridor(0, every, [source], [target], limit=limit)
         if found is None:
             raise AssertionError(f"no path at level {level} between nodes {source} and {target}")
@@ -590,6 +611,27 @@ class Components:
         if not len(path):
             raise AssertionError(f"no path at level {level} between nodes {source} and {target}")
         return NodePath(level, tuple(path.tolist()), best, expansions, path), xs, ys, mean
+
+    def whole_room(self) -> tuple[Any, ...]:
+        """What `path`'s jump point search over every cell reads besides the problem, made when
+        first asked for and kept: the padded cells, every free one in its corridor; each cell's
+        distance, estimate, previous cell and settled flag, in their state before a search; the
+        list of cells a search touched; the heap's room."""
+        made = _LEVEL_SEARCHES.get(self)
+        if made is None:
+            made = _LEVEL_SEARCHES[self] = {}
+        room = made.get((0, 0))
+        if room is None:
+            n = len(self.levels[0])
+            searches = compiled()
+            cells = self._cells.copy()
+            cells[cells == searches.CELL_FREE] = searches.CELL_CORRIDOR
+            room = made[0, 0] = (
+                cells, np.full(n, np.inf), np.full(n, -1.0), np.full(n, -1, dtype=np.int64),
+                np.zeros(n, dtype=np.bool_), np.empty(n, dtype=np.int64),
+                np.empty(8 * n + 2), np.empty(8 * n + 2, dtype=np.int64),
+            )  # fmt: skip
+        return room
 
     def search_room(self, level: int, landmarks: int = 0) -> tuple[Any, ...]:
         """What `path`'s searches over `level` (> 0) with `landmarks` landmarks read besides

@@ -188,9 +188,12 @@ def made_ahead(components: Components, level: int, options: Mapping[str, Any]) -
     """Make now what `atp(**options)` with its first plan at `level` makes of `components` when
     first needed and keeps: the level's doors when it searches them (`doors`, on by default),
     the room of its search over the level with its `landmarks` (`Components.search_room`), and
-    `direct_via`'s level's. Call it with the abstraction's build, once per map, so that no
-    problem's time holds them."""
+    `direct_via`'s level's; at level 0 with `jump_points`, the room of its search over every
+    cell (`Components.whole_room`). Call it with the abstraction's build, once per map, so that
+    no problem's time holds them."""
     if level <= 0:
+        if options.get("jump_points") and components.movement == 8:
+            components.whole_room()
         return
     if options.get("doors", True):
         components.doors(level)
@@ -1133,15 +1136,10 @@ class _Planner:
                 limit=self.ctx.remaining,
                 landmarks=self.options.landmarks,
             )
-        else:  # the cells: a corridor over all of them (by jump points with `jump_points`)
-            every = np.arange(len(c.levels[0]))
-            at_base = c.corridor(
-                0, every, [start], [goal], limit=self.ctx.remaining,
-                jump_points=self.options.jump_points,
-            )  # fmt: skip
-            if at_base is None:
-                raise AssertionError("no path between connected cells")
-            found = at_base
+        else:  # the cells: a search over all of them (by jump points with `jump_points`)
+            found = c.path(
+                0, start, goal, limit=self.ctx.remaining, jump_points=self.options.jump_points
+            )
         self.ctx.tick(found.expansions)
         runs = _runs(len(found.nodes) - 1, segment_moves)
         if level == 0 and len(runs) == 1:  # free cells: nothing to read of the pyramid
@@ -1296,7 +1294,8 @@ def compile_searches(movements: Sequence[int] = (4, 8), *, follower: bool = True
         follow = Follower(world.blocked, movement) if follower else None
         # the options whose searches the default's plans do not reach: the door search kept
         # near the first plan (`neighbourhood`), the direct route (`widened_children`) and
-        # `anytime plan`'s options by map (jump points, landmarks, no door search)
+        # `anytime plan`'s options by map (jump points, landmarks, no door search, the search
+        # over every cell)
         for options in (
             {},
             {"door_rings": 1},
@@ -1305,6 +1304,7 @@ def compile_searches(movements: Sequence[int] = (4, 8), *, follower: bool = True
             SCATTERED_MAP_OPTIONS,
             WALLED_MAP_OPTIONS,
             SPARSE_MAP_OPTIONS,
+            SMALL_MAP_OPTIONS,
         ):
             plans = atp(
                 Context(), world.start, world.goal, pyramid, movement=movement, follow=follow,
