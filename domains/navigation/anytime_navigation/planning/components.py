@@ -268,7 +268,8 @@ def _stack(
 _STACKED: weakref.WeakKeyDictionary[Components, Stacked] = weakref.WeakKeyDictionary()
 # Each level's arguments of `Components.path`'s searches over the whole level (its table,
 # edges, heap's room and blocks: `corridor_search.level_search`) by the landmarks' count, made
-# when first searched or with the build (`Components.search_room`, `planner.made_ahead`).
+# when first searched or with the build (`Components.search_room`, `planner.made_ahead`); at
+# (0, 0) the room of level 0's search by jump points (`Components.whole_room`).
 _LEVEL_SEARCHES: weakref.WeakKeyDictionary[Components, dict[tuple[int, int], tuple[Any, ...]]] = (
     weakref.WeakKeyDictionary()
 )

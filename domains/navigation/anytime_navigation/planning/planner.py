@@ -273,9 +273,10 @@ def map_options(blocked: BoolGrid) -> Mapping[str, Any]:
     where a first plan over blocks of 8 x 8 costs more than 2% of the compiled A*'s time
     (width 1: 2.5%, against 1.8% over blocks of 16 x 16, whose corridors are narrow enough
     there for the direct route)."""
-    if np.count_nonzero(~np.asarray(blocked, dtype=bool)) < SMALL_MAP_FREE_CELLS:
+    grid = np.asarray(blocked, dtype=bool)
+    if grid.size - np.count_nonzero(grid) < SMALL_MAP_FREE_CELLS:  # free cells, no copy made
         return SMALL_MAP_OPTIONS
-    shape = MapShape.of(blocked)
+    shape = MapShape.of(grid)
     if shape.scattered:
         if shape.dense:
             return SCATTERED_MAP_OPTIONS
