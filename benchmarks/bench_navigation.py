@@ -335,15 +335,19 @@ def abstraction(
     top: int | None = None,
     landmarks: int = 0,
     doors: bool = True,
+    jump_points: bool = False,
 ) -> tuple[Pyramid, Components]:
     """The ATP's description of a map, built once per map: the obstacleness pyramid and the
     connectivity-aware abstraction up to the first-plan level `top` (default: the planner's),
-    with what `atp(doors=doors, landmarks=landmarks)` makes of it when first needed
-    (`planner.made_ahead`: the level's doors, its landmarks)."""
+    with what `atp(doors=doors, landmarks=landmarks, jump_points=jump_points)` makes of it when
+    first needed (`planner.made_ahead`: the level's doors, its landmarks; at level 0 with jump
+    points, the room of the search over every cell and the map's jumps)."""
     pyramid = Pyramid.build(blocked)
     level = first_level(top, pyramid)
     components = Components.build(blocked, movement, top=level)
-    made_ahead(components, level, {"doors": doors, "landmarks": landmarks})
+    made_ahead(
+        components, level, {"doors": doors, "landmarks": landmarks, "jump_points": jump_points}
+    )
     return pyramid, components
 
 
@@ -1056,10 +1060,15 @@ def bench_kinds(
             raced = race_peer(make, blocked, longest(scenarios, problems), 1)
             others.append("-" if raced is None else f"{raced[0]:.2f} ({raced[1]}/{problems})")
         pyramid = Pyramid.build(blocked)
-        builds: dict[tuple[int, int, bool], float] = {}
+        builds: dict[tuple[int, int, bool, bool], float] = {}
         for index, (name, options) in enumerate(chosen.items()):
             top = first_level(options.get("top"), pyramid)
-            key = (top, options.get("landmarks") or 0, options.get("doors", True))
+            key = (
+                top,
+                options.get("landmarks") or 0,
+                options.get("doors", True),
+                bool(options.get("jump_points")),
+            )
             if key not in builds:  # the abstraction up to the first plan's level, once per map
                 builds[key] = best_of(repeats, partial(abstraction, blocked, 8, *key), warm=1)[0]
             build = builds[key]

@@ -14,6 +14,7 @@ from anytime_navigation.planning import corridor_search
 from anytime_navigation.planning.abstraction import Pyramid
 from anytime_navigation.planning.components import Components
 from anytime_navigation.planning.planner import atp
+from anytime_navigation.planning.search import SearchLimit
 from anytime_navigation.task.execution import execute
 from anytime_navigation.world import random_world
 from hypothesis import given, settings
@@ -293,3 +294,53 @@ def test_the_search_over_every_cell_by_jump_points(side: int, seed: int, share: 
         after = [cells, *kept[:4]]
         for was, now in zip(before, after, strict=True):
             np.testing.assert_array_equal(was, now)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    side=st.sampled_from([8, 16, 32]),
+    seed=st.integers(0, 2**32 - 1),
+    share=st.floats(0.0, 0.45),
+)
+def test_the_maps_jumps_are_the_straight_scans(side: int, seed: int, share: float) -> None:
+    """`jump_distances`, the table the search over every cell reads its straight jumps off:
+    each free cell's entry is what a scan from it finds over the whole map (`_straight_jump`,
+    every free cell in the corridor): the moves to the first jump point, or minus the moves
+    before the wall when there is none."""
+    blocked = np.random.default_rng(seed).random((side, side)) < share
+    components = Components.build(blocked, 8, top=2)
+    if not len(components.levels[0]):
+        return
+    cells, *_, jumps = components.whole_room()
+    wide = side + 2
+    for at in np.flatnonzero(cells != corridor_search.CELL_BLOCKED).tolist():
+        for m, (step, across) in enumerate(((1, wide), (-1, wide), (wide, 1), (-wide, 1))):
+            found = corridor_search._straight_jump(cells, at, step, across)
+            if found >= 0:
+                assert jumps[at, m] == (found - at) // step
+            else:
+                free = 0
+                while cells[at + (free + 1) * step] != corridor_search.CELL_BLOCKED:
+                    free += 1
+                assert jumps[at, m] == -free
+
+
+def test_the_search_over_every_cell_stops_at_its_limit() -> None:
+    """Given fewer jump points to settle than it needs, the search over every cell stops
+    there (`SearchLimit`, its work the limit), leaves its room as it found it, and the next
+    search finds what a search without a limit finds."""
+    blocked = np.zeros((32, 32), dtype=bool)
+    blocked[4:28:6, 2:30] = True  # walls across, open at both ends
+    components = Components.build(blocked, 8, top=2)
+    cells, *kept = components.whole_room()
+    before = [cells.copy(), *(array.copy() for array in kept[:4])]
+    source, target = components.node((0, 0), 0), components.node((31, 31), 0)
+    whole = components.path(0, source, target, jump_points=True)
+    assert whole.expansions > 2
+    with pytest.raises(SearchLimit) as stopped:
+        components.path(0, source, target, limit=2, jump_points=True)
+    assert stopped.value.expansions == 2
+    for was, now in zip(before, [cells, *kept[:4]], strict=True):
+        np.testing.assert_array_equal(was, now)
+    again = components.path(0, source, target, jump_points=True)
+    assert again.nodes == whole.nodes and again.cost == whole.cost

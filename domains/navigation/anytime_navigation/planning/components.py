@@ -273,6 +273,9 @@ _STACKED: weakref.WeakKeyDictionary[Components, Stacked] = weakref.WeakKeyDictio
 _LEVEL_SEARCHES: weakref.WeakKeyDictionary[Components, dict[tuple[int, int], tuple[Any, ...]]] = (
     weakref.WeakKeyDictionary()
 )
+# The most jump points a search over every cell is asked to settle without a limit: one search
+# settles each free cell once at most, and a limit of inf is no int
+_MOST = 2**62
 
 
 # Each abstraction's doors by level, made when a route is first searched through them (as above):
@@ -558,7 +561,8 @@ class Components:
         points (`corridor_search.whole_jump_search`, its room kept: `whole_room`).
 
         Raises:
-            SearchLimit: its work, counted as `corridor` counts it, is more than `limit`.
+            SearchLimit: its work, counted as `corridor` counts it, is more than `limit` (by
+                jump points: it would settle more of them than `limit`, and stops there).
         """
         if level > 0:  # the same search, its scratch kept per level (`read_path`)
             return self.read_path(
@@ -567,12 +571,13 @@ class Components:
         at = self.levels[0]
         if jump_points and self.movement == 8 and at.padded is not None and at.grid is not None:
             cells, *kept = self.whole_room()
+            most = int(min(limit, _MOST))
             path, best, expansions = compiled().whole_jump_search(
                 at.padded, cells, at.grid.shape[1] + 2, at.block, at.centre, source, target,
-                *kept,
+                *kept, most,
             )  # fmt: skip
-            if expansions > limit:
-                raise SearchLimit(int(limit))
+            if best < 0.0:  # it stopped: more jump points to settle than `limit`
+                raise SearchLimit(most)
             if not len(path):
                 raise AssertionError(f"no path between cells {source} and {target}")
             return NodePath(0, tuple(path.tolist()), best, expansions, path)
@@ -617,13 +622,16 @@ class Components:
         """What `path`'s jump point search over every cell reads besides the problem, made when
         first asked for and kept: the padded cells, every free one in its corridor; each cell's
         distance, estimate, previous cell and settled flag, in their state before a search; the
-        list of cells a search touched; the heap's room."""
+        list of cells a search touched; the heap's room; the map's jumps (`corridor_search.
+        jump_distances`, made here: a pass over the free cells per straight move)."""
         made = _LEVEL_SEARCHES.get(self)
         if made is None:
             made = _LEVEL_SEARCHES[self] = {}
         room = made.get((0, 0))
         if room is None:
-            n = len(self.levels[0])
+            at = self.levels[0]
+            assert at.grid is not None and at.padded is not None  # level 0's cells
+            n = len(at)
             searches = compiled()
             cells = self._cells.copy()
             cells[cells == searches.CELL_FREE] = searches.CELL_CORRIDOR
@@ -631,6 +639,7 @@ class Components:
                 cells, np.full(n, np.inf), np.full(n, -1.0), np.full(n, -1, dtype=np.int64),
                 np.zeros(n, dtype=np.bool_), np.empty(n, dtype=np.int64),
                 np.empty(8 * n + 2), np.empty(8 * n + 2, dtype=np.int64),
+                searches.jump_distances(cells, at.grid.shape[1] + 2),
             )  # fmt: skip
         return room
 

@@ -164,8 +164,9 @@ SCATTERED_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
 )
 
 #: The options of small maps (fewer free cells than `SMALL_MAP_FREE_CELLS`): no abstraction
-#: above the cells, one jump point search over all of them, which registers the optimal route
-#: as the first plan and the last. There the compiled A* answers the longest problems in under
+#: above the cells, one jump point search over all of them (its straight jumps read off the
+#: map's table, `corridor_search.jump_distances`), which registers the optimal route as the
+#: first plan and the last. There the compiled A* answers the longest problems in under
 #: about 2 ms (about 0.3 µs per free cell on MovingAI's maps), so 2% of its time is less than a
 #: first plan's fixed costs from Python (30-40 µs), and the abstraction cannot pay: on six
 #: Dragon Age maps of 954-11,334 free cells (issue 36, the 16 longest problems, against the
@@ -675,12 +676,13 @@ def atp(
             (`corridor_search.jump_search`), not A* over every cell (False, the default): the
             same cheapest costs through the same corridors, a path of equal length (ties may
             go another way), fewer nodes pushed and expanded; the expansions reported are the
-            jump points expanded. Its scans read a byte a cell: on the direct route's
-            corridors it takes 9-33% of A*'s time among walls (rooms, streets, caves, mazes
-            of corridors two cells wide or more), 85% in corridors one cell wide and 67-81%
-            among scattered obstacles
-            (docs/navigation.md, "Jump points in the base cells"; every option set of
-            `map_options` takes it).
+            jump points expanded. A first plan's at level 0 searches the whole map and reads
+            its straight jumps off the map's table (`corridor_search.jump_distances`, made
+            with the build by `made_ahead`: Rabin's JPS+), without scanning. Its scans read a
+            byte a cell: on the direct route's corridors it takes 9-33% of A*'s time among
+            walls (rooms, streets, caves, mazes of corridors two cells wide or more), 85% in
+            corridors one cell wide and 67-81% among scattered obstacles (docs/navigation.md,
+            "Jump points in the base cells"; every option set of `map_options` takes it).
         direct_ring_level: the level whose ring of neighbouring nodes joins the direct
             route's corridor (`direct`, `direct_width`): the cells of the first plan's nodes
             and of their neighbours at this level (None, the default: at the first plan's
