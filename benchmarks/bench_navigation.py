@@ -30,7 +30,7 @@ ATP's abstraction.
    with one ring instead of three; each with its own
    abstraction's build; and the last of them with `follow`, issue 36 item 3: a plan registered
    only when the robot follows it no longer than the last one registered, `following.Follower`
-   in the ATP's time; and the options `anytime plan` chooses by the map's shape,
+   in the ATP's time; and the options `anytime plan` chooses by the map's size and shape,
    `planner.map_options`, reading it timed with the build), against A* on the longest problems
    of 15 MovingAI maps, the shipped three and twelve
    more in benchmarks/data/movingai/ (random with 20% and 30% of cells blocked, rooms of 16,
@@ -1188,9 +1188,9 @@ def bench_kinds(
         " options): a plan is registered only when the robot follows it no longer than the\n"
         " last one registered (following.Follower: execute's length, compiled; its calls in the\n"
         " ATP's time, its build, once per map, with the abstraction's); options by map: the\n"
-        " options planner.map_options chooses by the map's shape (anytime plan's), and ... in\n"
-        " steps: the same with direct_steps (the direct route registered through the first\n"
-        " plan's cells and a ring of neighbours at level 1, 2, .. up to its own); the\n"
+        " options planner.map_options chooses by the map's size and shape (anytime plan's),\n"
+        " and ... in steps: the same with direct_steps (the direct route registered through the\n"
+        " first plan's cells and a ring of neighbours at level 1, 2, .. up to its own); the\n"
         f" {count} problems of the longest buckets per map, octile without\n"
         " corner cutting, optimal lengths from A*; each side runs the map's problems as a\n"
         f" stream, an untimed round and {repeats} timed, each problem's best kept; columns as in\n"

@@ -507,7 +507,7 @@ def jump_distances(cells: CellArray, wide: int) -> NDArray[np.int32]:
     """Each padded cell's jump in each straight move (`_DX`, `_DY`'s first four: east, west,
     south, north) over the whole map (`cells`, every free cell `CELL_CORRIDOR`), a row a cell:
     k > 0 when the k-th cell that way is the first jump point (`_straight_jump`'s, no target
-    marked), else -k, k the moves that way before a wall (0 for a blocked cell). Harabor and
+    marked), else -k, k the moves that way before a wall (a blocked cell's: unset). Harabor and
     Grastien's straight jump points read from a table made once per map (Rabin's JPS+), not
     scanned per search: a scan across open ground runs to the far wall from every jump point
     (and a diagonal one scans straight from every cell it crosses), and on MovingAI's small
@@ -517,7 +517,9 @@ def jump_distances(cells: CellArray, wide: int) -> NDArray[np.int32]:
     corridor) a straight move's forced neighbour (`_straight_forced`) is a free side cell
     whose cell behind is blocked. By padded cell, not by node: a search reads it without
     looking a cell's node up (a fifth of a search's time on MovingAI's small maps)."""
-    table = np.zeros((len(cells), 4), dtype=np.int32)
+    # A blocked cell's row is never read (a search reads a free cell's, and so does this), so
+    # it is left unwritten: on a map of a few free cells the table's pages are not all touched
+    table = np.empty((len(cells), 4), dtype=np.int32)
     free = np.flatnonzero(cells != CELL_BLOCKED)  # ascending
     count = len(free)
     for m in range(4):
@@ -527,8 +529,8 @@ def jump_distances(cells: CellArray, wide: int) -> NDArray[np.int32]:
             at = free[count - 1 - i] if step > 0 else free[i]  # the cell ahead done first
             ahead = at + step
             if cells[ahead] == CELL_BLOCKED:
-                continue
-            if (
+                table[at, m] = 0
+            elif (
                 cells[ahead + side - step] == CELL_BLOCKED and cells[ahead + side] != CELL_BLOCKED
             ) or (
                 cells[ahead - side - step] == CELL_BLOCKED and cells[ahead - side] != CELL_BLOCKED
