@@ -589,11 +589,11 @@ def whole_jump_search(
     proportion to the cells it touches, not to the map's: its corridor is the whole map
     (`cells`, every free cell `CELL_CORRIDOR`), its straight jumps read from the map's table
     (`jump_distances`, `jumps`) and its diagonal ones scanned off it (`_diagonal_jump`), and
-    what it keeps per cell (`distance` inf, `estimate` -1,
-    `previous` -1, `settled` False, by level-0 node, and the heap's room `keys` and `items`)
-    is kept between searches, each left as it found it (the cells it touched, listed in
-    `touched`, are reset). A short problem on a map of thousands of cells cost tens of
-    microseconds in `jump_search`'s setup alone.
+    what it keeps per cell (`distance` inf, `estimate` -1, `previous` -1, `settled` False, by
+    level-0 node, and the heap's room `keys` and `items`) is kept between searches, each left
+    as it found it (the cells it touched, listed in `touched`, are reset: `_untouched`). A
+    short problem on a map of thousands of cells cost tens of microseconds in `jump_search`'s
+    setup alone.
 
     The target is found as the jumps pass it: a straight move whose line holds it within the
     move's reach goes to it, and a diagonal one toward it stops where it meets its row or
@@ -641,19 +641,19 @@ def whole_jump_search(
             if not _kept(cells, wide, at, px, py, dx, dy):
                 continue
             if dx != 0 and dy != 0:  # scanned, a cell at a time: to the target's row or column
-                ahead = min(abs(ex), abs(ey)) if ex * dx > 0 and ey * dy > 0 else 0
-                steps = _diagonal_jump(cells, jumps, wide, at, dx, dy, ahead)
+                to_target = min(abs(ex), abs(ey)) if ex * dx > 0 and ey * dy > 0 else 0
+                steps = _diagonal_jump(cells, jumps, wide, at, dx, dy, to_target)
                 if steps == 0:
                     continue
             else:  # read: to the target on its line within reach, else to the jump point
                 jump = jumps[at, m]
-                ahead = 0
+                to_target = 0
                 if dy == 0 and ey == 0 and ex * dx > 0:
-                    ahead = abs(ex)
+                    to_target = abs(ex)
                 elif dx == 0 and ex == 0 and ey * dy > 0:
-                    ahead = abs(ey)
-                if 0 < ahead <= abs(jump):
-                    steps = ahead
+                    to_target = abs(ey)
+                if 0 < to_target <= abs(jump):
+                    steps = to_target
                 elif jump > 0:
                     steps = jump
                 else:
@@ -673,9 +673,7 @@ def whole_jump_search(
                     keys, items = _grown(keys, items)
                 size = _push(keys, items, size, g + estimate[v], v)
     if best < 0.0:  # over `most`
-        for i in range(count):
-            u = touched[i]
-            distance[u], estimate[u], previous[u], settled[u] = np.inf, -1.0, -1, False
+        _untouched(touched, count, distance, estimate, previous, settled)
         return np.zeros(0, dtype=np.int64), -1.0, most
     # The expansions an A* search for the path counts (`_counted`), over the touched cells
     tolerance = 1e-9 * max(1.0, best) if best < np.inf else 0.0
@@ -688,10 +686,23 @@ def whole_jump_search(
         if not (distance[u] + estimate[u] < best - tolerance):
             expansions += 1
     path = _between(path_jumps, block, padded, wide)
-    for i in range(count):  # as found
+    _untouched(touched, count, distance, estimate, previous, settled)
+    return path, best, expansions
+
+
+@_compiled
+def _untouched(
+    touched: IntArray,
+    count: int,
+    distance: FloatArray,
+    estimate: FloatArray,
+    previous: IntArray,
+    settled: NDArray[np.bool_],
+) -> None:
+    """The first `count` cells of `touched` as `whole_jump_search` finds them: unreached."""
+    for i in range(count):
         u = touched[i]
         distance[u], estimate[u], previous[u], settled[u] = np.inf, -1.0, -1, False
-    return path, best, expansions
 
 
 @_compiled
