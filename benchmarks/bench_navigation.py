@@ -106,6 +106,7 @@ from anytime_navigation.planning.planner import (
     LARGE_MAP_OPTIONS,
     SCATTERED_MAP_OPTIONS,
     SMALL_MAP_OPTIONS,
+    SMALL_WALLED_MAP_OPTIONS,
     SPARSE_MAP_OPTIONS,
     WALLED_MAP_OPTIONS,
     MultiPath,
@@ -224,6 +225,7 @@ KIND_CONFIGS: dict[str, dict[str, Any]] = {
     "... and doors=False": dict(SOLID_MAP_OPTIONS),  # the options of solid maps until issue 36
     "walled-map options (direct route)": dict(WALLED_MAP_OPTIONS),
     "... searched cell by cell (jump_points=False)": {**WALLED_MAP_OPTIONS, "jump_points": False},
+    "small-walled-map options (direct_whole)": dict(SMALL_WALLED_MAP_OPTIONS),
     "sparse-map options (direct_ring_level=2)": dict(SPARSE_MAP_OPTIONS),
     "scattered-map options (direct_via=2, direct_rings=2)": dict(SCATTERED_MAP_OPTIONS),
     "... refined, as until issue 36's direct route": dict(REFINED_SCATTERED_OPTIONS),
@@ -336,17 +338,26 @@ def abstraction(
     landmarks: int = 0,
     doors: bool = True,
     jump_points: bool = False,
+    direct_whole: bool = False,
 ) -> tuple[Pyramid, Components]:
     """The ATP's description of a map, built once per map: the obstacleness pyramid and the
     connectivity-aware abstraction up to the first-plan level `top` (default: the planner's),
-    with what `atp(doors=doors, landmarks=landmarks, jump_points=jump_points)` makes of it when
-    first needed (`planner.made_ahead`: the level's doors, its landmarks; at level 0 with jump
-    points, the room of the search over every cell and the map's jumps)."""
+    with what `atp(doors=doors, landmarks=landmarks, jump_points=jump_points,
+    direct_whole=direct_whole)` makes of it when first needed (`planner.made_ahead`: the
+    level's doors, its landmarks; with jump points at level 0 or with `direct_whole`, the room
+    of the search over every cell and the map's jumps)."""
     pyramid = Pyramid.build(blocked)
     level = first_level(top, pyramid)
     components = Components.build(blocked, movement, top=level)
     made_ahead(
-        components, level, {"doors": doors, "landmarks": landmarks, "jump_points": jump_points}
+        components,
+        level,
+        {
+            "doors": doors,
+            "landmarks": landmarks,
+            "jump_points": jump_points,
+            "direct_whole": direct_whole,
+        },
     )
     return pyramid, components
 
@@ -1015,6 +1026,7 @@ def shown(name: str, options: dict[str, Any], blocked: BoolGrid) -> str:
         (WALLED_MAP_OPTIONS, "walled"),
         (LARGE_MAP_OPTIONS, "large"),
         (SMALL_MAP_OPTIONS, "small"),
+        (SMALL_WALLED_MAP_OPTIONS, "small walled"),
     )
     which = next(kind for named, kind in kinds if named is chosen)
     return f"{name}: {which}-map options"
@@ -1060,7 +1072,7 @@ def bench_kinds(
             raced = race_peer(make, blocked, longest(scenarios, problems), 1)
             others.append("-" if raced is None else f"{raced[0]:.2f} ({raced[1]}/{problems})")
         pyramid = Pyramid.build(blocked)
-        builds: dict[tuple[int, int, bool, bool], float] = {}
+        builds: dict[tuple[int, int, bool, bool, bool], float] = {}
         for index, (name, options) in enumerate(chosen.items()):
             top = first_level(options.get("top"), pyramid)
             key = (
@@ -1068,6 +1080,7 @@ def bench_kinds(
                 options.get("landmarks") or 0,
                 options.get("doors", True),
                 bool(options.get("jump_points")),
+                bool(options.get("direct_whole")),
             )
             if key not in builds:  # the abstraction up to the first plan's level, once per map
                 builds[key] = best_of(repeats, partial(abstraction, blocked, 8, *key), warm=1)[0]
@@ -1175,6 +1188,10 @@ def bench_kinds(
         " of scattered obstacles of moderate density);\n"
         " ... searched cell by cell: the same without jump points (the options of maps of\n"
         " scattered obstacles until jump points read a byte a cell);\n"
+        " small-walled-map options (planner.SMALL_WALLED_MAP_OPTIONS, anytime plan's on maps of\n"
+        " walls of fewer than 50,000 free cells): the walled-map options with the direct route\n"
+        " over the whole map (direct_whole), one jump point search of every cell, its straight\n"
+        " jumps read off the map's table (made with the build);\n"
         " sparse-map options (planner.SPARSE_MAP_OPTIONS, anytime plan's on maps of sparse\n"
         " scattered obstacles): the walled-map options with the neighbours among the blocks\n"
         " of 4 x 4 (direct_ring_level=2), not of 8 x 8;\n"

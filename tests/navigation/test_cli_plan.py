@@ -19,6 +19,7 @@ from anytime_navigation.planning.planner import (
     LARGE_MAP_OPTIONS,
     SCATTERED_MAP_OPTIONS,
     SMALL_MAP_OPTIONS,
+    SMALL_WALLED_MAP_OPTIONS,
     SPARSE_MAP_OPTIONS,
     WALLED_MAP_OPTIONS,
     atp,
@@ -96,13 +97,15 @@ def test_atp_quality_is_optimal_over_executed_length(cli: Cli) -> None:
 @pytest.mark.parametrize("name", sorted(ATP_OPTIONS))
 def test_atp_options_are_atps_keyword_arguments(cli: Cli, name: str) -> None:
     """`--atp-options` plans with `LARGE_MAP_OPTIONS`, `SCATTERED_MAP_OPTIONS`,
-    `SMALL_MAP_OPTIONS`, `SPARSE_MAP_OPTIONS`, `WALLED_MAP_OPTIONS` or `atp`'s own
-    defaults (the navigation task's): the same plans and ticks as `atp` called with them. By
+    `SMALL_MAP_OPTIONS`, `SMALL_WALLED_MAP_OPTIONS`, `SPARSE_MAP_OPTIONS`, `WALLED_MAP_OPTIONS`
+    or `atp`'s own defaults (the navigation task's): the same plans and ticks as `atp` called
+    with them. By
     default they are chosen by the map: random512-10-0's obstacles are scattered and sparse."""
     assert ATP_OPTIONS == {
         "large-maps": LARGE_MAP_OPTIONS,
         "scattered-maps": SCATTERED_MAP_OPTIONS,
         "small-maps": SMALL_MAP_OPTIONS,
+        "small-walled-maps": SMALL_WALLED_MAP_OPTIONS,
         "sparse-maps": SPARSE_MAP_OPTIONS,
         "walled-maps": WALLED_MAP_OPTIONS,
         "task": {},

@@ -1,7 +1,9 @@
 """The ATP's options chosen by the map's shape (issue 36): `MapShape` reads how scattered and
 how dense a map's obstacles are, and `map_options` plans small maps with `SMALL_MAP_OPTIONS`
 (one search of every cell), other maps of walls (no scattered obstacles:
-rooms, mazes, streets, caves) with `WALLED_MAP_OPTIONS` (dense walls, narrow mazes, with
+rooms, mazes, streets, caves) with `SMALL_WALLED_MAP_OPTIONS` (the direct route over the whole
+map) or `WALLED_MAP_OPTIONS` (through the first plan's corridor) as they have fewer free cells
+than `SMALL_WALLED_MAP_FREE_CELLS` or not (dense walls, narrow mazes, with
 `LARGE_MAP_OPTIONS`), maps of scattered obstacles with `SPARSE_MAP_OPTIONS`,
 `WALLED_MAP_OPTIONS` or `SCATTERED_MAP_OPTIONS` as they are sparse, neither or dense."""
 
@@ -20,6 +22,8 @@ from anytime_navigation.planning.planner import (
     SCATTERED_MAP_OPTIONS,
     SMALL_MAP_FREE_CELLS,
     SMALL_MAP_OPTIONS,
+    SMALL_WALLED_MAP_FREE_CELLS,
+    SMALL_WALLED_MAP_OPTIONS,
     SPARSE_MAP_OPTIONS,
     WALLED_MAP_OPTIONS,
     MapShape,
@@ -102,8 +106,9 @@ def _blocks(seed: int = 0) -> np.ndarray:
         (_random(0.20), WALLED_MAP_OPTIONS),  # neither sparse nor dense
         (_random(0.25), SCATTERED_MAP_OPTIONS),
         (_random(0.35), SCATTERED_MAP_OPTIONS),
-        (np.zeros((128, 128), dtype=bool), WALLED_MAP_OPTIONS),  # open ground: nothing scattered
-        (_blocks(), WALLED_MAP_OPTIONS),
+        (np.zeros((128, 128), dtype=bool), SMALL_WALLED_MAP_OPTIONS),  # open: nothing scattered
+        (_blocks(), SMALL_WALLED_MAP_OPTIONS),
+        (np.zeros((256, 256), dtype=bool), WALLED_MAP_OPTIONS),  # 65,536 free cells
         (_blocks() | _random(0.02), SPARSE_MAP_OPTIONS),  # obstacles scattered among them
     ],
 )
@@ -140,8 +145,20 @@ def test_small_maps_are_searched_whole() -> None:
     blocked.ravel()[: SMALL_MAP_FREE_CELLS - 1] = False  # open ground, rows of it
     assert map_options(blocked) is SMALL_MAP_OPTIONS
     blocked.ravel()[SMALL_MAP_FREE_CELLS - 1] = False
-    assert map_options(blocked) is WALLED_MAP_OPTIONS
+    assert map_options(blocked) is SMALL_WALLED_MAP_OPTIONS
     assert map_options(_random(0.3)[:64, :64]) is SMALL_MAP_OPTIONS  # scattered, dense, small
+
+
+def test_small_maps_of_walls_take_the_route_over_the_whole_map() -> None:
+    """A map of walls of fewer than `SMALL_WALLED_MAP_FREE_CELLS` free cells gets
+    `SMALL_WALLED_MAP_OPTIONS`; one more free cell, `WALLED_MAP_OPTIONS`. Scattered obstacles
+    keep their options however few the free cells."""
+    blocked = np.ones((256, 256), dtype=bool)
+    blocked.ravel()[: SMALL_WALLED_MAP_FREE_CELLS - 1] = False  # open ground, rows of it
+    assert map_options(blocked) is SMALL_WALLED_MAP_OPTIONS
+    blocked.ravel()[SMALL_WALLED_MAP_FREE_CELLS - 1] = False
+    assert map_options(blocked) is WALLED_MAP_OPTIONS
+    assert map_options(_random(0.25)) is SCATTERED_MAP_OPTIONS
 
 
 @settings(max_examples=20, deadline=None)
@@ -187,7 +204,12 @@ def test_the_scattered_options_plan_to_the_goal() -> None:
 
 
 def test_only_the_direct_route_after_the_first_plan_registers_no_fall() -> None:
-    for options in (WALLED_MAP_OPTIONS, SPARSE_MAP_OPTIONS, SCATTERED_MAP_OPTIONS):
+    for options in (
+        WALLED_MAP_OPTIONS,
+        SMALL_WALLED_MAP_OPTIONS,
+        SPARSE_MAP_OPTIONS,
+        SCATTERED_MAP_OPTIONS,
+    ):
         assert registers_no_fall(options)
     assert registers_no_fall(SMALL_MAP_OPTIONS)  # one plan of cells
     assert registers_no_fall({**LARGE_MAP_OPTIONS, "top": 0})
@@ -270,6 +292,68 @@ def test_the_direct_route_in_steps_never_falls(
     assert all(b <= a + 1e-9 for a, b in zip(lengths, lengths[1:], strict=False))
     final = execute(at_once[-1].value, blocked, movement=8, keep_to_plan=True)
     assert math.isclose(lengths[-1], final.length)
+
+
+@settings(max_examples=16, deadline=None)
+@given(seed=st.integers(0, 2**16), steps=st.booleans())
+def test_the_route_over_the_whole_map_is_the_optimal_one(seed: int, steps: bool) -> None:
+    """With the small-walled-map options, a town's plans are the first plan and the route over
+    the whole map (with `direct_steps`, the corridors' routes between): its length is the
+    compiled A*'s, followed as planned, and no plan is followed longer than the one before."""
+    blocked = _blocks(seed=seed % 16)
+    start, goal = (1, 126), (126, 1)
+    blocked[start[1], start[0]] = blocked[goal[1], goal[0]] = False
+    found = GridAstar(blocked, movement=8, weight=0.0).find_path(start, goal)
+    if found is None:
+        return  # walled off: planned across the walls (`atp`), and not followed
+    plans = list(
+        atp(Context(), start, goal, Pyramid.build(blocked), movement=8,
+            **SMALL_WALLED_MAP_OPTIONS, direct_steps=steps)
+    )  # fmt: skip
+    runs = [execute(p.value, blocked, movement=8, keep_to_plan=True) for p in plans]
+    assert all(run.reached for run in runs)
+    assert math.isclose(runs[-1].length, found.length)
+    assert plans[-1].quality == 1.0
+    lengths = [run.length for run in runs]
+    assert all(b <= a + 1e-9 for a, b in zip(lengths, lengths[1:], strict=False))
+
+
+def test_a_costly_search_of_the_whole_map_gives_way_to_the_corridor(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """When the search of the whole map would settle more jump points than the corridor has
+    cells over `WHOLE_ROUTE_RATIO`, it stops and the corridor is searched: the plans are the
+    walled-map options', and the stopped search's work is counted besides."""
+    from anytime_navigation.planning import planner
+
+    blocked = _blocks(seed=3)
+    start, goal = (1, 126), (126, 1)
+    blocked[start[1], start[0]] = blocked[goal[1], goal[0]] = False
+    pyramid = Pyramid.build(blocked)
+    corridor_ctx, whole_ctx = Context(), Context()
+    corridor = list(atp(corridor_ctx, start, goal, pyramid, movement=8, **WALLED_MAP_OPTIONS))
+    monkeypatch.setattr(planner, "WHOLE_ROUTE_RATIO", 1e9)  # no jump point to settle
+    whole = list(atp(whole_ctx, start, goal, pyramid, movement=8, **SMALL_WALLED_MAP_OPTIONS))
+    assert [p.value for p in whole] == [p.value for p in corridor]
+    assert whole_ctx.ticks == corridor_ctx.ticks  # a limit of no jump point: no work
+    monkeypatch.setattr(planner, "WHOLE_ROUTE_RATIO", 200.0)
+    some_ctx = Context()
+    some = list(atp(some_ctx, start, goal, pyramid, movement=8, **SMALL_WALLED_MAP_OPTIONS))
+    assert [p.value for p in some] == [p.value for p in corridor]
+    assert some_ctx.ticks > corridor_ctx.ticks
+
+
+def test_direct_whole_needs_the_direct_route() -> None:
+    blocked = _random(0.1)
+    blocked[1, 1] = blocked[120, 120] = False
+    plans = atp(
+        Context(), (1, 1), (120, 120), Pyramid.build(blocked), movement=8, direct_whole=True
+    )
+    with pytest.raises(
+        ValueError,
+        match=r"^direct_whole needs direct or direct_width: it searches the direct route$",
+    ):
+        next(plans)
 
 
 def test_direct_steps_need_the_direct_route() -> None:

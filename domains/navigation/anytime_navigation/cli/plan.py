@@ -44,6 +44,8 @@ from ..planning.planner import (
     SCATTERED_MAP_OPTIONS,
     SMALL_MAP_FREE_CELLS,
     SMALL_MAP_OPTIONS,
+    SMALL_WALLED_MAP_FREE_CELLS,
+    SMALL_WALLED_MAP_OPTIONS,
     SPARSE_MAP_OPTIONS,
     WALLED_MAP_OPTIONS,
     atp,
@@ -69,6 +71,7 @@ ATP_OPTIONS: dict[str, Mapping[str, Any]] = {
     "large-maps": LARGE_MAP_OPTIONS,
     "scattered-maps": SCATTERED_MAP_OPTIONS,
     "small-maps": SMALL_MAP_OPTIONS,
+    "small-walled-maps": SMALL_WALLED_MAP_OPTIONS,
     "sparse-maps": SPARSE_MAP_OPTIONS,
     "walled-maps": WALLED_MAP_OPTIONS,
     "task": {},
@@ -153,7 +156,10 @@ def add_command(commands: CommandGroup) -> None:
         "route through its blocks and their neighbours', no refinement level by level "
         f"({_changed(WALLED_MAP_OPTIONS)}), for maps of walls such as rooms, mazes, streets "
         "and caves, and maps of scattered obstacles of moderate density (walled-maps); the "
-        f"same with the neighbours among the blocks of 4 x 4 ({_changed(SPARSE_MAP_OPTIONS)}) "
+        "same with the shortest route over the whole map instead, by one jump point search "
+        f"of every cell (direct_whole=True), for maps of walls of fewer than "
+        f"{SMALL_WALLED_MAP_FREE_CELLS:,} free cells (small-walled-maps); the walled-maps "
+        f"options with the neighbours among the blocks of 4 x 4 ({_changed(SPARSE_MAP_OPTIONS)}) "
         "for sparse scattered obstacles (sparse-maps), and through a second plan over blocks "
         f"of 4 x 4 and its neighbours ({_changed(SCATTERED_MAP_OPTIONS)}) for dense ones "
         "(scattered-maps); the options that measured best on MovingAI maps before those "
@@ -161,7 +167,7 @@ def add_command(commands: CommandGroup) -> None:
         "corridors (large-maps); on maps of fewer than "
         f"{SMALL_MAP_FREE_CELLS:,} free cells, where A* answers in about 2 ms or less, one "
         "jump point search of every cell, the optimal route at once "
-        f"({_listed(SMALL_MAP_OPTIONS)}) (small-maps); one of those five chosen by the map's "
+        f"({_listed(SMALL_MAP_OPTIONS)}) (small-maps); one of those six chosen by the map's "
         "size and shape (by-map), or the planner's defaults, as the navigation task plans its "
         "128 x 128 worlds (task) (by-map)",
     )

@@ -184,17 +184,46 @@ SMALL_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
 #: free cells: 14.3% of A*'s time against 12.7%; lak303d, 14,784: 18.0% against 18.7%).
 SMALL_MAP_FREE_CELLS = 6000
 
+#: The options of maps of walls with fewer free cells than `SMALL_WALLED_MAP_FREE_CELLS` (and
+#: at least `SMALL_MAP_FREE_CELLS`): `WALLED_MAP_OPTIONS` with the direct route over the whole
+#: map (`direct_whole`), one jump point search of every cell reading the map's jumps, the
+#: optimal route. On such maps it costs half the corridor's search or less, and the map's jumps
+#: a fraction of a millisecond with the build (issue 36, the 16 longest problems, a scratch
+#: loop, warm, against the compiled A*'s time, corridor -> whole map: Dragon Age's caves
+#: ht_chantry 13.4% -> 8.7%, lak303d 12.8% -> 8.3%, ost003d 13.2% -> 7.6%, den520d 7.8% ->
+#: 3.5%, brc202d (43,151 free cells) 7.5% -> 4.6%; not tuned on: den001d 24.5% -> 12.9%,
+#: den901d 13.9% -> 7.5%, lak202d 17.5% -> 9.7%, lak510d 24.9% -> 13.6%; final plans 1.000,
+#: against 0.978-0.979 on ht_chantry and den901d). On MovingAI's 512 x 512 maps (120,000 free
+#: cells or more) it gained on rooms of 32 and 64, streets and Baldur's Gate II (1-2 points of
+#: A*'s time) and lost on rooms of 8 and 16, Boston and the maze of width 4, whose walls close
+#: together make a search of the whole map settle more jump points than the corridor has cells.
+SMALL_WALLED_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
+    {**WALLED_MAP_OPTIONS, "direct_whole": True}
+)
+
+#: A map of walls with fewer free cells than this is planned with `SMALL_WALLED_MAP_OPTIONS`
+#: (`map_options`): between the Dragon Age maps measured (brc202d, 43,151) and MovingAI's
+#: 512 x 512 maps (Baldur's Gate II's AR0011SR, 120,458, the fewest).
+SMALL_WALLED_MAP_FREE_CELLS = 50_000
+
+#: The base cells of the direct route's corridor per jump point settled past which a search of
+#: the whole map (`atp(direct_whole=True)`) stops and the corridor is searched: on MovingAI's
+#: maps (issue 36, the 16 longest and 16 random problems of each, compiled) the corridor's
+#: search takes 0.04-0.12 µs a cell, the whole map's 0.25-0.84 µs a jump point settled.
+WHOLE_ROUTE_RATIO = 8
+
 
 def made_ahead(components: Components, level: int, options: Mapping[str, Any]) -> None:
     """Make now what `atp(**options)` with its first plan at `level` makes of `components` when
     first needed and keeps: the level's doors when it searches them (`doors`, on by default),
     the room of its search over the level with its `landmarks` (`Components.search_room`), and
     `direct_via`'s level's; at level 0 with `jump_points`, the room of its search over every
-    cell (`Components.whole_room`). Call it with the abstraction's build, once per map, so that
-    no problem's time holds them."""
+    cell (`Components.whole_room`), and so with `direct_whole`. Call it with the abstraction's
+    build, once per map, so that no problem's time holds them."""
+    jumps = bool(options.get("jump_points")) and components.movement == 8
+    if jumps and (level <= 0 or options.get("direct_whole")):
+        components.whole_room()
     if level <= 0:
-        if options.get("jump_points") and components.movement == 8:
-            components.whole_room()
         return
     if options.get("doors", True):
         components.doors(level)
@@ -267,7 +296,8 @@ def map_options(blocked: BoolGrid) -> Mapping[str, Any]:
     (`anytime plan`'s by default; on MovingAI's maps of 194 x 194 to 512 x 512 of every kind
     they measured better than the planner's defaults, made for the navigation task's 128 x 128
     worlds): `SMALL_MAP_OPTIONS` on maps of fewer than `SMALL_MAP_FREE_CELLS` free cells; else
-    `WALLED_MAP_OPTIONS` on maps of walls (no scattered obstacles) not dense; on maps
+    on maps of walls (no scattered obstacles) not dense `SMALL_WALLED_MAP_OPTIONS` under
+    `SMALL_WALLED_MAP_FREE_CELLS` free cells and `WALLED_MAP_OPTIONS` over it; on maps
     of scattered obstacles `SPARSE_MAP_OPTIONS`, `WALLED_MAP_OPTIONS` or
     `SCATTERED_MAP_OPTIONS` as they are sparse, neither or dense; else `LARGE_MAP_OPTIONS`:
     mazes of corridors one or two cells wide (dense walls, 0.33-0.50 blocked near free cells),
@@ -275,14 +305,17 @@ def map_options(blocked: BoolGrid) -> Mapping[str, Any]:
     (width 1: 2.5%, against 1.8% over blocks of 16 x 16, whose corridors are narrow enough
     there for the direct route)."""
     grid = np.asarray(blocked, dtype=bool)
-    if grid.size - np.count_nonzero(grid) < SMALL_MAP_FREE_CELLS:  # free cells, no copy made
+    free = grid.size - np.count_nonzero(grid)  # no copy made
+    if free < SMALL_MAP_FREE_CELLS:
         return SMALL_MAP_OPTIONS
     shape = MapShape.of(grid)
     if shape.scattered:
         if shape.dense:
             return SCATTERED_MAP_OPTIONS
         return SPARSE_MAP_OPTIONS if shape.sparse else WALLED_MAP_OPTIONS
-    return LARGE_MAP_OPTIONS if shape.dense else WALLED_MAP_OPTIONS
+    if shape.dense:
+        return LARGE_MAP_OPTIONS
+    return SMALL_WALLED_MAP_OPTIONS if free < SMALL_WALLED_MAP_FREE_CELLS else WALLED_MAP_OPTIONS
 
 
 def registers_no_fall(options: Mapping[str, Any]) -> bool:
@@ -290,8 +323,9 @@ def registers_no_fall(options: Mapping[str, Any]) -> bool:
     plan followed longer than the one before, without following any: the first plan (above
     the base level), then the direct route through the cells of its nodes and of their
     neighbours alone (`direct_width` unbounded: `WALLED_MAP_OPTIONS`, `SPARSE_MAP_OPTIONS`,
-    `SCATTERED_MAP_OPTIONS`; the neighbours at any level,
-    `direct_ring_level`, or a second plan's besides, `direct_via`). Followed on its map, the
+    `SCATTERED_MAP_OPTIONS`; the neighbours at any level, `direct_ring_level`, or a second
+    plan's besides, `direct_via`), or over the whole map (`direct_whole`:
+    `SMALL_WALLED_MAP_OPTIONS`, the optimal route). Followed on its map, the
     first plan keeps to its corridor, inside the cells that route is the shortest through. Or
     a first plan of cells (`top=0`: `SMALL_MAP_OPTIONS`), the one plan registered."""
     top = options.get("top", DEFAULT_TOP)
@@ -314,8 +348,11 @@ __all__ = [
     "SCATTERED_MAP_OPTIONS",
     "SMALL_MAP_FREE_CELLS",
     "SMALL_MAP_OPTIONS",
+    "SMALL_WALLED_MAP_FREE_CELLS",
+    "SMALL_WALLED_MAP_OPTIONS",
     "SPARSE_MAP_OPTIONS",
     "WALLED_MAP_OPTIONS",
+    "WHOLE_ROUTE_RATIO",
     "MapShape",
     "MultiPath",
     "Segment",
@@ -546,6 +583,7 @@ def atp(
     direct_via: int | None = None,
     direct_rings: int | None = None,
     direct_steps: bool = False,
+    direct_whole: bool = False,
 ) -> Iterator[Result]:
     """The anytime abstract planner: yields `Result(MultiPath, quality_estimate)` after the first
     plan and after every refinement (with `follow`, each that is followed no worse than the last
@@ -713,6 +751,17 @@ def atp(
             (a neighbour's cells lie in its parent, which is the parent of a first-plan node or
             its neighbour), so each route is the shortest through a set holding the last
             one's and is never followed longer: a curve of more, smaller steps, each a search.
+        direct_whole: the direct route (`direct`, `direct_width`; with `direct_steps`, its last
+            step) is the cheapest over the whole map, one jump point search of every cell, its
+            straight jumps read off the map's table (`corridor_search.jump_distances`, made
+            with the build by `made_ahead`), not the cheapest through the first plan's
+            corridor; a problem whose search would settle more jump points than the corridor
+            has cells over `WHOLE_ROUTE_RATIO` stops there and searches the corridor (False,
+            the default: the corridor). Only with `jump_points` and octile moves (otherwise the
+            corridor). The route is the optimal one, never followed longer than the first plan.
+            Among walls on maps of some thousands of free cells it costs half the corridor's
+            search or less; on large maps of walls close together it explores more than the
+            corridor holds (`SMALL_WALLED_MAP_OPTIONS`).
 
     REFINE re-plans the chosen level-k segment one level lower, through the children of its
     nodes only (they are connected: see `components`), so the search is local and always finds
@@ -742,7 +791,7 @@ def atp(
     options = _checked_options(
         top, segment_moves, door_rings, direct, direct_width, no_ring_when_open,
         one_ring_when_open, landmarks, no_ring_when_clear, skip_level_1, jump_points,
-        direct_ring_level, direct_via, direct_rings, direct_steps,
+        direct_ring_level, direct_via, direct_rings, direct_steps, direct_whole,
     )  # fmt: skip
     if components is None:
         components = Components.build(pyramid.levels[0] >= 1.0, movement, top=top)
@@ -1043,6 +1092,7 @@ class _Options:
     direct_ring_level: int | None
     direct_via: int | None  # None where no level is below the first plan's
     direct_rings: int
+    direct_whole: bool  # and `jump_points`
 
 
 @functools.lru_cache(maxsize=64)
@@ -1062,6 +1112,7 @@ def _checked_options(
     direct_via: int | None,
     direct_rings: int | None,
     direct_steps: bool,
+    direct_whole: bool,
 ) -> _Options:
     """`atp`'s options checked, and what the planner reads of them; made once per set of
     options and first-plan level (a planner serving queries on a map plans with one set: its
@@ -1086,6 +1137,8 @@ def _checked_options(
         raise ValueError(f"direct_via must be >= 1 or None, got {direct_via}")
     if direct_steps and direct_width is None:
         raise ValueError("direct_steps needs direct_width: it steps the route after the first plan")
+    if direct_whole and direct is None and direct_width is None:
+        raise ValueError("direct_whole needs direct or direct_width: it searches the direct route")
     return _Options(
         door_rings=door_rings,
         no_ring_when_open=no_ring_when_open,
@@ -1098,6 +1151,7 @@ def _checked_options(
         # no level below a small map's top
         direct_via=direct_via if direct_via is not None and direct_via < top else None,
         direct_rings=1 if direct_rings is None else direct_rings,
+        direct_whole=direct_whole and jump_points,
     )
 
 
@@ -1156,8 +1210,14 @@ class _Planner:
         """The base route through the cells of the nodes of `path` (at `level`) and of their
         neighbours at `direct_ring_level` (by default `level`; a level `ring`, one of
         `direct_rings_by_step`'s steps, instead when given), or `direct_via`'s corridor: one
-        segment at level 0, searched by jump points with `jump_points`."""
+        segment at level 0, searched by jump points with `jump_points`. With `direct_whole`
+        (and no `ring`), the cheapest route over the whole map instead, when its search settles
+        few enough jump points (`whole`)."""
         c = self.components
+        if ring is None and self.options.direct_whole:
+            whole = self.whole(level, path)
+            if whole is not None:
+                return whole
         if ring is None and self.options.direct_via is not None:
             allowed = self._via(level, path)
         else:
@@ -1170,6 +1230,29 @@ class _Planner:
         )  # fmt: skip
         if found is None:
             raise AssertionError("no base route through the children of a path")
+        self.ctx.tick(found.expansions)
+        return self._base_segment(found)
+
+    def whole(self, level: int, path: NodePath) -> Segment | None:
+        """The cheapest route over the whole map, by jump points (`Components.path` at level
+        0), when its search settles no more jump points than the cells of `path`'s nodes and
+        of their neighbours (at `level`: what the direct route searches) over
+        `WHOLE_ROUTE_RATIO`; else None, its work ticked (the corridor is searched)."""
+        c = self.components
+        if c.movement != 8:
+            return None
+        most = _corridor_cells(c, level, path.nodes) / WHOLE_ROUTE_RATIO
+        limit = self.ctx.remaining
+        try:
+            found = c.path(
+                0, c.node(self.start, 0), c.node(self.goal, 0), limit=min(limit, most),
+                jump_points=True,
+            )  # fmt: skip
+        except SearchLimit as stopped:
+            if limit <= most:  # the deadline: no corridor after it
+                raise
+            self.ctx.tick(stopped.expansions)
+            return None
         self.ctx.tick(found.expansions)
         return self._base_segment(found)
 
@@ -1232,9 +1315,7 @@ class _Planner:
         """The base cells of the nodes of `path` (at `level`) and of their neighbours per unit
         of its length (its cost, from centre to centre): what `direct` would search, for each
         cell of the route."""
-        c = self.components
-        near = c.neighbourhood(level, path.nodes, 1)
-        return float(c.levels[level].size[near].sum()) / max(path.cost, 1.0)
+        return _corridor_cells(self.components, level, path.nodes) / max(path.cost, 1.0)
 
     def through_doors(self, level: int, path: NodePath) -> NodePath | None:
         """The cheapest route at `level` through the doors between nodes, when it is cheaper
@@ -1274,6 +1355,13 @@ class _Planner:
             (Segment._made(level, cells[first : last + 1], tuple(nodes[first : last + 1])), mean)
             for (first, last), mean in zip(runs, means.tolist(), strict=True)
         ]
+
+
+def _corridor_cells(components: Components, level: int, nodes: Sequence[int]) -> float:
+    """The base cells of `nodes` (at `level`) and of their neighbours: the direct route's
+    corridor around a first plan."""
+    near = components.neighbourhood(level, nodes, 1)
+    return float(components.levels[level].size[near].sum())
 
 
 def _mean_obstacleness(segment: Segment, pyramid: Pyramid) -> float:
