@@ -187,15 +187,15 @@ SMALL_MAP_FREE_CELLS = 6000
 #: The options of maps of walls with fewer free cells than `SMALL_WALLED_MAP_FREE_CELLS` (and
 #: at least `SMALL_MAP_FREE_CELLS`): `WALLED_MAP_OPTIONS` with the direct route over the whole
 #: map (`direct_whole`), one jump point search of every cell reading the map's jumps, the
-#: optimal route. On such maps it costs half the corridor's search or less, and the map's jumps
-#: a fraction of a millisecond with the build (issue 36, the 16 longest problems, a scratch
-#: loop, warm, against the compiled A*'s time, corridor -> whole map: Dragon Age's caves
-#: ht_chantry 13.4% -> 8.7%, lak303d 12.8% -> 8.3%, ost003d 13.2% -> 7.6%, den520d 7.8% ->
-#: 3.5%, brc202d (43,151 free cells) 7.5% -> 4.6%; not tuned on: den001d 24.5% -> 12.9%,
-#: den901d 13.9% -> 7.5%, lak202d 17.5% -> 9.7%, lak510d 24.9% -> 13.6%; final plans 1.000,
-#: against 0.978-0.979 on ht_chantry and den901d). On MovingAI's 512 x 512 maps (120,000 free
-#: cells or more) it gained on rooms of 32 and 64, streets and Baldur's Gate II (1-2 points of
-#: A*'s time) and lost on rooms of 8 and 16, Boston and the maze of width 4, whose walls close
+#: optimal route. On such maps it costs a third to a half less than the corridor's search
+#: (issue 36, Dragon Age's maps, the 16 longest problems, against the compiled A*'s time, the
+#: benchmark's quick protocol, walled-map options -> these: ht_chantry 13.6% -> 8.1%, with the
+#: build 24.2% -> 20.9%; ost003d 15.9% -> 9.0%, 25.2% -> 18.3%; den520d 8.6% -> 3.9%, 17.0% ->
+#: 12.7%; not tuned on, in one run: lak202d 15.4% -> 8.3%, 26.1% -> 21.3%; den901d 11.9% ->
+#: 6.7%, 19.6% -> 16.2%; final plans 1.000, against 0.978-0.979 on ht_chantry and den901d).
+#: On MovingAI's 512 x 512 maps (120,000 free cells or more; a scratch loop, warm, without the
+#: build) it gained on rooms of 32 and 64, streets and Baldur's Gate II (1-2 points of A*'s
+#: time) and lost on rooms of 8 and 16, Boston and the maze of width 4, whose walls close
 #: together make a search of the whole map settle more jump points than the corridor has cells.
 SMALL_WALLED_MAP_OPTIONS: Mapping[str, Any] = MappingProxyType(
     {**WALLED_MAP_OPTIONS, "direct_whole": True}
