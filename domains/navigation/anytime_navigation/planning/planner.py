@@ -1171,6 +1171,8 @@ class _Planner:
         self.components, self.pyramid = components, pyramid
         self.start, self.goal, self.ctx = start, goal, ctx
         self.options = options
+        # the last `corridor_cells` counted, by path: `width` and `whole` read the same one
+        self._counted: tuple[NodePath, float] | None = None
 
     def first(
         self, level: int, segment_moves: int | None, ends: tuple[int, int]
@@ -1241,7 +1243,7 @@ class _Planner:
         c = self.components
         if c.movement != 8:
             return None
-        most = _corridor_cells(c, level, path.nodes) / WHOLE_ROUTE_RATIO
+        most = self.corridor_cells(level, path) / WHOLE_ROUTE_RATIO
         limit = self.ctx.remaining
         try:
             found = c.path(
@@ -1315,7 +1317,15 @@ class _Planner:
         """The base cells of the nodes of `path` (at `level`) and of their neighbours per unit
         of its length (its cost, from centre to centre): what `direct` would search, for each
         cell of the route."""
-        return _corridor_cells(self.components, level, path.nodes) / max(path.cost, 1.0)
+        return self.corridor_cells(level, path) / max(path.cost, 1.0)
+
+    def corridor_cells(self, level: int, path: NodePath) -> float:
+        """The base cells of the nodes of `path` (at `level`) and of their neighbours: the
+        direct route's corridor, counted once per path."""
+        if self._counted is None or self._counted[0] is not path:
+            near = self.components.neighbourhood(level, path.nodes, 1)
+            self._counted = (path, float(self.components.levels[level].size[near].sum()))
+        return self._counted[1]
 
     def through_doors(self, level: int, path: NodePath) -> NodePath | None:
         """The cheapest route at `level` through the doors between nodes, when it is cheaper
@@ -1355,13 +1365,6 @@ class _Planner:
             (Segment._made(level, cells[first : last + 1], tuple(nodes[first : last + 1])), mean)
             for (first, last), mean in zip(runs, means.tolist(), strict=True)
         ]
-
-
-def _corridor_cells(components: Components, level: int, nodes: Sequence[int]) -> float:
-    """The base cells of `nodes` (at `level`) and of their neighbours: the direct route's
-    corridor around a first plan."""
-    near = components.neighbourhood(level, nodes, 1)
-    return float(components.levels[level].size[near].sum())
 
 
 def _mean_obstacleness(segment: Segment, pyramid: Pyramid) -> float:
